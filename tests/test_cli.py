@@ -1,0 +1,31 @@
+"""The command line: help, version and the demo run in-process."""
+
+import pytest
+
+from ancsh import __version__
+from ancsh.cli import build_parser, main
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert __version__ in capsys.readouterr().out
+
+
+def test_help_lists_every_registered_command(capsys):
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    main([])
+    out = capsys.readouterr().out
+    for name in sub.choices:
+        assert name in out
+
+
+def test_import_is_light():
+    import subprocess
+    import sys
+
+    code = "import sys, ancsh; print(any(m.startswith(('torch', 'open3d', 'casadi')) for m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
