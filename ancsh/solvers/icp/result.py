@@ -1,0 +1,141 @@
+"""The result of a CAD-based fit, shared by articulated ICP and the rigid baselines."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...geometry.rotations import log_so3
+from ...geometry.transforms import Sim3
+from ...model.articulated import ArticulatedModel
+
+__all__ = ["CadFitResult", "IcpIteration", "joint_states_from_part_poses"]
+
+
+@dataclass(frozen=True)
+class IcpIteration:
+    """One iteration of an ICP loop (for plots and convergence checks).
+
+    Attributes
+    ----------
+    T_cam_parts : tuple of Sim3
+        ``(M,)`` part poses after the iteration.
+    q : (K,) float64
+        Absolute joint states after the iteration (NaN where not estimated).
+    inlier_ratio : float
+        Fraction of observed points within the gating distance.
+    rmse : float
+        Root mean square closest-point distance of the inliers (metres).
+    max_distance : float
+        Gating distance used (metres).
+    """
+
+    T_cam_parts: tuple
+    q: np.ndarray
+    inlier_ratio: float
+    rmse: float
+    max_distance: float
+
+
+@dataclass(frozen=True)
+class CadFitResult:
+    """Pose of a known articulated model fitted to an observation.
+
+    Attributes
+    ----------
+    method : str
+        ``"articulated_icp"``, ``"per_part_icp"`` or ``"whole_object_icp"``.
+    T_cam_parts : tuple of Sim3
+        ``(M,)`` estimated part poses (part frame -> camera, rigid, metres).
+    q : (K,) float64
+        Estimated absolute joint states (radians / metres). Per-part ICP reads them off the
+        relative part poses (:func:`joint_states_from_part_poses`).
+    T_cam_base : Sim3
+        Estimated base pose.
+    status : str
+        ``"converged"``, ``"max_iterations"`` or ``"failed"``.
+    message : str
+    inlier_ratio : float
+        Fraction of observed points within the final gating distance of the fitted model.
+    rmse : float
+        RMS distance of those inliers to the fitted model surface (metres).
+    iterations : int
+    time_s : float
+        Wall time of the fit (seconds).
+    history : tuple of IcpIteration
+        Per-iteration estimates of the best start (empty for the baselines).
+    starts : int
+        Number of initial estimates tried.
+    """
+
+    method: str
+    T_cam_parts: tuple
+    q: np.ndarray
+    T_cam_base: Sim3
+    status: str
+    message: str = ""
+    inlier_ratio: float = 0.0
+    rmse: float = float("inf")
+    iterations: int = 0
+    time_s: float = 0.0
+    history: tuple = field(default_factory=tuple)
+    starts: int = 1
+
+    @property
+    def success(self) -> bool:
+        return self.status != "failed"
+
+    def joint_states(self, model: ArticulatedModel) -> np.ndarray:
+        """Joint states relative to rest ``(K,)`` (the convention of reported joint states)."""
+        return self.q - model.rest_states
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (rotations as ``(3, 3)`` lists, metres, radians)."""
+        return {
+            "method": self.method,
+            "status": self.status,
+            "message": self.message,
+            "q": [float(v) for v in self.q],
+            "T_cam_base": _sim3_dict(self.T_cam_base),
+            "T_cam_parts": [_sim3_dict(T) for T in self.T_cam_parts],
+            "inlier_ratio": float(self.inlier_ratio),
+            "rmse": float(self.rmse),
+            "iterations": int(self.iterations),
+            "time_s": float(self.time_s),
+            "starts": int(self.starts),
+        }
+
+
+def _sim3_dict(T: Sim3) -> dict:
+    return {"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)}
+
+
+def joint_states_from_part_poses(model: ArticulatedModel, T_cam_parts) -> np.ndarray:
+    """Absolute joint states ``(K,)`` read off independent part poses.
+
+    For joint ``k`` the relative pose ``T_parent_child = T_cam_parent^-1 @ T_cam_child`` is
+    compared with the joint's motion ``M(q) = T_parent_child @ origin^-1``: a revolute joint's
+    state is the rotation angle of ``M`` about the joint axis (the rotation vector projected
+    on the axis), a prismatic joint's the translation of ``M`` along the axis. Parts that
+    break the joint (rotation about another axis, a wrong pivot) are simply projected;
+    the result is not clamped to the limits.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    T_cam_parts : sequence of Sim3
+        ``(M,)`` part poses in the camera.
+    """
+    if len(T_cam_parts) != model.num_parts:
+        raise ValueError(f"T_cam_parts: expected {model.num_parts} poses, got {len(T_cam_parts)}")
+    q = np.empty(model.num_joints)
+    for k, joint in enumerate(model.joints):
+        p, c = model.joint_parts(k)
+        T_pc = T_cam_parts[p].inverse() @ T_cam_parts[c]
+        motion = T_pc @ joint.origin.inverse()
+        if joint.is_revolute:
+            q[k] = float(log_so3(motion.rotation) @ joint.axis)
+        else:
+            q[k] = float(motion.translation @ joint.axis)
+    return q
