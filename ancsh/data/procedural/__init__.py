@@ -1,0 +1,89 @@
+"""Procedural articulated objects of the ANCSH paper's five categories.
+
+``make_object(category, seed)`` builds one instance, deterministically from the seed, in the
+canonical orientation shared by all categories: +y up, +z towards the object's front (the
+side a user faces), +x to the right; part 0 is the base and joints follow the paper's part
+table. ``instance_seeds(category, split)`` gives the fixed, disjoint train/test instances.
+
+=================  ==========================================  =========================
+category           parts (label order)                         joints
+=================  ==========================================  =========================
+eyeglasses         base (front frame), left_temple, right_temple  2 revolute (rest: pi/2 to the frame)
+oven               base, door                                  1 revolute (bottom hinge)
+washing_machine    base, door                                  1 revolute (side hinge)
+laptop             base, display                               1 revolute
+drawer             base, lowest, middle, top                   3 prismatic (rest: closed)
+=================  ==========================================  =========================
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+from ...model.articulated import ArticulatedModel
+from . import drawer, laptop
+from .registry import NUM_TEST, NUM_TRAIN, SPLITS, CategoryInfo, category_rng, split_seeds
+
+CATEGORIES = ("laptop", "drawer")  # eyeglasses, oven, washing_machine follow
+
+_MODULES = {
+    "laptop": laptop,
+    "drawer": drawer,
+}
+
+#: ``CATEGORY_INFO[category]`` -> :class:`CategoryInfo` (part/joint names, types, sizes).
+CATEGORY_INFO = MappingProxyType({c: _MODULES[c].INFO for c in CATEGORIES})
+
+
+def _check_category(category) -> str:
+    if category not in _MODULES:
+        raise ValueError(f"category: expected one of {CATEGORIES}, got {category!r}")
+    return category
+
+
+def make_object(category: str, seed: int) -> ArticulatedModel:
+    """Instance ``seed`` of ``category``, identical for the same arguments.
+
+    Parameters
+    ----------
+    category : str
+        One of :data:`CATEGORIES`.
+    seed : int
+        Non-negative instance seed (see :func:`instance_seeds` for the split).
+
+    Returns
+    -------
+    ArticulatedModel
+        Meshes in metres in each part's frame; the base frame is canonical
+        (``R_canon_base`` = identity); named ``"<category>_<seed>"``.
+    """
+    category = _check_category(category)
+    rng = category_rng(category, seed)
+    return _MODULES[category].build(rng, f"{category}_{int(seed)}")
+
+
+def instance_seeds(category: str, split: str) -> tuple[int, ...]:
+    """Seeds of the ``"train"`` or ``"test"`` instances of ``category`` (disjoint, fixed)."""
+    _check_category(category)
+    return split_seeds(split)
+
+
+def load_instance(category: str, split: str, index: int) -> ArticulatedModel:
+    """The ``index``-th instance of ``split`` of ``category``."""
+    seeds = instance_seeds(category, split)
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(seeds):
+        raise ValueError(f"index: expected an int in [0, {len(seeds)}) for split {split!r}, got {index!r}")
+    return make_object(category, seeds[index])
+
+
+__all__ = [
+    "CATEGORIES",
+    "CATEGORY_INFO",
+    "NUM_TEST",
+    "NUM_TRAIN",
+    "SPLITS",
+    "CategoryInfo",
+    "instance_seeds",
+    "load_instance",
+    "make_object",
+]

@@ -1,0 +1,84 @@
+"""Category metadata, the per-category generator registry and the fixed train/test instance split.
+
+Each category module defines ``INFO`` (a :class:`CategoryInfo`) and ``build(rng, name)``
+returning an :class:`~ancsh.model.articulated.ArticulatedModel` built in the canonical
+orientation (+y up, +z front, +x right; ``R_canon_base`` = identity), base = part 0.
+
+Split: an instance is identified by its seed. Training seeds are ``0 .. NUM_TRAIN-1``, test
+seeds ``TEST_SEED_OFFSET .. TEST_SEED_OFFSET+NUM_TEST-1``; the generator's random stream is
+``default_rng([seed, crc32(category)])``, so test instances share no random draws with
+training instances (they are unseen shapes from the same parameter distribution).
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...model.articulated import JointType
+
+NUM_TRAIN = 200
+NUM_TEST = 20
+TEST_SEED_OFFSET = 1_000_000
+SPLITS = ("train", "test")
+
+
+@dataclass(frozen=True)
+class CategoryInfo:
+    """What other modules need to know about a procedural category.
+
+    Attributes
+    ----------
+    name : str
+    part_names : tuple of str
+        Part order (labels ``0..M-1``), base first, as in the paper's part table.
+    joint_names : tuple of str
+        Joint order (``0..K-1``); joint ``k`` moves part ``k + 1``.
+    joint_types : tuple of JointType
+    diagonal_range : (float, float)
+        Range of the diagonal of the tight axis-aligned box of all parts at the rest
+        state (metres) over all instances; a guide for camera distances.
+    rest_description : str
+        The rest state that defines NAOCS (paper Sec. 4.1).
+    """
+
+    name: str
+    part_names: tuple
+    joint_names: tuple
+    joint_types: tuple
+    diagonal_range: tuple
+    rest_description: str
+
+    @property
+    def typical_size(self) -> float:
+        """Typical rest-state box diagonal (metres): the middle of :attr:`diagonal_range`."""
+        return 0.5 * (self.diagonal_range[0] + self.diagonal_range[1])
+
+    @property
+    def num_parts(self) -> int:
+        return len(self.part_names)
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.joint_names)
+
+
+def category_rng(category: str, seed: int) -> np.random.Generator:
+    """The random stream of instance ``seed`` of ``category``."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed: expected a non-negative int, got {seed!r}")
+    return np.random.default_rng([int(seed), zlib.crc32(category.encode())])
+
+
+def split_seeds(split: str) -> tuple[int, ...]:
+    """Instance seeds of ``split`` (``"train"`` or ``"test"``); the same for every category."""
+    if split == "train":
+        return tuple(range(NUM_TRAIN))
+    if split == "test":
+        return tuple(range(TEST_SEED_OFFSET, TEST_SEED_OFFSET + NUM_TEST))
+    raise ValueError(f"split: expected one of {SPLITS}, got {split!r}")
+
+
+REVOLUTE, PRISMATIC = JointType.REVOLUTE, JointType.PRISMATIC

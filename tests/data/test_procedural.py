@@ -1,0 +1,211 @@
+"""Procedural categories: valid models, canonical orientation, rest states, determinism, split."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ancsh.data.procedural import (
+    CATEGORIES,
+    CATEGORY_INFO,
+    instance_seeds,
+    load_instance,
+    make_object,
+)
+from ancsh.data.procedural import _mesh as m
+from ancsh.model.articulated import ArticulatedModel
+
+SEEDS_PER_CATEGORY = 24
+
+
+def _seeds(category):
+    train, test = instance_seeds(category, "train"), instance_seeds(category, "test")
+    return train[: SEEDS_PER_CATEGORY - 4] + test[:4]
+
+
+@pytest.fixture(scope="module")
+def objects():
+    return {c: [make_object(c, s) for s in _seeds(c)] for c in CATEGORIES}
+
+
+def _world_vertices(model, q):
+    poses = model.forward_kinematics(q)
+    return [poses[i].apply(p.vertices) for i, p in enumerate(model.parts)]
+
+
+def _bounds(v):
+    return v.min(axis=0), v.max(axis=0)
+
+
+# --- structure ---------------------------------------------------------------------------
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_models_are_valid_and_follow_the_part_table(objects, category):
+    info = CATEGORY_INFO[category]
+    for model in objects[category]:
+        assert isinstance(model, ArticulatedModel)
+        assert model.category == category
+        assert tuple(model.part_names) == info.part_names
+        assert tuple(j.name for j in model.joints) == info.joint_names
+        assert tuple(j.type for j in model.joints) == info.joint_types
+        assert model.base_index == 0
+        np.testing.assert_array_equal(model.R_canon_base, np.eye(3))
+        for k, joint in enumerate(model.joints):
+            assert model.joint_parts(k)[1] == k + 1
+            assert np.isfinite(joint.lower) and np.isfinite(joint.upper) and joint.upper > joint.lower
+        for part in model.parts:
+            v = part.vertices
+            assert len(part.mesh.faces) > 0 and v.shape[0] > 0
+            assert np.all(np.isfinite(v))
+            assert part.mesh.is_watertight, f"{model.name}: part {part.name} mesh not closed"
+            assert part.mesh.volume > 0, f"{model.name}: part {part.name} mesh inside out"
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_rest_size_within_the_stated_range(objects, category):
+    lo, hi = CATEGORY_INFO[category].diagonal_range
+    for model in objects[category]:
+        v = np.concatenate(_world_vertices(model, model.rest_states))
+        a, b = _bounds(v)
+        diag = np.linalg.norm(b - a)
+        assert lo <= diag <= hi, f"{model.name}: rest diagonal {diag:.3f} m outside [{lo}, {hi}]"
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_forward_kinematics_moves_each_child_rigidly_about_its_joint(objects, category):
+    rng = np.random.default_rng(7)
+    for model in objects[category][:8]:
+        for _ in range(3):
+            q = model.random_states(rng)
+            rest_v = _world_vertices(model, model.rest_states)
+            moved_v = _world_vertices(model, q)
+            np.testing.assert_allclose(moved_v[0], rest_v[0])  # the base never moves
+            for k, joint in enumerate(model.joints):
+                child = k + 1
+                d_rest = np.linalg.norm(np.diff(rest_v[child][:50], axis=0), axis=1)
+                d_moved = np.linalg.norm(np.diff(moved_v[child][:50], axis=0), axis=1)
+                np.testing.assert_allclose(d_moved, d_rest, atol=1e-12)
+                # all procedural joints hang off the base: compare with the joint's own motion
+                T = joint.T_parent_child(q[k])
+                np.testing.assert_allclose(moved_v[child], T.apply(model.parts[child].vertices), atol=1e-12)
+                if joint.is_revolute:  # distances to the hinge line are preserved
+                    def dist(p):
+                        r = p - joint.pivot
+                        return np.linalg.norm(r - np.outer(r @ joint.axis, joint.axis), axis=1)
+
+                    np.testing.assert_allclose(dist(moved_v[child]), dist(rest_v[child]), atol=1e-9)
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_states_outside_limits_are_rejected(objects, category):
+    model = objects[category][0]
+    q = model.upper_limits + 0.1
+    with pytest.raises(ValueError, match="outside its limits"):
+        model.forward_kinematics(q)
+
+
+# --- canonical orientation and rest states ------------------------------------------------
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_objects_stand_on_the_floor_upright(objects, category):
+    for model in objects[category]:
+        v = np.concatenate(_world_vertices(model, model.rest_states))
+        a, b = _bounds(v)
+        if category != "eyeglasses":
+            assert abs(a[1]) < 1e-9, f"{model.name}: lowest point {a[1]} not on y = 0"
+            # symmetric about x = 0 within a few cm (doors/handles may sit off-centre)
+            assert abs(a[0] + b[0]) < 0.1 * (b[0] - a[0])
+
+
+def test_laptop_display_opens_upwards_to_the_front(objects):
+    for model in objects["laptop"]:
+        rest = _world_vertices(model, model.rest_states)
+        closed = _world_vertices(model, [0.0])
+        base_top = rest[0][:, 1].max()
+        # closed: the display lies on the base; at rest it stands behind the keyboard facing +z
+        assert closed[1][:, 1].min() >= base_top - 0.002
+        assert np.ptp(closed[1][:, 1]) < 0.03
+        assert np.ptp(rest[1][:, 1]) > 0.15 and np.ptp(rest[1][:, 2]) < 0.03
+        assert rest[1][:, 2].mean() < rest[0][:, 2].min() + 0.03
+
+
+def test_drawers_at_rest_are_closed_inside_the_cabinet(objects):
+    from ancsh.data.procedural.drawer import MAX_HANDLE_PROTRUSION
+
+    for model in objects["drawer"]:
+        verts = _world_vertices(model, model.rest_states)
+        ca, cb = _bounds(verts[0])
+        for k in (1, 2, 3):
+            da, db = _bounds(verts[k])
+            assert np.all(da[[0, 1]] >= ca[[0, 1]] - 1e-9) and np.all(db[[0, 1]] <= cb[[0, 1]] + 1e-9)
+            assert da[2] >= ca[2] - 1e-9
+            assert db[2] <= cb[2] + MAX_HANDLE_PROTRUSION
+        # drawers are stacked bottom to top: lowest, middle, top
+        centres = [verts[k][:, 1].mean() for k in (1, 2, 3)]
+        assert centres[0] < centres[1] < centres[2]
+        # opening pulls each drawer straight out towards +z
+        q = model.upper_limits
+        opened = _world_vertices(model, q)
+        for k in (1, 2, 3):
+            np.testing.assert_allclose(opened[k] - verts[k], np.tile([0.0, 0.0, q[k - 1]], (len(verts[k]), 1)), atol=1e-12)
+
+
+# --- determinism and split ----------------------------------------------------------------
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_same_seed_gives_identical_meshes_and_joints(category):
+    a, b = make_object(category, 5), make_object(category, 5)
+    c = make_object(category, 6)
+    for pa, pb in zip(a.parts, b.parts):
+        np.testing.assert_array_equal(pa.vertices, pb.vertices)
+        np.testing.assert_array_equal(pa.mesh.faces, pb.mesh.faces)
+    for ja, jb in zip(a.joints, b.joints):
+        np.testing.assert_array_equal(ja.pivot, jb.pivot)
+        assert (ja.lower, ja.upper, ja.rest) == (jb.lower, jb.upper, jb.rest)
+    assert a.parts[0].vertices.shape != c.parts[0].vertices.shape or not np.allclose(a.parts[0].vertices, c.parts[0].vertices)
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_split_is_fixed_disjoint_and_large_enough(category):
+    train, test = instance_seeds(category, "train"), instance_seeds(category, "test")
+    assert len(train) >= 100 and len(test) >= 10
+    assert len(set(train)) == len(train) and len(set(test)) == len(test)
+    assert not set(train) & set(test)
+    assert instance_seeds(category, "train") == train
+    model = load_instance(category, "test", 3)
+    np.testing.assert_array_equal(model.parts[0].vertices, make_object(category, test[3]).parts[0].vertices)
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_instances_vary_within_the_category(objects, category):
+    diags = []
+    for model in objects[category]:
+        v = np.concatenate(_world_vertices(model, model.rest_states))
+        a, b = _bounds(v)
+        diags.append(b - a)
+    diags = np.array(diags)
+    # every box dimension varies across instances (relative spread > 3 %)
+    assert np.all(diags.std(axis=0) / diags.mean(axis=0) > 0.03)
+    assert len({round(float(j.upper), 6) for mdl in objects[category] for j in mdl.joints[:1]}) > 10
+
+
+def test_bad_arguments_are_rejected():
+    with pytest.raises(ValueError, match="category"):
+        make_object("toaster", 0)
+    with pytest.raises(ValueError, match="seed"):
+        make_object(CATEGORIES[0], -1)
+    with pytest.raises(ValueError, match="split"):
+        instance_seeds(CATEGORIES[0], "val")
+    with pytest.raises(ValueError, match="index"):
+        load_instance(CATEGORIES[0], "test", len(instance_seeds(CATEGORIES[0], "test")))
+
+
+# --- mesh helpers -------------------------------------------------------------------------
+def test_ring_prism_is_closed_with_the_expected_volume():
+    outer = m.outline_rounded_rect(0.4, 0.3, 0.05, n=64)
+    inner = m.outline_superellipse(0.1, 0.1, 2.0, n=64)
+    ring = m.ring_prism(outer, inner, 0.02)
+    solid_outer, solid_inner = m.prism(outer, 0.02), m.prism(inner, 0.02)
+    assert ring.is_watertight and solid_outer.is_watertight
+    assert ring.volume == pytest.approx(solid_outer.volume - solid_inner.volume, rel=1e-9)
+    # the rounded rectangle outline has the requested extents
+    np.testing.assert_allclose(np.ptp(outer, axis=0), [0.4, 0.3], rtol=0.02)
+    with pytest.raises(ValueError, match="inner"):
+        m.ring_prism(outer, inner[:10], 0.02)
