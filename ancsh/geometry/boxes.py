@@ -41,9 +41,10 @@ class OrientedBox:
         e = as_array(self.extents, "extents", (3,))
         if np.any(e < 0):
             raise ValueError(f"extents: must be non-negative, got {e}")
-        object.__setattr__(self, "center", c.copy())
-        object.__setattr__(self, "rotation", R.copy())
-        object.__setattr__(self, "extents", e.copy())
+        for name, value in (("center", c), ("rotation", R), ("extents", e)):
+            value = value.copy()
+            value.flags.writeable = False  # frozen means frozen, as in Sim3
+            object.__setattr__(self, name, value)
 
     @classmethod
     def axis_aligned(cls, lower, upper) -> "OrientedBox":
