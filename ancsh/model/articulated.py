@@ -327,6 +327,8 @@ class ArticulatedModel:
 def sample_surface(mesh, count: int, rng) -> np.ndarray:
     """``count`` points uniformly on a trimesh surface (area-weighted), seeded."""
     rng = check_generator(rng)
+    if mesh is None or not hasattr(mesh, "triangles"):
+        raise ValueError(f"mesh: expected a trimesh.Trimesh, got {type(mesh).__name__}")
     tris = np.asarray(mesh.triangles, dtype=np.float64)
     if len(tris) == 0:
         raise ValueError("mesh: has no triangles to sample")
