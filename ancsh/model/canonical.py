@@ -47,8 +47,24 @@ __all__ = [
 _MIN_DIAGONAL = 1e-12
 
 
+class _NpcsToNaocs:
+    """Shared accessors of the per-part NPCS -> NAOCS maps (``npcs_scale``, ``npcs_translation``)."""
+
+    npcs_scale: np.ndarray
+    npcs_translation: np.ndarray
+
+    @property
+    def num_parts(self) -> int:
+        return len(self.npcs_scale)
+
+    def T_naocs_npcs(self, j: int) -> Sim3:
+        """NPCS of part ``j`` -> NAOCS (identity rotation, scale ``s_j``, translation ``t_j``)."""
+        j = _check_index(j, self.num_parts, "j")
+        return Sim3(np.eye(3), self.npcs_translation[j], float(self.npcs_scale[j]))
+
+
 @dataclass(frozen=True)
-class CanonicalSpace:
+class CanonicalSpace(_NpcsToNaocs):
     """Per-model NAOCS and NPCS definition, independent of joint state and camera.
 
     Attributes
@@ -79,15 +95,6 @@ class CanonicalSpace:
     joint_pivots_naocs: np.ndarray
     joint_types: tuple
     naocs_extents: np.ndarray
-
-    @property
-    def num_parts(self) -> int:
-        return len(self.npcs_scale)
-
-    def T_naocs_npcs(self, j: int) -> Sim3:
-        """NPCS of part ``j`` -> NAOCS (identity rotation, scale ``s_j``, translation ``t_j``)."""
-        j = _check_index(j, self.num_parts, "j")
-        return Sim3(np.eye(3), self.npcs_translation[j], float(self.npcs_scale[j]))
 
     def npcs_box(self, j: int) -> OrientedBox:
         """Tight box of part ``j`` in its NPCS: centred at 0, unit diagonal."""
@@ -159,7 +166,7 @@ def canonical_space(model: ArticulatedModel) -> CanonicalSpace:
 
 
 @dataclass(frozen=True)
-class AncshGroundTruth:
+class AncshGroundTruth(_NpcsToNaocs):
     """ANCSH ground truth of one frame (``N`` points, ``M`` parts, ``K`` joints).
 
     Attributes
@@ -222,17 +229,8 @@ class AncshGroundTruth:
     T_cam_naocs: Sim3
 
     @property
-    def num_parts(self) -> int:
-        return len(self.npcs_scale)
-
-    @property
     def num_joints(self) -> int:
         return len(self.joint_types)
-
-    def T_naocs_npcs(self, j: int) -> Sim3:
-        """NPCS of part ``j`` -> NAOCS."""
-        j = _check_index(j, self.num_parts, "j")
-        return Sim3(np.eye(3), self.npcs_translation[j], float(self.npcs_scale[j]))
 
     def T_cam_naocs_part(self, j: int) -> Sim3:
         """NAOCS -> camera for part ``j`` at this frame's joint states."""
@@ -272,9 +270,7 @@ def ancsh_ground_truth(
         raise ValueError(f"T_cam_base: expected a Sim3, got {type(T_cam_base).__name__}")
     points_cam = as_points(points_cam, "points_cam")
     labels = _check_labels(part_labels, points_cam.shape[0], model.num_parts)
-    sigma = float(sigma)
-    if not np.isfinite(sigma) or sigma <= 0:
-        raise ValueError(f"sigma: expected a positive finite number, got {sigma}")
+    sigma = _check_sigma(sigma)
 
     M, K, N = model.num_parts, model.num_joints, points_cam.shape[0]
     poses_q = model.forward_kinematics(q)
@@ -364,6 +360,13 @@ def joint_association(naocs, part_labels, joint_types, joint_parents, joint_chil
     naocs = as_points(naocs, "naocs")
     N, K = naocs.shape[0], len(joint_types)
     labels = np.asarray(part_labels)
+    if labels.shape != (N,):
+        raise ValueError(f"part_labels: expected shape ({N},) matching naocs, got {labels.shape}")
+    joint_parents = np.asarray(joint_parents)
+    joint_children = np.asarray(joint_children)
+    if joint_parents.shape != (K,) or joint_children.shape != (K,):
+        raise ValueError(f"joint_parents, joint_children: expected shape ({K},) matching joint_types")
+    sigma = _check_sigma(sigma)
     axes = as_array(axes_naocs, "axes_naocs", (K, 3))
     pivots = as_array(pivots_naocs, "pivots_naocs", (K, 3))
     best_dist = np.full(N, np.inf)
@@ -409,6 +412,13 @@ def _check_labels(part_labels, n: int, num_parts: int) -> np.ndarray:
             f"part_labels: label {int(labels[bad][0])} out of range 0..{num_parts - 1} (model has {num_parts} parts)"
         )
     return labels
+
+
+def _check_sigma(sigma) -> float:
+    sigma = float(sigma)
+    if not np.isfinite(sigma) or sigma <= 0:
+        raise ValueError(f"sigma: expected a positive finite number, got {sigma}")
+    return sigma
 
 
 def _check_index(j, count: int, name: str) -> int:

@@ -13,6 +13,7 @@ from ancsh.model import (
     Part,
     ancsh_ground_truth,
     canonical_space,
+    joint_association,
     random_articulated_model,
     random_camera_pose,
     sample_frame,
@@ -328,6 +329,19 @@ def test_bad_inputs_raise(case):
         canonical_space("laptop")
     with pytest.raises(ValueError, match="has no mesh"):
         canonical_space(ArticulatedModel((Part("base"),), ()))
+
+
+def test_joint_association_bad_inputs():
+    axes, pivots = np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3))
+    pts = np.zeros((4, 3))
+    with pytest.raises(ValueError, match="part_labels: expected shape"):
+        joint_association(pts, [0, 1], ["revolute"], [0], [1], axes, pivots)
+    with pytest.raises(ValueError, match="joint_parents, joint_children"):
+        joint_association(pts, [0, 1, 0, 1], ["revolute"], [0, 1], [1], axes, pivots)
+    with pytest.raises(ValueError, match="axes_naocs: expected shape"):
+        joint_association(pts, [0, 1, 0, 1], ["revolute"], [0], [1], axes[0], pivots)
+    with pytest.raises(ValueError, match="sigma"):
+        joint_association(pts, [0, 1, 0, 1], ["revolute"], [0], [1], axes, pivots, sigma=np.inf)
 
 
 def test_integer_valued_float_labels_and_empty_points_accepted(case):
