@@ -52,7 +52,7 @@ from scipy.spatial.distance import pdist
 
 from ..geometry._checks import check_generator
 
-__all__ = ["OfficialArrays", "OfficialSettings", "PairFit", "estimate_object_scale", "fit_official_arrays", "fit_pair"]
+__all__ = ["OfficialArrays", "OfficialSettings", "PairFit", "estimate_object_scale", "fit_official", "fit_official_arrays", "fit_pair"]
 
 
 @dataclass(frozen=True)
@@ -361,3 +361,115 @@ def fit_official_arrays(points, npcs, labels, npcs_scale, joint_types, joint_par
     if not ok and not messages:
         messages.append(f"parts {np.nonzero(~done)[0].tolist()} were not fitted")
     return OfficialArrays(Rs, ts, ss, inliers, ok, "; ".join(messages) or "ok", time.perf_counter() - t_start)
+
+
+# --- FitResult wrapper ----------------------------------------------------------------
+def fit_official(observation, correspondences, *, settings: OfficialSettings = OfficialSettings(), rng=0):
+    """Fit all parts with the official pairwise scheme; a :class:`~ancsh.solvers.types.FitResult`.
+
+    Parameters
+    ----------
+    observation : Observation
+        ``N`` camera-frame points (metres).
+    correspondences : Correspondences
+        Per-point labels and NPCS, per-part NPCS -> NAOCS, per-joint NAOCS axes and pivots.
+    settings : OfficialSettings
+        Defaults are the official values.
+    rng : numpy.random.Generator or int
+        RANSAC sampling.
+
+    Returns
+    -------
+    FitResult
+        ``formulation="official"``, ``solver="scipy-lm"``; camera-space joints and amodal
+        boxes from the part poses (paper Sec. 4.4). A failure is a status, never an
+        exception (except for arguments of the wrong type).
+    """
+    from .types import Correspondences, FitResult, FitStatus, Observation
+
+    if not isinstance(observation, Observation):
+        raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
+    if not isinstance(correspondences, Correspondences):
+        raise ValueError(f"correspondences: expected Correspondences, got {type(correspondences).__name__}")
+    t_start = time.perf_counter()
+    c = correspondences
+    n, K = observation.num_points, c.num_joints
+    name = dict(formulation="official", solver="scipy-lm", num_joints=K, num_points=n)
+    if c.num_points != n:
+        return FitResult.failure(FitStatus.INVALID_INPUT, f"correspondences: {c.num_points} points for an observation of {n}",
+                                 **name, time_s=time.perf_counter() - t_start)
+    counts = np.bincount(c.part_labels, minlength=c.num_parts)
+    if np.any(counts < 3):
+        return FitResult.failure(FitStatus.TOO_FEW_POINTS, f"parts {np.nonzero(counts < 3)[0].tolist()} have fewer than 3 points",
+                                 **name, time_s=time.perf_counter() - t_start)
+    res = fit_official_arrays(observation.points_cam, c.npcs, c.part_labels, c.npcs_scale, c.joint_types,
+                              c.joint_parents, c.joint_children, c.joint_axes_naocs, settings=settings, rng=rng)
+    if not res.ok:
+        return FitResult.failure(FitStatus.DEGENERATE, res.message, **name, time_s=time.perf_counter() - t_start)
+    from ..geometry.transforms import Sim3
+
+    poses = tuple(Sim3(res.rotations[j], res.translations[j], float(res.scales[j])) for j in range(c.num_parts))
+    axes, pivots, states = camera_joints(poses, c)
+    boxes = amodal_boxes(poses, c, res.inliers)
+    return FitResult(
+        formulation="official", solver="scipy-lm", T_cam_npcs=poses, joint_axes_cam=axes, joint_pivots_cam=pivots,
+        joint_states=states, boxes_cam=boxes, status=FitStatus.SUCCESS, message=res.message,
+        inliers=res.inliers, time_s=time.perf_counter() - t_start,
+    )
+
+
+def camera_joints(poses, correspondences):
+    """Camera-space joint axes, pivots and states from part poses (paper Sec. 4.4).
+
+    Revolute: axis ``normalise((R_p + R_c) u')``, pivot the mean of the NAOCS pivot mapped
+    by both parts' NAOCS -> camera maps, state the signed angle of ``R_p^T R_c`` about
+    ``u'``. Prismatic: axis as above, pivot the parent's map of the NAOCS pivot, state the
+    displacement of the child's NAOCS origin relative to the parent's along the axis
+    (metres).
+
+    Returns
+    -------
+    axes : (K, 3), pivots : (K, 3), states : (K,) float64
+    """
+    c = correspondences
+    K = c.num_joints
+    axes, pivots, states = np.empty((K, 3)), np.empty((K, 3)), np.empty(K)
+    for k in range(K):
+        p, ch = int(c.joint_parents[k]), int(c.joint_children[k])
+        u = c.joint_axes_naocs[k]
+        Tp = poses[p] @ _naocs_to_npcs(c, p)
+        Tc = poses[ch] @ _naocs_to_npcs(c, ch)
+        a = (Tp.rotation + Tc.rotation) @ u
+        axes[k] = a / np.linalg.norm(a)
+        if str(getattr(c.joint_types[k], "value", c.joint_types[k])) == "revolute":
+            pivots[k] = 0.5 * (Tp.apply(c.joint_pivots_naocs[k]) + Tc.apply(c.joint_pivots_naocs[k]))
+            states[k] = float(_rotvec(Tp.rotation.T @ Tc.rotation) @ u)
+        else:
+            pivots[k] = Tp.apply(c.joint_pivots_naocs[k])
+            states[k] = float((Tc.translation - Tp.translation) @ axes[k])
+    return axes, pivots, states
+
+
+def _naocs_to_npcs(c, j: int):
+    from ..geometry.transforms import Sim3
+
+    return Sim3(np.eye(3), c.npcs_translation[j], float(c.npcs_scale[j])).inverse()
+
+
+def amodal_boxes(poses, correspondences, inliers):
+    """Amodal part boxes in the camera frame: the NPCS box (given extents, else the tight box
+    of the part's inlier NPCS, NOCS style) mapped by the part pose."""
+    from ..geometry.boxes import OrientedBox
+
+    c = correspondences
+    boxes = []
+    for j, T in enumerate(poses):
+        if c.npcs_extents is not None:
+            box = OrientedBox(np.zeros(3), np.eye(3), c.npcs_extents[j])
+        else:
+            sel = (c.part_labels == j) & inliers
+            if sel.sum() == 0:
+                sel = c.part_labels == j
+            box = OrientedBox.tight_axis_aligned(c.npcs[sel])
+        boxes.append(box.transformed(T))
+    return tuple(boxes)
