@@ -31,7 +31,9 @@ def _random_case(seed):
     """A seeded model (chains for even seeds, branching trees for odd) and one random frame."""
     rng = np.random.default_rng(seed)
     tree = seed % 2 == 1
-    model = random_articulated_model(rng, num_parts=int(rng.integers(3, 6)), tree=tree, random_canonical=seed % 3 == 0)
+    model = random_articulated_model(
+        rng, num_parts=int(rng.integers(3, 6)), tree=tree, random_canonical=seed % 3 == 0, unlimited_revolute=seed % 4 == 2
+    )
     frame = sample_frame(model, rng, points_per_part=150)
     gt = ancsh_ground_truth(model, frame.q, frame.T_cam_base, frame.points_cam, frame.part_labels)
     return model, frame, gt
@@ -291,6 +293,25 @@ def test_revolute_wins_over_prismatic_and_nearest_revolute_wins():
     pts = np.array([[0.95, 0.0, 0.0], [0.1, 0.0, 0.0], [1.05, 0.0, 0.2]])
     gt = ancsh_ground_truth(model, [0.0, 0.0], Sim3(), pts, [1, 1, 2])
     np.testing.assert_array_equal(gt.joint_association, [2, 1, 2])
+
+
+def test_part_order_does_not_matter():
+    """Listing the parts in reverse order (base last) permutes the ground truth and changes nothing else."""
+    model = random_articulated_model(11, num_parts=4, tree=True, random_canonical=True)
+    reordered = ArticulatedModel(model.parts[::-1], model.joints, R_canon_base=model.R_canon_base)
+    assert reordered.base_index == 3
+    f = sample_frame(model, 12, points_per_part=40)
+    gt = ancsh_ground_truth(model, f.q, f.T_cam_base, f.points_cam, f.part_labels)
+    gt_r = ancsh_ground_truth(reordered, f.q, f.T_cam_base, f.points_cam, 3 - f.part_labels)
+    np.testing.assert_allclose(gt_r.naocs, gt.naocs, atol=TOL)
+    np.testing.assert_allclose(gt_r.npcs, gt.npcs, atol=TOL)
+    np.testing.assert_allclose(gt_r.npcs_scale, gt.npcs_scale[::-1], atol=TOL)
+    np.testing.assert_array_equal(gt_r.joint_association, gt.joint_association)
+    np.testing.assert_array_equal(gt_r.joint_parents, 3 - gt.joint_parents)
+    np.testing.assert_allclose(gt_r.joint_pivots_cam, gt.joint_pivots_cam, atol=TOL)
+    assert gt_r.T_cam_naocs.allclose(gt.T_cam_naocs, atol=TOL)
+    for j in range(4):
+        assert gt_r.T_cam_npcs[3 - j].allclose(gt.T_cam_npcs[j], atol=TOL)
 
 
 # --- input errors ----------------------------------------------------------------------
