@@ -9,6 +9,7 @@ import numpy as np
 from ...geometry.rotations import log_so3
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
+from ..types import FitStatus
 
 __all__ = ["CadFitResult", "IcpIteration", "joint_states_from_part_poses"]
 
@@ -53,8 +54,9 @@ class CadFitResult:
         relative part poses (:func:`joint_states_from_part_poses`).
     T_cam_base : Sim3
         Estimated base pose.
-    status : str
-        ``"converged"``, ``"max_iterations"`` or ``"failed"``.
+    status : FitStatus
+        ``SUCCESS`` (converged), ``MAX_ITER``, or a failure (``TOO_FEW_POINTS`` when no
+        observed point lies near the model, ``INVALID_INPUT``, ``NUMERICAL_FAILURE``).
     message : str
     inlier_ratio : float
         Fraction of observed points within the final gating distance of the fitted model.
@@ -73,7 +75,7 @@ class CadFitResult:
     T_cam_parts: tuple
     q: np.ndarray
     T_cam_base: Sim3
-    status: str
+    status: FitStatus
     message: str = ""
     inlier_ratio: float = 0.0
     rmse: float = float("inf")
@@ -82,9 +84,13 @@ class CadFitResult:
     history: tuple = field(default_factory=tuple)
     starts: int = 1
 
+    def __post_init__(self):
+        object.__setattr__(self, "status", FitStatus(self.status))
+
     @property
-    def success(self) -> bool:
-        return self.status != "failed"
+    def ok(self) -> bool:
+        """``True`` when the fit converged (:attr:`FitStatus.SUCCESS`)."""
+        return self.status == FitStatus.SUCCESS
 
     def joint_states(self, model: ArticulatedModel) -> np.ndarray:
         """Joint states relative to rest ``(K,)`` (the convention of reported joint states)."""
@@ -94,7 +100,7 @@ class CadFitResult:
         """JSON-ready summary (rotations as ``(3, 3)`` lists, metres, radians)."""
         return {
             "method": self.method,
-            "status": self.status,
+            "status": self.status.value,
             "message": self.message,
             "q": [float(v) for v in self.q],
             "T_cam_base": _sim3_dict(self.T_cam_base),

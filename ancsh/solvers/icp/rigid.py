@@ -21,6 +21,7 @@ import numpy as np
 from ...geometry._checks import as_points, check_generator
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
+from ..types import FitStatus
 from .result import CadFitResult, joint_states_from_part_poses
 from .template import ArticulatedPose, ModelSurface
 
@@ -146,7 +147,7 @@ def whole_object_icp(model: ArticulatedModel, points_cam, init: ArticulatedPose,
         normals.append(fk[j].apply_direction(n))
     T_cam_base, fitness, rmse = _register(pts, np.concatenate(samples), np.concatenate(normals), init.T_cam_base, config)
     parts = tuple(T_cam_base @ T for T in fk)
-    status = "converged" if fitness > 0 else "failed"
+    status = FitStatus.SUCCESS if fitness > 0 else FitStatus.TOO_FEW_POINTS
     return CadFitResult(
         method="whole_object_icp", T_cam_parts=parts, q=init.q.copy(), T_cam_base=T_cam_base, status=status,
         message="" if fitness > 0 else "no observed point within max_distance of the model",
@@ -212,14 +213,14 @@ def per_part_icp(model: ArticulatedModel, points_cam, init: ArticulatedPose, *, 
     msg = f"parts left at the initial pose (too few points): {skipped}" if skipped else ""
     return CadFitResult(
         method="per_part_icp", T_cam_parts=tuple(poses), q=q, T_cam_base=poses[model.base_index],
-        status="converged", message=msg, inlier_ratio=float(np.sum(w * np.asarray(fits)) / pts.shape[0]),
+        status=FitStatus.SUCCESS, message=msg, inlier_ratio=float(np.sum(w * np.asarray(fits)) / pts.shape[0]),
         rmse=float(np.sqrt(np.sum(w * np.asarray(rmses) ** 2) / w.sum())), iterations=int(config.max_iterations),
         time_s=time.perf_counter() - t0,
     )
 
 
-def _failed(method, model, init, message, t0) -> CadFitResult:
+def _failed(method, model, init, message, t0, status=FitStatus.TOO_FEW_POINTS) -> CadFitResult:
     return CadFitResult(
         method=method, T_cam_parts=tuple(init.part_poses(model)), q=init.q.copy(), T_cam_base=init.T_cam_base,
-        status="failed", message=message, time_s=time.perf_counter() - t0,
+        status=status, message=message, time_s=time.perf_counter() - t0,
     )

@@ -21,11 +21,13 @@ import numpy as np
 from ...geometry._checks import as_array, as_points
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
+from ..types import Correspondences, Observation
 
 __all__ = [
     "ArticulatedPose",
     "ClosestPoints",
     "ModelSurface",
+    "TemplateCorrespondences",
     "TemplateProvider",
     "robust_weights",
 ]
@@ -172,3 +174,132 @@ def robust_weights(residuals, loss: str, scale: float) -> np.ndarray:
     if loss == "cauchy":
         return 1.0 / (1.0 + u * u)
     return np.where(u < 1.0, (1.0 - u * u) ** 2, 0.0)
+
+
+@dataclass(frozen=True)
+class TemplateCorrespondences(Correspondences):
+    """:class:`~ancsh.solvers.types.Correspondences` plus what a template knows beyond a network.
+
+    Attributes
+    ----------
+    normals_npcs : (N, 3) float64 or None
+        Unit surface normal at each point's model match, in its part's NPCS (for a
+        point-to-plane data term).
+    distances : (N,) float64 or None
+        Distance of each observed point to its model match at the estimate (metres).
+    """
+
+    normals_npcs: np.ndarray | None = None
+    distances: np.ndarray | None = None
+
+
+class TemplateProvider:
+    """Correspondences from a known model: closest points at the current estimate.
+
+    Implements :class:`~ancsh.solvers.types.CorrespondenceProvider`. Each observed point gets
+    the part label and NPCS coordinates of its closest point on the model surface posed at
+    :attr:`estimate`; its weight is ``robust_weights(distance)``, and ``0`` beyond
+    ``max_distance`` (gated). Per-part NPCS -> NAOCS maps, joints, box extents and joint
+    limits are the model's own (exact).
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+        The instance (every part needs a mesh), e.g. from :func:`ancsh.data.urdf.load_urdf`.
+    estimate : ArticulatedPose, optional
+        Current pose; set or replace it with :meth:`at`. Required before :meth:`correspond`.
+    max_distance : float
+        Gating distance (metres): farther points get weight 0.
+    loss : str
+        Robust loss of the weights, one of ``none``, ``huber``, ``cauchy``, ``tukey``.
+    loss_scale : float
+        Scale of the robust loss (metres).
+
+    Raises
+    ------
+    ValueError
+        If the model has no movable joint, a part has no mesh, or a setting is out of range.
+    """
+
+    def __init__(self, model: ArticulatedModel, estimate: ArticulatedPose | None = None, *,
+                 max_distance: float = 0.05, loss: str = "huber", loss_scale: float = 0.01,
+                 _surface: ModelSurface | None = None, _canonical=None):
+        from ...model.canonical import canonical_space
+
+        if not isinstance(model, ArticulatedModel):
+            raise ValueError(f"model: expected an ArticulatedModel, got {type(model).__name__}")
+        if model.num_joints == 0:
+            raise ValueError(f"model: {model.name!r} has no movable joint; use rigid ICP (whole_object_icp) instead")
+        max_distance = float(max_distance)
+        if not (np.isfinite(max_distance) and max_distance > 0):
+            raise ValueError(f"max_distance: expected a positive number, got {max_distance}")
+        robust_weights(np.zeros(1), loss, loss_scale)  # validates loss and loss_scale
+        self.model = model
+        self.max_distance = max_distance
+        self.loss = loss
+        self.loss_scale = float(loss_scale)
+        self.surface = _surface if _surface is not None else ModelSurface(model)
+        self.canonical = _canonical if _canonical is not None else canonical_space(model)
+        cs = self.canonical
+        rest_poses = model.forward_kinematics(model.rest_states)
+        # Part frame -> its NPCS (a similarity: the NAOCS normalisation scale over s_j).
+        self.T_npcs_part = tuple(cs.T_naocs_npcs(j).inverse() @ cs.T_naocs_base @ rest_poses[j]
+                                 for j in range(model.num_parts))
+        self._joint_parts = np.array([model.joint_parts(k) for k in range(model.num_joints)], dtype=np.int64).reshape(-1, 2)
+        self.estimate = None
+        if estimate is not None:
+            self.estimate = self._check_estimate(estimate)
+
+    def _check_estimate(self, estimate) -> ArticulatedPose:
+        if not isinstance(estimate, ArticulatedPose):
+            raise ValueError(f"estimate: expected an ArticulatedPose, got {type(estimate).__name__}")
+        self.model.check_states(estimate.q, "estimate.q")
+        return estimate
+
+    def at(self, estimate: ArticulatedPose, *, max_distance: float | None = None) -> "TemplateProvider":
+        """The same provider at another estimate (and gating distance); shares the surface data."""
+        return TemplateProvider(
+            self.model, estimate, max_distance=self.max_distance if max_distance is None else max_distance,
+            loss=self.loss, loss_scale=self.loss_scale, _surface=self.surface, _canonical=self.canonical,
+        )
+
+    @property
+    def T_cam_naocs_scale(self) -> float:
+        """Metres per NAOCS unit: the object scale of every part pose of this model."""
+        return 1.0 / self.canonical.T_naocs_base.scale
+
+    def empty_correspondences(self, num_points: int = 0) -> "TemplateCorrespondences":
+        """The model's canonical parameters with ``num_points`` zero-weight points (labels 0)."""
+        return self._build(np.zeros(num_points, dtype=np.int64), np.zeros((num_points, 3)),
+                           np.zeros(num_points), np.zeros((num_points, 3)), np.full(num_points, np.inf))
+
+    def correspond(self, observation) -> "TemplateCorrespondences":
+        """Correspondences of ``observation`` (an :class:`Observation` or ``(N, 3)`` camera points)."""
+        if self.estimate is None:
+            raise ValueError("estimate: the template provider needs an estimate; call .at(estimate) first")
+        points = observation.points_cam if isinstance(observation, Observation) else as_points(observation, "observation")
+        if points.shape[0] == 0:
+            return self.empty_correspondences(0)
+        cp = self.surface.closest(points, self.estimate.part_poses(self.model))
+        M = self.model.num_parts
+        npcs = np.empty((points.shape[0], 3))
+        normals = np.empty((points.shape[0], 3))
+        for j in range(M):
+            sel = cp.labels == j
+            if np.any(sel):
+                npcs[sel] = self.T_npcs_part[j].apply(cp.points_part[sel])
+                normals[sel] = self.T_npcs_part[j].apply_direction(cp.normals_part[sel])
+        w = robust_weights(cp.distances, self.loss, self.loss_scale)
+        w[cp.distances > self.max_distance] = 0.0
+        return self._build(cp.labels, npcs, w, normals, cp.distances)
+
+    def _build(self, labels, npcs, weights, normals, distances) -> "TemplateCorrespondences":
+        cs, model = self.canonical, self.model
+        limits = np.stack([model.lower_limits, model.upper_limits], axis=1) - model.rest_states[:, None]
+        return TemplateCorrespondences(
+            part_labels=labels, npcs=npcs, npcs_scale=cs.npcs_scale, npcs_translation=cs.npcs_translation,
+            joint_types=tuple(cs.joint_types), joint_parents=self._joint_parts[:, 0],
+            joint_children=self._joint_parts[:, 1], joint_axes_naocs=cs.joint_axes_naocs,
+            joint_pivots_naocs=cs.joint_pivots_naocs, weights=weights, npcs_extents=cs.npcs_extents,
+            joint_limits=limits, normals_npcs=normals, distances=distances,
+        )
