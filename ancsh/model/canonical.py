@@ -369,6 +369,8 @@ def joint_association(naocs, part_labels, joint_types, joint_parents, joint_chil
     sigma = _check_sigma(sigma)
     axes = as_array(axes_naocs, "axes_naocs", (K, 3))
     pivots = as_array(pivots_naocs, "pivots_naocs", (K, 3))
+    if K and np.max(np.abs(np.linalg.norm(axes, axis=1) - 1.0)) > 1e-6:
+        raise ValueError("axes_naocs: expected unit vectors")
     best_dist = np.full(N, np.inf)
     association = np.zeros(N, dtype=np.int64)
     targets = np.zeros((N, 7))
@@ -379,7 +381,6 @@ def joint_association(naocs, part_labels, joint_types, joint_parents, joint_chil
         if JointType(joint_types[k]) == JointType.PRISMATIC:
             sel = labels == joint_children[k]
             association[sel] = k + 1
-            targets[sel] = 0.0
             targets[sel, :3] = a
             continue
         on_parts = (labels == joint_parents[k]) | (labels == joint_children[k])

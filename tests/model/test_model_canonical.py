@@ -363,6 +363,8 @@ def test_joint_association_bad_inputs():
         joint_association(pts, [0, 1, 0, 1], ["revolute"], [0], [1], axes[0], pivots)
     with pytest.raises(ValueError, match="sigma"):
         joint_association(pts, [0, 1, 0, 1], ["revolute"], [0], [1], axes, pivots, sigma=np.inf)
+    with pytest.raises(ValueError, match="axes_naocs: expected unit vectors"):
+        joint_association(pts, [0, 1, 0, 1], ["revolute"], [0], [1], 2 * axes, pivots)
 
 
 def test_integer_valued_float_labels_and_empty_points_accepted(case):
