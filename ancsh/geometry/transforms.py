@@ -56,10 +56,15 @@ class Sim3:
     def from_matrix(cls, M) -> "Sim3":
         """From a ``(4, 4)`` homogeneous matrix ``[[s R, t], [0, 1]]``."""
         M = as_array(M, "M", (4, 4))
+        if np.abs(M[3] - [0.0, 0.0, 0.0, 1.0]).max() > 1e-12:
+            raise ValueError(f"M: last row must be [0, 0, 0, 1], got {M[3].tolist()}")
         A = M[:3, :3]
         s = float(np.cbrt(np.linalg.det(A)))
         if s <= 0:
             raise ValueError("M: upper-left block has non-positive determinant (reflection or singular)")
+        err = np.abs(A.T @ A / (s * s) - np.eye(3)).max()
+        if err > 1e-5:
+            raise ValueError(f"M: upper-left block is not a uniformly scaled rotation (deviation {err:.3g})")
         return cls(A / s, M[:3, 3], s)
 
     @classmethod

@@ -79,11 +79,17 @@ def test_invalid_construction(kwargs, match):
         Sim3(**kwargs)
 
 
-def test_from_matrix_rejects_reflection():
+def test_from_matrix_rejects_what_is_not_a_similarity():
     M = np.eye(4)
     M[2, 2] = -1
     with pytest.raises(ValueError, match="M: upper-left block has non-positive determinant"):
         Sim3.from_matrix(M)
+    with pytest.raises(ValueError, match="M: upper-left block is not a uniformly scaled rotation"):
+        Sim3.from_matrix(np.diag([1.0, 2.0, 3.0, 1.0]))
+    P = np.eye(4)
+    P[3, 2] = 1.0  # projective
+    with pytest.raises(ValueError, match=r"M: last row must be \[0, 0, 0, 1\]"):
+        Sim3.from_matrix(P)
 
 
 def test_apply_rejects_bad_shape(rng):
