@@ -41,7 +41,9 @@ def test_exp_matches_rodrigues_closed_form(rng):
     np.testing.assert_allclose(exp_so3(u * theta), R, atol=1e-15)
 
 
-@pytest.mark.parametrize("theta", [0.0, 1e-12, 1e-10, 1e-6, 1e-4, 0.3, 2.0, np.pi - 1.001e-3, np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9])
+@pytest.mark.parametrize(
+    "theta", [0.0, 1e-12, 1e-10, 1e-6, 1e-4, 0.3, 2.0, np.pi - 1.001e-3, np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9]
+)
 def test_log_exp_round_trip(rng, theta):
     for _ in range(5):
         w = _unit(rng) * theta

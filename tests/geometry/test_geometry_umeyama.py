@@ -148,3 +148,11 @@ def test_bad_shapes_and_nan(rng):
     bad[2, 1] = np.nan
     with pytest.raises(ValueError, match="dst: contains NaN"):
         umeyama(src, bad)
+
+
+def test_rank_one_cross_covariance_is_degenerate():
+    # Both sets span a plane, but their correlation only fixes one direction.
+    src = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]])
+    dst = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 1, 0]])
+    with pytest.raises(DegeneratePointsError, match="cross-covariance with dst has rank < 2"):
+        umeyama(src, dst)
