@@ -111,7 +111,8 @@ def ransac(
     rng : numpy.random.Generator or int
         Source of randomness.
     groups : (N,) int, optional
-        Group labels; every hypothesis draws ``sample_size`` data from each distinct label.
+        Group labels; every hypothesis draws ``sample_size`` distinct data from each distinct
+        label, passed to ``estimator`` group by group in ascending label order.
     score : callable, optional
         ``score(inliers (N,) bool, residuals (N,)) -> float``, higher is better; default the
         inlier count. See :func:`mean_group_inlier_ratio`.
