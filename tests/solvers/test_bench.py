@@ -1,0 +1,57 @@
+"""``ancsh bench fit`` on a tiny configuration: runs in-process and writes its report files."""
+
+import argparse
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.solvers import bench
+
+
+def _parse(argv):
+    parser = argparse.ArgumentParser()
+    bench.register(parser.add_subparsers())
+    return parser.parse_args(["fit", *argv])
+
+
+def test_quick_path_writes_markdown_and_json(tmp_path, capsys):
+    out = tmp_path / "results" / "fit.md"
+    args = _parse(["--quick", "--json", "--frames", "1", "--categories", "laptop", "--methods", "official",
+                   "--official-hypotheses", "20", "--out", str(out)])
+    assert args.func(args) == 0
+    text = out.read_text()
+    assert "ancsh bench fit --quick --json --frames 1 --categories laptop --methods official" in text
+    assert "| laptop | official | 100% |" in text
+    payload = json.loads(out.with_suffix(".json").read_text())
+    assert payload["config"]["levels"] == ["none", "realistic"]
+    assert {r["level"] for r in payload["records"]} == {"none", "realistic"}
+    nf = payload["headline"]["noise_free"]["official"]
+    assert nf["failed"] == 0 and max(nf["rot_rad"], nf["trans"], nf["scale_rel"]) < 1e-6
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_surface_frames_fallback_and_summary():
+    config = bench.BenchConfig(categories=("oven",), frames_per_category=1, levels=("none", "high"), num_points=150,
+                               official_hypotheses=10, methods=("official",), rendered=False)
+    frames = bench.load_frames(config)
+    assert [f.source for f in frames] == ["surface"]
+    report = bench.run_benchmark(config, frames=frames)
+    rows = bench.summarize(report)
+    assert [(r["level"], r["method"]) for r in rows] == [("none", "official"), ("high", "official")]
+    none, high = rows
+    assert none["rot_deg"][0] < 1e-6 and high["rot_deg"][0] > none["rot_deg"][0]
+    assert none["ms_median"] > 0 and none["ms_p90"] >= none["ms_median"]
+    head = bench.headline(report)
+    assert head["level"] == "high" and np.isnan(head.get("speedup", np.nan))
+
+
+def test_config_errors():
+    with pytest.raises(ValueError, match="levels"):
+        bench.BenchConfig(levels=("medium",))
+    with pytest.raises(ValueError, match="frames_per_category"):
+        bench.BenchConfig(frames_per_category=0)
+    with pytest.raises(ValueError, match="categories: unknown"):
+        bench.load_frames(bench.BenchConfig(categories=("toaster",)))
+    with pytest.raises(ValueError, match="methods: unknown"):
+        bench.available_methods(bench.BenchConfig(methods=("magic",)))
