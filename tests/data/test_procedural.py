@@ -127,6 +127,57 @@ def test_laptop_display_opens_upwards_to_the_front(objects):
         assert rest[1][:, 2].mean() < rest[0][:, 2].min() + 0.03
 
 
+def test_eyeglasses_temples_at_rest_are_at_right_angles_to_the_frame(objects):
+    for model in objects["eyeglasses"]:
+        verts = _world_vertices(model, model.rest_states)
+        frame_a, frame_b = _bounds(verts[0])
+        assert (frame_b - frame_a)[2] < 0.25 * (frame_b - frame_a)[0]  # the frame lies in the xy-plane
+        for k, side in ((0, -1), (1, 1)):
+            joint = model.joints[k]
+            np.testing.assert_allclose(joint.axis, [0.0, 1.0, 0.0])  # hinge axes point up
+            assert np.sign(joint.pivot[0]) == side  # left temple at -x, right temple at +x
+            v = verts[k + 1]
+            a, b = _bounds(v)
+            # straight back along -z, perpendicular to the frame
+            assert b[2] <= joint.pivot[2] + 1e-9 and (b - a)[2] > 0.1
+            assert (b - a)[0] < 0.01
+            # folding swings the temple inwards, behind the frame
+            q = model.rest_states.copy()
+            q[k] = model.lower_limits[k] if side < 0 else model.upper_limits[k]
+            folded = _world_vertices(model, q)[k + 1]
+            assert np.ptp(folded[:, 0]) > 0.1 and np.ptp(folded[:, 2]) < 0.05  # lies along x now
+            mid_x = 0.5 * (folded[:, 0].min() + folded[:, 0].max())
+            assert side * mid_x < side * joint.pivot[0] - 0.04  # towards the centre
+            assert folded[:, 2].max() < frame_b[2]
+
+
+def test_oven_door_closes_the_front_and_opens_forwards_and_down(objects):
+    for model in objects["oven"]:
+        joint = model.joints[0]
+        np.testing.assert_allclose(np.abs(joint.axis), [1.0, 0.0, 0.0])
+        rest = _world_vertices(model, model.rest_states)
+        opened = _world_vertices(model, model.upper_limits)
+        a, b = _bounds(rest[1])
+        assert a[2] >= joint.pivot[2] - 1e-9 and (b - a)[1] > (b - a)[2]  # upright, in front of the body
+        assert a[1] >= joint.pivot[1] - 1e-9  # the hinge is the door's bottom edge
+        oa, ob = _bounds(opened[1])
+        assert (ob - oa)[2] > (ob - oa)[1] and ob[1] < joint.pivot[1] + 0.08  # folded down, forwards
+
+
+def test_washing_machine_door_hinges_on_its_left_side(objects):
+    for model in objects["washing_machine"]:
+        joint = model.joints[0]
+        np.testing.assert_allclose(np.abs(joint.axis), [0.0, 1.0, 0.0])
+        rest = _world_vertices(model, model.rest_states)
+        a, b = _bounds(rest[1])
+        assert a[2] >= model.parts[0].vertices[:, 2].max() - 0.1  # at the front
+        assert a[0] >= joint.pivot[0] - 0.01 and (b - a)[1] > (b - a)[2]  # upright, right of the hinge
+        assert 0.5 < (b - a)[1] / (b - a)[0] < 2.0  # round-ish
+        q = np.array([min(np.pi / 2, model.upper_limits[0])])
+        opened = _world_vertices(model, q)[1]
+        assert opened[:, 2].mean() > rest[1][:, 2].mean() + 0.1
+
+
 def test_drawers_at_rest_are_closed_inside_the_cabinet(objects):
     from ancsh.data.procedural.drawer import MAX_HANDLE_PROTRUSION
 

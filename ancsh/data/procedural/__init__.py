@@ -21,12 +21,15 @@ from __future__ import annotations
 from types import MappingProxyType
 
 from ...model.articulated import ArticulatedModel
-from . import drawer, laptop
+from . import drawer, eyeglasses, laptop, oven, washing_machine
 from .registry import NUM_TEST, NUM_TRAIN, SPLITS, CategoryInfo, category_rng, split_seeds
 
-CATEGORIES = ("laptop", "drawer")  # eyeglasses, oven, washing_machine follow
+CATEGORIES = ("eyeglasses", "oven", "washing_machine", "laptop", "drawer")
 
 _MODULES = {
+    "eyeglasses": eyeglasses,
+    "oven": oven,
+    "washing_machine": washing_machine,
     "laptop": laptop,
     "drawer": drawer,
 }

@@ -41,17 +41,21 @@ def outline_superellipse(a: float, b: float, exponent: float = 2.0, n: int = 48)
     return np.stack([x, y], axis=1)
 
 
-def outline_rounded_rect(width: float, height: float, radius: float, n: int = 48) -> np.ndarray:
-    """Rounded rectangle centred at the origin, sampled along ``n`` polar rays, ``(n, 2)`` ccw."""
+def outline_rounded_rect(width: float, height: float, radius: float, n: int = 48, center=(0.0, 0.0)) -> np.ndarray:
+    """Rounded rectangle centred at ``center`` (2,), sampled along ``n`` polar rays from the
+    origin (which must lie inside it), ``(n, 2)`` ccw."""
     radius = min(radius, 0.499 * min(width, height))
+    center = np.asarray(center, dtype=np.float64)
+    if abs(center[0]) >= width / 2 - radius / 2 or abs(center[1]) >= height / 2 - radius / 2:
+        raise ValueError(f"center: {center.tolist()} must lie well inside the {width:.3g} x {height:.3g} rectangle")
     t = np.linspace(0.0, 2 * np.pi, n, endpoint=False) + np.pi / n
     d = np.stack([np.cos(t), np.sin(t)], axis=1)
     hx, hy = width / 2, height / 2
     # Distance along each ray to the rounded rectangle (convex: bisection on the inside test).
-    lo, hi = np.zeros(n), np.full(n, np.hypot(hx, hy))
+    lo, hi = np.zeros(n), np.full(n, np.hypot(hx + abs(center[0]), hy + abs(center[1])))
     for _ in range(40):
         mid = (lo + hi) / 2
-        p = d * mid[:, None]
+        p = d * mid[:, None] - center
         q = np.maximum(np.abs(p) - np.array([hx - radius, hy - radius]), 0.0)
         inside = np.linalg.norm(q, axis=1) <= radius
         lo = np.where(inside, mid, lo)

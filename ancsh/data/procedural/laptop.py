@@ -41,14 +41,13 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     # --- base -----------------------------------------------------------------------------
     outline = m.outline_rounded_rect(width, depth, corner)
     y0 = foot_h
-    slab_back = m.along(m.prism(outline, t_base), "y", (0.0, y0 + t_base / 2, 0.0))
-    pieces = [slab_back]
-    if taper > 0.05:  # wedge look: a thinner front half replaces the full-height front
+    pieces = [m.along(m.prism(outline, t_base), "y", (0.0, y0 + t_base / 2, 0.0))]
+    if taper > 0.05:  # wedge look: thinner at the front, full height over the back half
         front_t = t_base * (1 - taper)
-        half = m.outline_rounded_rect(width, depth / 2, corner)
+        back = m.outline_rounded_rect(width, depth / 2, corner)
         pieces = [
-            m.along(m.prism(half, t_base), "y", (0.0, y0 + t_base / 2, -depth / 4)),
-            m.along(m.prism(half, front_t), "y", (0.0, y0 + front_t / 2, depth / 4)),
+            m.along(m.prism(outline, front_t), "y", (0.0, y0 + front_t / 2, 0.0)),
+            m.along(m.prism(back, t_base - front_t), "y", (0.0, y0 + (t_base + front_t) / 2, -depth / 4)),
         ]
         top_front = y0 + front_t
     else:
