@@ -1,0 +1,141 @@
+"""Numerical backends solving a :class:`~ancsh.solvers.program.Program` for one frame.
+
+Both evaluate the program's CasADi definitions: IPOPT (``casadi.nlpsol``) minimises
+``|r(x, p)|^2`` subject to the program's equalities/inequalities and bounds on ``x``;
+scipy ``least_squares`` minimises the same residuals with the program's exact Jacobian
+(no finite differences), for programs without constraints (bounds on ``x`` allowed).
+A failed solve is reported in :class:`SolveOutcome`, never raised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .program import Program
+from .types import FitStatus
+
+__all__ = ["BACKENDS", "SolveOutcome", "SolverOptions", "solve"]
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Stopping rules shared by the backends."""
+
+    max_iterations: int = 100
+    tol: float = 1e-10
+
+
+@dataclass(frozen=True)
+class SolveOutcome:
+    """Result of one backend solve.
+
+    Attributes
+    ----------
+    x : (n,) float64
+        Final decision vector (the last iterate on failure).
+    status : FitStatus
+    message : str
+        The backend's own status text.
+    iterations : int
+    """
+
+    x: np.ndarray
+    status: FitStatus
+    message: str
+    iterations: int
+
+
+_IPOPT_STATUS = {
+    "Solve_Succeeded": FitStatus.SUCCESS,
+    "Solved_To_Acceptable_Level": FitStatus.SUCCESS,
+    "Maximum_Iterations_Exceeded": FitStatus.MAX_ITER,
+    "Maximum_CpuTime_Exceeded": FitStatus.MAX_ITER,
+    "Infeasible_Problem_Detected": FitStatus.INFEASIBLE,
+    "Restoration_Failed": FitStatus.NUMERICAL_FAILURE,
+    "Invalid_Number_Detected": FitStatus.NUMERICAL_FAILURE,
+}
+
+
+def _ipopt_options(opts: SolverOptions) -> dict:
+    return {
+        "ipopt.print_level": 0,
+        "ipopt.sb": "yes",
+        "print_time": False,
+        "ipopt.max_iter": int(opts.max_iterations),
+        "ipopt.tol": float(opts.tol),
+        "ipopt.acceptable_tol": max(float(opts.tol) * 1e3, 1e-8),
+        "error_on_fail": False,
+    }
+
+
+def solve_ipopt(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+    """IPOPT on the program's NLP (the solver object is cached on the program)."""
+    solver = prog.nlpsol(_ipopt_options(opts))
+    try:
+        sol = solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    except RuntimeError as exc:  # evaluation errors (NaN/inf) surface as RuntimeError in CasADi
+        return SolveOutcome(np.asarray(x0, dtype=float), FitStatus.NUMERICAL_FAILURE, f"ipopt: {exc}", 0)
+    stats = solver.stats()
+    text = str(stats.get("return_status", "unknown"))
+    x = np.asarray(sol["x"]).ravel()
+    status = _IPOPT_STATUS.get(text, FitStatus.SUCCESS if stats.get("success") else FitStatus.NUMERICAL_FAILURE)
+    if not np.all(np.isfinite(x)):
+        status = FitStatus.NUMERICAL_FAILURE
+    return SolveOutcome(x, status, f"ipopt: {text}", int(stats.get("iter_count", 0)))
+
+
+def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+    """scipy ``least_squares`` on the program's residuals and exact Jacobian."""
+    from scipy.optimize import least_squares
+
+    if prog.num_constraints:
+        raise ValueError(
+            f"solver: 'lsq' cannot handle the {prog.num_constraints} constraints of terms {prog.key.terms}; use 'ipopt'"
+        )
+    lbx = np.asarray(lbx, dtype=float)
+    ubx = np.asarray(ubx, dtype=float)
+    x0 = np.asarray(x0, dtype=float)
+    bounded = bool(np.any(np.isfinite(lbx)) or np.any(np.isfinite(ubx)))
+
+    def fun(x):
+        return np.asarray(prog.residual(x, p)).ravel()
+
+    def jac(x):
+        return np.asarray(prog.jacobian(x, p))
+
+    tol = max(float(opts.tol), np.finfo(float).eps)
+    kwargs = dict(jac=jac, xtol=tol, ftol=tol, gtol=tol, max_nfev=int(opts.max_iterations) * (prog.num_x + 1))
+    if bounded:
+        # trf needs a strictly feasible start.
+        span = np.where(np.isfinite(ubx - lbx), ubx - lbx, 1.0)
+        x0 = np.clip(x0, lbx + 1e-9 * span, ubx - 1e-9 * span)
+        kwargs.update(method="trf", bounds=(lbx, ubx))
+    elif prog.num_residuals >= prog.num_x:
+        kwargs.update(method="lm")
+    else:
+        kwargs.update(method="trf")
+    try:
+        res = least_squares(fun, x0, **kwargs)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        return SolveOutcome(x0, FitStatus.NUMERICAL_FAILURE, f"least_squares: {exc}", 0)
+    if res.status > 0 and np.all(np.isfinite(res.x)):
+        status = FitStatus.SUCCESS
+    elif res.status == 0:
+        status = FitStatus.MAX_ITER
+    else:
+        status = FitStatus.NUMERICAL_FAILURE
+    return SolveOutcome(np.asarray(res.x), status, f"least_squares: {res.message}", int(res.nfev))
+
+
+BACKENDS = {"ipopt": solve_ipopt, "lsq": solve_lsq}
+
+
+def solve(backend: str, prog: Program, p, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+    """Dispatch to :data:`BACKENDS` ``[backend]``."""
+    try:
+        fn = BACKENDS[backend]
+    except KeyError:
+        raise ValueError(f"solver: expected one of {sorted(BACKENDS)}, got {backend!r}") from None
+    return fn(prog, p, x0, lbx, ubx, lbg, ubg, opts)

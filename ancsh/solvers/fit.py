@@ -1,0 +1,548 @@
+"""Articulated fitting: RANSAC initialisation, the formulations, and post-processing.
+
+:func:`fit` is the one entry point::
+
+    result = fit(observation, correspondences, formulation="exact_reduced", solver="ipopt",
+                 config=FitConfig(), rng=0)
+
+Every formulation shares the same pipeline:
+
+1. **RANSAC** (:func:`ancsh.geometry.ransac.ransac`): a hypothesis draws 3 points per part,
+   fits every part by Umeyama (with scale) and is scored on all parts jointly by the mean
+   per-part inlier ratio (inlier: distance below ``inlier_threshold`` object diagonals).
+   The best hypothesis is refitted on its inliers: these per-part poses are the
+   initialisation (and the whole answer of ``per_part``, the paper's NPCS baseline).
+2. **Solve** the formulation's program (built once per kinematic structure, see
+   :mod:`ancsh.solvers.program`) on the inliers' moments; optionally re-score the inliers
+   with the solved poses and solve again, and/or iterate a robust kernel (IRLS).
+3. **Post-process** (paper Sec. 4.4): camera-space joint axes and pivots, joint states
+   relative to rest, amodal boxes.
+
+Formulations (:data:`FORMULATIONS`): ``per_part`` (Umeyama + RANSAC), ``soft`` (paper Sec.
+4.3: data + lambda soft joint energies), ``exact_maximal`` (every part SE(3)+scale with exact
+joint equalities and limit inequalities, IPOPT), ``exact_reduced`` (object pose + joint
+states, joints exact by construction, limits as bounds; IPOPT or least squares).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..geometry._checks import check_generator
+from ..geometry.boxes import OrientedBox
+from ..geometry.ransac import mean_group_inlier_ratio, ransac
+from ..geometry.transforms import Sim3
+from ..geometry.umeyama import umeyama
+from .types import Correspondences, FitResult, FitStatus, Observation
+
+__all__ = ["FORMULATIONS", "FitConfig", "Formulation", "fit"]
+
+_MIN_POINTS = 3
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    """Settings of :func:`fit`, validated on construction.
+
+    Attributes
+    ----------
+    ransac : bool
+        Run RANSAC; ``False`` fits every part on all its points.
+    ransac_iterations : int
+        Maximum number of minimal samples (the loop stops early at ``ransac_confidence``).
+    ransac_confidence : float
+        In ``(0, 1]``.
+    inlier_threshold : float
+        Inlier distance in object diagonals (NAOCS units; the object's size in metres is
+        estimated from the point spread), ``> 0``.
+    rescore_rounds : int
+        After a solve, recompute the inliers with the solved poses and solve again (at most
+        this many times, stopping when the inliers do not change).
+    optimize_scale : bool
+        ``False`` keeps the Umeyama scales fixed as in the paper (reduced: one object scale,
+        the median over parts); ``True`` optimises log-scales.
+    soft_weight : float
+        ``lambda`` of the paper's soft joint energies (``soft``), ``>= 0``.
+    soft_mu : float
+        ``mu`` of the prismatic soft energy, ``>= 0``.
+    common_scale_weight : float
+        Weight of the soft common-object-scale term (``soft`` with ``optimize_scale``); 0 = off.
+        (``exact_maximal`` with ``optimize_scale`` holds one object scale exactly.)
+    robust : str or None
+        ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
+        the moments (each round reweights the points and re-solves with the same program).
+    robust_scale : float
+        Kernel scale in object diagonals, ``> 0``.
+    irls_iterations : int
+        IRLS rounds when ``robust`` is set, ``>= 1``.
+    enforce_limits : bool
+        Use the correspondences' joint limits (inequalities / bounds) when present.
+    max_iterations : int
+        Backend iteration limit.
+    tol : float
+        Backend tolerance.
+    """
+
+    ransac: bool = True
+    ransac_iterations: int = 200
+    ransac_confidence: float = 0.99
+    inlier_threshold: float = 0.05
+    rescore_rounds: int = 1
+    optimize_scale: bool = False
+    soft_weight: float = 1.0
+    soft_mu: float = 1.0
+    common_scale_weight: float = 0.0
+    robust: str | None = None
+    robust_scale: float = 0.02
+    irls_iterations: int = 5
+    enforce_limits: bool = True
+    max_iterations: int = 100
+    tol: float = 1e-10
+
+    def __post_init__(self):
+        for name in ("ransac", "optimize_scale", "enforce_limits"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+        for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+        for name, positive in (
+            ("ransac_confidence", True), ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
+            ("common_scale_weight", False), ("robust_scale", True), ("tol", True),
+        ):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
+                raise ValueError(f"{name}: expected a finite number, got {v!r}")
+            if v < 0 or (positive and v == 0):
+                raise ValueError(f"{name}: expected a {'positive' if positive else 'non-negative'} number, got {v!r}")
+        if not 0 < self.ransac_confidence <= 1:
+            raise ValueError(f"ransac_confidence: expected a number in (0, 1], got {self.ransac_confidence}")
+        if self.robust is not None and self.robust not in _robust_kernel_names():
+            raise ValueError(f"robust: expected None or one of {_robust_kernel_names()}, got {self.robust!r}")
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "FitConfig":
+        """Build from a mapping; unknown keys raise ``ValueError`` naming them."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"config: unknown key(s) {unknown}; known: {sorted(known)}")
+        return cls(**values)
+
+
+def _robust_kernel_names() -> tuple:
+    return ("huber", "cauchy")
+
+
+@dataclass(frozen=True)
+class Formulation:
+    """A fitting formulation: which program (parameterisation + terms) and which backends.
+
+    Attributes
+    ----------
+    name : str
+    description : str
+    solvers : tuple of str
+        Supported backends, the first being the default.
+    parameterisation : str or None
+        ``"maximal"``, ``"reduced"`` or ``None`` (closed form, no program).
+    """
+
+    name: str
+    description: str
+    solvers: tuple
+    parameterisation: str | None
+
+    def terms(self, config: FitConfig, corr: Correspondences) -> tuple:
+        """Names of the terms of this formulation's program."""
+        has_limits = (
+            config.enforce_limits and corr.joint_limits is not None and bool(np.any(np.isfinite(corr.joint_limits)))
+        )
+        scale_term = ("common_scale",) if config.optimize_scale and config.common_scale_weight > 0 else ()
+        if self.name == "soft":
+            return ("data", "soft_joint") + scale_term
+        if self.name == "exact_maximal":
+            # Optimised scales: one object scale, exactly (as in the reduced parameterisation).
+            exact_scale = ("exact_common_scale",) if config.optimize_scale else ()
+            return ("data", "exact_joint") + exact_scale + (("joint_limits",) if has_limits else ())
+        if self.name == "exact_reduced":
+            return ("data",)
+        return ()
+
+
+FORMULATIONS: dict[str, Formulation] = {
+    f.name: f
+    for f in (
+        Formulation("per_part", "per-part Umeyama + RANSAC (the paper's NPCS baseline)", ("umeyama",), None),
+        Formulation("soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt"), "maximal"),
+        Formulation("exact_maximal", "every part SE(3)+scale, exact joint equalities, limit inequalities", ("ipopt",), "maximal"),
+        Formulation("exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq"), "reduced"),
+    )
+}
+"""Formulations by name; loop over it to compare them."""
+
+
+# ---------------------------------------------------------------------------------------------
+def fit(
+    observation: Observation,
+    correspondences: Correspondences,
+    formulation: str = "exact_reduced",
+    solver: str | None = None,
+    config: FitConfig | None = None,
+    rng=0,
+) -> FitResult:
+    """Fit the part poses and joints of an articulated object to one observation.
+
+    Parameters
+    ----------
+    observation : Observation
+        ``N`` points in the camera frame (metres).
+    correspondences : Correspondences
+        For the same ``N`` points: part labels and NPCS coordinates; NPCS -> NAOCS maps; joints.
+    formulation : str
+        A key of :data:`FORMULATIONS`.
+    solver : str, optional
+        A backend supported by the formulation (default: its first).
+    config : FitConfig, optional
+    rng : numpy.random.Generator or int
+        RANSAC randomness.
+
+    Returns
+    -------
+    FitResult
+        With a failure status (never an exception) when the data cannot be fitted: too few
+        points on a part, degenerate samples, solver failure.
+
+    Raises
+    ------
+    ValueError
+        For bad arguments: wrong types, mismatched point counts, unknown formulation/solver.
+    """
+    start = time.perf_counter()
+    if not isinstance(observation, Observation):
+        raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
+    if not isinstance(correspondences, Correspondences):
+        raise ValueError(f"correspondences: expected Correspondences, got {type(correspondences).__name__}")
+    if correspondences.num_points != observation.num_points:
+        raise ValueError(
+            f"correspondences: {correspondences.num_points} points do not match the observation's {observation.num_points}"
+        )
+    if formulation not in FORMULATIONS:
+        raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
+    form = FORMULATIONS[formulation]
+    solver = form.solvers[0] if solver is None else solver
+    if solver not in form.solvers:
+        raise ValueError(f"solver: formulation {formulation!r} supports {list(form.solvers)}, got {solver!r}")
+    config = FitConfig() if config is None else config
+    if not isinstance(config, FitConfig):
+        raise ValueError(f"config: expected a FitConfig, got {type(config).__name__}")
+    rng = check_generator(rng)
+    return _Fit(observation, correspondences, form, solver, config, rng, start).run()
+
+
+class _Fit:
+    """One call of :func:`fit` (keeps the per-frame arrays together)."""
+
+    def __init__(self, obs, corr, form, solver, config, rng, start):
+        self.corr, self.form, self.solver, self.config, self.rng, self.start = corr, form, solver, config, rng, start
+        self.points = obs.points_cam
+        self.npcs = corr.npcs
+        self.labels = corr.part_labels
+        self.weights = np.ones(corr.num_points) if corr.weights is None else np.asarray(corr.weights, dtype=float)
+        self.M, self.K, self.N = corr.num_parts, corr.num_joints, corr.num_points
+        from .terms import KinematicStructure
+
+        self.structure = KinematicStructure.from_correspondences(corr)
+
+    # -- results ---------------------------------------------------------------------------
+    def _failure(self, status: FitStatus, message: str) -> FitResult:
+        return FitResult.failure(
+            status, message, formulation=self.form.name, solver=self.solver, num_joints=self.K,
+            num_points=self.N, time_s=time.perf_counter() - self.start,
+        )
+
+    def run(self) -> FitResult:
+        active = self.weights > 0
+        counts = np.bincount(self.labels[active], minlength=self.M)
+        if self.N == 0:
+            return self._failure(FitStatus.TOO_FEW_POINTS, "the observation has no points")
+        short = np.flatnonzero(counts < _MIN_POINTS)
+        if short.size:
+            return self._failure(
+                FitStatus.TOO_FEW_POINTS,
+                f"part(s) {short.tolist()} have fewer than {_MIN_POINTS} points (counts {counts[short].tolist()})",
+            )
+        init = self._initial_poses(active)
+        if isinstance(init, FitResult):
+            return init
+        poses, inliers = init
+        L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
+        if self.form.parameterisation is None:
+            return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, None)
+        return self._solve(poses, inliers, L)
+
+    # -- RANSAC + per-part Umeyama ------------------------------------------------------------
+    def _initial_poses(self, active: np.ndarray):
+        idx_active = np.flatnonzero(active)
+        pts, c, lab, w = self.points[active], self.npcs[active], self.labels[active], self.weights[active]
+        part_idx = [np.flatnonzero(lab == j) for j in range(self.M)]
+        weighted = self.corr.weights is not None
+
+        def estimator(idx):
+            idx = np.sort(idx)
+            sub = lab[idx]
+            out = []
+            for j in range(self.M):
+                sel = idx[sub == j]
+                if sel.size < _MIN_POINTS:
+                    return None
+                try:
+                    out.append(umeyama(c[sel], pts[sel], weights=w[sel] if weighted and sel.size > 3 else None))
+                except ValueError:
+                    return None
+            return out
+
+        def residual(model):
+            r = np.empty(len(pts))
+            for j, T in enumerate(model):
+                sel = part_idx[j]
+                r[sel] = np.linalg.norm(T.apply(c[sel]) - pts[sel], axis=1)
+            return r
+
+        cfg = self.config
+        if cfg.ransac:
+            scale = _spread_scale(pts, c, lab, self.corr.npcs_scale)
+            res = ransac(
+                len(pts), estimator, residual, _MIN_POINTS, cfg.inlier_threshold * scale, self.rng,
+                groups=lab, score=mean_group_inlier_ratio(lab), max_iterations=cfg.ransac_iterations,
+                confidence=cfg.ransac_confidence, refit=True,
+            )
+            if not res.success:
+                return self._failure(FitStatus.DEGENERATE, f"RANSAC: {res.message}")
+            model, inl = res.model, res.inliers
+            # The refit needs >= 3 inliers per part; fall back to the sample model otherwise.
+            counts = np.bincount(lab[inl], minlength=self.M)
+            if np.any(counts < _MIN_POINTS):
+                return self._failure(
+                    FitStatus.TOO_FEW_POINTS, f"RANSAC left parts {np.flatnonzero(counts < _MIN_POINTS).tolist()} with < 3 inliers"
+                )
+        else:
+            model = estimator(np.arange(len(pts)))
+            if model is None:
+                return self._failure(FitStatus.DEGENERATE, "a part's points are degenerate (collinear or coincident)")
+            inl = np.ones(len(pts), dtype=bool)
+        inliers = np.zeros(self.N, dtype=bool)
+        inliers[idx_active[inl]] = True
+        return list(model), inliers
+
+    # -- program solve --------------------------------------------------------------------------
+    def _solve(self, poses: list, inliers: np.ndarray, L: float) -> FitResult:
+        from .backends import SolverOptions, solve
+        from .program import ProgramKey, get_program
+
+        cfg = self.config
+        key = ProgramKey(self.structure, self.form.parameterisation, bool(cfg.optimize_scale), self.form.terms(cfg, self.corr))
+        prog = get_program(key)
+        limits = self._limits()
+        values = self._static_values(L)
+        values.update(self._init_values(poses, L))
+        x0, lbx, ubx = self._x_start(prog, poses, values, limits)
+        opts = SolverOptions(cfg.max_iterations, cfg.tol)
+        weights = self.weights.copy()
+        total_iter = 0
+        outcome = None
+        rounds = cfg.irls_iterations if cfg.robust else 1
+        for rescore in range(cfg.rescore_rounds + 1):
+            for _ in range(rounds):
+                values.update(self._moment_values(inliers, weights, L))
+                p = prog.pack(values)
+                lbg, ubg = prog.constraint_bounds({"joint_limits": limits})
+                outcome = solve(self.solver, prog, p, x0, lbx, ubx, lbg, ubg, opts)
+                total_iter += outcome.iterations
+                if outcome.status != FitStatus.SUCCESS:
+                    break
+                x0 = outcome.x
+                if cfg.robust:
+                    weights = self._irls_weights(prog.unpack_poses(outcome.x, p), L)
+            if outcome.status != FitStatus.SUCCESS or rescore == cfg.rescore_rounds:
+                break
+            new_inliers = self._rescore(prog.unpack_poses(outcome.x, p), L, inliers)
+            if np.array_equal(new_inliers, inliers):
+                break
+            inliers = new_inliers
+        p = prog.pack(values)
+        raw = prog.unpack_poses(outcome.x, p)
+        if not all(np.all(np.isfinite(R)) and np.all(np.isfinite(t)) and np.isfinite(s) and s > 0 for R, t, s in raw):
+            return self._failure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
+        solved = [Sim3(_orthonormalize(R), t, s) for R, t, s in raw]
+        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, p)).ravel().tolist()))
+        if cfg.robust:
+            costs["robust_data"] = self._robust_energy(raw, inliers, L)
+        return self._finish(solved, inliers, L, outcome.status, outcome.message, total_iter, costs)
+
+    def _limits(self) -> np.ndarray:
+        if self.config.enforce_limits and self.corr.joint_limits is not None:
+            return np.asarray(self.corr.joint_limits, dtype=float)
+        return np.tile([-np.inf, np.inf], (self.K, 1))
+
+    def _static_values(self, L: float) -> dict:
+        cfg, corr = self.config, self.corr
+        v = {
+            "L": L, "soft_weight": cfg.soft_weight, "soft_mu": cfg.soft_mu,
+            "common_scale_weight": cfg.common_scale_weight,
+        }
+        for j in range(self.M):
+            v[f"Gs{j}"] = corr.npcs_scale[j]
+            v[f"Gt{j}"] = corr.npcs_translation[j]
+        for k in range(self.K):
+            u = corr.joint_axes_naocs[k]
+            a, b = _perpendiculars(u)
+            v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, corr.joint_pivots_naocs[k], a, b
+        return v
+
+    def _init_values(self, poses: list, L: float) -> dict:
+        v = {}
+        for j, T in enumerate(poses):
+            v[f"R0_{j}"], v[f"t0_{j}"], v[f"s0_{j}"] = T.rotation, T.translation, T.scale
+        r = self.structure.root
+        T = poses[r]
+        sigma_root = T.scale / self.corr.npcs_scale[r]
+        v["R0_obj"] = T.rotation
+        v["tau0_obj"] = T.translation - sigma_root * (T.rotation @ self.corr.npcs_translation[r])
+        v["sigma0"] = L
+        return v
+
+    def _x_start(self, prog, poses, values, limits):
+        x0 = np.zeros(prog.num_x)
+        lbx = np.full(prog.num_x, -np.inf)
+        ubx = np.full(prog.num_x, np.inf)
+        if "theta" in prog.layout:
+            sl = prog.layout["theta"]
+            _, _, states = _postprocess(self.structure, poses, values)
+            lo, hi = limits[:, 0], limits[:, 1]
+            x0[sl] = np.clip(states, lo, hi)
+            lbx[sl], ubx[sl] = lo, hi
+        return x0, lbx, ubx
+
+    def _moment_values(self, inliers: np.ndarray, weights: np.ndarray, L: float) -> dict:
+        from .terms import part_moments
+
+        v = {}
+        for j in range(self.M):
+            sel = inliers & (self.labels == j) & (weights > 0)
+            for name, val in part_moments(self.points[sel], self.npcs[sel], weights[sel], L).items():
+                v[f"{name}{j}"] = val
+        return v
+
+    def _point_distances(self, raw: list) -> np.ndarray:
+        d = np.empty(self.N)
+        for j, (R, t, s) in enumerate(raw):
+            sel = self.labels == j
+            d[sel] = np.linalg.norm(self.points[sel] - (s * self.npcs[sel] @ R.T + t), axis=1)
+        return d
+
+    def _rescore(self, raw: list, L: float, current: np.ndarray) -> np.ndarray:
+        """Inliers of the solved poses (``current`` if some part would keep < 3)."""
+        inl = (self._point_distances(raw) <= self.config.inlier_threshold * L) & (self.weights > 0)
+        counts = np.bincount(self.labels[inl], minlength=self.M)
+        return current if np.any(counts < _MIN_POINTS) else inl
+
+    def _irls_weights(self, raw: list, L: float) -> np.ndarray:
+        from .terms import ROBUST_KERNELS
+
+        r2 = (self._point_distances(raw) / L) ** 2
+        _, w = ROBUST_KERNELS[self.config.robust](r2[None, :], self.config.robust_scale)
+        return self.weights * np.asarray(w).ravel()
+
+    def _robust_energy(self, raw: list, inliers: np.ndarray, L: float) -> float:
+        from .terms import ROBUST_KERNELS
+
+        r2 = (self._point_distances(raw) / L) ** 2
+        rho, _ = ROBUST_KERNELS[self.config.robust](r2[None, :], self.config.robust_scale)
+        rho = np.asarray(rho).ravel()
+        total = 0.0
+        for j in range(self.M):
+            sel = inliers & (self.labels == j)
+            w = self.weights[sel]
+            total += float(w @ rho[sel] / w.sum())
+        return total
+
+    # -- post-processing ------------------------------------------------------------------------
+    def _finish(self, poses, inliers, L, status, message, iterations, costs) -> FitResult:
+        values = self._static_values(L)
+        axes, pivots, states = _postprocess(self.structure, poses, values)
+        violation, eval_costs = self._check(poses, values, inliers)
+        if costs is None:
+            costs = eval_costs
+        boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
+        return FitResult(
+            formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
+            joint_pivots_cam=pivots, joint_states=states, boxes_cam=boxes, status=status, message=message,
+            cost_per_term=costs, iterations=int(iterations), max_constraint_violation=violation, inliers=inliers,
+            time_s=time.perf_counter() - self.start,
+        )
+
+    def _check(self, poses, values, inliers) -> tuple[float, dict]:
+        """Exact-joint and limit violation, and the data energy, at the given poses."""
+        from .program import ProgramKey, get_program
+
+        terms = ("data", "exact_joint") + (("joint_limits",) if self.K else ())
+        prog = get_program(ProgramKey(self.structure, "maximal", False, terms))
+        v = dict(values)
+        v.update(self._init_values(poses, values["L"]))
+        v.update(self._moment_values(inliers, self.weights, values["L"]))
+        p = prog.pack(v)
+        x = np.zeros(prog.num_x)
+        g = np.asarray(prog.constraints(x, p)).ravel()
+        lo, hi = prog.constraint_bounds({"joint_limits": self._limits()})
+        viol = float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
+        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(x, p)).ravel().tolist()))
+        return viol, costs
+
+    def _box(self, j: int, T: Sim3, inliers: np.ndarray) -> OrientedBox:
+        if self.corr.npcs_extents is not None:
+            extents = self.corr.npcs_extents[j]
+        else:
+            sel = inliers & (self.labels == j)
+            extents = 2.0 * np.max(np.abs(self.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
+        return OrientedBox(np.zeros(3), np.eye(3), extents).transformed(T)
+
+
+def _postprocess(structure, poses: list, values: dict):
+    from .program import postprocess_function
+
+    post = postprocess_function(structure)
+    vec = np.concatenate([np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in poses])
+    return post(vec, values)
+
+
+def _perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing the unit ``u`` to a right-handed orthonormal basis."""
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(u)))] = 1.0
+    a = np.cross(u, e)
+    a /= np.linalg.norm(a)
+    return a, np.cross(u, a)
+
+
+def _spread_scale(points, npcs, labels, npcs_scale) -> float:
+    """Robust object scale (metres per NAOCS unit) from the point spread of each part."""
+    est = []
+    for j in range(len(npcs_scale)):
+        sel = labels == j
+        p, c = points[sel], npcs[sel]
+        dp = np.median(np.linalg.norm(p - np.median(p, axis=0), axis=1))
+        dc = np.median(np.linalg.norm(c - np.median(c, axis=0), axis=1))
+        if dc > 0 and dp > 0:
+            est.append(dp / dc / npcs_scale[j])
+    return float(np.median(est)) if est else 1.0
+
+
+def _orthonormalize(R: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(R)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt

@@ -1,0 +1,210 @@
+"""End-to-end fits: ground truth recovery, backend agreement, exact constraints, limits, errors."""
+
+import numpy as np
+import pytest
+
+from ancsh.geometry.rotations import geodesic_angle
+from ancsh.solvers import FORMULATIONS, Correspondences, FitConfig, FitStatus, Observation, fit
+from ancsh.solvers.program import program_build_count
+
+ALL = [(f, s) for f, form in FORMULATIONS.items() for s in form.solvers]
+
+
+def _pose_errors(result, gt):
+    rot = max(geodesic_angle(a.rotation, b.rotation) for a, b in zip(result.T_cam_npcs, gt.T_cam_npcs))
+    trans = max(np.linalg.norm(a.translation - b.translation) for a, b in zip(result.T_cam_npcs, gt.T_cam_npcs))
+    scale = max(abs(a.scale - b.scale) for a, b in zip(result.T_cam_npcs, gt.T_cam_npcs))
+    return rot, trans, scale
+
+
+@pytest.mark.parametrize("formulation, solver", ALL)
+@pytest.mark.parametrize("seed, num_parts, tree", [(0, 3, False), (1, 4, True), (2, 2, False)])
+def test_noise_free_correspondences_recover_ground_truth(fit_case, formulation, solver, seed, num_parts, tree):
+    """Seeded random models (mixed joint types, chain and tree): every formulation is exact."""
+    case = fit_case(seed, num_parts=num_parts, tree=tree)
+    config = FitConfig(optimize_scale=formulation != "per_part" and seed == 1)
+    r = fit(case.observation, case.correspondences, formulation, solver, config, rng=seed)
+    assert r.status == FitStatus.SUCCESS, r.message
+    assert max(_pose_errors(r, case.gt)) < 1e-6
+    gt = case.gt
+    np.testing.assert_allclose(r.joint_states, gt.joint_states, atol=1e-6)
+    np.testing.assert_allclose(np.abs(np.sum(r.joint_axes_cam * gt.joint_axes_cam, axis=1)), 1.0, atol=1e-9)
+    for k, jt in enumerate(gt.joint_types):
+        if jt.value == "revolute":
+            np.testing.assert_allclose(r.joint_pivots_cam[k], gt.joint_pivots_cam[k], atol=1e-6)
+    for box, gt_box in zip(r.boxes_cam, gt.boxes_cam):
+        np.testing.assert_allclose(box.corners(), gt_box.corners(), atol=1e-6)
+    assert r.inliers.all() and r.max_constraint_violation < 1e-6 and r.time_s > 0
+
+
+@pytest.mark.parametrize("formulation", ["soft", "exact_reduced"])
+def test_ipopt_and_least_squares_agree_from_the_same_start(fit_case, formulation):
+    case = fit_case(5, num_parts=3, npcs_noise=0.01)
+    cfg = FitConfig(ransac=False, rescore_rounds=0, tol=1e-12, max_iterations=200)
+    a = fit(case.observation, case.correspondences, formulation, "ipopt", cfg)
+    b = fit(case.observation, case.correspondences, formulation, "lsq", cfg)
+    assert a.ok and b.ok, (a.message, b.message)
+    for Ta, Tb in zip(a.T_cam_npcs, b.T_cam_npcs):
+        assert geodesic_angle(Ta.rotation, Tb.rotation) < 1e-6
+        np.testing.assert_allclose(Ta.translation, Tb.translation, atol=1e-7)
+    np.testing.assert_allclose(a.joint_states, b.joint_states, atol=1e-6)
+    for name in a.cost_per_term:
+        np.testing.assert_allclose(a.cost_per_term[name], b.cost_per_term[name], rtol=1e-6, atol=1e-14)
+
+
+def test_exact_formulations_satisfy_constraints_and_beat_noise(fit_case):
+    """With NPCS noise, exact fits hold the joints to solver tolerance; per-part and soft fits do not."""
+    case = fit_case(7, num_parts=4, tree=True, npcs_noise=0.02)
+    cfg = FitConfig(ransac=False, optimize_scale=True)
+    res = {f: fit(case.observation, case.correspondences, f, config=cfg) for f in FORMULATIONS}
+    assert all(r.ok for r in res.values()), {f: r.message for f, r in res.items()}
+    assert res["exact_maximal"].max_constraint_violation < 1e-7
+    assert res["exact_reduced"].max_constraint_violation < 1e-9
+    assert res["per_part"].max_constraint_violation > 1e-4
+    # Both exact parameterisations (one object scale) solve the same problem: same optimum.
+    for Ta, Tb in zip(res["exact_maximal"].T_cam_npcs, res["exact_reduced"].T_cam_npcs):
+        assert geodesic_angle(Ta.rotation, Tb.rotation) < 1e-5
+
+
+def test_joint_limits_hold_when_the_data_violates_them(fit_case):
+    case = fit_case(3, num_parts=3, joint_types="revolute")
+    gt_states = case.gt.joint_states
+    lim = np.stack([gt_states - 0.3, gt_states - 0.1], axis=1)  # the true states lie above the limits
+    c = case.correspondences
+    corr = Correspondences(
+        c.part_labels, c.npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents,
+        c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs, None, c.npcs_extents, lim,
+    )
+    cfg = FitConfig(ransac=False, rescore_rounds=0)
+    for formulation, solver in [("exact_maximal", "ipopt"), ("exact_reduced", "ipopt"), ("exact_reduced", "lsq")]:
+        r = fit(case.observation, corr, formulation, solver, cfg)
+        assert r.ok, r.message
+        assert np.all(r.joint_states <= lim[:, 1] + 1e-6) and np.all(r.joint_states >= lim[:, 0] - 1e-6)
+        assert r.max_constraint_violation < 1e-6
+    free = fit(case.observation, corr, "exact_reduced", config=FitConfig(ransac=False, enforce_limits=False))
+    np.testing.assert_allclose(free.joint_states, gt_states, atol=1e-6)
+
+
+def test_ransac_rejects_outliers(fit_case):
+    case = fit_case(11, num_parts=3, points_per_part=200)
+    c = case.correspondences
+    rng = np.random.default_rng(0)
+    bad = rng.random(c.num_points) < 0.25
+    npcs = c.npcs.copy()
+    shift = rng.normal(size=(bad.sum(), 3))
+    npcs[bad] += shift / np.linalg.norm(shift, axis=1, keepdims=True) / c.npcs_scale[c.part_labels[bad], None]
+    corr = Correspondences(
+        c.part_labels, npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents, c.joint_children,
+        c.joint_axes_naocs, c.joint_pivots_naocs, None, c.npcs_extents, c.joint_limits,
+    )
+    for formulation in ("per_part", "exact_reduced", "exact_maximal"):
+        r = fit(case.observation, corr, formulation, rng=1)
+        assert r.ok, r.message
+        assert max(_pose_errors(r, case.gt)) < 1e-6
+        np.testing.assert_array_equal(r.inliers, ~bad)
+
+
+@pytest.mark.parametrize("kernel", ["huber", "cauchy"])
+def test_robust_data_term_downweights_outliers(fit_case, kernel):
+    """Without RANSAC, a robust kernel (IRLS on moments) resists gross outliers that pull least squares."""
+    case = fit_case(13, num_parts=3, points_per_part=200, npcs_noise=0.002)
+    c = case.correspondences
+    rng = np.random.default_rng(3)
+    bad = rng.random(c.num_points) < 0.1
+    npcs = c.npcs.copy()
+    npcs[bad] += rng.normal(0.0, 0.3, size=(bad.sum(), 3))
+    corr = Correspondences(
+        c.part_labels, npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents, c.joint_children,
+        c.joint_axes_naocs, c.joint_pivots_naocs, None, c.npcs_extents, c.joint_limits,
+    )
+    # Scales optimised: the Umeyama initial scales are biased by the outliers.
+    base = FitConfig(ransac=False, rescore_rounds=0, optimize_scale=True)
+    plain = fit(case.observation, corr, "exact_reduced", config=base)
+    robust = fit(case.observation, corr, "exact_reduced", config=FitConfig(
+        ransac=False, rescore_rounds=0, optimize_scale=True, robust=kernel, robust_scale=0.01, irls_iterations=8))
+    assert plain.ok and robust.ok, robust.message
+    assert _pose_errors(robust, case.gt)[0] < 0.1 * _pose_errors(plain, case.gt)[0]
+    assert "robust_data" in robust.cost_per_term
+
+
+def test_program_cache_is_reused_across_frames(fit_case):
+    cases = [fit_case(s, num_parts=3, joint_types=["revolute", "prismatic"]) for s in (20, 21, 22)]
+    fit(cases[0].observation, cases[0].correspondences, "exact_maximal")
+    before = program_build_count()
+    for case in cases[1:]:
+        for f, s in ALL:
+            if f != "per_part" and (f, s) != ("exact_maximal", "ipopt"):
+                continue
+            fit(case.observation, case.correspondences, f, s)
+    assert program_build_count() == before
+
+
+def test_too_few_points_nan_and_empty_inputs(fit_case):
+    case = fit_case(4, num_parts=3)
+    c = case.correspondences
+    keep = (c.part_labels != 2) | (np.cumsum(c.part_labels == 2) <= 2)  # part 2 keeps 2 points
+    corr = Correspondences(
+        c.part_labels[keep], c.npcs[keep], c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents,
+        c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs,
+    )
+    obs = Observation(case.observation.points_cam[keep])
+    for f, s in ALL:
+        r = fit(obs, corr, f, s)
+        assert r.status == FitStatus.TOO_FEW_POINTS and "part(s) [2]" in r.message
+        assert r.joint_states.shape == (2,) and np.all(np.isnan(r.joint_states))
+    empty = Correspondences(np.zeros(0, int), np.zeros((0, 3)), c.npcs_scale, c.npcs_translation, c.joint_types,
+                            c.joint_parents, c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs)
+    assert fit(Observation(np.zeros((0, 3))), empty).status == FitStatus.TOO_FEW_POINTS
+    with pytest.raises(ValueError, match="points_cam"):
+        pts = case.observation.points_cam.copy()
+        pts[0, 0] = np.nan
+        Observation(pts)
+
+
+def test_degenerate_part_is_a_status(fit_case):
+    case = fit_case(4, num_parts=2)
+    c = case.correspondences
+    npcs = c.npcs.copy()
+    npcs[c.part_labels == 1] = npcs[c.part_labels == 1][0]  # all NPCS of part 1 coincide
+    corr = Correspondences(c.part_labels, npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents,
+                           c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs)
+    for ransac in (True, False):
+        r = fit(case.observation, corr, "exact_reduced", config=FitConfig(ransac=ransac))
+        assert r.status == FitStatus.DEGENERATE and not r.ok
+
+
+def test_bad_arguments_raise(fit_case):
+    case = fit_case(4, num_parts=2)
+    obs, corr = case.observation, case.correspondences
+    with pytest.raises(ValueError, match="formulation"):
+        fit(obs, corr, "magic")
+    with pytest.raises(ValueError, match="solver"):
+        fit(obs, corr, "exact_maximal", "lsq")
+    with pytest.raises(ValueError, match="observation"):
+        fit(obs.points_cam, corr)
+    with pytest.raises(ValueError, match="do not match"):
+        fit(Observation(obs.points_cam[:-1]), corr)
+    with pytest.raises(ValueError, match="config"):
+        fit(obs, corr, config={"tol": 1e-3})
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(ransac_iterations=0), "ransac_iterations"),
+        (dict(inlier_threshold=-0.1), "inlier_threshold"),
+        (dict(ransac_confidence=1.5), "ransac_confidence"),
+        (dict(robust="tukey"), "robust"),
+        (dict(soft_weight=float("nan")), "soft_weight"),
+        (dict(ransac="yes"), "ransac"),
+    ],
+)
+def test_fit_config_validation(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        FitConfig(**kwargs)
+
+
+def test_fit_config_from_dict_rejects_unknown_keys():
+    assert FitConfig.from_dict({"soft_weight": 2.0}).soft_weight == 2.0
+    with pytest.raises(ValueError, match="unknown key.*lamda"):
+        FitConfig.from_dict({"lamda": 2.0})

@@ -1,0 +1,114 @@
+"""Energy terms: exact Jacobians (vs central differences), moment form, rotation map, kernels."""
+
+import zlib
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from ancsh.geometry.rotations import exp_so3, random_rotation
+from ancsh.solvers.program import Program, ProgramKey
+from ancsh.solvers.terms import ROBUST_KERNELS, TERMS, DataTerm, KinematicStructure, exp_so3_sx, part_moments
+
+# Both joint types, a branching tree: 0 -> 1 (revolute), 0 -> 2 (prismatic), 2 -> 3 (revolute).
+STRUCTURE = KinematicStructure(4, ("revolute", "prismatic", "revolute"), (0, 0, 2), (1, 2, 3))
+
+
+def _random_values(prog: Program, rng) -> dict:
+    values = {}
+    for name, (rows, cols) in prog.params._shapes.items():
+        if name.startswith("R0"):
+            values[name] = random_rotation(rng)
+        elif name[0] in "uab" and rows == 3:
+            v = rng.normal(size=3)
+            values[name] = v / np.linalg.norm(v)
+        elif rows * cols == 1:
+            values[name] = rng.uniform(0.5, 1.5)
+        else:
+            values[name] = rng.normal(size=(rows, cols)) if cols > 1 else rng.normal(size=rows)
+    return values
+
+
+def _central_jacobian(f, x, h=1e-6):
+    cols = []
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = h
+        cols.append((f(x + e) - f(x - e)) / (2 * h))
+    return np.stack(cols, axis=1)
+
+
+@pytest.mark.parametrize("parameterisation", ["maximal", "reduced"])
+@pytest.mark.parametrize("name", sorted(TERMS))
+def test_term_jacobian_matches_central_differences(name, parameterisation):
+    rng = np.random.default_rng(zlib.crc32(f"{name}{parameterisation}".encode()))
+    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, (name,)))
+    p = prog.pack(_random_values(prog, rng))
+    x = rng.normal(scale=0.3, size=prog.num_x)
+    if TERMS[name].kind == "cost":
+        f, J = prog.residual, prog.jacobian
+    else:
+        f, J = prog.constraints, prog.constraint_jacobian
+    value = lambda x_: np.asarray(f(x_, p)).ravel()  # noqa: E731
+    analytic = np.asarray(J(x, p))
+    numeric = _central_jacobian(value, x)
+    assert analytic.shape == numeric.shape and analytic.size > 0
+    np.testing.assert_allclose(analytic, numeric, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("planar", [False, True])
+def test_data_term_moments_reproduce_the_point_energy(planar):
+    """|r|^2 of the moment form equals mean_i w_i |p_i - (s R c_i + t)|^2 / L^2, also for planar NPCS."""
+    rng = np.random.default_rng(1)
+    st = KinematicStructure(1, (), (), ())
+    prog = Program(ProgramKey(st, "maximal", True, ("data",)))
+    c = rng.normal(size=(50, 3))
+    if planar:
+        c[:, 2] = 0.3
+    p_cam = rng.normal(size=(50, 3)) + 2.0
+    w = rng.uniform(0.1, 2.0, size=50)
+    L = 0.7
+    values = {"L": L, "R0_0": random_rotation(rng), "t0_0": rng.normal(size=3), "s0_0": 0.4}
+    values.update({f"{k}0": v for k, v in part_moments(p_cam, c, w, L).items()})
+    x = rng.normal(scale=0.2, size=prog.num_x)
+    R, t, s = prog.unpack_poses(x, prog.pack(values))[0]
+    expected = np.sum(w * np.sum((p_cam - (s * c @ R.T + t)) ** 2, axis=1)) / w.sum() / L**2
+    r = np.asarray(prog.residual(x, prog.pack(values))).ravel()
+    assert r.size == 13
+    np.testing.assert_allclose(r @ r, expected, rtol=1e-9)
+
+
+@pytest.mark.parametrize("w", [np.zeros(3), [1e-6, -2e-6, 5e-7], [0.3, -1.2, 0.5], [np.pi - 1e-3, 0, 0]])
+def test_symbolic_exp_matches_numpy_and_has_finite_derivatives(w):
+    ws = ca.SX.sym("w", 3)
+    R = exp_so3_sx(ws)
+    f = ca.Function("f", [ws], [R, ca.jacobian(ca.vec(R), ws)])
+    val, jac = f(np.asarray(w, dtype=float))
+    np.testing.assert_allclose(np.asarray(val), exp_so3(np.asarray(w, dtype=float)), atol=1e-12)
+    jac = np.asarray(jac)
+    assert np.all(np.isfinite(jac))
+    numeric = _central_jacobian(lambda v: np.asarray(f(v)[0]).ravel(order="F"), np.asarray(w, dtype=float))
+    np.testing.assert_allclose(jac, numeric, atol=1e-7)
+
+
+@pytest.mark.parametrize("kernel", sorted(ROBUST_KERNELS))
+def test_robust_kernels_weight_is_derivative_and_downweights_outliers(kernel):
+    f = ROBUST_KERNELS[kernel]
+    r2 = np.array([1e-6, 0.01, 0.5, 4.0, 100.0])
+    c = 0.1
+    rho, w = (np.asarray(v).ravel() for v in f(r2[None, :], c))
+    h = 1e-7
+    rho_p = np.asarray(f((r2 + h)[None, :], c)[0]).ravel()
+    rho_m = np.asarray(f((r2 - h)[None, :], c)[0]).ravel()
+    np.testing.assert_allclose(w, (rho_p - rho_m) / (2 * h), rtol=1e-5)
+    assert np.all(np.diff(w) <= 0) and w[-1] <= 0.011 * w[0]
+    assert np.all(rho[1:] < r2[1:] + 1e-15)  # grows slower than least squares
+
+
+def test_term_registry_rejects_duplicates():
+    from ancsh.solvers.terms import register_term
+
+    with pytest.raises(ValueError, match="already registered"):
+        register_term(type("Again", (DataTerm,), {"name": "data"}))
+    with pytest.raises(ValueError, match="unknown term"):
+        Program(ProgramKey(STRUCTURE, "maximal", False, ("no_such_term",)))
