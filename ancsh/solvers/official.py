@@ -421,55 +421,45 @@ def fit_official(observation, correspondences, *, settings: OfficialSettings = O
 def camera_joints(poses, correspondences):
     """Camera-space joint axes, pivots and states from part poses (paper Sec. 4.4).
 
-    Revolute: axis ``normalise((R_p + R_c) u')``, pivot the mean of the NAOCS pivot mapped
-    by both parts' NAOCS -> camera maps, state the signed angle of ``R_p^T R_c`` about
-    ``u'``. Prismatic: axis as above, pivot the parent's map of the NAOCS pivot, state the
-    displacement of the child's NAOCS origin relative to the parent's along the axis
-    (metres).
+    Evaluates the solver core's post-processing (:func:`ancsh.solvers.program.postprocess_function`),
+    so the official baseline reports joints exactly as every formulation does.
 
     Returns
     -------
-    axes : (K, 3), pivots : (K, 3), states : (K,) float64
+    axes : (K, 3), pivots : (K, 3) metres, states : (K,) radians / metres
     """
+    from .program import postprocess_function
+    from .terms import KinematicStructure
+
     c = correspondences
-    K = c.num_joints
-    axes, pivots, states = np.empty((K, 3)), np.empty((K, 3)), np.empty(K)
-    for k in range(K):
-        p, ch = int(c.joint_parents[k]), int(c.joint_children[k])
-        u = c.joint_axes_naocs[k]
-        Tp = poses[p] @ _naocs_to_npcs(c, p)
-        Tc = poses[ch] @ _naocs_to_npcs(c, ch)
-        a = (Tp.rotation + Tc.rotation) @ u
-        axes[k] = a / np.linalg.norm(a)
-        if str(getattr(c.joint_types[k], "value", c.joint_types[k])) == "revolute":
-            pivots[k] = 0.5 * (Tp.apply(c.joint_pivots_naocs[k]) + Tc.apply(c.joint_pivots_naocs[k]))
-            states[k] = float(_rotvec(Tp.rotation.T @ Tc.rotation) @ u)
-        else:
-            pivots[k] = Tp.apply(c.joint_pivots_naocs[k])
-            states[k] = float((Tc.translation - Tp.translation) @ axes[k])
-    return axes, pivots, states
-
-
-def _naocs_to_npcs(c, j: int):
-    from ..geometry.transforms import Sim3
-
-    return Sim3(np.eye(3), c.npcs_translation[j], float(c.npcs_scale[j])).inverse()
+    post = postprocess_function(KinematicStructure.from_correspondences(c))
+    values = {}
+    for j in range(c.num_parts):
+        values[f"Gs{j}"], values[f"Gt{j}"] = c.npcs_scale[j], c.npcs_translation[j]
+    for k in range(c.num_joints):
+        values[f"u{k}"], values[f"q{k}"] = c.joint_axes_naocs[k], c.joint_pivots_naocs[k]
+    vec = np.concatenate([np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in poses])
+    return post(vec, values)
 
 
 def amodal_boxes(poses, correspondences, inliers):
-    """Amodal part boxes in the camera frame: the NPCS box (given extents, else the tight box
-    of the part's inlier NPCS, NOCS style) mapped by the part pose."""
+    """Amodal part boxes in the camera frame: the NPCS box mapped by the part pose.
+
+    The NPCS box is centred at the NPCS origin with the given ``npcs_extents``, else (NOCS
+    style, as :func:`ancsh.solvers.fit.fit` does) symmetric about the origin and just
+    containing the part's inlier NPCS.
+    """
     from ..geometry.boxes import OrientedBox
 
     c = correspondences
     boxes = []
     for j, T in enumerate(poses):
         if c.npcs_extents is not None:
-            box = OrientedBox(np.zeros(3), np.eye(3), c.npcs_extents[j])
+            extents = c.npcs_extents[j]
         else:
             sel = (c.part_labels == j) & inliers
-            if sel.sum() == 0:
+            if not sel.any():
                 sel = c.part_labels == j
-            box = OrientedBox.tight_axis_aligned(c.npcs[sel])
-        boxes.append(box.transformed(T))
+            extents = 2.0 * np.max(np.abs(c.npcs[sel]), axis=0)
+        boxes.append(OrientedBox(np.zeros(3), np.eye(3), extents).transformed(T))
     return tuple(boxes)
