@@ -110,15 +110,22 @@ class ModelSurface:
             )
             self._scenes.append(scene)
 
-    def closest(self, points_cam, T_cam_parts) -> ClosestPoints:
+    def closest(self, points_cam, T_cam_parts, *, visible: bool = False) -> ClosestPoints:
         """Closest points on the posed model surface.
 
         Parameters
         ----------
         points_cam : (N, 3) array_like
-            Observed points in the camera frame (metres).
+            Observed points in the camera frame (metres); the camera centre is the origin.
         T_cam_parts : sequence of Sim3
             ``(M,)`` part poses in the camera.
+        visible : bool
+            Match only surface the camera can see: a closest point hidden behind other
+            model surface (e.g. the back face of a thin part, matched by a front-face
+            point when the estimate is off by more than half the thickness) is replaced by
+            the first model surface hit along the observed point's viewing ray (projective
+            association); hidden points whose ray misses the model keep their closest
+            point. This needs no consistent mesh normals.
         """
         import open3d as o3d
 
@@ -139,9 +146,57 @@ class ModelSurface:
             sel = d < best
             best[sel], labels[sel], local[sel] = d[sel], j, c[sel]
             normals[sel] = r["primitive_normals"].numpy().astype(np.float64)[sel]
+        if visible and N:
+            self._visible(pts, T_cam_parts, labels, local, normals, best)
         nn = np.linalg.norm(normals, axis=1, keepdims=True)
         normals = np.divide(normals, nn, out=np.zeros_like(normals), where=nn > 0)
         return ClosestPoints(labels, local, normals, best)
+
+    def _visible(self, pts, T_cam_parts, labels, local, normals, best) -> None:
+        """Replace hidden closest points by the ray hits of their observed points (in place)."""
+        import open3d as o3d
+
+        scene = o3d.t.geometry.RaycastingScene()
+        table = {}
+        for j, (part, T) in enumerate(zip(self.model.parts, T_cam_parts)):
+            gid = scene.add_triangles(
+                np.ascontiguousarray(T.apply(np.asarray(part.mesh.vertices, dtype=np.float64)), dtype=np.float32),
+                np.ascontiguousarray(part.mesh.faces, dtype=np.uint32),
+            )
+            table[int(gid)] = j
+        match_cam = np.empty_like(pts)
+        for j, T in enumerate(T_cam_parts):
+            sel = labels == j
+            match_cam[sel] = T.apply(local[sel])
+        rays = np.zeros((len(pts), 6), dtype=np.float32)
+        rays[:, 3:] = match_cam  # camera centre -> match; t_hit = 1 at the match itself
+        t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+        depth = np.linalg.norm(match_cam, axis=1)
+        hidden = t * depth < depth - np.maximum(1e-4, 1e-4 * depth)
+        if not np.any(hidden):
+            return
+        idx = np.flatnonzero(hidden)
+        rays = np.zeros((len(idx), 6), dtype=np.float32)
+        rays[:, 3:] = pts[idx]
+        hit = scene.cast_rays(o3d.core.Tensor(rays))
+        th = hit["t_hit"].numpy().astype(np.float64)
+        ok = np.isfinite(th)
+        if not np.any(ok):
+            return
+        idx, th = idx[ok], th[ok]
+        gids = hit["geometry_ids"].numpy()[ok]
+        n_cam = hit["primitive_normals"].numpy().astype(np.float64)[ok]
+        h_cam = th[:, None] * pts[idx]
+        for gid, j in table.items():
+            sel = gids == gid
+            if not np.any(sel):
+                continue
+            T = T_cam_parts[j]
+            ii = idx[sel]
+            labels[ii] = j
+            local[ii] = T.inverse().apply(h_cam[sel])
+            normals[ii] = n_cam[sel] @ T.rotation  # camera -> part frame
+            best[ii] = np.linalg.norm(pts[ii] - h_cam[sel], axis=1)
 
     def sample(self, count: int, rng) -> tuple[np.ndarray, np.ndarray]:
         """``count`` surface points per part in the part frames: ``(points (M*count, 3), labels)``."""
@@ -214,6 +269,8 @@ class TemplateProvider:
         Robust loss of the weights, one of ``none``, ``huber``, ``cauchy``, ``tukey``.
     loss_scale : float
         Scale of the robust loss (metres).
+    visible : bool
+        Match only model surface visible from the camera (see :meth:`ModelSurface.closest`).
 
     Raises
     ------
@@ -222,7 +279,7 @@ class TemplateProvider:
     """
 
     def __init__(self, model: ArticulatedModel, estimate: ArticulatedPose | None = None, *,
-                 max_distance: float = 0.05, loss: str = "huber", loss_scale: float = 0.01,
+                 max_distance: float = 0.05, loss: str = "huber", loss_scale: float = 0.01, visible: bool = True,
                  _surface: ModelSurface | None = None, _canonical=None):
         from ...model.canonical import canonical_space
 
@@ -238,6 +295,7 @@ class TemplateProvider:
         self.max_distance = max_distance
         self.loss = loss
         self.loss_scale = float(loss_scale)
+        self.visible = bool(visible)
         self.surface = _surface if _surface is not None else ModelSurface(model)
         self.canonical = _canonical if _canonical is not None else canonical_space(model)
         cs = self.canonical
@@ -260,7 +318,7 @@ class TemplateProvider:
         """The same provider at another estimate (and gating distance); shares the surface data."""
         return TemplateProvider(
             self.model, estimate, max_distance=self.max_distance if max_distance is None else max_distance,
-            loss=self.loss, loss_scale=self.loss_scale, _surface=self.surface, _canonical=self.canonical,
+            loss=self.loss, loss_scale=self.loss_scale, visible=self.visible, _surface=self.surface, _canonical=self.canonical,
         )
 
     @property
@@ -280,7 +338,7 @@ class TemplateProvider:
         points = observation.points_cam if isinstance(observation, Observation) else as_points(observation, "observation")
         if points.shape[0] == 0:
             return self.empty_correspondences(0)
-        cp = self.surface.closest(points, self.estimate.part_poses(self.model))
+        cp = self.surface.closest(points, self.estimate.part_poses(self.model), visible=self.visible)
         M = self.model.num_parts
         npcs = np.empty((points.shape[0], 3))
         normals = np.empty((points.shape[0], 3))

@@ -21,9 +21,9 @@ def _scene(seed, num_parts=3):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_template_at_truth_recovers_ground_truth_npcs(seed):
-    """Surface points of a random model, matched at the true estimate, get the true NPCS."""
+    """Surface points of a random model (all sides), matched at the true estimate, get the true NPCS."""
     model, q, T, pts, labels = _scene(seed)
-    provider = TemplateProvider(model, ArticulatedPose(T, q))
+    provider = TemplateProvider(model, ArticulatedPose(T, q), visible=False)
     assert isinstance(provider, CorrespondenceProvider)
     c = provider.correspond(Observation(pts))
     gt = ancsh_ground_truth(model, q, T, pts, labels)
@@ -39,7 +39,8 @@ def test_template_at_truth_recovers_ground_truth_npcs(seed):
 
 def test_template_gates_far_points_and_weights_robustly():
     model, q, T, pts, _ = _scene(3)
-    provider = TemplateProvider(model, ArticulatedPose(T, q), max_distance=0.05, loss="cauchy", loss_scale=0.01)
+    provider = TemplateProvider(model, ArticulatedPose(T, q), max_distance=0.05, loss="cauchy", loss_scale=0.01,
+                                visible=False)
     far = pts[:5] + np.array([0.0, 0.0, 1.0])  # 1 m behind: farther than the gate
     c = provider.correspond(np.concatenate([pts, far]))
     assert np.all(c.weights[-5:] == 0.0)
@@ -49,7 +50,7 @@ def test_template_gates_far_points_and_weights_robustly():
 
 def test_npcs_normals_are_unit():
     model, q, T, pts, _ = _scene(4)
-    c = TemplateProvider(model, ArticulatedPose(T, q)).correspond(pts)
+    c = TemplateProvider(model, ArticulatedPose(T, q), visible=False).correspond(pts)
     np.testing.assert_allclose(np.linalg.norm(c.normals_npcs, axis=1), 1.0, atol=1e-6)
 
 
@@ -86,3 +87,34 @@ def _meshless():
     from ancsh.model import Joint
 
     return ArticulatedModel(parts=(Part("a"), Part("b")), joints=(Joint("j", "revolute", "a", "b", axis=[0, 0, 1]),))
+
+
+def test_visible_matching_avoids_the_back_face_of_a_thin_part():
+    """A point in front of a thin slab, closer to its back face, is matched to the front face."""
+    import trimesh
+
+    from ancsh.model import Joint
+
+    slab = trimesh.creation.box((0.4, 0.4, 0.01))  # faces at z = +-0.005 (part frame)
+    model = ArticulatedModel(
+        parts=(Part("a", slab), Part("b", trimesh.creation.box((0.1, 0.1, 0.1), transform=_shift([1.0, 0, 0])))),
+        joints=(Joint("j", "revolute", "a", "b", axis=[0, 1, 0], lower=-1, upper=1),),
+    )
+    # Camera at the origin looking along +z; the slab sits 1 m away, the estimate 1 cm too close:
+    # the observed front-face point (z = 0.995 m in the camera) is nearer the estimate's back face.
+    est = ArticulatedPose(Sim3(np.eye(3), [0.0, 0.0, 0.99]), np.zeros(1))
+    pts = np.array([[0.01, 0.02, 0.995], [-0.05, 0.03, 0.995]])
+    surface = ModelSurface(model)
+    poses = est.part_poses(model)
+    plain = surface.closest(pts, poses)
+    np.testing.assert_allclose(plain.points_part[:, 2], 0.005, atol=1e-6)  # back face (z = +0.005 -> 0.995 m)
+    vis = surface.closest(pts, poses, visible=True)
+    np.testing.assert_allclose(vis.points_part[:, 2], -0.005, atol=1e-6)  # front face, seen by the camera
+    np.testing.assert_allclose(vis.distances, 0.01 * np.linalg.norm(pts, axis=1) / pts[:, 2], atol=1e-6)  # along the ray
+    np.testing.assert_allclose(np.abs(vis.normals_part[:, 2]), 1.0, atol=1e-6)
+
+
+def _shift(t):
+    M = np.eye(4)
+    M[:3, 3] = t
+    return M

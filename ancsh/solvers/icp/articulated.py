@@ -1,0 +1,411 @@
+"""Articulated ICP: template correspondences + the reduced-coordinate solve, alternated.
+
+Each iteration
+
+1. matches every observed point to the closest point of the model posed at the current
+   estimate (:class:`~ancsh.solvers.icp.template.TemplateProvider`: part label, NPCS
+   coordinates, normal; gated and robustly weighted);
+2. solves the solver core's **reduced-coordinate program** (object pose + one state per
+   joint, part poses by forward kinematics in NAOCS, joint limits as bounds; see
+   :mod:`ancsh.solvers.program`) on these correspondences, starting from the current
+   estimate, with the object scale fixed to the model's (a CAD model is metric);
+3. stops when no part moves by more than the tolerance.
+
+The data energy is the core's point-to-point :class:`~ancsh.solvers.terms.DataTerm`, plus
+(``point_to_plane=True``) the point-to-plane term of :mod:`ancsh.solvers.icp.terms`. Both
+live on per-part moments, and each part's energy is weighted by its share of the weights,
+so the total is the classic ICP sum over points.
+
+This is a thin wrapper over the core's public pieces (:func:`~ancsh.solvers.program.get_program`,
+:func:`~ancsh.solvers.backends.solve`, :func:`~ancsh.solvers.terms.part_moments`) because
+:func:`ancsh.solvers.fit` always initialises from RANSAC/per-part Umeyama and estimates the
+object scale, whereas ICP starts from a given estimate with a known scale.
+
+Multi-start: the initial estimate, plus joint states spread over their ranges and optional
+extra initial orientations, each run for a few iterations; the best-scoring start (truncated
+mean squared closest-point distance) is iterated to convergence.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...geometry._checks import as_array, check_generator
+from ...geometry.rotations import exp_so3, geodesic_angle
+from ...geometry.transforms import Sim3
+from ...model.articulated import ArticulatedModel
+from ..types import FitStatus, Observation
+from .result import CadFitResult, IcpIteration
+from .template import ArticulatedPose, ModelSurface, TemplateProvider
+
+__all__ = ["ArticulatedIcpConfig", "articulated_icp", "reduced_step"]
+
+
+@dataclass(frozen=True)
+class ArticulatedIcpConfig:
+    """Settings of :func:`articulated_icp`; distances are fractions of the model's diagonal
+    (the diagonal of its box at rest) with a floor in metres.
+
+    Attributes
+    ----------
+    max_iterations : int
+        ICP iterations of the final (best) start.
+    gate_start, gate_end : float
+        Correspondence gating distance of the first and the final iterations (diagonals);
+        it shrinks geometrically by ``gate_decay`` per iteration.
+    gate_decay : float
+        In ``(0, 1]``.
+    gate_floor : float
+        Minimum gating distance (metres), about 3x the sensor noise.
+    loss : str
+        Robust loss of the correspondence weights (``none``, ``huber``, ``cauchy``, ``tukey``).
+    loss_scale : float
+        Its scale (diagonals), floored at ``gate_floor / 3``.
+    point_to_plane : bool
+        Add the point-to-plane data term (faster, more accurate convergence on planar parts).
+    point_weight : float
+        Weight of the point-to-point term relative to point-to-plane (when enabled).
+    tolerance : float
+        Convergence: every part moves less than ``tolerance`` diagonals (at its farthest
+        model point) between two iterations.
+    joint_starts : int
+        Extra starts with every joint at ``(i + 0.5) / joint_starts`` of its range.
+    orientations : tuple of (3,) rotation vectors
+        Extra starts with the initial base orientation turned by these rotations (about
+        the object's centre, camera axes, radians).
+    start_iterations : int
+        ICP iterations of every start before the best one is continued.
+    num_points : int or None
+        Random subsample of the observation used by ICP (``None``: all points).
+    solver : str
+        Backend of the reduced solve (``"lsq"`` or ``"ipopt"``).
+    solver_iterations : int
+        Backend iterations per ICP iteration.
+    """
+
+    max_iterations: int = 40
+    gate_start: float = 0.15
+    gate_end: float = 0.02
+    gate_decay: float = 0.8
+    gate_floor: float = 0.01
+    loss: str = "huber"
+    loss_scale: float = 0.01
+    point_to_plane: bool = True
+    point_weight: float = 0.1
+    tolerance: float = 1e-5
+    joint_starts: int = 3
+    orientations: tuple = ()
+    start_iterations: int = 5
+    num_points: int | None = 1500
+    solver: str = "lsq"
+    solver_iterations: int = 8
+
+    def __post_init__(self):
+        for name in ("max_iterations", "start_iterations", "solver_iterations"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        if isinstance(self.joint_starts, bool) or not isinstance(self.joint_starts, (int, np.integer)) or self.joint_starts < 0:
+            raise ValueError(f"joint_starts: expected an integer >= 0, got {self.joint_starts!r}")
+        for name in ("gate_start", "gate_end", "gate_floor", "loss_scale", "tolerance"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: expected a positive number, got {v!r}")
+        if self.gate_end > self.gate_start:
+            raise ValueError(f"gate_end: {self.gate_end} exceeds gate_start {self.gate_start}")
+        if not 0 < self.gate_decay <= 1:
+            raise ValueError(f"gate_decay: expected a number in (0, 1], got {self.gate_decay}")
+        if not (np.isfinite(self.point_weight) and self.point_weight >= 0):
+            raise ValueError(f"point_weight: expected a non-negative number, got {self.point_weight}")
+        if not self.point_to_plane and self.point_weight == 0:
+            raise ValueError("point_weight: must be positive without the point-to-plane term")
+        if self.num_points is not None and (isinstance(self.num_points, bool) or int(self.num_points) < 3):
+            raise ValueError(f"num_points: expected None or an integer >= 3, got {self.num_points!r}")
+        if self.solver not in ("lsq", "ipopt"):
+            raise ValueError(f"solver: expected 'lsq' or 'ipopt', got {self.solver!r}")
+        rots = []
+        for i, r in enumerate(self.orientations):
+            rots.append(as_array(r, f"orientations[{i}]", (3,)))
+        object.__setattr__(self, "orientations", tuple(rots))
+
+
+# ---------------------------------------------------------------------------------------------
+# one reduced-coordinate solve
+# ---------------------------------------------------------------------------------------------
+class _Reduced:
+    """The reduced-coordinate program of one model with its static parameter values."""
+
+    def __init__(self, provider: TemplateProvider, point_to_plane: bool):
+        from ..program import ProgramKey, get_program
+        from ..terms import KinematicStructure
+        from . import terms as _icp_terms  # noqa: F401  (registers "point_to_plane")
+
+        model, cs = provider.model, provider.canonical
+        corr = provider.empty_correspondences()
+        self.structure = KinematicStructure.from_correspondences(corr)
+        names = ("data", "point_to_plane") if point_to_plane else ("data",)
+        self.program = get_program(ProgramKey(self.structure, "reduced", False, names))
+        self.model, self.cs = model, cs
+        self.diagonal = 1.0 / cs.T_naocs_base.scale  # metres per NAOCS unit
+        v = {"L": self.diagonal, "sigma0": self.diagonal}
+        for j in range(model.num_parts):
+            v[f"Gs{j}"], v[f"Gt{j}"] = cs.npcs_scale[j], cs.npcs_translation[j]
+        for k in range(model.num_joints):
+            v[f"u{k}"], v[f"q{k}"] = cs.joint_axes_naocs[k], cs.joint_pivots_naocs[k]
+        self.static = v
+        limits = corr.joint_limits
+        self.theta = self.program.layout["theta"]
+        self.lbx = np.full(self.program.num_x, -np.inf)
+        self.ubx = np.full(self.program.num_x, np.inf)
+        self.lbx[self.theta], self.ubx[self.theta] = limits[:, 0], limits[:, 1]
+
+    def values(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool) -> dict:
+        from ..terms import part_moments
+        from .terms import plane_moments
+
+        T_cam_naocs = estimate.T_cam_base @ self.cs.T_naocs_base.inverse()
+        v = dict(self.static)
+        v["R0_obj"], v["tau0_obj"] = T_cam_naocs.rotation, T_cam_naocs.translation
+        w = np.asarray(corr.weights)
+        total = w.sum()
+        for j in range(self.model.num_parts):
+            sel = (corr.part_labels == j) & (w > 0)
+            share = w[sel].sum() / total if total > 0 else 0.0
+            if share <= 0 or sel.sum() < 1:
+                v.update({f"Lm{j}": np.zeros((4, 4)), f"B{j}": np.zeros((3, 4)), f"sqrt_c0_{j}": 0.0,
+                          f"cbar{j}": np.zeros(3), f"pbar{j}": np.zeros(3), f"Lp{j}": np.zeros((13, 13))})
+                continue
+            mom = part_moments(points[sel], corr.npcs[sel], w[sel], self.diagonal)
+            a = np.sqrt(share * point_weight)
+            v[f"Lm{j}"], v[f"B{j}"], v[f"sqrt_c0_{j}"] = a * mom["Lm"], a * mom["B"], a * mom["sqrt_c0_"]
+            v[f"cbar{j}"], v[f"pbar{j}"] = mom["cbar"], mom["pbar"]
+            if plane:
+                v[f"Lp{j}"] = np.sqrt(share) * plane_moments(points[sel], corr.npcs[sel], corr.normals_npcs[sel], w[sel], mom["pbar"])
+        return v
+
+    def x0(self, estimate: ArticulatedPose) -> np.ndarray:
+        x = np.zeros(self.program.num_x)
+        x[self.theta] = estimate.q - self.model.rest_states
+        return x
+
+    def estimate(self, x, values) -> ArticulatedPose:
+        """The base pose and absolute joint states at the solution ``x``."""
+        x = np.asarray(x, dtype=float)
+        w, dt = x[:3], x[3:6]
+        R = values["R0_obj"] @ exp_so3(w)
+        tau = values["tau0_obj"] + values["L"] * dt
+        T_cam_naocs = Sim3(R, tau, values["sigma0"])
+        T = T_cam_naocs @ self.cs.T_naocs_base
+        return ArticulatedPose(Sim3(T.rotation, T.translation), x[self.theta] + self.model.rest_states)
+
+
+def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True, point_weight: float = 0.1,
+                 solver: str = "lsq", max_iterations: int = 20):
+    """One reduced-coordinate solve on template correspondences, from ``provider.estimate``.
+
+    Parameters
+    ----------
+    provider : TemplateProvider
+        At the current estimate (the start of the solve).
+    points_cam : (N, 3) float64
+        Observed points (metres, camera frame), aligned with ``corr``.
+    corr : TemplateCorrespondences
+        ``provider.correspond(points_cam)``.
+
+    Returns
+    -------
+    (ArticulatedPose, SolveOutcome)
+        The new estimate (``provider.estimate`` when the solve failed) and the backend outcome.
+    """
+    from ..backends import SolverOptions, solve
+
+    red = _reduced_for(provider, point_to_plane)
+    v = red.values(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
+    p = red.program.pack(v)
+    x0 = red.x0(provider.estimate)
+    lo, hi = red.lbx, red.ubx
+    out = solve(solver, red.program, p, x0, lo, hi, np.zeros(0), np.zeros(0), SolverOptions(max_iterations, 1e-12))
+    if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or not np.all(np.isfinite(out.x)):
+        return provider.estimate, out
+    return red.estimate(out.x, v), out
+
+
+_REDUCED_CACHE: dict = {}
+
+
+def _reduced_for(provider: TemplateProvider, point_to_plane: bool) -> _Reduced:
+    key = (id(provider.surface), point_to_plane)
+    hit = _REDUCED_CACHE.get(key)
+    if hit is None or hit[0] is not provider.surface:
+        if len(_REDUCED_CACHE) > 64:
+            _REDUCED_CACHE.clear()
+        hit = (provider.surface, _Reduced(provider, point_to_plane))
+        _REDUCED_CACHE[key] = hit
+    return hit[1]
+
+
+# ---------------------------------------------------------------------------------------------
+# the ICP loop
+# ---------------------------------------------------------------------------------------------
+def _pose_change(model, parts_a, parts_b, radii) -> float:
+    """Largest displacement of any part's farthest point between two pose sets (metres)."""
+    worst = 0.0
+    for A, B, r in zip(parts_a, parts_b, radii):
+        d = np.linalg.norm(A.translation - B.translation) + r * geodesic_angle(A.rotation, B.rotation)
+        worst = max(worst, d)
+    return worst
+
+
+class _Run:
+    def __init__(self, model, points, config, provider, diagonal, radii):
+        self.model, self.points, self.config, self.provider = model, points, config, provider
+        self.diagonal, self.radii = diagonal, radii
+
+    def gate(self, i: int) -> float:
+        c = self.config
+        frac = max(c.gate_end, c.gate_start * c.gate_decay**i)
+        return max(frac * self.diagonal, c.gate_floor)
+
+    def iterate(self, estimate: ArticulatedPose, start_iter: int, iterations: int, history: list):
+        c = self.config
+        status = FitStatus.MAX_ITER
+        it = start_iter
+        for it in range(start_iter, start_iter + iterations):
+            gate = self.gate(it)
+            prov = self.provider.at(estimate, max_distance=gate)
+            prov_parts = estimate.part_poses(self.model)
+            corr = prov.correspond(self.points)
+            if np.count_nonzero(corr.weights > 0) < 6:
+                return estimate, FitStatus.TOO_FEW_POINTS, it, corr
+            new, out = reduced_step(prov, self.points, corr, point_to_plane=c.point_to_plane,
+                                    point_weight=c.point_weight, solver=c.solver, max_iterations=c.solver_iterations)
+            if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
+                return estimate, out.status, it, corr
+            new_parts = new.part_poses(self.model)
+            move = _pose_change(self.model, prov_parts, new_parts, self.radii)
+            estimate = new
+            inl = corr.weights > 0
+            history.append(IcpIteration(tuple(new_parts), new.q.copy(), float(inl.mean()),
+                                        float(np.sqrt(np.mean(corr.distances[inl] ** 2))), gate))
+            if move < c.tolerance * self.diagonal and gate <= max(c.gate_end * self.diagonal, c.gate_floor) + 1e-12:
+                status = FitStatus.SUCCESS
+                break
+        return estimate, status, it + 1, None
+
+    def score(self, estimate: ArticulatedPose) -> tuple[float, float, float]:
+        """``(truncated mean squared distance, inlier ratio, inlier rmse)`` at the final gate."""
+        gate = max(self.config.gate_end * self.diagonal, self.config.gate_floor)
+        d = self.provider.surface.closest(self.points, estimate.part_poses(self.model)).distances
+        inl = d <= gate
+        rmse = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("inf")
+        return float(np.mean(np.minimum(d, gate) ** 2)), float(inl.mean()), rmse
+
+
+def _starts(model: ArticulatedModel, init: ArticulatedPose, config: ArticulatedIcpConfig, center_cam) -> list:
+    starts = [init]
+    lo = np.maximum(model.lower_limits, -np.pi)
+    hi = np.minimum(model.upper_limits, np.pi)
+    for i in range(config.joint_starts):
+        q = lo + (i + 0.5) / config.joint_starts * (hi - lo)
+        starts.append(ArticulatedPose(init.T_cam_base, q))
+    for rv in config.orientations:
+        dR = exp_so3(rv)
+        T = init.T_cam_base
+        R = dR @ T.rotation
+        t = dR @ (T.translation - center_cam) + center_cam
+        for s in list(starts[: 1 + config.joint_starts]):
+            starts.append(ArticulatedPose(Sim3(R, t), s.q))
+    return starts
+
+
+def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose, *,
+                    config: ArticulatedIcpConfig | None = None, rng=0,
+                    surface: ModelSurface | None = None) -> CadFitResult:
+    """Fit a known articulated model (pose + joint states) to observed points by articulated ICP.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+        The instance (e.g. from :func:`ancsh.data.urdf.load_urdf`); needs a movable joint.
+    observation : Observation or (N, 3) array_like
+        Observed points in the camera frame (metres), e.g. a back-projected depth image.
+    init : ArticulatedPose
+        Initial base pose and joint states (within the limits).
+    config : ArticulatedIcpConfig, optional
+    rng : numpy.random.Generator or int
+        Seeds the point subsample.
+    surface : ModelSurface, optional
+        A reusable closest-point structure of ``model`` (saves building it per call).
+
+    Returns
+    -------
+    CadFitResult
+        ``method="articulated_icp"``; ``history`` holds the per-iteration estimates of the
+        chosen start. Status ``SUCCESS`` (converged), ``MAX_ITER``, or ``TOO_FEW_POINTS`` when
+        no observed point lies within the gating distance of the model (e.g. an empty
+        observation or one far from the initial estimate).
+
+    Raises
+    ------
+    ValueError
+        Bad arguments: a model without movable joints, ``init`` not an
+        :class:`ArticulatedPose` or outside the joint limits, points not ``(N, 3)`` finite.
+    """
+    t0 = time.perf_counter()
+    config = ArticulatedIcpConfig() if config is None else config
+    if not isinstance(config, ArticulatedIcpConfig):
+        raise ValueError(f"config: expected an ArticulatedIcpConfig, got {type(config).__name__}")
+    provider = TemplateProvider(model, _surface=surface)  # validates the model (movable joints, meshes)
+    points = observation.points_cam if isinstance(observation, Observation) else Observation(observation).points_cam
+    if not isinstance(init, ArticulatedPose):
+        raise ValueError(f"init: expected an ArticulatedPose, got {type(init).__name__}")
+    model.check_states(init.q, "init.q")
+    rng = check_generator(rng)
+    if config.num_points is not None and points.shape[0] > config.num_points:
+        points = points[np.sort(rng.choice(points.shape[0], int(config.num_points), replace=False))]
+
+    def failed(status, message, estimate=init, history=()):
+        return CadFitResult("articulated_icp", tuple(estimate.part_poses(model)), estimate.q.copy(), estimate.T_cam_base,
+                            status, message, time_s=time.perf_counter() - t0, history=tuple(history))
+
+    if points.shape[0] < 6:
+        return failed(FitStatus.TOO_FEW_POINTS, f"need at least 6 observed points, got {points.shape[0]}")
+    diagonal = provider.T_cam_naocs_scale
+    provider = TemplateProvider(model, max_distance=1.0, loss=config.loss,
+                                loss_scale=max(config.loss_scale * diagonal, config.gate_floor / 3),
+                                _surface=provider.surface, _canonical=provider.canonical)
+    rest = model.forward_kinematics(model.rest_states)
+    radii = [float(np.max(np.linalg.norm(p.vertices, axis=1))) for p in model.parts]
+    run = _Run(model, points, config, provider, diagonal, radii)
+    center_cam = init.T_cam_base.apply(np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0))
+
+    best = None
+    starts = _starts(model, init, config, center_cam)
+    iterations = 0
+    for s in starts:
+        hist: list = []
+        est, status, n, _ = run.iterate(s, 0, config.start_iterations, hist)
+        iterations += n
+        if status == FitStatus.TOO_FEW_POINTS:
+            continue
+        sc = run.score(est)
+        if best is None or sc[0] < best[0][0]:
+            best = (sc, est, hist, n)
+    if best is None:
+        return failed(FitStatus.TOO_FEW_POINTS,
+                      f"no observed point within {run.gate(0):.3g} m of the model at any start (observation far from the estimate?)")
+    _, est, hist, n = best
+    est, status, n2, _ = run.iterate(est, n, max(config.max_iterations - n, 1), hist)
+    iterations += n2 - n
+    if status == FitStatus.TOO_FEW_POINTS:
+        return failed(status, "lost every correspondence while iterating", est, hist)
+    sc, ratio, rmse = run.score(est)
+    msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    return CadFitResult(
+        method="articulated_icp", T_cam_parts=tuple(est.part_poses(model)), q=est.q.copy(), T_cam_base=est.T_cam_base,
+        status=status, message=msg, inlier_ratio=ratio, rmse=rmse, iterations=iterations,
+        time_s=time.perf_counter() - t0, history=tuple(hist), starts=len(starts),
+    )
