@@ -1,0 +1,467 @@
+"""Frame generation: instances, joint states, viewpoints, rendering, noise, points, ground truth.
+
+Every frame is a pure function of the :class:`GenerationConfig` and its dataset index:
+its random stream is seeded by :func:`frame_seed` ``(config.seed, index)``. It picks an
+instance of the split, draws joint states uniformly within the limits and a viewpoint of
+the category (:mod:`.render`), renders depth and part ids, rejects the view when a part
+is (nearly) invisible and redraws state and view, applies sensor noise (:mod:`.noise`),
+samples ``num_points`` back-projected pixels and computes the ANCSH ground truth.
+
+:func:`generate_dataset` writes the frames into HDF5 shards (:mod:`.dataset`) with a
+pool of worker processes. Shards are written atomically; running it again on the same
+directory verifies and skips complete shards, regenerates damaged or missing ones and
+produces identical frames, so an interrupted run resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.transforms import Sim3
+from .dataset import CorruptShardError, Frame, ShardReader, write_shard
+from .noise import DepthNoise, apply_noise
+from .render import VIEWPOINTS, Intrinsics, ModelRenderer, sample_points, sample_viewpoint, viewpoint_range
+
+__all__ = [
+    "FrameGenerator",
+    "FrameRejected",
+    "GenerationConfig",
+    "GenerationReport",
+    "frame_seed",
+    "generate_dataset",
+    "shard_name",
+]
+
+
+class FrameRejected(RuntimeError):
+    """No acceptable view was found within ``max_attempts`` draws."""
+
+
+@dataclass(frozen=True)
+class GenerationConfig:
+    """What to generate (everything that determines the frames).
+
+    Attributes
+    ----------
+    category : str or None
+        Procedural category (:data:`ancsh.data.procedural.CATEGORIES`); ``None`` with ``urdf``.
+    split : str
+        ``"train"`` or ``"test"`` instances (procedural only).
+    urdf : str or None
+        Path of a URDF object (instead of a procedural category).
+    seed : int
+        Base seed of the frames' random streams, ``>= 0``.
+    shard_size : int
+        Frames per shard (the last shard may hold fewer).
+    num_points : int
+        Points sampled per frame.
+    intrinsics : Intrinsics
+    noise : DepthNoise
+        ``DepthNoise.off()`` for exact depth.
+    min_part_pixels : int
+        A view is rejected when a part shows on fewer pixels than this ...
+    min_part_fraction : float
+        ... or on less than this fraction of the object's pixels ...
+    min_visibility : float
+        ... or when its visible-area ratio is below this.
+    max_attempts : int
+        Redraws of joint state and view before :class:`FrameRejected`.
+    """
+
+    category: str | None = None
+    split: str = "train"
+    urdf: str | None = None
+    seed: int = 0
+    shard_size: int = 500
+    num_points: int = 1024
+    intrinsics: Intrinsics = field(default_factory=Intrinsics)
+    noise: DepthNoise = field(default_factory=DepthNoise)
+    min_part_pixels: int = 30
+    min_part_fraction: float = 0.02
+    min_visibility: float = 0.0
+    max_attempts: int = 100
+
+    def __post_init__(self):
+        if (self.category is None) == (self.urdf is None):
+            raise ValueError("category: give exactly one of a procedural category and a URDF path")
+        if self.urdf is None:
+            from .procedural import CATEGORIES, instance_seeds
+
+            if self.category not in CATEGORIES:
+                raise ValueError(f"category: unknown category {self.category!r}; known: {', '.join(CATEGORIES)}")
+            instance_seeds(self.category, self.split)  # validates the split
+        else:
+            object.__setattr__(self, "urdf", str(self.urdf))
+            if not Path(self.urdf).is_file():
+                raise FileNotFoundError(f"urdf: no such file {self.urdf}")
+        for name, lo in (("seed", 0), ("shard_size", 1), ("num_points", 1), ("min_part_pixels", 0), ("max_attempts", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ValueError(f"{name}: expected an int >= {lo}, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        for name in ("min_part_fraction", "min_visibility"):
+            v = float(getattr(self, name))
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"{name}: expected a fraction in [0, 1], got {v}")
+            object.__setattr__(self, name, v)
+        if not isinstance(self.intrinsics, Intrinsics):
+            raise ValueError(f"intrinsics: expected Intrinsics, got {type(self.intrinsics).__name__}")
+        if not isinstance(self.noise, DepthNoise):
+            raise ValueError(f"noise: expected DepthNoise (DepthNoise.off() for none), got {type(self.noise).__name__}")
+
+    @property
+    def name(self) -> str:
+        """Short dataset name: the category or the URDF object's folder/file name."""
+        if self.urdf is not None:
+            p = Path(self.urdf)
+            return p.parent.name if p.stem in ("mobility", "model") else p.stem
+        return self.category
+
+    def to_json(self) -> str:
+        """Canonical JSON of every setting (stored in each shard, compared on resume)."""
+        d = asdict(self)
+        d["intrinsics"] = self.intrinsics.to_json()
+        d["noise"] = json.loads(self.noise.to_json())
+        return json.dumps(d, sort_keys=True)
+
+
+def frame_seed(base_seed: int, index: int) -> int:
+    """Seed (``0 <= seed < 2**63``) of frame ``index``'s random stream."""
+    state = np.random.SeedSequence([int(base_seed), int(index)]).generate_state(1, np.uint64)[0]
+    return int(state >> np.uint64(1))
+
+
+class FrameGenerator:
+    """Generates frames of one :class:`GenerationConfig`, caching models and renderers.
+
+    Parameters
+    ----------
+    config : GenerationConfig
+    """
+
+    def __init__(self, config: GenerationConfig):
+        if not isinstance(config, GenerationConfig):
+            raise ValueError(f"config: expected GenerationConfig, got {type(config).__name__}")
+        self.config = config
+        self._cache: dict = {}
+        if config.urdf is not None:
+            self._seeds = (-1,)
+        else:
+            from .procedural import instance_seeds
+
+            self._seeds = tuple(instance_seeds(config.category, config.split))
+
+    @property
+    def num_instances(self) -> int:
+        return len(self._seeds)
+
+    def instance(self, index: int):
+        """``(model, renderer)`` of instance ``index`` (cached)."""
+        if index not in self._cache:
+            cfg = self.config
+            if cfg.urdf is not None:
+                from .urdf import load_urdf
+
+                model = load_urdf(cfg.urdf)
+            else:
+                from .procedural import load_instance
+
+                model = load_instance(cfg.category, cfg.split, int(index))
+            self._cache[index] = (model, ModelRenderer(model))
+        return self._cache[index]
+
+    @property
+    def category(self) -> str:
+        if self.config.category is not None:
+            return self.config.category
+        model, _ = self.instance(0)
+        return model.category or "urdf"
+
+    def _viewpoints(self, model):
+        cat = self.config.category or model.category
+        return viewpoint_range(cat if cat in VIEWPOINTS else None)
+
+    def accept(self, part_pixels: np.ndarray, visibility: np.ndarray) -> bool:
+        """Whether a view shows every part enough (see :class:`GenerationConfig`)."""
+        cfg = self.config
+        total = part_pixels.sum()
+        return bool(
+            total > 0
+            and np.all(part_pixels >= cfg.min_part_pixels)
+            and np.all(part_pixels >= cfg.min_part_fraction * total)
+            and np.all(visibility >= cfg.min_visibility)
+        )
+
+    def frame(self, index: int) -> Frame:
+        """Frame ``index`` of the dataset (deterministic)."""
+        from ..model.canonical import ancsh_ground_truth
+
+        cfg = self.config
+        seed = frame_seed(cfg.seed, index)
+        rng = np.random.default_rng(seed)
+        inst = int(rng.integers(self.num_instances))
+        model, renderer = self.instance(inst)
+        vr = self._viewpoints(model)
+        for _ in range(cfg.max_attempts):
+            q = model.random_states(rng)
+            T_cam_base = sample_viewpoint(vr, rng, model, q)
+            view = renderer.render(q, T_cam_base, cfg.intrinsics, visibility=True)
+            pixels = view.part_pixels(model.num_parts)
+            if self.accept(pixels, view.visibility):
+                break
+        else:
+            raise FrameRejected(
+                f"frame {index}: no view of {model.name!r} showed every part within {cfg.max_attempts} attempts "
+                f"(min_part_pixels={cfg.min_part_pixels}, min_part_fraction={cfg.min_part_fraction})"
+            )
+        depth = apply_noise(view.depth, cfg.noise, rng)
+        points, labels, _ = sample_points(depth, view.part_ids, cfg.intrinsics, cfg.num_points, rng)
+        gt = ancsh_ground_truth(model, q, T_cam_base, points, labels)
+        return Frame(
+            points=points,
+            gt=gt,
+            intrinsics=cfg.intrinsics,
+            T_cam_base=Sim3(T_cam_base.rotation, T_cam_base.translation),
+            visibility=view.visibility,
+            part_pixels=pixels,
+            joint_states_abs=np.asarray(q, dtype=np.float64),
+            category=self.config.category or (model.category or "urdf"),
+            instance=model.name,
+            instance_index=inst,
+            instance_seed=int(self._seeds[inst]),
+            frame_index=int(index),
+            seed=seed,
+            part_names=tuple(model.part_names),
+            joint_names=tuple(j.name for j in model.joints),
+        )
+
+
+# --------------------------------------------------------------------------------------
+# datasets
+# --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class GenerationReport:
+    """Outcome of :func:`generate_dataset`.
+
+    Attributes
+    ----------
+    out_dir : Path
+    paths : tuple of Path
+        All shards of the dataset, in order.
+    written : tuple of int
+        Shards generated by this run (new ones and replacements).
+    skipped : tuple of int
+        Complete, verified shards kept from an earlier run.
+    replaced : tuple of (int, str)
+        Shards that existed but were damaged or covered other frames, with the reason.
+    frames_generated : int
+    seconds : float
+        Wall time.
+    """
+
+    out_dir: Path
+    paths: tuple
+    written: tuple
+    skipped: tuple
+    replaced: tuple
+    frames_generated: int
+    seconds: float
+
+    @property
+    def frames_per_second(self) -> float:
+        return self.frames_generated / self.seconds if self.seconds > 0 else float("nan")
+
+
+def shard_name(config: GenerationConfig, shard: int) -> str:
+    """File name of shard ``shard``: ``<name>_<split>_<shard:05d>.h5``."""
+    split = config.split if config.urdf is None else "urdf"
+    return f"{config.name}_{split}_{shard:05d}.h5"
+
+
+def _shard_ranges(frames: int, shard_size: int) -> list[tuple[int, int]]:
+    return [(s, min(s + shard_size, frames)) for s in range(0, frames, shard_size)]
+
+
+def _check_existing(path: Path, config_json: str, start: int, stop: int, overwrite: bool) -> str | None:
+    """``None`` when ``path`` is a complete, verified shard of frames ``start..stop-1``
+    of this configuration, else why it must be (re)generated.
+
+    Raises ValueError when a valid shard belongs to a different configuration (unless
+    ``overwrite``).
+    """
+    if not path.exists():
+        return "missing"
+    try:
+        reader = ShardReader(path)
+    except CorruptShardError as exc:
+        return f"damaged: {exc}"
+    if reader.attrs["config"] != config_json:
+        if overwrite:
+            return "other configuration"
+        theirs, ours = json.loads(reader.attrs["config"]), json.loads(config_json)
+        diff = sorted(k for k in set(theirs) | set(ours) if theirs.get(k) != ours.get(k))
+        raise ValueError(
+            f"out_dir: shard {path} was generated with other settings (differing: {', '.join(diff)}); "
+            "use another output directory or overwrite"
+        )
+    if reader.frame_start != start or len(reader) != stop - start:
+        return f"covers frames {reader.frame_start}..{reader.frame_start + len(reader) - 1}"
+    try:
+        idx = reader.arrays(["frame_index"])["frame_index"]
+        reader.arrays()  # reads every dataset: checksums
+    except CorruptShardError as exc:
+        return f"damaged: {exc}"
+    if not np.array_equal(idx, np.arange(start, stop)):
+        return "frame indices differ"
+    return None
+
+
+_WORKER: FrameGenerator | None = None
+
+
+def _init_worker(config: GenerationConfig) -> None:
+    global _WORKER
+    import os
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    _WORKER = FrameGenerator(config)
+
+
+def _work(indices: list) -> list:
+    return [_WORKER.frame(i) for i in indices]
+
+
+def generate_dataset(
+    config: GenerationConfig,
+    frames: int,
+    out_dir,
+    *,
+    workers: int = 1,
+    progress: bool = True,
+    overwrite: bool = False,
+    on_shard=None,
+) -> GenerationReport:
+    """Generate ``frames`` frames into shards under ``out_dir`` (resumable).
+
+    Parameters
+    ----------
+    config : GenerationConfig
+    frames : int
+        Total number of frames, positive.
+    out_dir : str or Path
+        Created when missing.
+    workers : int
+        Worker processes (``1`` = in this process).
+    progress : bool
+        Show a tqdm progress bar (on stderr).
+    overwrite : bool
+        Replace shards of another configuration and remove shards beyond ``frames``;
+        otherwise either is a ValueError.
+    on_shard : callable, optional
+        Called as ``on_shard(shard_index, path)`` after each shard is written.
+
+    Returns
+    -------
+    GenerationReport
+    """
+    from tqdm import tqdm
+
+    if not isinstance(config, GenerationConfig):
+        raise ValueError(f"config: expected GenerationConfig, got {type(config).__name__}")
+    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames <= 0:
+        raise ValueError(f"frames: expected a positive int, got {frames!r}")
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ValueError(f"workers: expected an int >= 1, got {workers!r}")
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for stale in out.glob("*.h5.tmp*"):  # leftovers of a killed writer
+        stale.unlink()
+    cfg_json = config.to_json()
+    ranges = _shard_ranges(int(frames), config.shard_size)
+    paths = [out / shard_name(config, s) for s in range(len(ranges))]
+
+    prefix = shard_name(config, 0)[: -len("00000.h5")]
+    extra = sorted(p for p in out.glob(f"{prefix}*.h5") if p not in set(paths))
+    if extra:
+        if not overwrite:
+            raise ValueError(
+                f"out_dir: {out} holds shards beyond the requested {frames} frames ({extra[0].name} ...); "
+                "use another output directory or overwrite"
+            )
+        for p in extra:
+            p.unlink()
+
+    todo, skipped, replaced = [], [], []
+    for s, ((start, stop), path) in enumerate(zip(ranges, paths)):
+        reason = _check_existing(path, cfg_json, start, stop, overwrite)
+        if reason is None:
+            skipped.append(s)
+            continue
+        if reason != "missing":
+            replaced.append((s, reason))
+        todo.append(s)
+
+    chunk = max(1, min(16, config.shard_size))
+    tasks = []
+    for s in todo:
+        start, stop = ranges[s]
+        tasks.extend(list(range(i, min(i + chunk, stop))) for i in range(start, stop, chunk))
+    remaining = sum(ranges[s][1] - ranges[s][0] for s in todo)
+    split = config.split if config.urdf is None else "-"
+    source = "procedural" if config.urdf is None else f"urdf:{config.urdf}"
+
+    bar = tqdm(total=int(frames), initial=int(frames) - remaining, unit="frame", disable=not progress,
+               desc=f"{config.name} {split}", dynamic_ncols=True)
+    pending: dict[int, list] = {s: [] for s in todo}
+    shard_of = {}
+    for s in todo:
+        for i in range(*ranges[s]):
+            shard_of[i] = s
+    generated = 0
+    try:
+        for batch in _run(config, tasks, workers):
+            for fr in batch:
+                s = shard_of[fr.frame_index]
+                pending[s].append(fr)
+                generated += 1
+                bar.update(1)
+                start, stop = ranges[s]
+                if len(pending[s]) == stop - start:
+                    frames_s = sorted(pending.pop(s), key=lambda f: f.frame_index)
+                    write_shard(paths[s], frames_s, split=split, source=source, config=cfg_json, frame_start=start)
+                    if on_shard is not None:
+                        on_shard(s, paths[s])
+    finally:
+        bar.close()
+    return GenerationReport(
+        out_dir=out,
+        paths=tuple(paths),
+        written=tuple(todo),
+        skipped=tuple(skipped),
+        replaced=tuple(replaced),
+        frames_generated=generated,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def _run(config: GenerationConfig, tasks: list, workers: int):
+    """Yield the frames of each task (a list of frame indices), in task order."""
+    if not tasks:
+        return
+    if workers == 1:
+        gen = FrameGenerator(config)
+        for t in tasks:
+            yield [gen.frame(i) for i in t]
+        return
+    import multiprocessing as mp
+
+    # "spawn": workers never inherit open3d/OpenMP thread state from the parent.
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(int(workers), initializer=_init_worker, initargs=(config,)) as pool:
+        yield from pool.imap(_work, tasks)

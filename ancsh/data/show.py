@@ -1,0 +1,131 @@
+"""Draw one frame with its ANCSH ground truth (matplotlib Agg, headless).
+
+Four panels: the points in the camera frame coloured by part with the amodal part boxes
+and the joint axes; the same points coloured by their NPCS coordinates (RGB); the points
+in NAOCS with the canonical joint axes; the image-plane projection coloured by depth with
+the joint association.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["draw_frame", "save_frame_figure"]
+
+# Box edges as pairs of corner indices (corner order of OrientedBox.corners: sx, sy, sz signs).
+_BOX_EDGES = [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)]
+
+
+def _plot_coords(p: np.ndarray) -> tuple:
+    """Camera (x right, y down, z forward) -> plot axes (x, depth, up)."""
+    p = np.atleast_2d(p)
+    return p[:, 0], p[:, 2], -p[:, 1]
+
+
+def _equal_aspect(ax, pts: np.ndarray) -> None:
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    c, r = 0.5 * (lo + hi), 0.5 * float(np.max(hi - lo)) + 1e-6
+    ax.set_xlim(c[0] - r, c[0] + r)
+    ax.set_ylim(c[1] - r, c[1] + r)
+    ax.set_zlim(c[2] - r, c[2] + r)
+    ax.set_box_aspect((1, 1, 1))
+
+
+def draw_frame(frame, fig=None):
+    """Draw ``frame`` (a :class:`~ancsh.data.dataset.Frame`) into a matplotlib figure.
+
+    Returns the figure (created with the Agg-compatible ``matplotlib.figure.Figure`` when
+    ``fig`` is None, so no display is needed).
+    """
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+
+    gt = frame.gt
+    fig = fig or Figure(figsize=(14, 11), dpi=100)
+    part_cmap = colormaps["tab10"]
+    labels = gt.part_labels
+    colors = part_cmap(labels % 10)
+    pts = frame.points
+
+    # 1: camera frame, parts, boxes, joint axes
+    ax = fig.add_subplot(2, 2, 1, projection="3d")
+    ax.scatter(*_plot_coords(pts), c=colors, s=2, depthshade=False)
+    extent_pts = [pts]
+    for j, box in enumerate(gt.boxes_cam):
+        c = box.corners()
+        extent_pts.append(c)
+        for a, b in _BOX_EDGES:
+            ax.plot(*_plot_coords(c[[a, b]]), color=part_cmap(j % 10), lw=1)
+    diag = max(float(np.linalg.norm(pts.max(0) - pts.min(0))), 1e-3)
+    for k in range(gt.num_joints):
+        p, u = gt.joint_pivots_cam[k], gt.joint_axes_cam[k]
+        seg = np.stack([p - 0.4 * diag * u, p + 0.4 * diag * u])
+        ax.plot(*_plot_coords(seg), color="k", lw=2.5)
+        ax.scatter(*_plot_coords(p), color="k", s=25, marker="o")
+    _equal_aspect(ax, np.stack(_plot_coords(np.concatenate(extent_pts)), axis=1))
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("z (m)")
+    ax.set_zlabel("-y (m)")
+    ax.view_init(elev=20, azim=-75)
+    names = ", ".join(f"{j}:{n}" for j, n in enumerate(frame.part_names))
+    ax.set_title(f"camera frame: parts ({names}),\namodal boxes, joint axes (black)", fontsize=9)
+
+    # 2: NPCS as RGB
+    ax = fig.add_subplot(2, 2, 2, projection="3d")
+    rgb = np.clip(gt.npcs + 0.5, 0.0, 1.0)
+    ax.scatter(*_plot_coords(pts), c=rgb, s=2, depthshade=False)
+    _equal_aspect(ax, np.stack(_plot_coords(pts), axis=1))
+    ax.view_init(elev=20, azim=-75)
+    ax.set_title("NPCS coordinates as RGB (camera frame)", fontsize=9)
+
+    # 3: NAOCS with canonical joints
+    ax = fig.add_subplot(2, 2, 3, projection="3d")
+    n = gt.naocs
+    ax.scatter(n[:, 0], n[:, 2], n[:, 1], c=colors, s=2, depthshade=False)
+    for k in range(gt.num_joints):
+        p, u = gt.joint_pivots_naocs[k], gt.joint_axes_naocs[k]
+        seg = np.stack([p - 0.4 * u, p + 0.4 * u])
+        ax.plot(seg[:, 0], seg[:, 2], seg[:, 1], color="k", lw=2.5)
+    _equal_aspect(ax, np.concatenate([n[:, [0, 2, 1]], np.array([[-0.5, -0.5, -0.5], [0.5, 0.5, 0.5]])]))
+    ax.set_xlabel("x")
+    ax.set_ylabel("z (front)")
+    ax.set_zlabel("y (up)")
+    ax.view_init(elev=20, azim=-60)
+    ax.set_title("NAOCS with canonical joint axes", fontsize=9)
+
+    # 4: image plane
+    ax = fig.add_subplot(2, 2, 4)
+    intr = frame.intrinsics
+    u = intr.fx * pts[:, 0] / pts[:, 2] + intr.cx
+    v = intr.fy * pts[:, 1] / pts[:, 2] + intr.cy
+    sc = ax.scatter(u, v, c=pts[:, 2], s=4, cmap="viridis")
+    assoc = gt.joint_association > 0
+    ax.scatter(u[assoc], v[assoc], s=14, facecolors="none", edgecolors="r", lw=0.5, label="joint-associated")
+    ax.set_xlim(0, intr.width)
+    ax.set_ylim(intr.height, 0)
+    ax.set_aspect("equal")
+    fig.colorbar(sc, ax=ax, label="depth (m)", shrink=0.8)
+    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title(f"image {intr.width}x{intr.height} (fx={intr.fx:g})", fontsize=9)
+
+    vis = ", ".join(f"{x:.2f}" for x in frame.visibility)
+    states = ", ".join(f"{x:.3f}" for x in gt.joint_states)
+    fig.suptitle(
+        f"{frame.category} / {frame.instance}  frame {frame.frame_index}   "
+        f"joint states (rel. rest): [{states}]   visible-area ratio: [{vis}]",
+        fontsize=11,
+    )
+    fig.tight_layout()
+    return fig
+
+
+def save_frame_figure(frame, out) -> Path:
+    """Draw ``frame`` and save it as an image (format from the suffix, e.g. ``.png``)."""
+    out = Path(out)
+    if out.parent and not out.parent.exists():
+        out.parent.mkdir(parents=True)
+    fig = draw_frame(frame)
+    fig.savefig(out)
+    return out
