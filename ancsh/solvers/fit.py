@@ -7,9 +7,10 @@
 
 Every formulation shares the same pipeline:
 
-1. **RANSAC** (:func:`ancsh.geometry.ransac.ransac`): a hypothesis draws 3 points per part,
-   fits every part by Umeyama (with scale) and is scored on all parts jointly by the mean
-   per-part inlier ratio (inlier: distance below ``inlier_threshold`` object diagonals).
+1. **RANSAC** (:func:`ancsh.solvers.hypotheses.articulated_ransac`): a hypothesis draws 3
+   points per part, fits every part by Umeyama (with scale) and is scored on all parts
+   jointly by the mean per-part inlier ratio (inlier: distance below ``inlier_threshold``
+   object diagonals).
    The best hypothesis is refitted on its inliers: these per-part poses are the
    initialisation (and the whole answer of ``per_part``, the paper's NPCS baseline).
 2. **Solve** the formulation's program (built once per kinematic structure, see
@@ -33,7 +34,6 @@ import numpy as np
 
 from ..geometry._checks import check_generator
 from ..geometry.boxes import OrientedBox
-from ..geometry.ransac import mean_group_inlier_ratio, ransac
 from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .types import Correspondences, FitResult, FitStatus, Observation
@@ -90,7 +90,7 @@ class FitConfig:
     ransac_iterations: int = 200
     ransac_confidence: float = 0.99
     inlier_threshold: float = 0.05
-    rescore_rounds: int = 1
+    rescore_rounds: int = 0
     optimize_scale: bool = False
     soft_weight: float = 1.0
     soft_mu: float = 1.0
@@ -287,53 +287,35 @@ class _Fit:
 
     # -- RANSAC + per-part Umeyama ------------------------------------------------------------
     def _initial_poses(self, active: np.ndarray):
+        from .hypotheses import articulated_ransac
+
         idx_active = np.flatnonzero(active)
-        pts, c, lab, w = self.points[active], self.npcs[active], self.labels[active], self.weights[active]
-        part_idx = [np.flatnonzero(lab == j) for j in range(self.M)]
-        weighted = self.corr.weights is not None
-
-        def estimator(idx):
-            idx = np.sort(idx)
-            sub = lab[idx]
-            out = []
-            for j in range(self.M):
-                sel = idx[sub == j]
-                if sel.size < _MIN_POINTS:
-                    return None
-                try:
-                    out.append(umeyama(c[sel], pts[sel], weights=w[sel] if weighted and sel.size > 3 else None))
-                except ValueError:
-                    return None
-            return out
-
-        def residual(model):
-            r = np.empty(len(pts))
-            for j, T in enumerate(model):
-                sel = part_idx[j]
-                r[sel] = np.linalg.norm(T.apply(c[sel]) - pts[sel], axis=1)
-            return r
-
+        pts, c, lab = self.points[active], self.npcs[active], self.labels[active]
+        w = self.weights[active] if self.corr.weights is not None else None
         cfg = self.config
         if cfg.ransac:
             scale = _spread_scale(pts, c, lab, self.corr.npcs_scale)
-            res = ransac(
-                len(pts), estimator, residual, _MIN_POINTS, cfg.inlier_threshold * scale, self.rng,
-                groups=lab, score=mean_group_inlier_ratio(lab), max_iterations=cfg.ransac_iterations,
-                confidence=cfg.ransac_confidence, refit=True,
+            res = articulated_ransac(
+                pts, c, lab, self.M, cfg.inlier_threshold * scale, self.rng, weights=w,
+                max_hypotheses=cfg.ransac_iterations, confidence=cfg.ransac_confidence,
             )
             if not res.success:
                 return self._failure(FitStatus.DEGENERATE, f"RANSAC: {res.message}")
-            model, inl = res.model, res.inliers
-            # The refit needs >= 3 inliers per part; fall back to the sample model otherwise.
+            model, inl = res.poses, res.inliers
             counts = np.bincount(lab[inl], minlength=self.M)
             if np.any(counts < _MIN_POINTS):
                 return self._failure(
-                    FitStatus.TOO_FEW_POINTS, f"RANSAC left parts {np.flatnonzero(counts < _MIN_POINTS).tolist()} with < 3 inliers"
+                    FitStatus.TOO_FEW_POINTS,
+                    f"RANSAC left part(s) {np.flatnonzero(counts < _MIN_POINTS).tolist()} with < {_MIN_POINTS} inliers",
                 )
         else:
-            model = estimator(np.arange(len(pts)))
-            if model is None:
-                return self._failure(FitStatus.DEGENERATE, "a part's points are degenerate (collinear or coincident)")
+            model = []
+            for j in range(self.M):
+                sel = lab == j
+                try:
+                    model.append(umeyama(c[sel], pts[sel], weights=None if w is None else w[sel]))
+                except ValueError as exc:
+                    return self._failure(FitStatus.DEGENERATE, f"part {j}: {exc}")
             inl = np.ones(len(pts), dtype=bool)
         inliers = np.zeros(self.N, dtype=bool)
         inliers[idx_active[inl]] = True
@@ -378,7 +360,7 @@ class _Fit:
         raw = prog.unpack_poses(outcome.x, p)
         if not all(np.all(np.isfinite(R)) and np.all(np.isfinite(t)) and np.isfinite(s) and s > 0 for R, t, s in raw):
             return self._failure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
-        solved = [Sim3(_orthonormalize(R), t, s) for R, t, s in raw]
+        solved = [Sim3(R, t, s) for R, t, s in raw]
         costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, p)).ravel().tolist()))
         if cfg.robust:
             costs["robust_data"] = self._robust_energy(raw, inliers, L)
@@ -475,7 +457,7 @@ class _Fit:
     def _finish(self, poses, inliers, L, status, message, iterations, costs) -> FitResult:
         values = self._static_values(L)
         axes, pivots, states = _postprocess(self.structure, poses, values)
-        violation, eval_costs = self._check(poses, values, inliers)
+        violation, eval_costs = self._check(poses, values, inliers if costs is None else None)
         if costs is None:
             costs = eval_costs
         boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
@@ -487,14 +469,15 @@ class _Fit:
         )
 
     def _check(self, poses, values, inliers) -> tuple[float, dict]:
-        """Exact-joint and limit violation, and the data energy, at the given poses."""
+        """Exact-joint and limit violation at the given poses (and the data energy of ``inliers``)."""
         from .program import ProgramKey, get_program
 
-        terms = ("data", "exact_joint") + (("joint_limits",) if self.K else ())
+        terms = (("data",) if inliers is not None else ()) + ("exact_joint",) + (("joint_limits",) if self.K else ())
         prog = get_program(ProgramKey(self.structure, "maximal", False, terms))
         v = dict(values)
         v.update(self._init_values(poses, values["L"]))
-        v.update(self._moment_values(inliers, self.weights, values["L"]))
+        if inliers is not None:
+            v.update(self._moment_values(inliers, self.weights, values["L"]))
         p = prog.pack(v)
         x = np.zeros(prog.num_x)
         g = np.asarray(prog.constraints(x, p)).ravel()
@@ -529,20 +512,15 @@ def _perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a, np.cross(u, a)
 
 
-def _spread_scale(points, npcs, labels, npcs_scale) -> float:
+def _spread_scale(points, npcs, labels, npcs_scale, max_points: int = 128) -> float:
     """Robust object scale (metres per NAOCS unit) from the point spread of each part."""
     est = []
     for j in range(len(npcs_scale)):
-        sel = labels == j
+        sel = np.flatnonzero(labels == j)
+        sel = sel[:: max(1, len(sel) // max_points)]
         p, c = points[sel], npcs[sel]
         dp = np.median(np.linalg.norm(p - np.median(p, axis=0), axis=1))
         dc = np.median(np.linalg.norm(c - np.median(c, axis=0), axis=1))
         if dc > 0 and dp > 0:
             est.append(dp / dc / npcs_scale[j])
     return float(np.median(est)) if est else 1.0
-
-
-def _orthonormalize(R: np.ndarray) -> np.ndarray:
-    U, _, Vt = np.linalg.svd(R)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return U @ D @ Vt

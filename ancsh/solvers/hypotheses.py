@@ -1,0 +1,211 @@
+"""RANSAC initialisation of an articulated fit, vectorised over hypotheses.
+
+A hypothesis draws a minimal sample of 3 correspondences from *every* part and fits each
+part by Umeyama (with scale); it is scored on all parts jointly by the mean per-part inlier
+ratio, so a large base part cannot outvote a thin part. That score is a sum of per-part
+terms of independent per-part fits, so the best hypothesis is the combination of each
+part's best sample: hypotheses are drawn in batches, every part keeps its best, and the
+loop stops once every part has drawn an all-inlier sample with probability ``confidence``.
+The winner is refitted on its inliers (:func:`ancsh.geometry.umeyama.umeyama`) until the
+inlier set stops changing.
+
+The minimal-sample fits are a batched closed-form Umeyama (many 3-point fits in one numpy
+call); the test suite checks it against :func:`ancsh.geometry.umeyama.umeyama`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.transforms import Sim3
+from ..geometry.umeyama import umeyama
+
+__all__ = ["ArticulatedRansacResult", "articulated_ransac", "batched_umeyama"]
+
+_RANK_TOL = 1e-8
+_MAX_REFITS = 5
+SAMPLE_SIZE = 3
+
+
+def batched_umeyama(src: np.ndarray, dst: np.ndarray):
+    """Many small Umeyama similarity fits at once (uniform weights).
+
+    Parameters
+    ----------
+    src, dst : (H, k, 3) float64
+        ``H`` problems of ``k >= 3`` corresponding points.
+
+    Returns
+    -------
+    R : (H, 3, 3), t : (H, 3), s : (H,), valid : (H,) bool
+        ``dst ~= s R src + t``; ``valid`` is False for degenerate samples (coincident or
+        collinear points, rank < 2 cross-covariance) and non-positive scales.
+    """
+    k = src.shape[1]
+    mu_s = src.mean(axis=1)
+    mu_d = dst.mean(axis=1)
+    xs = src - mu_s[:, None, :]
+    xd = dst - mu_d[:, None, :]
+    xs_t = xs.transpose(0, 2, 1)
+    cov_s = xs_t @ xs
+    var_s = np.trace(cov_s, axis1=1, axis2=2) / k
+    sigma = (xd.transpose(0, 2, 1) @ xs) / k
+    U, d, Vt = np.linalg.svd(sigma)
+    S = np.ones((len(d), 3))
+    S[np.linalg.det(U) * np.linalg.det(Vt) < 0, 2] = -1.0
+    R = (U * S[:, None, :]) @ Vt
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.sum(d * S, axis=1) / var_s
+    t = mu_d - s[:, None] * (R @ mu_s[:, :, None])[:, :, 0]
+    # Spread of each point set: second eigenvalue of its covariance (collinear -> 0).
+    ev_s = np.linalg.eigvalsh(cov_s)
+    ev_d = np.linalg.eigvalsh(xd.transpose(0, 2, 1) @ xd)
+    valid = (
+        (d[:, 1] > _RANK_TOL * d[:, 0])
+        & (ev_s[:, 1] > _RANK_TOL * ev_s[:, 2])
+        & (ev_d[:, 1] > _RANK_TOL * ev_d[:, 2])
+        & np.isfinite(s)
+        & (s > 0)
+    )
+    return R, t, s, valid
+
+
+@dataclass(frozen=True)
+class ArticulatedRansacResult:
+    """Outcome of :func:`articulated_ransac`.
+
+    Attributes
+    ----------
+    poses : list of Sim3 or None
+        Per-part ``T_cam_npcs`` refitted on the inliers; ``None`` on failure.
+    inliers : (n,) bool
+        Inliers of ``poses`` over the input points.
+    inlier_ratios : (M,) float64
+        Per-part inlier ratio.
+    num_hypotheses : int
+        Hypotheses drawn (each with one minimal sample per part).
+    message : str
+    """
+
+    poses: list | None
+    inliers: np.ndarray
+    inlier_ratios: np.ndarray
+    num_hypotheses: int
+    message: str
+
+    @property
+    def success(self) -> bool:
+        return self.poses is not None
+
+    @property
+    def score(self) -> float:
+        """Mean per-part inlier ratio."""
+        return float(np.mean(self.inlier_ratios))
+
+
+def articulated_ransac(
+    points, npcs, labels, num_parts: int, threshold: float, rng, *, weights=None, max_hypotheses: int = 200,
+    confidence: float = 0.99, batch: int = 16,
+) -> ArticulatedRansacResult:
+    """Per-part Umeyama hypotheses from 3-point samples of every part, scored jointly.
+
+    Parameters
+    ----------
+    points : (n, 3) float64
+        Camera-frame points (metres).
+    npcs : (n, 3) float64
+        NPCS coordinates of the points.
+    labels : (n,) int
+        Part of each point; every part ``0..num_parts-1`` needs >= 3 points.
+    num_parts : int
+    threshold : float
+        Inlier distance ``|s R c + t - p|`` in metres.
+    rng : numpy.random.Generator
+    weights : (n,) float64, optional
+        Weights of the final refits (samples are drawn uniformly).
+    max_hypotheses, confidence, batch
+        Stopping rule: at most ``max_hypotheses``; stop earlier once every part has drawn an
+        all-inlier sample with probability ``confidence`` (estimated from its best ratio).
+    """
+    part_idx = [np.flatnonzero(labels == j) for j in range(num_parts)]
+    npcs_t = [np.ascontiguousarray(npcs[idx].T) for idx in part_idx]
+    points_t = [np.ascontiguousarray(points[idx].T) for idx in part_idx]
+    best_ratio = np.full(num_parts, -1.0)
+    best = [None] * num_parts
+    drawn, needed = 0, max_hypotheses
+    while drawn < min(needed, max_hypotheses):
+        h = min(batch, max_hypotheses - drawn)
+        drawn += h
+        for j, idx in enumerate(part_idx):
+            n = len(idx)
+            sample = rng.integers(0, n, size=(h, SAMPLE_SIZE))
+            distinct = (sample[:, 0] != sample[:, 1]) & (sample[:, 0] != sample[:, 2]) & (sample[:, 1] != sample[:, 2])
+            pick = idx[sample]
+            R, t, s, valid = batched_umeyama(npcs[pick], points[pick])
+            valid &= distinct
+            if not np.any(valid):
+                continue
+            R, t, s = R[valid], t[valid], s[valid]
+            diff = (s[:, None, None] * R) @ npcs_t[j] + t[:, :, None] - points_t[j]  # (h, 3, n)
+            dist2 = np.sum(diff * diff, axis=1)
+            ratio = np.count_nonzero(dist2 <= threshold**2, axis=1) / n
+            i = int(np.argmax(ratio))
+            if ratio[i] > best_ratio[j]:
+                best_ratio[j] = ratio[i]
+                best[j] = Sim3(R[i], t[i], s[i])
+        if np.all(best_ratio > 0):
+            needed = _hypotheses_needed(best_ratio, confidence, max_hypotheses)
+    n_all = len(labels)
+    if any(b is None for b in best):
+        missing = [j for j, b in enumerate(best) if b is None]
+        return ArticulatedRansacResult(
+            None, np.zeros(n_all, dtype=bool), np.maximum(best_ratio, 0.0), drawn,
+            f"no valid minimal sample for part(s) {missing} in {drawn} hypotheses (degenerate points)",
+        )
+    poses, inliers, ratios = _refit(best, points, npcs, part_idx, threshold, weights, n_all)
+    return ArticulatedRansacResult(
+        poses, inliers, ratios, drawn, f"mean inlier ratio {ratios.mean():.3f} after {drawn} hypotheses",
+    )
+
+
+def _inliers_of(T: Sim3, points, npcs, idx, threshold) -> np.ndarray:
+    d2 = np.sum((T.apply(npcs[idx]) - points[idx]) ** 2, axis=1)
+    return d2 <= threshold**2
+
+
+def _refit(best, points, npcs, part_idx, threshold, weights, n_all):
+    poses, inliers = [], np.zeros(n_all, dtype=bool)
+    ratios = np.zeros(len(best))
+    for j, (T, idx) in enumerate(zip(best, part_idx)):
+        inl = _inliers_of(T, points, npcs, idx, threshold)
+        for _ in range(_MAX_REFITS):
+            sel = idx[inl]
+            if sel.size < SAMPLE_SIZE:
+                break
+            try:
+                T_new = umeyama(npcs[sel], points[sel], weights=None if weights is None else weights[sel])
+            except ValueError:
+                break
+            inl_new = _inliers_of(T_new, points, npcs, idx, threshold)
+            if np.count_nonzero(inl_new) < np.count_nonzero(inl):
+                break
+            changed = not np.array_equal(inl_new, inl)
+            T, inl = T_new, inl_new
+            if not changed:
+                break
+        poses.append(T)
+        inliers[idx[inl]] = True
+        ratios[j] = np.count_nonzero(inl) / len(idx)
+    return poses, inliers, ratios
+
+
+def _hypotheses_needed(ratios: np.ndarray, confidence: float, cap: int) -> int:
+    if confidence >= 1.0:
+        return cap
+    p_good = np.clip(ratios, 1e-12, 1.0) ** SAMPLE_SIZE
+    if np.all(p_good >= 1.0):
+        return 0
+    p_good = np.minimum(p_good, 1.0 - 1e-12)
+    return int(min(cap, np.max(np.ceil(np.log(1.0 - confidence) / np.log(1.0 - p_good)))))
