@@ -43,6 +43,7 @@ quadratic pairwise-distance scale).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -142,13 +143,19 @@ def _kabsch(src_c: np.ndarray, dst_c: np.ndarray) -> np.ndarray:
 
 
 def _rodrigues(r: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector ``(3,)``."""
-    theta = float(np.sqrt(r @ r))
+    """Rotation matrix of a rotation vector ``(3,)`` (Rodrigues; scalar maths, it is called a lot)."""
+    x, y, z = float(r[0]), float(r[1]), float(r[2])
+    theta = math.sqrt(x * x + y * y + z * z)
     if theta < 1e-12:
         return np.eye(3)
-    k = r / theta
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(theta) * K + (1.0 - np.cos(theta)) * (K @ K)
+    x, y, z = x / theta, y / theta, z / theta
+    s, c = math.sin(theta), math.cos(theta)
+    v = 1.0 - c
+    return np.array([
+        [c + x * x * v, x * y * v - z * s, x * z * v + y * s],
+        [y * x * v + z * s, c + y * y * v, y * z * v - x * s],
+        [z * x * v - y * s, z * y * v + x * s, c + z * z * v],
+    ])
 
 
 def _rotvec(R: np.ndarray) -> np.ndarray:

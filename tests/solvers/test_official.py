@@ -111,3 +111,12 @@ def test_settings_and_argument_errors():
         fit_official(obs.points_cam, Correspondences.from_ground_truth(gt))
     with pytest.raises(ValueError, match="correspondences"):
         fit_official(obs, gt)
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-9, 0.7, np.pi - 1e-6])
+def test_rodrigues_matches_exp_so3(angle):
+    from ancsh.geometry.rotations import exp_so3
+    from ancsh.solvers.official import _rodrigues
+
+    axis = np.array([0.36, -0.48, 0.8])
+    np.testing.assert_allclose(_rodrigues(angle * axis), exp_so3(angle * axis), atol=1e-15)
