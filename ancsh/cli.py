@@ -17,6 +17,9 @@ from . import __version__
 # Modules that contribute sub-commands, in help order.
 COMMAND_MODULES = [
     "ancsh.demo",
+    "ancsh.learned.cli",
+    "ancsh.data.cli",
+    "ancsh.benchcli",
 ]
 
 

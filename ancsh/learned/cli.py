@@ -1,0 +1,93 @@
+"""``ancsh train``: train the ANCSH network (or the direct-voting baseline) for one category.
+
+torch is imported inside :func:`run`, so ``ancsh --help`` stays light.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train the ANCSH network for a category (resumable, checkpoints, curves)",
+        description="Train the ANCSH network (or the direct joint-voting baseline) on HDF5 shards made by "
+        "`ancsh data generate`. A run directory keeps config.json, last.pt, best.pt, history.csv, curves.png.",
+    )
+    p.add_argument("--category", required=True, help="object category, e.g. laptop")
+    p.add_argument("--config", type=Path, help="TrainConfig JSON (unknown keys are an error)")
+    p.add_argument("--kind", choices=("ancsh", "direct_voting"), help="network (default from the config: ancsh)")
+    p.add_argument("--resume", action="store_true", help="continue from RUN/last.pt")
+    p.add_argument("--data", type=Path, help="training shards (default data_out/<category>_train)")
+    p.add_argument("--out", type=Path, help="run directory (default runs/<category>_<kind>)")
+    p.add_argument("--max-steps", type=int, help="override config.max_steps (e.g. to extend a finished run)")
+    p.add_argument("--time-limit-min", type=float, help="stop (with a checkpoint) after this many minutes")
+    p.add_argument("--test-data", type=Path, help="held-out test shards: evaluate best.pt against trivial baselines")
+    p.add_argument("--export", type=Path, help="write compact weights of best.pt here after training")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    from .config import TrainConfig
+
+    overrides = {"category": args.category, "kind": args.kind, "max_steps": args.max_steps}
+    kind = args.kind or "ancsh"
+    out = args.out or Path("runs") / f"{args.category}_{kind}"
+    last = out / "last.pt"
+    if args.config is not None:
+        config = TrainConfig.from_json(args.config, **overrides)
+    elif args.resume and (out / "config.json").is_file():
+        config = TrainConfig.from_json(out / "config.json", **overrides)
+    else:
+        config = TrainConfig.from_dict({}, **overrides)
+    if last.is_file() and not args.resume:
+        raise ValueError(f"--out: {out} already holds a checkpoint; pass --resume to continue or choose another --out")
+    if args.resume and not last.is_file():
+        raise FileNotFoundError(f"--resume: no checkpoint {last}")
+
+    from .data import arrays_from_dataset
+    from .train import Trainer, split_by_instance
+
+    data = args.data or Path("data_out") / f"{args.category}_train"
+    arrays = arrays_from_dataset(data, config.num_points, seed=config.seed)
+    train, val = split_by_instance(arrays, config.val_fraction, config.seed)
+    print(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "
+          f"({len(set(arrays.instance.tolist()))} instances) from {data}")
+    trainer = Trainer(config, train, val, out, progress=not args.no_progress)
+    if args.resume:
+        trainer.load_checkpoint(last)
+        print(f"resumed {last} at step {trainer.step} ({trainer.elapsed_s / 60:.1f} min trained)")
+    time_limit = None if args.time_limit_min is None else 60.0 * args.time_limit_min
+    trainer.fit(time_limit_s=time_limit)
+    if trainer.history:
+        row = trainer.history[-1]
+        print("last:", ", ".join(f"{k}={v:.4g}" for k, v in row.items() if isinstance(v, float)))
+    best = out / "best.pt" if (out / "best.pt").is_file() else last
+    metrics = {}
+    if args.test_data is not None:
+        metrics = evaluate_checkpoint(best, args.test_data, config)
+        (out / "test_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+        print("test:", json.dumps(metrics, indent=1))
+    if args.export is not None:
+        from .weights import export_weights
+
+        path = export_weights(best, args.export, metrics=metrics)
+        print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
+    return 0
+
+
+def evaluate_checkpoint(checkpoint, test_data, config) -> dict:
+    """Metrics of ``checkpoint`` on held-out test shards, beside trivial baselines."""
+    from .data import arrays_from_dataset
+    from .train import evaluate_arrays, trivial_baselines
+    from .weights import load_network
+
+    net = load_network(checkpoint)
+    arrays = arrays_from_dataset(test_data, config.num_points, seed=config.seed + 1)
+    scores = evaluate_arrays(net.model, arrays, net.config)
+    return {"checkpoint": str(checkpoint), "test_frames": len(arrays), **scores, **trivial_baselines(arrays)}

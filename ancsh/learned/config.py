@@ -1,0 +1,153 @@
+"""Training configuration: a frozen dataclass validated at construction, read from / written to JSON.
+
+Defaults are sized for a 2-core CPU (see ``docs/results/learned_width.md``): a quarter-width
+PointNet++ with one shared backbone, 256/64 set-abstraction centres and 32 neighbours.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+__all__ = ["TrainConfig"]
+
+_KINDS = ("ancsh", "direct_voting")
+
+
+def _positive_int(value, name: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name}: expected a positive integer, got {value!r}")
+    return value
+
+
+def _positive(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name}: expected a positive number, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that defines a training run (the data location is given separately).
+
+    Attributes
+    ----------
+    category : str
+        Object category (names the run and the shipped weights).
+    kind : str
+        ``"ancsh"`` (the ANCSH network) or ``"direct_voting"`` (camera-space joint-voting baseline).
+    num_points : int
+        Points per input cloud.
+    width : float
+        PointNet++ channel multiplier (1.0 = the reference part-segmentation widths).
+    npoints, radii, nsamples : tuple of 2
+        Set-abstraction centres, ball radii (normalised-cloud units) and neighbours.
+    backbones : int
+        1 = one backbone shared by all heads; 2 = the paper's two backbones.
+    batch_size : int
+    lr : float
+        Adam learning rate.
+    lr_decay : float
+        Multiplicative decay in ``(0, 1]`` applied every ``lr_decay_steps`` steps.
+    lr_decay_steps : int
+    max_steps : int
+        Total optimisation steps.
+    loss_weights : tuple of 5 floats
+        Weights of (seg, NPCS, NAOCS, association, joint); the paper's ``[1, 10, 1, 1, 1]``.
+    val_fraction : float
+        Share of training *instances* held out for validation, in ``[0, 0.5]``.
+    val_frames : int
+        Validation frames evaluated at each validation (a fixed subset).
+    val_every, checkpoint_every : int
+        Steps between validations / checkpoints.
+    seed : int
+        Seeds initialisation, point sampling and batch order.
+    num_threads : int
+        torch intra-op threads.
+    """
+
+    category: str = "laptop"
+    kind: str = "ancsh"
+    num_points: int = 1024
+    width: float = 0.25
+    npoints: tuple = (256, 64)
+    radii: tuple = (0.2, 0.4)
+    nsamples: tuple = (32, 32)
+    backbones: int = 1
+    batch_size: int = 16
+    lr: float = 1e-3
+    lr_decay: float = 0.7
+    lr_decay_steps: int = 1500
+    max_steps: int = 6000
+    loss_weights: tuple = (1.0, 10.0, 1.0, 1.0, 1.0)
+    val_fraction: float = 0.1
+    val_frames: int = 256
+    val_every: int = 250
+    checkpoint_every: int = 250
+    seed: int = 0
+    num_threads: int = 1
+
+    def __post_init__(self):
+        if not isinstance(self.category, str) or not self.category:
+            raise ValueError(f"category: expected a non-empty string, got {self.category!r}")
+        if self.kind not in _KINDS:
+            raise ValueError(f"kind: expected one of {_KINDS}, got {self.kind!r}")
+        for name in ("num_points", "batch_size", "lr_decay_steps", "max_steps", "val_frames", "val_every", "checkpoint_every", "num_threads"):
+            _positive_int(getattr(self, name), name)
+        _positive(self.width, "width")
+        _positive(self.lr, "lr")
+        if not 0 < _positive(self.lr_decay, "lr_decay") <= 1:
+            raise ValueError(f"lr_decay: expected a number in (0, 1], got {self.lr_decay!r}")
+        if self.backbones not in (1, 2):
+            raise ValueError(f"backbones: expected 1 or 2, got {self.backbones!r}")
+        if self.kind == "direct_voting" and self.backbones != 1:
+            raise ValueError("backbones: the direct_voting network has one backbone")
+        for name, conv in (("npoints", _positive_int), ("radii", _positive), ("nsamples", _positive_int)):
+            value = getattr(self, name)
+            if not isinstance(value, (tuple, list)) or len(value) != 2:
+                raise ValueError(f"{name}: expected 2 values, got {value!r}")
+            object.__setattr__(self, name, tuple(conv(v, name) for v in value))
+        if not self.npoints[0] <= self.num_points or not self.npoints[1] <= self.npoints[0]:
+            raise ValueError(f"npoints: expected num_points >= npoints[0] >= npoints[1], got {self.npoints} for {self.num_points} points")
+        if not self.nsamples[0] <= self.num_points or not self.nsamples[1] <= self.npoints[0]:
+            raise ValueError(f"nsamples: expected nsamples[0] <= num_points and nsamples[1] <= npoints[0], got {self.nsamples}")
+        w = self.loss_weights
+        if not isinstance(w, (tuple, list)) or len(w) != 5:
+            raise ValueError(f"loss_weights: expected 5 values, got {w!r}")
+        w = tuple(float(x) for x in w)
+        if any(not math.isfinite(x) or x < 0 for x in w):
+            raise ValueError(f"loss_weights: expected non-negative numbers, got {w}")
+        object.__setattr__(self, "loss_weights", w)
+        if isinstance(self.val_fraction, bool) or not isinstance(self.val_fraction, (int, float)) or not 0 <= self.val_fraction <= 0.5:
+            raise ValueError(f"val_fraction: expected a number in [0, 0.5], got {self.val_fraction!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"seed: expected a non-negative integer, got {self.seed!r}")
+
+    # --- (de)serialisation -------------------------------------------------------------
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict, **overrides) -> "TrainConfig":
+        """Build from a dict; unknown keys raise ``ValueError`` naming them."""
+        if not isinstance(data, dict):
+            raise ValueError(f"config: expected a JSON object, got {type(data).__name__}")
+        merged = {**data, **{k: v for k, v in overrides.items() if v is not None}}
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(merged) - known)
+        if unknown:
+            raise ValueError(f"config: unknown key(s) {unknown}; known keys are {sorted(known)}")
+        return cls(**merged)
+
+    @classmethod
+    def from_json(cls, path, **overrides) -> "TrainConfig":
+        return cls.from_dict(json.loads(Path(path).read_text()), **overrides)
+
+    def to_json(self, path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+    def network_kwargs(self) -> dict:
+        """Keyword arguments of :func:`ancsh.learned.network.build_network` (besides kind, parts, joints)."""
+        return dict(width=self.width, npoints=self.npoints, radii=self.radii, nsamples=self.nsamples, backbones=self.backbones)

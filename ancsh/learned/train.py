@@ -1,0 +1,327 @@
+"""Training loop: seeded, resumable, with validation on held-out instances and saved curves.
+
+A run directory holds
+
+- ``config.json`` -- the :class:`~ancsh.learned.config.TrainConfig`;
+- ``last.pt`` -- the latest checkpoint (model, optimiser, step, history), written atomically;
+- ``best.pt`` -- the checkpoint with the lowest validation loss;
+- ``history.csv`` and ``curves.png`` -- training/validation losses and metrics.
+
+The batch of step ``s`` is a pure function of ``(seed, s)`` (a per-epoch permutation), and the
+learning rate is ``lr * lr_decay ** (s // lr_decay_steps)``, so a resumed run repeats exactly
+the steps an uninterrupted run would have taken.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .config import TrainConfig
+from .data import TrainingArrays
+from .losses import LOSS_NAMES, ancsh_loss, direct_voting_loss
+from .network import build_network
+
+__all__ = ["Trainer", "split_by_instance", "evaluate_arrays", "trivial_baselines"]
+
+
+def split_by_instance(arrays: TrainingArrays, fraction: float, seed: int) -> tuple[TrainingArrays, TrainingArrays | None]:
+    """Hold out ``fraction`` of the instances (at least one when ``fraction > 0`` and several exist).
+
+    With a single instance, a ``fraction`` of the frames is held out instead.
+    """
+    if fraction <= 0:
+        return arrays, None
+    rng = np.random.default_rng([seed, 7])
+    inst = np.unique(arrays.instance)
+    if inst.size >= 2:
+        n_val = min(inst.size - 1, max(1, int(round(fraction * inst.size))))
+        val_inst = rng.choice(inst, size=n_val, replace=False)
+        is_val = np.isin(arrays.instance, val_inst)
+    else:
+        is_val = np.zeros(len(arrays), dtype=bool)
+        n_val = max(1, int(round(fraction * len(arrays))))
+        if n_val >= len(arrays):
+            return arrays, None
+        is_val[rng.choice(len(arrays), size=n_val, replace=False)] = True
+    return arrays.subset(~is_val), arrays.subset(is_val)
+
+
+@torch.no_grad()
+def evaluate_arrays(model, arrays: TrainingArrays, config: TrainConfig, batch_size: int = 16) -> dict[str, float]:
+    """Validation losses and per-point metrics of ``model`` on all frames of ``arrays``.
+
+    Metrics: ``seg_acc`` (predicted part = true part), ``assoc_acc``; for ANCSH
+    ``npcs_err`` (mean distance between the NPCS of the *predicted* part and the truth, NPCS
+    units); ``axis_err_deg`` (mean angle between per-point axis votes and the truth over
+    associated points).
+    """
+    was_training = model.training
+    model.eval()
+    loss_fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
+    sums: dict[str, float] = {}
+    count = 0
+    try:
+        for start in range(0, len(arrays), batch_size):
+            idx = np.arange(start, min(start + batch_size, len(arrays)))
+            points, targets = arrays.batch(idx)
+            out = model(points)
+            total, parts = loss_fn(out, targets, config.loss_weights)
+            pred = out["seg_logits"].argmax(-1)
+            m = {"total": float(total), **{k: float(v) for k, v in parts.items()}}
+            m["seg_acc"] = float((pred == targets.labels).float().mean())
+            m["assoc_acc"] = float((out["assoc_logits"].argmax(-1) == targets.association).float().mean())
+            if config.kind == "ancsh":
+                npcs = out["npcs"].gather(2, pred[..., None, None].expand(-1, -1, 1, 3)).squeeze(2)
+                m["npcs_err"] = float((npcs - targets.npcs).norm(dim=-1).mean())
+                true_axis = targets.joint[..., :3]
+            else:
+                true_axis = targets.joint_cam[..., :3]
+            assoc = targets.joint_mask[..., 0] > 0
+            votes = torch.nn.functional.normalize(out["joint"][..., :3], dim=-1)
+            cos = (votes * true_axis).sum(-1).clamp(-1, 1)
+            m["axis_err_deg"] = float(torch.rad2deg(torch.arccos(cos[assoc])).mean()) if assoc.any() else float("nan")
+            n = len(idx)
+            for k, v in m.items():
+                sums[k] = sums.get(k, 0.0) + v * n
+            count += n
+    finally:
+        model.train(was_training)
+    return {k: v / max(count, 1) for k, v in sums.items()}
+
+
+def trivial_baselines(arrays: TrainingArrays) -> dict[str, float]:
+    """Scores of trivial predictors on ``arrays``: majority part label, NPCS = 0, no joint association."""
+    counts = np.bincount(arrays.labels.ravel(), minlength=arrays.num_parts)
+    return {
+        "seg_acc_majority": float(counts.max() / counts.sum()),
+        "npcs_err_zero": float(np.linalg.norm(arrays.npcs, axis=-1).mean()),
+        "assoc_acc_none": float(np.mean(arrays.association == 0)),
+    }
+
+
+class Trainer:
+    """Seeded, resumable training of one network on in-memory :class:`TrainingArrays`.
+
+    Parameters
+    ----------
+    config : TrainConfig
+    train : TrainingArrays
+    val : TrainingArrays or None
+        Held-out frames (first ``config.val_frames`` are used).
+    out_dir : path or None
+        Run directory (checkpoints, CSV, PNG); ``None`` keeps everything in memory.
+    progress : bool
+        Show a tqdm progress bar.
+    """
+
+    def __init__(self, config: TrainConfig, train: TrainingArrays, val: TrainingArrays | None = None, out_dir=None, *, progress: bool = True):
+        if not isinstance(config, TrainConfig):
+            raise ValueError(f"config: expected a TrainConfig, got {type(config).__name__}")
+        if len(train) == 0:
+            raise ValueError("train: no frames")
+        if train.num_points != config.num_points:
+            raise ValueError(f"train: frames have {train.num_points} points, config.num_points is {config.num_points}")
+        self.config = config
+        self.train_arrays = train
+        self.val_arrays = None if val is None or len(val) == 0 else val.subset(np.arange(min(len(val), config.val_frames)))
+        self.out_dir = None if out_dir is None else Path(out_dir)
+        self.progress = progress
+        torch.set_num_threads(config.num_threads)
+        torch.manual_seed(config.seed)
+        self.model = build_network(config.kind, train.num_parts, train.num_joints, **config.network_kwargs())
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
+        self.loss_fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
+        self.step = 0
+        self.elapsed_s = 0.0
+        self.history: list[dict] = []
+        self.best_val = math.inf
+        self._acc: dict[str, float] = {}
+        self._acc_n = 0
+        if self.out_dir is not None:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            config.to_json(self.out_dir / "config.json")
+
+    # --- schedule ------------------------------------------------------------------
+    def batch_indices(self, step: int) -> np.ndarray:
+        """Frame indices of the batch of ``step`` (deterministic in ``(seed, step)``)."""
+        F, B = len(self.train_arrays), self.config.batch_size
+        if F < B:
+            return np.random.default_rng([self.config.seed, step]).choice(F, size=B, replace=True)
+        per_epoch = F // B
+        epoch, i = divmod(step, per_epoch)
+        perm = np.random.default_rng([self.config.seed, epoch]).permutation(F)
+        return perm[i * B:(i + 1) * B]
+
+    def learning_rate(self, step: int) -> float:
+        c = self.config
+        return c.lr * c.lr_decay ** (step // c.lr_decay_steps)
+
+    # --- one step ----------------------------------------------------------------------
+    def train_step(self) -> dict[str, float]:
+        """One optimisation step; returns the loss components of this batch."""
+        self.model.train()
+        for g in self.optimizer.param_groups:
+            g["lr"] = self.learning_rate(self.step)
+        points, targets = self.train_arrays.batch(self.batch_indices(self.step))
+        out = self.model(points)
+        total, parts = self.loss_fn(out, targets, self.config.loss_weights)
+        if not torch.isfinite(total):
+            raise FloatingPointError(f"non-finite loss at step {self.step}: { {k: v.item() for k, v in parts.items()} }")
+        self.optimizer.zero_grad(set_to_none=True)
+        total.backward()
+        self.optimizer.step()
+        self.step += 1
+        losses = {"total": total.item(), **{k: v.item() for k, v in parts.items()}}
+        for k, v in losses.items():
+            self._acc[k] = self._acc.get(k, 0.0) + v
+        self._acc_n += 1
+        return losses
+
+    def fit(self, max_steps: int | None = None, *, time_limit_s: float | None = None) -> list[dict[str, float]]:
+        """Train until ``max_steps`` (default ``config.max_steps``) or the time limit.
+
+        Validates every ``val_every`` steps, checkpoints every ``checkpoint_every`` steps and
+        at the end. Returns the per-step losses of this call.
+        """
+        c = self.config
+        max_steps = c.max_steps if max_steps is None else int(max_steps)
+        losses = []
+        bar = None
+        if self.progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=max_steps, initial=self.step, desc=f"train {c.category}/{c.kind}", dynamic_ncols=True)
+        t_start = time.monotonic()
+        t_last = t_start
+        try:
+            while self.step < max_steps:
+                step_losses = self.train_step()
+                losses.append(step_losses)
+                now = time.monotonic()
+                self.elapsed_s += now - t_last
+                t_last = now
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix({k: f"{v:.3g}" for k, v in step_losses.items()})
+                if self.step % c.val_every == 0 or self.step == max_steps:
+                    self.record()
+                if self.out_dir is not None and (self.step % c.checkpoint_every == 0 or self.step == max_steps):
+                    self.save_checkpoint(self.out_dir / "last.pt")
+                if time_limit_s is not None and now - t_start >= time_limit_s:
+                    break
+        finally:
+            if bar is not None:
+                bar.close()
+        if self.out_dir is not None and self._acc_n:
+            self.record()
+            self.save_checkpoint(self.out_dir / "last.pt")
+        return losses
+
+    # --- validation and logs -------------------------------------------------------------
+    def record(self) -> dict:
+        """Validate, append a history row (mean training losses since the last row), write CSV/PNG."""
+        row: dict = {"step": self.step, "elapsed_s": round(self.elapsed_s, 1), "lr": self.learning_rate(max(self.step - 1, 0))}
+        n = max(self._acc_n, 1)
+        row.update({f"train_{k}": v / n for k, v in self._acc.items()})
+        self._acc, self._acc_n = {}, 0
+        if self.val_arrays is not None:
+            row.update({f"val_{k}": v for k, v in evaluate_arrays(self.model, self.val_arrays, self.config).items()})
+        self.history.append(row)
+        if self.out_dir is not None:
+            self.write_history()
+            val = row.get("val_total")
+            if val is not None and val < self.best_val:
+                self.best_val = val
+                self.save_checkpoint(self.out_dir / "best.pt")
+        return row
+
+    def write_history(self) -> None:
+        keys: list[str] = []
+        for row in self.history:
+            keys += [k for k in row if k not in keys]
+        with open(self.out_dir / "history.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=keys)
+            w.writeheader()
+            w.writerows(self.history)
+        plot_history(self.history, self.out_dir / "curves.png", title=f"{self.config.category} ({self.config.kind})")
+
+    # --- checkpoints --------------------------------------------------------------------
+    def state(self) -> dict:
+        return {
+            "config": self.config.to_dict(),
+            "step": self.step,
+            "elapsed_s": self.elapsed_s,
+            "model": self.model.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "history": self.history,
+            "best_val": self.best_val,
+            "acc": (self._acc, self._acc_n),
+            "num_parts": self.train_arrays.num_parts,
+            "revolute": self.train_arrays.revolute.tolist(),
+            "joint_parents": self.train_arrays.joint_parents.tolist(),
+            "joint_children": self.train_arrays.joint_children.tolist(),
+        }
+
+    def save_checkpoint(self, path) -> Path:
+        """Write the full training state atomically (temporary file + rename)."""
+        path = Path(path)
+        tmp = path.with_suffix(path.suffix + ".tmp")
+        torch.save(self.state(), tmp)
+        os.replace(tmp, path)
+        return path
+
+    def load_checkpoint(self, path) -> None:
+        """Restore model, optimiser, step and history from :meth:`save_checkpoint` output."""
+        ck = torch.load(Path(path), map_location="cpu", weights_only=False)
+        saved = TrainConfig.from_dict(ck["config"])
+        mismatch = [k for k in ("kind", "width", "npoints", "radii", "nsamples", "backbones", "num_points")
+                    if getattr(saved, k) != getattr(self.config, k)]
+        if mismatch:
+            raise ValueError(f"checkpoint {path}: network settings {mismatch} differ from the config")
+        if ck["num_parts"] != self.train_arrays.num_parts or ck["revolute"] != self.train_arrays.revolute.tolist():
+            raise ValueError(f"checkpoint {path}: trained for another kinematic structure")
+        self.model.load_state_dict(ck["model"])
+        self.optimizer.load_state_dict(ck["optimizer"])
+        self.step = int(ck["step"])
+        self.elapsed_s = float(ck["elapsed_s"])
+        self.history = list(ck["history"])
+        self.best_val = float(ck["best_val"])
+        self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+
+
+def plot_history(history: list[dict], path, title: str = "") -> None:
+    """Training curves: losses (log scale) and validation metrics against the step, as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = [r["step"] for r in history]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for k in ("total", *LOSS_NAMES):
+        for prefix, style in (("train_", "-"), ("val_", "--")):
+            ys = [r.get(prefix + k, np.nan) for r in history]
+            if np.any(np.isfinite(ys)) and np.nanmax(ys) > 0:
+                axes[0].plot(steps, ys, style, label=prefix + k)
+    axes[0].set_yscale("log")
+    axes[0].set_xlabel("step")
+    axes[0].set_title("losses")
+    axes[0].legend(fontsize=7, ncol=2)
+    for k in ("val_seg_acc", "val_assoc_acc", "val_npcs_err"):
+        ys = [r.get(k, np.nan) for r in history]
+        if np.any(np.isfinite(ys)):
+            axes[1].plot(steps, ys, label=k)
+    axes[1].set_xlabel("step")
+    axes[1].set_title("validation metrics")
+    axes[1].legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
