@@ -128,14 +128,17 @@ def test_robust_data_term_downweights_outliers(fit_case, kernel):
 
 
 def test_program_cache_is_reused_across_frames(fit_case):
+    """Programs, IPOPT solvers and post-processing are built once per structure, not per frame."""
     cases = [fit_case(s, num_parts=3, joint_types=["revolute", "prismatic"]) for s in (20, 21, 22)]
-    fit(cases[0].observation, cases[0].correspondences, "exact_maximal")
+    configs = [FitConfig(), FitConfig(robust="huber", irls_iterations=2, rescore_rounds=1)]
+    for f, s in ALL:
+        for cfg in configs:
+            fit(cases[0].observation, cases[0].correspondences, f, s, cfg)
     before = program_build_count()
     for case in cases[1:]:
         for f, s in ALL:
-            if f != "per_part" and (f, s) != ("exact_maximal", "ipopt"):
-                continue
-            fit(case.observation, case.correspondences, f, s)
+            for cfg in configs:
+                assert fit(case.observation, case.correspondences, f, s, cfg).ok
     assert program_build_count() == before
 
 
@@ -208,3 +211,58 @@ def test_fit_config_from_dict_rejects_unknown_keys():
     assert FitConfig.from_dict({"soft_weight": 2.0}).soft_weight == 2.0
     with pytest.raises(ValueError, match="unknown key.*lamda"):
         FitConfig.from_dict({"lamda": 2.0})
+
+
+def test_single_part_without_joints(fit_case):
+    case = fit_case(8, num_parts=2)
+    c = case.correspondences
+    keep = c.part_labels == 0
+    corr = Correspondences(c.part_labels[keep], c.npcs[keep], c.npcs_scale[:1], c.npcs_translation[:1])
+    obs = Observation(case.observation.points_cam[keep])
+    for f, s in ALL:
+        r = fit(obs, corr, f, s)
+        assert r.ok, r.message
+        assert r.joint_states.shape == (0,) and len(r.T_cam_npcs) == 1
+        assert r.T_cam_npcs[0].allclose(case.gt.T_cam_npcs[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("kernel", ["huber", "cauchy"])
+def test_robust_fit_is_a_stationary_point_of_the_robust_energy(fit_case, kernel):
+    """IRLS on moments converges to a minimum of mean_i rho(|p_i - T c_i|^2 / L^2), not of least squares."""
+    from ancsh.geometry.transforms import Sim3
+    from ancsh.solvers.terms import ROBUST_KERNELS
+
+    case = fit_case(9, num_parts=2, points_per_part=200, npcs_noise=0.005)
+    c = case.correspondences
+    keep = c.part_labels == 0
+    rng = np.random.default_rng(4)
+    npcs = c.npcs[keep].copy()
+    bad = rng.random(npcs.shape[0]) < 0.15
+    npcs[bad] += rng.normal(0.0, 0.2, size=(bad.sum(), 3))
+    corr = Correspondences(np.zeros(keep.sum(), int), npcs, c.npcs_scale[:1], c.npcs_translation[:1])
+    pts = case.observation.points_cam[keep]
+    cfg = FitConfig(ransac=False, optimize_scale=True, robust=kernel, robust_scale=0.02, irls_iterations=60)
+    r = fit(Observation(pts), corr, "exact_reduced", config=cfg)
+    assert r.ok, r.message
+    T = r.T_cam_npcs[0]
+    # Residuals are normalised by the object scale of the initial (Umeyama, all points) fit.
+    from ancsh.geometry.umeyama import umeyama
+
+    L = umeyama(npcs, pts).scale / c.npcs_scale[0]
+
+    def energy(delta):
+        Td = Sim3.from_rotvec(delta[:3], delta[3:6] * L, np.exp(delta[6])) @ T
+        r2 = np.sum((pts - Td.apply(npcs)) ** 2, axis=1) / L**2
+        return float(np.mean(np.asarray(ROBUST_KERNELS[kernel](r2[None, :], 0.02)[0])))
+
+    h = 1e-6
+    grad = np.array([(energy(h * e) - energy(-h * e)) / (2 * h) for e in np.eye(7)])
+    # Reference: the gradient of the same energy at the plain least-squares solution.
+    plain = fit(Observation(pts), corr, "exact_reduced", config=FitConfig(ransac=False, optimize_scale=True))
+    T_ls = plain.T_cam_npcs[0]
+    D = T_ls @ T.inverse()
+    delta_ls = np.concatenate([D.rotvec(), D.translation / L, [np.log(D.scale)]])
+    grad_ls = np.array([(energy(delta_ls + h * e) - energy(delta_ls - h * e)) / (2 * h) for e in np.eye(7)])
+    assert np.linalg.norm(grad) < 1e-3 * np.linalg.norm(grad_ls)
+    assert r.cost_per_term["robust_data"] == pytest.approx(energy(np.zeros(7)), rel=1e-9)
+
