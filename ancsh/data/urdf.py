@@ -149,7 +149,7 @@ def load_urdf(path, *, category: str | None = None) -> ArticulatedModel:
 
     if category is None:
         category = _guess_category(path)
-    model = ArticulatedModel(tuple(parts), tuple(joints), name=_model_name(path, robot), category=category)
+    model = ArticulatedModel(tuple(parts), tuple(joints), name=_model_name(path), category=category)
     R = _orientation(path, links, model, info)
     return ArticulatedModel(model.parts, model.joints, name=model.name, category=category, R_canon_base=R)
 
@@ -285,7 +285,7 @@ def _load_mesh_file(path: Path, where: str, file: Path) -> trimesh.Trimesh:
 
 
 # --- naming, category, orientation ----------------------------------------------------------
-def _model_name(path: Path, robot) -> str:
+def _model_name(path: Path) -> str:
     return path.parent.name if path.name == "mobility.urdf" else path.stem
 
 

@@ -113,6 +113,19 @@ def cylinder(radius: float, length: float, n: int = 24) -> trimesh.Trimesh:
     return prism(outline_superellipse(radius, radius, 2.0, n), length)
 
 
+def feet(radius: float, height: float, x: float, z: float, sections: int = 12) -> list:
+    """Four vertical cylinders standing on y = 0 at ``(+-x, +-z)``."""
+    foot = cylinder(radius, height, sections)
+    return [along(foot, "y", (sx * x, height / 2, sz * z)) for sx in (-1, 1) for sz in (-1, 1)]
+
+
+def bar_handle(length: float, radius: float, standoff: float) -> list:
+    """A bar along x on two posts, standing on the plane z = 0 (centred at the origin) towards +z."""
+    bar = along(cylinder(radius, length), "x", (0.0, 0.0, standoff + radius))
+    post = cylinder(radius * 0.8, standoff, 12)
+    return [bar] + [along(post, "z", (sx * (length / 2 - radius), 0.0, standoff / 2)) for sx in (-1, 1)]
+
+
 def transformed(mesh: trimesh.Trimesh, *, rotation=None, translation=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
     """A copy of ``mesh`` mapped by ``x -> rotation @ x + translation``."""
     T = np.eye(4)

@@ -34,12 +34,7 @@ def _handle(rng: np.random.Generator, style: str, front_w: float, front_h: float
         length = min(front_w * rng.uniform(0.25, 0.6), 0.45)
         r = rng.uniform(0.005, 0.008)
         stand = rng.uniform(0.018, 0.028)
-        bar = m.along(m.cylinder(r, length), "x", (0.0, 0.0, stand + r))
-        posts = [
-            m.along(m.cylinder(r * 0.8, stand, 12), "z", (sx * (length / 2 - r), 0.0, stand / 2))
-            for sx in (-1, 1)
-        ]
-        return [bar, *posts]
+        return m.bar_handle(length, r, stand)
     if style == "knobs":
         r = rng.uniform(0.010, 0.018)
         stem = rng.uniform(0.015, 0.025)
@@ -92,10 +87,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
         pieces.append(m.box_between([x0 + 0.01, 0.0, z0 + 0.01], [x1 - 0.01, plinth_h, z1 - setback]))
     elif plinth_style == "feet":
         r = rng.uniform(0.012, 0.025)
-        for sx in (-1, 1):
-            for sz in (-1, 1):
-                c = (sx * (width / 2 - 2 * r), plinth_h / 2, sz * (depth / 2 - 2 * r))
-                pieces.append(m.along(m.cylinder(r, plinth_h, 16), "y", c))
+        pieces += m.feet(r, plinth_h, width / 2 - 2 * r, depth / 2 - 2 * r, 16)
     # openings, bottom to top, separated by dividers of thickness t
     inner_h = y_top - (y_bottom + t) - 2 * t
     weights = np.array([1.3, 1.0, 0.8]) * rng.uniform(0.9, 1.1, 3) if graded else np.ones(3)

@@ -58,10 +58,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     pad_w, pad_d = width * rng.uniform(0.25, 0.4), depth * rng.uniform(0.2, 0.3)
     pieces.append(m.box([pad_w, 0.0008, pad_d], [0.0, top_front + 0.0004, depth / 2 - 0.012 - pad_d / 2]))
     if foot_h > 0:
-        for sx in (-1, 1):
-            for sz in (-1, 1):
-                foot = m.along(m.cylinder(0.006, foot_h, 12), "y", (sx * (width / 2 - 0.03), foot_h / 2, sz * (depth / 2 - 0.025)))
-                pieces.append(foot)
+        pieces += m.feet(0.006, foot_h, width / 2 - 0.03, depth / 2 - 0.025)
     # hinge barrel on the base's back edge
     barrel_r = min(t_base / 2, 0.007)
     z_hinge = -depth / 2 + hinge_in

@@ -79,10 +79,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     pieces.append(m.box_between([cav_x0, rack_y, zc], [cav_x1, rack_y + 0.006, z_front - 0.04]))
     if feet_h > 0:
         r = rng.uniform(0.01, 0.02)
-        for sx in (-1, 1):
-            for sz in (-1, 1):
-                c = (sx * (width / 2 - 0.04), feet_h / 2, sz * (depth / 2 - 0.04))
-                pieces.append(m.along(m.cylinder(r, feet_h, 12), "y", c))
+        pieces += m.feet(r, feet_h, width / 2 - 0.04, depth / 2 - 0.04)
     knob_r = rng.uniform(0.012, 0.025) * (0.7 if style == "countertop" else 1.0)
     if style == "countertop":
         n = int(rng.integers(2, 4))
@@ -133,9 +130,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
         r = rng.uniform(0.008, 0.014)
         stand = rng.uniform(0.03, 0.05)
         y = door_h - rng.uniform(0.03, 0.06)
-        door_pieces.append(m.along(m.cylinder(r, length), "x", (0.0, y, door_t + stand + r)))
-        for sx in (-1, 1):
-            door_pieces.append(m.along(m.cylinder(r * 0.8, stand, 12), "z", (sx * (length / 2 - r), y, door_t + stand / 2)))
+        door_pieces += [m.transformed(p, translation=(0.0, y, door_t)) for p in m.bar_handle(length, r, stand)]
     elif handle == "lip":
         lip_h = rng.uniform(0.015, 0.03)
         door_pieces.append(m.box([door_w * rng.uniform(0.5, 0.95), lip_h, 0.025], [0.0, door_h - lip_h / 2, door_t + 0.0125]))

@@ -70,10 +70,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     if kick_h > 0.03:  # service flap
         pieces.append(m.box([width * 0.5, kick_h * 0.6, 0.004], [0.0, face_y0 + kick_h / 2, z_front + 0.002]))
     if feet_h > 0:
-        for sx in (-1, 1):
-            for sz in (-1, 1):
-                c = (sx * (width / 2 - 0.05), feet_h / 2, sz * (depth / 2 - 0.05))
-                pieces.append(m.along(m.cylinder(0.02, feet_h, 12), "y", c))
+        pieces += m.feet(0.02, feet_h, width / 2 - 0.05, depth / 2 - 0.05)
     base = Part("base", m.concat(pieces))
 
     # --- door (child frame: origin on the hinge line, axes as the body at q = 0) -----------
