@@ -1,0 +1,174 @@
+"""``ancsh data generate``, ``ancsh data show`` and ``ancsh bench render``."""
+
+from __future__ import annotations
+
+import sys
+
+
+def _positive_int(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value}")
+    return value
+
+
+def register(sub) -> None:
+    p = sub.add_parser("data", help="generate rendered depth datasets and draw frames")
+    data_sub = p.add_subparsers(dest="data_command", metavar="SUBCOMMAND")
+    p.set_defaults(func=lambda args: (p.print_help(), 0)[1])
+
+    g = data_sub.add_parser(
+        "generate",
+        help="render frames with ANCSH ground truth into HDF5 shards (resumable)",
+        description="Render depth frames of a procedural category (or one URDF object) with ANCSH ground truth "
+        "into HDF5 shards. Re-running the same command resumes an interrupted run.",
+    )
+    src = g.add_mutually_exclusive_group(required=True)
+    src.add_argument("--category", help="procedural category: eyeglasses, oven, washing_machine, laptop, drawer")
+    src.add_argument("--urdf", help="path of a URDF object (e.g. a PartNet-Mobility mobility.urdf)")
+    g.add_argument("--split", default="train", choices=("train", "test"), help="instance split (default train)")
+    g.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
+    g.add_argument("--workers", type=_positive_int, default=2, help="worker processes (default 2)")
+    g.add_argument("--seed", type=_non_negative_int, default=0, help="base seed (default 0)")
+    g.add_argument("--out", default=None, help="output directory (default data/<name>_<split>)")
+    g.add_argument("--shard-size", type=_positive_int, default=500, help="frames per shard (default 500)")
+    g.add_argument("--points", type=_positive_int, default=1024, help="points per frame (default 1024)")
+    g.add_argument("--width", type=_positive_int, default=640, help="image width (default 640; Kinect-like intrinsics)")
+    g.add_argument("--height", type=_positive_int, default=480, help="image height (default 480)")
+    g.add_argument("--noise", dest="noise", action="store_true", default=True, help="Kinect-like sensor noise (default)")
+    g.add_argument("--no-noise", dest="noise", action="store_false", help="exact depth")
+    g.add_argument("--overwrite", action="store_true", help="replace shards made with other settings")
+    g.add_argument("--quiet", action="store_true", help="no progress bar")
+    g.set_defaults(func=run_generate)
+
+    s = data_sub.add_parser("show", help="draw one frame of a shard (points by part, NPCS, boxes, joint axes)")
+    s.add_argument("file", help="a shard (.h5) or a directory of shards")
+    s.add_argument("--frame", type=_non_negative_int, default=0, help="frame index (default 0)")
+    s.add_argument("--out", default="view.png", help="image path (default view.png)")
+    s.set_defaults(func=run_show)
+
+
+def run_generate(args) -> int:
+    from pathlib import Path
+
+    from .generate import GenerationConfig, generate_dataset
+    from .noise import DepthNoise
+    from .render import Intrinsics
+
+    config = GenerationConfig(
+        category=args.category,
+        split=args.split,
+        urdf=args.urdf,
+        seed=args.seed,
+        shard_size=args.shard_size,
+        num_points=args.points,
+        intrinsics=Intrinsics.kinect(args.width, args.height),
+        noise=DepthNoise() if args.noise else DepthNoise.off(),
+    )
+    split = config.split if config.urdf is None else "urdf"
+    out = Path(args.out) if args.out else Path("data") / f"{config.name}_{split}"
+    report = generate_dataset(
+        config, args.frames, out, workers=args.workers, progress=not args.quiet, overwrite=args.overwrite
+    )
+    for s, reason in report.replaced:
+        print(f"regenerated shard {report.paths[s].name}: {reason}")
+    rate = f" ({report.frames_per_second:.1f} frames/s)" if report.frames_generated else ""
+    print(
+        f"{out}: {len(report.paths)} shards, {report.frames_generated} frames generated in "
+        f"{report.seconds:.1f} s{rate}; {len(report.skipped)} complete shards kept"
+    )
+    return 0
+
+
+def run_show(args) -> int:
+    from .dataset import FrameDataset
+    from .show import save_frame_figure
+
+    ds = FrameDataset(args.file)
+    if args.frame >= len(ds):
+        raise ValueError(f"--frame: {args.frame} out of range; {args.file} holds {len(ds)} frames")
+    out = save_frame_figure(ds[args.frame], args.out)
+    print(f"wrote {out}")
+    return 0
+
+
+# --------------------------------------------------------------------------------------
+# ancsh bench render
+# --------------------------------------------------------------------------------------
+def register_bench(bench_sub) -> None:
+    b = bench_sub.add_parser(
+        "render",
+        help="frames/s of raw ray casting and of full frames (render + noise + points + ground truth)",
+    )
+    b.add_argument("--frames", type=_positive_int, default=100, help="frames per category and mode (default 100)")
+    b.add_argument("--categories", default=None, help="comma-separated categories (default: all)")
+    b.add_argument("--threads", type=_positive_int, default=1, help="open3d ray-casting threads (default 1)")
+    b.add_argument("--width", type=_positive_int, default=640)
+    b.add_argument("--height", type=_positive_int, default=480)
+    b.add_argument("--seed", type=_non_negative_int, default=0)
+    b.set_defaults(func=run_bench)
+
+
+def run_bench(args) -> int:
+    import os
+    import platform
+    import time
+
+    import numpy as np
+
+    from .generate import FrameGenerator, GenerationConfig
+    from .procedural import CATEGORIES
+    from .render import Intrinsics, sample_viewpoint, viewpoint_range
+
+    cats = CATEGORIES if args.categories is None else tuple(c.strip() for c in args.categories.split(","))
+    unknown = [c for c in cats if c not in CATEGORIES]
+    if unknown:
+        raise ValueError(f"--categories: unknown {unknown}; known: {', '.join(CATEGORIES)}")
+    intr = Intrinsics.kinect(args.width, args.height)
+    print(
+        f"ancsh bench render: {intr.width}x{intr.height}, {args.frames} frames per category, "
+        f"{args.threads} ray-casting thread(s), one process; {platform.machine()}, {os.cpu_count()} CPUs"
+    )
+    print(f"{'category':16s} {'raycast fr/s':>13s} {'+visibility':>12s} {'full frame fr/s':>16s} {'pixels/frame':>13s}")
+    for cat in cats:
+        gen = FrameGenerator(GenerationConfig(category=cat, split="test", seed=args.seed, intrinsics=intr))
+        rng = np.random.default_rng(args.seed)
+        jobs = []
+        for i in range(args.frames):
+            model, renderer = gen.instance(i % gen.num_instances)
+            q = model.random_states(rng)
+            jobs.append((renderer, q, sample_viewpoint(viewpoint_range(cat), rng, model, q)))
+        for i in range(gen.num_instances):  # load every instance before timing
+            gen.instance(i)
+        jobs[0][0].render(jobs[0][1], jobs[0][2], intr, nthreads=args.threads)  # warm-up (open3d start-up)
+        rates, pixels = [], 0
+        for vis in (False, True):
+            t0 = time.perf_counter()
+            for renderer, q, T in jobs:
+                view = renderer.render(q, T, intr, visibility=vis, nthreads=args.threads)
+                pixels += int((view.part_ids >= 0).sum()) if not vis else 0
+            rates.append(args.frames / (time.perf_counter() - t0))
+        t0 = time.perf_counter()
+        for i in range(args.frames):
+            gen.frame(i)
+        full = args.frames / (time.perf_counter() - t0)
+        print(f"{cat:16s} {rates[0]:13.1f} {rates[1]:12.1f} {full:16.1f} {pixels // args.frames:13d}")
+    sys.stdout.flush()
+    return 0
