@@ -1,0 +1,104 @@
+"""Configuration, data packing, training (overfitting a few frames), checkpoints and resume."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.learned.config import TrainConfig
+from ancsh.learned.data import TrainingArrays
+from ancsh.learned.train import Trainer, split_by_instance, trivial_baselines
+
+
+def test_config_validates_and_round_trips(tmp_path):
+    cfg = TrainConfig(width=0.5, npoints=[128, 32])
+    assert cfg.npoints == (128, 32)
+    cfg.to_json(tmp_path / "c.json")
+    assert TrainConfig.from_json(tmp_path / "c.json") == cfg
+    assert TrainConfig.from_json(tmp_path / "c.json", max_steps=7).max_steps == 7
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.width = 1.0
+    (tmp_path / "bad.json").write_text(json.dumps({"widht": 0.5}))
+    with pytest.raises(ValueError, match="unknown key.*widht"):
+        TrainConfig.from_json(tmp_path / "bad.json")
+    for kw, match in [
+        ({"width": 0}, "width"), ({"kind": "x"}, "kind"), ({"lr_decay": 1.5}, "lr_decay"),
+        ({"npoints": (64, 128)}, "npoints"), ({"loss_weights": (1, 1)}, "loss_weights"),
+        ({"val_fraction": 0.9}, "val_fraction"), ({"batch_size": 0}, "batch_size"), ({"backbones": 3}, "backbones"),
+        ({"kind": "direct_voting", "backbones": 2}, "backbones"), ({"seed": -1}, "seed"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            TrainConfig(**kw)
+
+
+def test_training_arrays_hold_consistent_targets(tiny_arrays, prismatic_arrays):
+    a = tiny_arrays
+    assert a.points.shape == (4, 64, 3) and a.num_parts == 2 and a.revolute.tolist() == [True]
+    # NAOCS = scale * NPCS + translation: the NAOCS joint targets hold for the reconstructed points.
+    naocs = a.scale[..., None] * a.npcs + a.translation
+    assoc = a.association > 0
+    foot = naocs + a.joint[..., 6:7] * a.joint[..., 3:6]
+    axis = a.joint[..., :3]
+    # every foot point of one frame lies on one line of direction `axis`
+    f = 0
+    sel = assoc[f]
+    d = foot[f][sel] - foot[f][sel][0]
+    off = d - (d @ axis[f][sel][0])[:, None] * axis[f][sel][0]
+    assert np.abs(off).max() < 1e-4
+    assert np.all(a.joint_mask[~assoc] == 0) and np.all(a.joint_mask[assoc] == 1)
+    # prismatic joints supervise the axis only
+    p = prismatic_arrays
+    assert not p.revolute.any()
+    m = p.joint_mask[p.association > 0]
+    assert np.all(m[:, :3] == 1) and np.all(m[:, 3:] == 0)
+    # camera-frame joint vectors: unit axes on associated points
+    np.testing.assert_allclose(np.linalg.norm(a.joint_cam[assoc][:, :3], axis=1), 1, atol=1e-5)
+
+
+def test_arrays_save_load_and_split(tmp_path, tiny_arrays):
+    tiny_arrays.save(tmp_path / "a.npz")
+    b = TrainingArrays.load(tmp_path / "a.npz")
+    np.testing.assert_array_equal(b.npcs, tiny_arrays.npcs)
+    assert b.num_parts == tiny_arrays.num_parts
+    train, val = split_by_instance(tiny_arrays, 0.5, seed=0)
+    assert len(train) + len(val) == len(tiny_arrays)
+    assert not set(train.instance.tolist()) & set(val.instance.tolist())
+    assert split_by_instance(tiny_arrays, 0.0, seed=0)[1] is None
+    base = trivial_baselines(tiny_arrays)
+    assert 0.5 <= base["seg_acc_majority"] <= 1
+
+
+def test_tiny_model_overfits_a_handful_of_frames(tiny_arrays, tiny_config):
+    trainer = Trainer(tiny_config, tiny_arrays, progress=False)
+    losses = [s["total"] for s in trainer.fit()]
+    assert np.mean(losses[-5:]) < losses[0] / 10
+    row = trainer.record()
+    assert row["step"] == tiny_config.max_steps
+
+
+def test_checkpoint_round_trip_and_resume_repeat_the_same_steps(tmp_path, tiny_arrays, tiny_config):
+    cfg = dataclasses.replace(tiny_config, max_steps=6, batch_size=2, checkpoint_every=3)
+    straight = Trainer(cfg, tiny_arrays, tiny_arrays, tmp_path / "a", progress=False)
+    ref = [s["total"] for s in straight.fit()]
+
+    first = Trainer(cfg, tiny_arrays, tiny_arrays, tmp_path / "b", progress=False)
+    part1 = [s["total"] for s in first.fit(max_steps=3)]
+    resumed = Trainer(cfg, tiny_arrays, tiny_arrays, tmp_path / "b", progress=False)
+    resumed.load_checkpoint(tmp_path / "b" / "last.pt")
+    assert resumed.step == 3
+    part2 = [s["total"] for s in resumed.fit()]
+    np.testing.assert_allclose(part1 + part2, ref, rtol=1e-5)
+    assert [r["step"] for r in resumed.history] == [3, 6]
+    for name in ("history.csv", "curves.png", "config.json", "best.pt", "last.pt"):
+        assert (tmp_path / "b" / name).is_file()
+    other = Trainer(dataclasses.replace(cfg, width=0.25), tiny_arrays, progress=False)
+    with pytest.raises(ValueError, match="width"):
+        other.load_checkpoint(tmp_path / "b" / "last.pt")
+
+
+def test_trainer_rejects_mismatched_inputs(tiny_arrays, tiny_config):
+    with pytest.raises(ValueError, match="num_points"):
+        Trainer(dataclasses.replace(tiny_config, num_points=128), tiny_arrays, progress=False)
+    with pytest.raises(ValueError, match="config"):
+        Trainer({"width": 1}, tiny_arrays, progress=False)
