@@ -312,3 +312,21 @@ def test_other_structural_errors_name_the_element(chain, tmp_path):
         load_urdf(chain)
     with pytest.raises(ValueError, match="does not exist"):
         load_urdf(tmp_path / "absent.urdf")
+
+
+@needs_data
+def test_partnet_joint_axes_match_the_procedural_conventions(loaded):
+    """Real objects of the paper's categories, in canonical orientation, move like the
+    procedural ones: same axis direction (with sign) for the matching joints."""
+    from ancsh.data.procedural import CATEGORIES, make_object
+
+    checked = 0
+    for path, model in loaded.items():
+        if model.category not in CATEGORIES or path.name != "mobility.urdf":
+            continue
+        proc = make_object(model.category, 0)
+        for k, joint in enumerate(model.joints):
+            ref = proc.joints[min(k, proc.num_joints - 1)]
+            np.testing.assert_allclose(model.R_canon_base @ joint.axis, ref.axis, atol=1e-2, err_msg=model.name)
+            checked += 1
+    assert checked >= 9

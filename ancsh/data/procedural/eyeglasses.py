@@ -4,10 +4,10 @@ revolute hinges with vertical axes.
 Frame: centre of the lens line at the origin, +y up, the front frame in the xy-plane facing
 +z, +x right; the temples extend towards -z at rest. "Left" and "right" follow the canonical
 frame as seen from the front (+z): the left temple is at -x (the wearer's right).
-Both hinge axes point up (+y), as in the paper's NAOCS figure. Joint state = rotation about
-+y: 0 = temple at right angles to the frame (rest); folding rotates the temple inwards
-(negative for the left temple, positive for the right one), the other side allows a
-slight outward splay.
+Hinge axes are vertical: -y for the left temple, +y for the right one, so that for both a
+positive state folds the temple inwards (the PartNet-Mobility eyeglasses use the same
+convention). Joint state: 0 = temple at right angles to the frame (rest), up to about
+pi/2 folded, slightly negative = splayed outwards.
 """
 
 from __future__ import annotations
@@ -111,8 +111,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
         temple = m.concat(_temple(rng, length, width_y, thick_x, bend_frac, bend_angle, tip_style))
         parts.append(Part(part_name, temple))
         pivot = np.array([side * hinge_x, hinge_y, z_back])
-        # rotation about +y moves -z towards -x: left folds with negative angles, right with positive
-        lower, upper = (-fold, splay) if side < 0 else (-splay, fold)
-        joints.append(Joint(joint_name, REVOLUTE, "base", part_name, axis=_UP, pivot=pivot,
-                            lower=lower, upper=upper, rest=0.0, origin=SE3(None, pivot)))
+        # a positive rotation about side * y swings the temple's -z direction towards -side * x
+        joints.append(Joint(joint_name, REVOLUTE, "base", part_name, axis=side * _UP, pivot=pivot,
+                            lower=-splay, upper=fold, rest=0.0, origin=SE3(None, pivot)))
     return ArticulatedModel(tuple(parts), tuple(joints), name=name, category="eyeglasses")
