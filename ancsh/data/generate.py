@@ -172,6 +172,10 @@ class FrameGenerator:
                 from .procedural import load_instance
 
                 model = load_instance(cfg.category, cfg.split, int(index))
+            missing = [p.name for p in model.parts if p.mesh is None]
+            if missing:
+                where = cfg.urdf if cfg.urdf is not None else model.name
+                raise ValueError(f"{where}: part(s) {missing} have no mesh; ANCSH ground truth needs every part's surface")
             self._cache[index] = (model, ModelRenderer(model))
         return self._cache[index]
 

@@ -309,7 +309,8 @@ class ModelRenderer:
     Parameters
     ----------
     model : ArticulatedModel
-        Every part needs a mesh.
+        Parts without a mesh are never seen (no pixels, visibility 0); at least one
+        part needs a mesh.
     visibility_samples : int
         Surface samples per part for the visible-area ratio (fixed, seeded by
         ``sample_seed``).
@@ -323,15 +324,16 @@ class ModelRenderer:
         self._vertices, self._faces, self._samples = [], [], []
         rng = np.random.default_rng(sample_seed)
         for part in model.parts:
-            if part.mesh is None:
-                raise ValueError(f"model: part {part.name!r} has no mesh to render")
-            v = np.asarray(part.mesh.vertices, dtype=np.float64)
-            f = np.asarray(part.mesh.faces, dtype=np.int64)
-            if len(f) == 0:
-                raise ValueError(f"model: part {part.name!r} has an empty mesh")
+            if part.mesh is None:  # e.g. a URDF link without geometry: never seen
+                v, f = np.empty((0, 3)), np.empty((0, 3), dtype=np.int64)
+            else:
+                v = np.asarray(part.mesh.vertices, dtype=np.float64)
+                f = np.asarray(part.mesh.faces, dtype=np.int64).reshape(-1, 3)
             self._vertices.append(v)
             self._faces.append(np.ascontiguousarray(f, dtype=np.uint32))
-            self._samples.append(_sample_triangles(v, f, int(visibility_samples), rng))
+            self._samples.append(_sample_triangles(v, f, int(visibility_samples), rng) if len(f) else np.empty((0, 3)))
+        if not any(len(f) for f in self._faces):
+            raise ValueError(f"model: no part of {model.name!r} has a mesh to render")
 
     @property
     def num_parts(self) -> int:
@@ -353,6 +355,8 @@ class ModelRenderer:
         scene = o3d.t.geometry.RaycastingScene()
         lookup = {}
         for j, (v, f) in enumerate(zip(verts_cam, self._faces)):
+            if not len(f):
+                continue
             gid = scene.add_triangles(
                 o3d.core.Tensor(np.ascontiguousarray(v, dtype=np.float32)), o3d.core.Tensor(f)
             )
@@ -392,7 +396,7 @@ class ModelRenderer:
         depth = np.zeros((H, W), dtype=np.float64)
         ids = np.full((H, W), -1, dtype=np.int32)
 
-        window = _pixel_window(np.concatenate(verts), intr)
+        window = _pixel_window(np.concatenate([v for v, f in zip(verts, self._faces) if len(f)]), intr)
         if window is not None:
             v0, v1, u0, u1 = window
             sub = _ray_grid(intr)[v0:v1, u0:u1]
@@ -565,9 +569,13 @@ def look_at(eye, target, up) -> Sim3:
 
 
 def object_extent(model, q) -> tuple[np.ndarray, float]:
-    """Centre ``(3,)`` (base frame, metres) and diagonal (metres) of the box of all part vertices at ``q``."""
+    """Centre ``(3,)`` (base frame, metres) and diagonal (metres) of the box of all part
+    vertices at ``q`` (parts without a mesh are ignored)."""
     poses = model.forward_kinematics(q)
-    pts = np.concatenate([T.apply(p.vertices) for T, p in zip(poses, model.parts)])
+    pts = [T.apply(p.vertices) for T, p in zip(poses, model.parts) if p.mesh is not None]
+    if not pts:
+        raise ValueError(f"model: no part of {model.name!r} has a mesh")
+    pts = np.concatenate(pts)
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     return 0.5 * (lo + hi), float(np.linalg.norm(hi - lo))
 

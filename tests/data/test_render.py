@@ -135,7 +135,7 @@ def test_renderer_errors():
         r.render([], Sim3(scale=2.0), SMALL)
     with pytest.raises(ValueError, match="intrinsics"):
         r.render([], SE3(translation=[0, 0, 3]), "640x480")
-    with pytest.raises(ValueError, match="has no mesh"):
+    with pytest.raises(ValueError, match="no part of 'object' has a mesh"):
         ModelRenderer(ArticulatedModel(parts=(Part("base"),), joints=()))
     with pytest.raises(ValueError, match="visibility_samples"):
         ModelRenderer(model, visibility_samples=0)
