@@ -20,6 +20,7 @@ COMMAND_MODULES = [
     "ancsh.learned.cli",
     "ancsh.data.cli",
     "ancsh.benchcli",
+    "ancsh.solvers.icp.cli",
 ]
 
 

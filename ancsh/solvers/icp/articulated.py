@@ -41,7 +41,7 @@ from ..types import FitStatus, Observation
 from .result import CadFitResult, IcpIteration
 from .template import ArticulatedPose, ModelSurface, TemplateProvider
 
-__all__ = ["ArticulatedIcpConfig", "articulated_icp", "reduced_step"]
+__all__ = ["ArticulatedIcpConfig", "articulated_icp", "auto_init", "reduced_step"]
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,9 @@ class ArticulatedIcpConfig:
     point_to_plane : bool
         Add the point-to-plane data term (faster, more accurate convergence on planar parts).
     point_weight : float
-        Weight of the point-to-point term relative to point-to-plane (when enabled).
+        Weight of the point-to-point term relative to point-to-plane (when enabled). The
+        default 0 (pure point-to-plane) converges fastest; a small weight (0.01) keeps a
+        part from sliding when it shows only one plane.
     tolerance : float
         Convergence: every part moves less than ``tolerance`` diagonals (at its farthest
         model point) between two iterations.
@@ -94,7 +96,7 @@ class ArticulatedIcpConfig:
     loss: str = "huber"
     loss_scale: float = 0.01
     point_to_plane: bool = True
-    point_weight: float = 0.1
+    point_weight: float = 0.0
     tolerance: float = 1e-5
     joint_starts: int = 3
     orientations: tuple = ()
@@ -138,7 +140,7 @@ class ArticulatedIcpConfig:
 class _Reduced:
     """The reduced-coordinate program of one model with its static parameter values."""
 
-    def __init__(self, provider: TemplateProvider, point_to_plane: bool):
+    def __init__(self, provider: TemplateProvider, point_to_plane: bool, point_data: bool = True):
         from ..program import ProgramKey, get_program
         from ..terms import KinematicStructure
         from . import terms as _icp_terms  # noqa: F401  (registers "point_to_plane")
@@ -146,7 +148,7 @@ class _Reduced:
         model, cs = provider.model, provider.canonical
         corr = provider.empty_correspondences()
         self.structure = KinematicStructure.from_correspondences(corr)
-        names = ("data", "point_to_plane") if point_to_plane else ("data",)
+        names = (("data",) if point_data else ()) + (("point_to_plane",) if point_to_plane else ())
         self.program = get_program(ProgramKey(self.structure, "reduced", False, names))
         self.model, self.cs = model, cs
         self.diagonal = 1.0 / cs.T_naocs_base.scale  # metres per NAOCS unit
@@ -222,7 +224,7 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
     """
     from ..backends import SolverOptions, solve
 
-    red = _reduced_for(provider, point_to_plane)
+    red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane)
     v = red.values(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
     p = red.program.pack(v)
     x0 = red.x0(provider.estimate)
@@ -236,13 +238,13 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
 _REDUCED_CACHE: dict = {}
 
 
-def _reduced_for(provider: TemplateProvider, point_to_plane: bool) -> _Reduced:
-    key = (id(provider.surface), point_to_plane)
+def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: bool = True) -> _Reduced:
+    key = (id(provider.surface), point_to_plane, point_data)
     hit = _REDUCED_CACHE.get(key)
     if hit is None or hit[0] is not provider.surface:
         if len(_REDUCED_CACHE) > 64:
             _REDUCED_CACHE.clear()
-        hit = (provider.surface, _Reduced(provider, point_to_plane))
+        hit = (provider.surface, _Reduced(provider, point_to_plane, point_data))
         _REDUCED_CACHE[key] = hit
     return hit[1]
 
@@ -304,21 +306,55 @@ class _Run:
         return float(np.mean(np.minimum(d, gate) ** 2)), float(inl.mean()), rmse
 
 
-def _starts(model: ArticulatedModel, init: ArticulatedPose, config: ArticulatedIcpConfig, center_cam) -> list:
-    starts = [init]
+def _starts(model: ArticulatedModel, inits: list, config: ArticulatedIcpConfig, center_base) -> list:
+    """Every initial estimate, with the joint-state starts and the extra orientations."""
     lo = np.maximum(model.lower_limits, -np.pi)
     hi = np.minimum(model.upper_limits, np.pi)
-    for i in range(config.joint_starts):
-        q = lo + (i + 0.5) / config.joint_starts * (hi - lo)
-        starts.append(ArticulatedPose(init.T_cam_base, q))
-    for rv in config.orientations:
-        dR = exp_so3(rv)
-        T = init.T_cam_base
-        R = dR @ T.rotation
-        t = dR @ (T.translation - center_cam) + center_cam
-        for s in list(starts[: 1 + config.joint_starts]):
-            starts.append(ArticulatedPose(Sim3(R, t), s.q))
+    joint_qs = [lo + (i + 0.5) / config.joint_starts * (hi - lo) for i in range(config.joint_starts)]
+    starts = []
+    for init in inits:
+        poses = [init.T_cam_base]
+        c = init.T_cam_base.apply(center_base)
+        for rv in config.orientations:
+            dR = exp_so3(rv)
+            poses.append(Sim3(dR @ init.T_cam_base.rotation, dR @ (init.T_cam_base.translation - c) + c))
+        for T in poses:
+            starts.append(ArticulatedPose(T, init.q))
+            starts.extend(ArticulatedPose(T, q) for q in joint_qs)
     return starts
+
+
+def auto_init(model: ArticulatedModel, points_cam, *, azimuths: int = 8, elevation_deg: float = 30.0) -> list:
+    """Initial estimates without prior knowledge: ``azimuths`` views of the upright model.
+
+    Assumes an upright camera (the model's canonical up, ``R_canon_base^T e_y``, appears as
+    image up) looking down by ``elevation_deg``; the model's box centre is placed behind the
+    centroid of the observed points (by a quarter of the model diagonal along the viewing
+    ray), joints at rest. Pass the list as ``init`` of :func:`articulated_icp`.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    points_cam : (N, 3) array_like
+        Observed points (metres, camera frame), ``N >= 1``.
+    """
+    from ...data.render import look_at, object_extent
+    from ...geometry._checks import as_points
+
+    pts = as_points(points_cam, "points_cam", min_points=1)
+    if isinstance(azimuths, bool) or int(azimuths) < 1:
+        raise ValueError(f"azimuths: expected an integer >= 1, got {azimuths!r}")
+    center, diag = object_extent(model, model.rest_states)
+    R = model.R_canon_base
+    el = np.radians(float(elevation_deg))
+    centroid = pts.mean(axis=0)
+    target = centroid + 0.25 * diag * centroid / max(np.linalg.norm(centroid), 1e-12)
+    out = []
+    for az in 2 * np.pi * np.arange(int(azimuths)) / int(azimuths):
+        d = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+        T = look_at(center + R.T @ (2.0 * diag * d), center, R.T @ np.array([0.0, 1.0, 0.0]))
+        out.append(ArticulatedPose(Sim3(T.rotation, T.translation + target - T.apply(center)), model.rest_states))
+    return out
 
 
 def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose, *,
@@ -332,8 +368,9 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         The instance (e.g. from :func:`ancsh.data.urdf.load_urdf`); needs a movable joint.
     observation : Observation or (N, 3) array_like
         Observed points in the camera frame (metres), e.g. a back-projected depth image.
-    init : ArticulatedPose
-        Initial base pose and joint states (within the limits).
+    init : ArticulatedPose or sequence of ArticulatedPose
+        Initial base pose(s) and joint states (within the limits), e.g. the previous frame's
+        result (tracking), a perturbed guess, or :func:`auto_init`. Every one is a start.
     config : ArticulatedIcpConfig, optional
     rng : numpy.random.Generator or int
         Seeds the point subsample.
@@ -360,9 +397,12 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         raise ValueError(f"config: expected an ArticulatedIcpConfig, got {type(config).__name__}")
     provider = TemplateProvider(model, _surface=surface)  # validates the model (movable joints, meshes)
     points = observation.points_cam if isinstance(observation, Observation) else Observation(observation).points_cam
-    if not isinstance(init, ArticulatedPose):
-        raise ValueError(f"init: expected an ArticulatedPose, got {type(init).__name__}")
-    model.check_states(init.q, "init.q")
+    inits = [init] if isinstance(init, ArticulatedPose) else list(init) if isinstance(init, (list, tuple)) else None
+    if not inits or not all(isinstance(i, ArticulatedPose) for i in inits):
+        raise ValueError(f"init: expected an ArticulatedPose or a non-empty sequence of them, got {type(init).__name__}")
+    for i in inits:
+        model.check_states(i.q, "init.q")
+    init = inits[0]
     rng = check_generator(rng)
     if config.num_points is not None and points.shape[0] > config.num_points:
         points = points[np.sort(rng.choice(points.shape[0], int(config.num_points), replace=False))]
@@ -380,10 +420,10 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     rest = model.forward_kinematics(model.rest_states)
     radii = [float(np.max(np.linalg.norm(p.vertices, axis=1))) for p in model.parts]
     run = _Run(model, points, config, provider, diagonal, radii)
-    center_cam = init.T_cam_base.apply(np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0))
+    center_base = np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0)
 
     best = None
-    starts = _starts(model, init, config, center_cam)
+    starts = _starts(model, inits, config, center_base)
     iterations = 0
     for s in starts:
         hist: list = []

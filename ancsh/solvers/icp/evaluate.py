@@ -136,6 +136,10 @@ def evaluation_objects(config: EvalConfig) -> tuple[list[tuple[str, ArticulatedM
             if model.num_joints == 0:
                 skipped.append(f"{name}: no movable joint")
                 continue
+            meshless = [p.name for p in model.parts if p.mesh is None]
+            if meshless:
+                skipped.append(f"{name}: part(s) {meshless} have no geometry (their pose cannot be observed)")
+                continue
             objects.append((name, model))
             count += 1
     return objects, skipped

@@ -1,0 +1,60 @@
+"""``ancsh fit-cad`` end to end and its error paths."""
+
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.cli import main
+from ancsh.data.paths import shared_data_dir
+from ancsh.data.render import Intrinsics, ModelRenderer, object_extent
+from ancsh.geometry.rotations import exp_so3
+from ancsh.geometry.transforms import Sim3
+from ancsh.solvers.icp.evaluate import _orbit_pose
+
+URDF = shared_data_dir() / "partnet_mobility" / "drawer_20453" / "mobility.urdf"
+pytestmark = pytest.mark.skipif(not URDF.is_file(), reason="shared PartNet-Mobility data not available")
+
+
+@pytest.fixture()
+def scene(tmp_path):
+    from ancsh.data.urdf import load_urdf
+
+    model = load_urdf(URDF)
+    q = np.array([0.6 * model.upper_limits[0] + 0.4 * model.lower_limits[0]])
+    center, diag = object_extent(model, q)
+    T = _orbit_pose(model, q, center, diag, np.radians(25), np.radians(30), 1.8)
+    intr = Intrinsics.kinect(320, 240)
+    depth = ModelRenderer(model).render(q, T, intr).depth
+    np.save(tmp_path / "depth.npy", depth)
+    (tmp_path / "K.json").write_text(json.dumps(intr.to_json()))
+    T0 = Sim3(exp_so3([0.2, -0.15, 0.1]) @ T.rotation, T.translation + 0.03 * diag)
+    (tmp_path / "init.json").write_text(json.dumps({"T_cam_base": T0.matrix().tolist(), "q": model.lower_limits.tolist()}))
+    return model, q, T, tmp_path
+
+
+def test_fit_cad_writes_result_and_picture(scene, capsys):
+    model, q, T, d = scene
+    code = main(["fit-cad", "--urdf", str(URDF), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json"),
+                 "--init", str(d / "init.json"), "--points", "800", "--out", str(d / "r.json"), "--png", str(d / "v.png")])
+    assert code == 0, capsys.readouterr()
+    result = json.loads((d / "r.json").read_text())
+    assert result["status"] == "success"
+    np.testing.assert_allclose(result["q"], q, atol=1e-3)
+    np.testing.assert_allclose(result["T_cam_base"]["translation"], T.translation, atol=1e-3)
+    assert (d / "v.png").stat().st_size > 0
+
+
+def test_fit_cad_errors(scene, capsys):
+    model, q, T, d = scene
+    np.save(d / "empty.npy", np.zeros((240, 320)))
+    args = ["fit-cad", "--urdf", str(URDF), "--intrinsics", str(d / "K.json")]
+    assert main(args + ["--depth", str(d / "empty.npy")]) == 2
+    assert "no valid depth" in capsys.readouterr().err
+    np.save(d / "small.npy", np.zeros((10, 10)))
+    assert main(args + ["--depth", str(d / "small.npy")]) == 2
+    assert "does not match" in capsys.readouterr().err
+    rigid = d / "box.urdf"
+    rigid.write_text('<robot name="box"><link name="b"><visual><geometry><box size="1 1 1"/></geometry></visual></link></robot>')
+    assert main(["fit-cad", "--urdf", str(rigid), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json")]) == 2
+    assert "no movable joint" in capsys.readouterr().err
