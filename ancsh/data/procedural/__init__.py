@@ -5,15 +5,18 @@ canonical orientation shared by all categories: +y up, +z towards the object's f
 side a user faces), +x to the right; part 0 is the base and joints follow the paper's part
 table. ``instance_seeds(category, split)`` gives the fixed, disjoint train/test instances.
 
-=================  ==========================================  =========================
-category           parts (label order)                         joints
-=================  ==========================================  =========================
-eyeglasses         base (front frame), left_temple, right_temple  2 revolute (rest: pi/2 to the frame)
-oven               base, door                                  1 revolute (bottom hinge)
-washing_machine    base, door                                  1 revolute (side hinge)
-laptop             base, display                               1 revolute
-drawer             base, lowest, middle, top                   3 prismatic (rest: closed)
-=================  ==========================================  =========================
+===============  ==============================================  ===========================================
+category         parts (label order)                             joints (state meaning; rest)
+===============  ==============================================  ===========================================
+eyeglasses       base (front frame), left_temple, right_temple   2 revolute, vertical (fold; rest 0 = right angles)
+oven             base, door                                      1 revolute, bottom hinge (opening; rest 0 closed)
+washing_machine  base, door                                      1 revolute, left side hinge (opening; rest 0 closed)
+laptop           base, display                                   1 revolute (opening; rest pi/2 upright)
+drawer           base, lowest, middle, top                       3 prismatic, +z (pull-out; rest 0 closed)
+===============  ==============================================  ===========================================
+
+Left/right are as seen from the front (+z): the left temple is at -x.
+:data:`CATEGORY_INFO` gives part/joint names and types and the rest-state size range.
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ def _temple(rng, length, width_y, thick_x, bend_frac, bend_angle, tip_style) -> 
 
 
 def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
-    a = rng.uniform(0.021, 0.030)  # lens half width
+    a = rng.uniform(0.021, 0.028)  # lens half width
     b = a * rng.uniform(0.55, 0.95)  # lens half height
     exponent = rng.uniform(2.0, 4.5)
     taper = rng.uniform(-0.12, 0.25)
@@ -57,7 +57,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     depth = rng.uniform(0.002, 0.006)  # frame thickness along z
     bridge = rng.uniform(0.014, 0.022)
     wrap = np.deg2rad(rng.uniform(0.0, 8.0))
-    end_out = rng.uniform(0.003, 0.010)
+    end_out = rng.uniform(0.003, 0.008)
     end_back = rng.uniform(0.006, 0.016)
     hinge_y = b * rng.uniform(0.1, 0.6)
 
