@@ -95,8 +95,6 @@ def load_urdf(path, *, category: str | None = None) -> ArticulatedModel:
     if not links:
         raise ValueError(f"{path}: <robot> has no <link> elements")
     for j in robot.joints:
-        if j.type not in _SUPPORTED:
-            raise ValueError(f"{path}: <joint name={j.name!r}> has unsupported type {j.type!r} (supported: {sorted(_SUPPORTED)})")
         for role in ("parent", "child"):
             if getattr(j, role) not in links:
                 raise ValueError(f"{path}: <joint name={j.name!r}> {role} link {getattr(j, role)!r} is not defined")
@@ -167,7 +165,7 @@ def _parse(path: Path):
     root = tree.getroot()
     if root.tag != "robot":
         raise ValueError(f"{path}: root element is <{root.tag}>, expected <robot>")
-    for j in root.iter("joint"):
+    for j in root.findall("joint"):  # direct children (<transmission> also holds <joint>)
         name, jtype = j.get("name"), j.get("type")
         if name is None or jtype is None:
             raise ValueError(f"{path}: <joint> element without name/type attribute (line {j.sourceline})")
@@ -181,9 +179,14 @@ def _parse(path: Path):
         for attr in ("xyz", "rpy"):
             if el.get(attr) is not None and "," in el.get(attr):
                 el.set(attr, el.get(attr).replace(",", " "))
-    for link in root.iter("link"):
-        if link.get("name") is None:
+    seen = set()
+    for link in root.findall("link"):
+        name = link.get("name")
+        if name is None:
             raise ValueError(f"{path}: <link> element without name attribute (line {link.sourceline})")
+        if name in seen:
+            raise ValueError(f"{path}: <link name={name!r}> is defined twice (line {link.sourceline})")
+        seen.add(name)
     try:
         return yourdfpy.URDF._parse_robot(xml_element=root)
     except Exception as exc:  # noqa: BLE001

@@ -270,6 +270,11 @@ def test_urdf_without_movable_joints_loads_as_one_part(tmp_path):
     assert model.parts[0].vertices[:, 0].max() == pytest.approx(2.5)
 
 
+def test_transmissions_are_ignored(chain):
+    chain.write_text(CHAIN.replace("</robot>", '<transmission name="t"><joint name="hinge"/><actuator name="m"/></transmission></robot>'))
+    assert load_urdf(chain).num_joints == 3
+
+
 def test_replicacad_style_commas_are_accepted(tmp_path):
     path = tmp_path / "commas.urdf"
     path.write_text(
@@ -309,6 +314,9 @@ def test_other_structural_errors_name_the_element(chain, tmp_path):
         load_urdf(chain)
     chain.write_text(CHAIN.replace('<child link="tray"/>', '<child link="nowhere"/>'))
     with pytest.raises(ValueError, match=r"chain\.urdf.*joint name='slide'.*'nowhere'"):
+        load_urdf(chain)
+    chain.write_text(CHAIN.replace('<link name="tray">', '<link name="arm"/><link name="tray">'))
+    with pytest.raises(ValueError, match=r"chain\.urdf.*link name='arm'.*defined twice"):
         load_urdf(chain)
     with pytest.raises(ValueError, match="does not exist"):
         load_urdf(tmp_path / "absent.urdf")
