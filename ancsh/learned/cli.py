@@ -20,7 +20,7 @@ def register(sub) -> None:
     p.add_argument("--config", type=Path, help="TrainConfig JSON (unknown keys are an error)")
     p.add_argument("--kind", choices=("ancsh", "direct_voting"), help="network (default from the config: ancsh)")
     p.add_argument("--resume", action="store_true", help="continue from RUN/last.pt")
-    p.add_argument("--data", type=Path, help="training shards (default data_out/<category>_train)")
+    p.add_argument("--data", type=Path, help="training shards (default data_out/<category>_train, else data/<category>_train)")
     p.add_argument("--out", type=Path, help="run directory (default runs/<category>_<kind>)")
     p.add_argument("--max-steps", type=int, help="override config.max_steps (e.g. to extend a finished run)")
     p.add_argument("--time-limit-min", type=float, help="stop (with a checkpoint) after this many minutes")
@@ -53,7 +53,10 @@ def run(args: argparse.Namespace) -> int:
     from .data import arrays_from_dataset
     from .train import Trainer, split_by_instance
 
-    data = args.data or Path("data_out") / f"{args.category}_train"
+    data = args.data
+    if data is None:  # where `ancsh data generate --out data_out/...` or its default put the shards
+        candidates = [Path("data_out") / f"{args.category}_train", Path("data") / f"{args.category}_train"]
+        data = next((c for c in candidates if c.is_dir()), candidates[0])
     arrays = arrays_from_dataset(data, config.num_points, seed=config.seed)
     train, val = split_by_instance(arrays, config.val_fraction, config.seed)
     print(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "

@@ -1,0 +1,133 @@
+"""Benchmarks of the network size against cost and accuracy (prints numbers, asserts nothing).
+
+``python -m ancsh.learned.bench timing`` -- training-step and single-frame forward times for
+several widths / sampling settings (batch 16, 1024 points by default).
+
+``python -m ancsh.learned.bench accuracy --data DIR --steps S`` -- short equal-step training
+runs at several widths on the same data, validation metrics on held-out instances.
+
+Results go to stdout as a markdown table (and ``--json`` to a file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+SETTINGS = {
+    # name: (width, npoints, nsamples, backbones)
+    "w0.125": (0.125, (256, 64), (32, 32), 1),
+    "w0.25": (0.25, (256, 64), (32, 32), 1),
+    "w0.5": (0.5, (256, 64), (32, 32), 1),
+    "w0.5-2bb": (0.5, (256, 64), (32, 32), 2),
+    "w1.0": (1.0, (256, 64), (32, 32), 1),
+    "w1.0-ref": (1.0, (512, 128), (32, 64), 1),
+}
+
+
+def _config(name: str, **kw):
+    from .config import TrainConfig
+
+    width, npoints, nsamples, backbones = SETTINGS[name]
+    return TrainConfig(width=width, npoints=npoints, nsamples=nsamples, backbones=backbones, **kw)
+
+
+def timing(names, *, batch: int = 16, num_points: int = 1024, threads: int = 1, repeats: int = 4) -> list[dict]:
+    """Median training-step time (batch ``batch``) and single-frame forward time per setting."""
+    import torch
+
+    from .losses import Targets, ancsh_loss
+    from .network import build_network
+
+    torch.set_num_threads(threads)
+    g = torch.Generator().manual_seed(0)
+    x = torch.randn(batch, num_points, 3, generator=g) * 0.1 + torch.tensor([0.0, 0.0, 1.5])
+    t = Targets(
+        torch.randint(0, 2, (batch, num_points), generator=g), torch.rand(batch, num_points, 3, generator=g),
+        torch.rand(batch, num_points, generator=g) + 0.5, torch.rand(batch, num_points, 3, generator=g),
+        torch.randint(0, 2, (batch, num_points), generator=g), torch.rand(batch, num_points, 7, generator=g),
+        torch.ones(batch, num_points, 7), torch.rand(batch, num_points, 7, generator=g),
+    )
+    rows = []
+    for name in names:
+        cfg = _config(name, num_points=num_points)
+        torch.manual_seed(0)
+        net = build_network("ancsh", 2, 1, **cfg.network_kwargs())
+        opt = torch.optim.Adam(net.parameters())
+        steps = []
+        for _ in range(repeats + 1):
+            s = time.perf_counter()
+            loss, _ = ancsh_loss(net(x), t)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            steps.append(time.perf_counter() - s)
+        net.eval()
+        fwd = []
+        with torch.no_grad():
+            for _ in range(repeats + 1):
+                s = time.perf_counter()
+                net(x[:1])
+                fwd.append(time.perf_counter() - s)
+        rows.append({
+            "setting": name, "width": cfg.width, "npoints": list(cfg.npoints), "nsamples": list(cfg.nsamples),
+            "backbones": cfg.backbones, "params": sum(p.numel() for p in net.parameters()),
+            "step_s": float(np.median(steps[1:])), "forward_ms": 1e3 * float(np.min(fwd[1:])),
+            "threads": threads, "load_avg": os.getloadavg()[0],
+        })
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
+def accuracy(names, data, *, steps: int, frames: int | None = None, seed: int = 0) -> list[dict]:
+    """Train each setting for ``steps`` steps on the same frames; validation metrics at the end."""
+    from .data import arrays_from_dataset
+    from .train import Trainer, split_by_instance
+
+    arrays = arrays_from_dataset(data, 1024, seed=seed)
+    if frames is not None:
+        arrays = arrays.subset(np.arange(min(frames, len(arrays))))
+    train, val = split_by_instance(arrays, 0.1, seed)
+    rows = []
+    for name in names:
+        cfg = _config(name, max_steps=steps, lr_decay_steps=max(1, steps // 2), val_every=steps, checkpoint_every=steps, seed=seed)
+        trainer = Trainer(cfg, train, val, None, progress=False)
+        t0 = time.perf_counter()
+        trainer.fit()
+        row = {"setting": name, "steps": steps, "train_min": (time.perf_counter() - t0) / 60}
+        row.update({k: v for k, v in trainer.history[-1].items() if k.startswith("val_")})
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m ancsh.learned.bench", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="what", required=True)
+    t = sub.add_parser("timing")
+    t.add_argument("--settings", nargs="+", default=list(SETTINGS), choices=list(SETTINGS))
+    t.add_argument("--threads", type=int, default=1)
+    t.add_argument("--json")
+    a = sub.add_parser("accuracy")
+    a.add_argument("--data", required=True)
+    a.add_argument("--steps", type=int, default=300)
+    a.add_argument("--frames", type=int)
+    a.add_argument("--settings", nargs="+", default=["w0.125", "w0.25", "w0.5"], choices=list(SETTINGS))
+    a.add_argument("--json")
+    args = p.parse_args(argv)
+    if args.what == "timing":
+        rows = timing(args.settings, threads=args.threads)
+    else:
+        rows = accuracy(args.settings, args.data, steps=args.steps, frames=args.frames)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
