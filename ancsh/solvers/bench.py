@@ -92,7 +92,7 @@ class BenchConfig:
     """
 
     categories: tuple = ()
-    frames_per_category: int = 6
+    frames_per_category: int = 8
     levels: tuple = ("none", "low", "realistic", "high")
     num_points: int = 1024
     seed: int = 0
@@ -638,7 +638,7 @@ def register(sub) -> None:
     p.add_argument("--quick", action="store_true", help="few frames, two corruption levels (~1-2 min)")
     p.add_argument("--json", action="store_true", help="also write the records as JSON next to the markdown")
     p.add_argument("--out", default="docs/results/fit_benchmark.md", help="markdown report path")
-    p.add_argument("--frames", type=int, default=None, help="frames per category (default 6; quick 2)")
+    p.add_argument("--frames", type=int, default=None, help="frames per category (default 8; quick 2)")
     p.add_argument("--categories", default=None, help="comma-separated categories (default: all)")
     p.add_argument("--levels", default=None, help="comma-separated corruption presets")
     p.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
