@@ -144,6 +144,7 @@ class Trainer:
         self.best_val = math.inf
         self._acc: dict[str, float] = {}
         self._acc_n = 0
+        self._saved_step = -1
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             config.to_json(self.out_dir / "config.json")
@@ -219,8 +220,9 @@ class Trainer:
         finally:
             if bar is not None:
                 bar.close()
-        if self.out_dir is not None and self._acc_n:
+        if self._acc_n:
             self.record()
+        if self.out_dir is not None and self._saved_step != self.step:
             self.save_checkpoint(self.out_dir / "last.pt")
         return losses
 
@@ -275,6 +277,8 @@ class Trainer:
         tmp = path.with_suffix(path.suffix + ".tmp")
         torch.save(self.state(), tmp)
         os.replace(tmp, path)
+        if path.name == "last.pt":
+            self._saved_step = self.step
         return path
 
     def load_checkpoint(self, path) -> None:
@@ -294,6 +298,7 @@ class Trainer:
         self.history = list(ck["history"])
         self.best_val = float(ck["best_val"])
         self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+        self._saved_step = self.step
 
 
 def plot_history(history: list[dict], path, title: str = "") -> None:
