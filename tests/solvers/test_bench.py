@@ -9,17 +9,20 @@ import pytest
 from ancsh.solvers import bench
 
 
-def _parse(argv):
+def test_registers_a_fit_parser():
     parser = argparse.ArgumentParser()
     bench.register(parser.add_subparsers())
-    return parser.parse_args(["fit", *argv])
+    args = parser.parse_args(["fit", "--quick", "--levels", "none,high"])
+    assert args.func is bench.run and args.quick and args.levels == "none,high"
 
 
 def test_quick_path_writes_markdown_and_json(tmp_path, capsys):
+    """Through the real command line (``ancsh bench fit``), in-process."""
+    from ancsh.cli import main
+
     out = tmp_path / "results" / "fit.md"
-    args = _parse(["--quick", "--json", "--frames", "1", "--categories", "laptop", "--methods", "official",
-                   "--official-hypotheses", "20", "--out", str(out)])
-    assert args.func(args) == 0
+    assert main(["bench", "fit", "--quick", "--json", "--frames", "1", "--categories", "laptop", "--methods", "official",
+                 "--official-hypotheses", "20", "--out", str(out)]) == 0
     text = out.read_text()
     assert "ancsh bench fit --quick --json --frames 1 --categories laptop --methods official" in text
     assert "| laptop | official | 100% |" in text
