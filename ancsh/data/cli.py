@@ -84,9 +84,14 @@ def run_generate(args) -> int:
     )
     split = config.split if config.urdf is None else "urdf"
     out = Path(args.out) if args.out else Path("data") / f"{config.name}_{split}"
-    report = generate_dataset(
-        config, args.frames, out, workers=args.workers, progress=not args.quiet, overwrite=args.overwrite
-    )
+    try:
+        report = generate_dataset(
+            config, args.frames, out, workers=args.workers, progress=not args.quiet, overwrite=args.overwrite
+        )
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: complete shards are kept in {out}; run the same command again to resume",
+              file=sys.stderr)
+        return 130
     for s, reason in report.replaced:
         print(f"regenerated shard {report.paths[s].name}: {reason}")
     rate = f" ({report.frames_per_second:.1f} frames/s)" if report.frames_generated else ""

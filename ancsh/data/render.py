@@ -41,6 +41,7 @@ import numpy as np
 
 from ..geometry._checks import as_array, check_generator
 from ..geometry.transforms import Sim3
+from ..model.articulated import sample_surface
 
 __all__ = [
     "DEFAULT_VIEWPOINT",
@@ -290,19 +291,6 @@ class DepthFrame:
         return np.bincount(ids, minlength=num_parts)[:num_parts].astype(np.int64)
 
 
-def _sample_triangles(vertices: np.ndarray, faces: np.ndarray, count: int, rng) -> np.ndarray:
-    tris = vertices[faces]
-    areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-    if not np.any(areas > 0):
-        return np.empty((0, 3))
-    face = rng.choice(len(tris), size=count, p=areas / areas.sum())
-    a, b = rng.random(count), rng.random(count)
-    flip = a + b > 1
-    a[flip], b[flip] = 1 - a[flip], 1 - b[flip]
-    t = tris[face]
-    return t[:, 0] + a[:, None] * (t[:, 1] - t[:, 0]) + b[:, None] * (t[:, 2] - t[:, 0])
-
-
 class ModelRenderer:
     """Renders one articulated model from any joint state and camera pose.
 
@@ -331,7 +319,7 @@ class ModelRenderer:
                 f = np.asarray(part.mesh.faces, dtype=np.int64).reshape(-1, 3)
             self._vertices.append(v)
             self._faces.append(np.ascontiguousarray(f, dtype=np.uint32))
-            self._samples.append(_sample_triangles(v, f, int(visibility_samples), rng) if len(f) else np.empty((0, 3)))
+            self._samples.append(sample_surface(part.mesh, int(visibility_samples), rng) if len(f) else np.empty((0, 3)))
         if not any(len(f) for f in self._faces):
             raise ValueError(f"model: no part of {model.name!r} has a mesh to render")
 
