@@ -103,12 +103,15 @@ def draw_frame(frame, fig=None):
     sc = ax.scatter(u, v, c=pts[:, 2], s=4, cmap="viridis")
     assoc = gt.joint_association > 0
     ax.scatter(u[assoc], v[assoc], s=14, facecolors="none", edgecolors="r", lw=0.5, label="joint-associated")
-    ax.set_xlim(0, intr.width)
-    ax.set_ylim(intr.height, 0)
+    margin = 0.1 * max(np.ptp(u), np.ptp(v), 10.0)
+    ax.set_xlim(max(u.min() - margin, 0), min(u.max() + margin, intr.width))
+    ax.set_ylim(min(v.max() + margin, intr.height), max(v.min() - margin, 0))
     ax.set_aspect("equal")
     fig.colorbar(sc, ax=ax, label="depth (m)", shrink=0.8)
     ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(f"image {intr.width}x{intr.height} (fx={intr.fx:g})", fontsize=9)
+    ax.set_xlabel("u (pixels)")
+    ax.set_ylabel("v (pixels)")
+    ax.set_title(f"sampled pixels of the {intr.width}x{intr.height} image (fx={intr.fx:g}), zoomed", fontsize=9)
 
     vis = ", ".join(f"{x:.2f}" for x in frame.visibility)
     states = ", ".join(f"{x:.3f}" for x in gt.joint_states)

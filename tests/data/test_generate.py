@@ -219,3 +219,16 @@ def test_every_shared_object_renders(path):
     j = int(fr.gt.part_labels[0])
     np.testing.assert_allclose(fr.gt.T_cam_npcs[j].apply(fr.gt.npcs[sel]), fr.points[sel], atol=1e-9)
     assert fr.instance_seed == -1 and fr.category == (model.category or "urdf")
+
+
+def test_cli_generate_from_urdf(tmp_path, capsys):
+    laptops = [p for p in _shared_objects() if p.parent.name.startswith("laptop")]
+    if not laptops:
+        pytest.skip("no shared laptop object")
+    out = tmp_path / "urdf"
+    code = main(["data", "generate", "--urdf", str(laptops[0]), "--frames", "2", "--workers", "1", "--width", "160",
+                 "--height", "120", "--points", "32", "--out", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    ds = FrameDataset(out)
+    assert len(ds) == 2 and ds[0].instance_seed == -1 and ds.readers[0].source == f"urdf:{laptops[0]}"
+    assert ds.readers[0].path.name == f"{laptops[0].parent.name}_urdf_00000.h5"
