@@ -391,6 +391,10 @@ class ShardReader:
             return _read_datasets(self.path, keys, expected_len=self._len)
         return {k: self._data[k] for k in keys}
 
+    def release(self) -> None:
+        """Drop the in-memory copy of the shard's data (it is re-read on the next access)."""
+        self._data = None
+
     def _load(self) -> dict:
         if self._data is None:
             self._data = _read_datasets(self.path, list(FIELDS), expected_len=self._len)
@@ -531,11 +535,18 @@ class FrameDataset:
     ----------
     source : str, Path or list
         A shard, a directory of shards or a list of either.
+    max_loaded : int
+        Shards kept in memory at once for :meth:`__getitem__` (least recently used are
+        released), so iterating over a large dataset needs little memory.
     """
 
-    def __init__(self, source):
+    def __init__(self, source, *, max_loaded: int = 2):
+        if isinstance(max_loaded, bool) or not isinstance(max_loaded, int) or max_loaded < 1:
+            raise ValueError(f"max_loaded: expected an int >= 1, got {max_loaded!r}")
         self.readers = [ShardReader(p) for p in shard_paths(source)]
         self._offsets = np.cumsum([0] + [len(r) for r in self.readers])
+        self._max_loaded = max_loaded
+        self._loaded: list[int] = []
 
     def __len__(self) -> int:
         return int(self._offsets[-1])
@@ -549,11 +560,16 @@ class FrameDataset:
         if not 0 <= i < len(self):
             raise IndexError(f"index: {index} out of range for {len(self)} frames")
         s = int(np.searchsorted(self._offsets, i, side="right") - 1)
+        if s in self._loaded:
+            self._loaded.remove(s)
+        self._loaded.append(s)
+        while len(self._loaded) > self._max_loaded:
+            self.readers[self._loaded.pop(0)].release()
         return self.readers[s][i - int(self._offsets[s])]
 
     def __iter__(self):
-        for r in self.readers:
-            yield from r
+        for i in range(len(self)):
+            yield self[i]
 
     def arrays(self, keys=None) -> dict:
         """``{key: array}`` over all shards, concatenated along the frame axis."""

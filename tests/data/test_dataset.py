@@ -138,3 +138,15 @@ def test_reader_errors(tmp_path, frames):
         reader[10]
     with pytest.raises(TypeError, match="index"):
         reader["0"]
+
+
+def test_frame_dataset_keeps_few_shards_in_memory(tmp_path, frames):
+    drawer, _ = frames
+    for s in range(4):
+        _write(tmp_path / f"s_{s:05d}.h5", drawer[s : s + 1], s)
+    ds = FrameDataset(tmp_path, max_loaded=2)
+    seen = [fr.frame_index for fr in ds]
+    assert seen == [fr.frame_index for fr in drawer]
+    assert sum(r._data is not None for r in ds.readers) == 2
+    with pytest.raises(ValueError, match="max_loaded"):
+        FrameDataset(tmp_path, max_loaded=0)
