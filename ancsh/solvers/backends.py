@@ -66,6 +66,9 @@ def _ipopt_options(opts: SolverOptions) -> dict:
         "ipopt.max_iter": int(opts.max_iterations),
         "ipopt.tol": float(opts.tol),
         "ipopt.acceptable_tol": max(float(opts.tol) * 1e3, 1e-8),
+        # Fits start at the per-part (RANSAC/Umeyama) solution, close to the optimum: a small
+        # initial barrier parameter halves the iterations (5 instead of 9 on typical frames).
+        "ipopt.mu_init": 1e-5,
         "error_on_fail": False,
     }
 

@@ -41,6 +41,7 @@ from .types import Correspondences, FitResult, FitStatus, Observation
 __all__ = ["FORMULATIONS", "FitConfig", "Formulation", "fit"]
 
 _MIN_POINTS = 3
+SCALE_ESTIMATORS = ("umeyama", "symmetric")
 
 
 @dataclass(frozen=True)
@@ -62,8 +63,14 @@ class FitConfig:
         After a solve, recompute the inliers with the solved poses and solve again (at most
         this many times, stopping when the inliers do not change).
     optimize_scale : bool
-        ``False`` keeps the Umeyama scales fixed as in the paper (reduced: one object scale,
-        the median over parts); ``True`` optimises log-scales.
+        ``False`` keeps the initial per-part scales fixed as in the paper (reduced: one object
+        scale, the median over parts); ``True`` optimises log-scales.
+    scale_estimator : str
+        Initial per-part scale on the RANSAC inliers: ``"umeyama"`` (the least-squares scale of
+        the Umeyama fit, as in the paper; shrunk by noise on the NPCS coordinates) or
+        ``"symmetric"`` (the geometric mean of the forward and reverse least-squares scales,
+        i.e. the ratio of RMS spreads ``sqrt(var(p) / var(c))``: half the shrinkage under NPCS
+        noise). The translation is re-centred for the chosen scale.
     soft_weight : float
         ``lambda`` of the paper's soft joint energies (``soft``), ``>= 0``.
     soft_mu : float
@@ -92,6 +99,7 @@ class FitConfig:
     inlier_threshold: float = 0.05
     rescore_rounds: int = 0
     optimize_scale: bool = False
+    scale_estimator: str = "umeyama"
     soft_weight: float = 1.0
     soft_mu: float = 1.0
     common_scale_weight: float = 0.0
@@ -121,6 +129,8 @@ class FitConfig:
                 raise ValueError(f"{name}: expected a {'positive' if positive else 'non-negative'} number, got {v!r}")
         if not 0 < self.ransac_confidence <= 1:
             raise ValueError(f"ransac_confidence: expected a number in (0, 1], got {self.ransac_confidence}")
+        if self.scale_estimator not in SCALE_ESTIMATORS:
+            raise ValueError(f"scale_estimator: expected one of {SCALE_ESTIMATORS}, got {self.scale_estimator!r}")
         if self.robust is not None and self.robust not in _robust_kernel_names():
             raise ValueError(f"robust: expected None or one of {_robust_kernel_names()}, got {self.robust!r}")
 
@@ -249,6 +259,7 @@ class _Fit:
 
     def __init__(self, obs, corr, form, solver, config, rng, start):
         self.corr, self.form, self.solver, self.config, self.rng, self.start = corr, form, solver, config, rng, start
+        self._static = None  # parameter values that do not change during the fit
         self.points = obs.points_cam
         self.npcs = corr.npcs
         self.labels = corr.part_labels
@@ -280,6 +291,8 @@ class _Fit:
         if isinstance(init, FitResult):
             return init
         poses, inliers = init
+        if self.config.scale_estimator == "symmetric":
+            poses = [self._symmetric_scale(j, T, inliers) for j, T in enumerate(poses)]
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         if self.form.parameterisation is None:
             return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, None)
@@ -320,6 +333,19 @@ class _Fit:
         inliers = np.zeros(self.N, dtype=bool)
         inliers[idx_active[inl]] = True
         return list(model), inliers
+
+    def _symmetric_scale(self, j: int, T: Sim3, inliers: np.ndarray) -> Sim3:
+        """``T`` with the RMS-spread-ratio scale of part ``j``'s inliers and the matching translation."""
+        sel = inliers & (self.labels == j)
+        w = self.weights[sel] / self.weights[sel].sum()
+        p, c = self.points[sel], self.npcs[sel]
+        pbar, cbar = w @ p, w @ c
+        var_p = float(w @ np.sum((p - pbar) ** 2, axis=1))
+        var_c = float(w @ np.sum((c - cbar) ** 2, axis=1))
+        if not var_c > 0 or not var_p > 0:
+            return T
+        s = np.sqrt(var_p / var_c)
+        return Sim3(T.rotation, pbar - s * (T.rotation @ cbar), s)
 
     # -- program solve --------------------------------------------------------------------------
     def _solve(self, poses: list, inliers: np.ndarray, L: float) -> FitResult:
@@ -372,6 +398,8 @@ class _Fit:
         return np.tile([-np.inf, np.inf], (self.K, 1))
 
     def _static_values(self, L: float) -> dict:
+        if self._static is not None and self._static["L"] == L:
+            return dict(self._static)
         cfg, corr = self.config, self.corr
         v = {
             "L": L, "soft_weight": cfg.soft_weight, "soft_mu": cfg.soft_mu,
@@ -384,6 +412,7 @@ class _Fit:
             u = corr.joint_axes_naocs[k]
             a, b = _perpendiculars(u)
             v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, corr.joint_pivots_naocs[k], a, b
+        self._static = dict(v)
         return v
 
     def _init_values(self, poses: list, L: float) -> dict:
@@ -505,11 +534,16 @@ def _postprocess(structure, poses: list, values: dict):
 
 def _perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors completing the unit ``u`` to a right-handed orthonormal basis."""
-    e = np.zeros(3)
-    e[int(np.argmin(np.abs(u)))] = 1.0
-    a = np.cross(u, e)
-    a /= np.linalg.norm(a)
-    return a, np.cross(u, a)
+    x, y, z = u
+    if abs(x) <= abs(y) and abs(x) <= abs(z):
+        a = np.array([0.0, z, -y])  # u x e_x
+    elif abs(y) <= abs(z):
+        a = np.array([-z, 0.0, x])  # u x e_y
+    else:
+        a = np.array([y, -x, 0.0])  # u x e_z
+    a /= np.sqrt(a @ a)
+    b = np.array([y * a[2] - z * a[1], z * a[0] - x * a[2], x * a[1] - y * a[0]])  # u x a
+    return a, b
 
 
 def _spread_scale(points, npcs, labels, npcs_scale, max_points: int = 128) -> float:

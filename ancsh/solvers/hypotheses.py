@@ -25,7 +25,7 @@ from ..geometry.umeyama import umeyama
 __all__ = ["ArticulatedRansacResult", "articulated_ransac", "batched_umeyama"]
 
 _RANK_TOL = 1e-8
-_MAX_REFITS = 5
+_MAX_REFITS = 3
 SAMPLE_SIZE = 3
 
 
@@ -107,7 +107,7 @@ class ArticulatedRansacResult:
 
 def articulated_ransac(
     points, npcs, labels, num_parts: int, threshold: float, rng, *, weights=None, max_hypotheses: int = 200,
-    confidence: float = 0.99, batch: int = 16,
+    confidence: float = 0.99, batch: int = 8,
 ) -> ArticulatedRansacResult:
     """Per-part Umeyama hypotheses from 3-point samples of every part, scored jointly.
 

@@ -408,7 +408,8 @@ class JointLimitTerm(EnergyTerm):
     kind = "inequality"
 
     def expression(self, ctx: Context) -> ca.SX:
-        return ca.vertcat(*[joint_state_expr(ctx, k) for k in range(ctx.structure.num_joints)]) if ctx.structure.num_joints else ca.SX(0, 1)
+        states = [joint_state_expr(ctx, k) for k in range(ctx.structure.num_joints)]
+        return ca.vertcat(*states) if states else ca.SX(0, 1)
 
     def bounds(self, frame: dict) -> tuple[np.ndarray, np.ndarray]:
         lim = frame["joint_limits"]
@@ -422,14 +423,7 @@ class CommonScaleTerm(EnergyTerm):
     name = "common_scale"
 
     def expression(self, ctx: Context) -> ca.SX:
-        w = ctx.params.get("common_scale_weight")
-        r = ctx.structure.root
-        out = [
-            ca.sqrt(w) * (ctx.object_scale(j) - ctx.object_scale(r)) / ctx.L
-            for j in range(ctx.structure.num_parts)
-            if j != r
-        ]
-        return ca.vertcat(*out) if out else ca.SX(0, 1)
+        return ca.sqrt(ctx.params.get("common_scale_weight")) * _object_scale_differences(ctx)
 
 
 @register_term
@@ -440,9 +434,14 @@ class ExactCommonScaleTerm(EnergyTerm):
     kind = "equality"
 
     def expression(self, ctx: Context) -> ca.SX:
-        r = ctx.structure.root
-        out = [(ctx.object_scale(j) - ctx.object_scale(r)) / ctx.L for j in range(ctx.structure.num_parts) if j != r]
-        return ca.vertcat(*out) if out else ca.SX(0, 1)
+        return _object_scale_differences(ctx)
+
+
+def _object_scale_differences(ctx: Context) -> ca.SX:
+    """``(s_j / Gs_j - s_root / Gs_root) / L`` for every part ``j != root``."""
+    r = ctx.structure.root
+    out = [(ctx.object_scale(j) - ctx.object_scale(r)) / ctx.L for j in range(ctx.structure.num_parts) if j != r]
+    return ca.vertcat(*out) if out else ca.SX(0, 1)
 
 
 # --------------------------------------------------------------------------------------------
