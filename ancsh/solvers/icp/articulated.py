@@ -80,6 +80,11 @@ class ArticulatedIcpConfig:
         the object's centre, camera axes, radians).
     start_iterations : int
         ICP iterations of every start before the best one is continued.
+    joint_restarts : bool
+        After ``refine_iterations`` more iterations of the best start, restart every joint
+        (one at a time, the rest kept) at ``joint_starts`` states over its range for
+        ``start_iterations`` iterations and continue whichever scores best.
+    refine_iterations : int
     num_points : int or None
         Random subsample of the observation used by ICP (``None``: all points).
     solver : str
@@ -101,12 +106,14 @@ class ArticulatedIcpConfig:
     joint_starts: int = 3
     orientations: tuple = ()
     start_iterations: int = 5
+    joint_restarts: bool = True
+    refine_iterations: int = 8
     num_points: int | None = 1500
     solver: str = "lsq"
     solver_iterations: int = 8
 
     def __post_init__(self):
-        for name in ("max_iterations", "start_iterations", "solver_iterations"):
+        for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
                 raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
@@ -262,9 +269,14 @@ def _pose_change(model, parts_a, parts_b, radii) -> float:
 
 
 class _Run:
-    def __init__(self, model, points, config, provider, diagonal, radii):
+    def __init__(self, model, points, config, provider, diagonal, radii, rng):
         self.model, self.points, self.config, self.provider = model, points, config, provider
         self.diagonal, self.radii = diagonal, radii
+        self.samples = provider.surface.sample(300, rng, normals=True)
+        uv = points[:, :2] / points[:, 2:3]
+        margin = 0.02 * (uv.max(axis=0) - uv.min(axis=0))
+        self.fov = (uv.min(axis=0) - margin, uv.max(axis=0) + margin)  # observed field of view (x/z, y/z)
+        self.tree = None
 
     def gate(self, i: int) -> float:
         c = self.config
@@ -298,12 +310,49 @@ class _Run:
         return estimate, status, it + 1, None
 
     def score(self, estimate: ArticulatedPose) -> tuple[float, float, float]:
-        """``(truncated mean squared distance, inlier ratio, inlier rmse)`` at the final gate."""
+        """``(score, inlier ratio, inlier rmse)`` of an estimate at the final gate ``g``.
+
+        The score is symmetric, each half in ``[0, 1]``: the truncated mean of ``(d / g)^2``
+        over the observed points' distances ``d`` to the model, plus the fraction of the model
+        surface the camera would see at the estimate (inside the observed field of view) that
+        has no observed point within ``max(g, 3 x point spacing)``. The second half penalises
+        model surface where nothing was observed (e.g. a drawer pulled out whose observed
+        front is explained equally well by its side walls).
+        """
+        from scipy.spatial import cKDTree
+
         gate = max(self.config.gate_end * self.diagonal, self.config.gate_floor)
-        d = self.provider.surface.closest(self.points, estimate.part_poses(self.model)).distances
+        parts = estimate.part_poses(self.model)
+        d = self.provider.surface.closest(self.points, parts, visible=True).distances
         inl = d <= gate
         rmse = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("inf")
-        return float(np.mean(np.minimum(d, gate) ** 2)), float(inl.mean()), rmse
+        if self.tree is None:
+            self.tree = cKDTree(self.points)
+            spacing = np.median(self.tree.query(self.points, k=2)[0][:, 1]) if len(self.points) > 1 else 0.0
+            self.reach = max(gate, 3.0 * float(spacing))
+        seen = self.provider.surface.visible_samples(parts, *self.samples)
+        if seen.shape[0]:
+            uv = seen[:, :2] / seen[:, 2:3]
+            seen = seen[np.all((uv >= self.fov[0]) & (uv <= self.fov[1]), axis=1)]
+        if seen.shape[0]:
+            dm = self.tree.query(seen, distance_upper_bound=self.reach)[0]
+            back = float(np.mean(~np.isfinite(dm)))
+        else:
+            back = 1.0
+        return float(np.mean(np.minimum(d / gate, 1.0) ** 2)) + back, float(inl.mean()), rmse
+
+
+def _joint_grid(model: ArticulatedModel, q, count: int) -> list:
+    """States ``q`` with one joint at a time moved to ``(i + 0.5) / count`` of its range."""
+    lo = np.maximum(model.lower_limits, -np.pi)
+    hi = np.minimum(model.upper_limits, np.pi)
+    out = []
+    for k in range(model.num_joints):
+        for i in range(count):
+            q2 = np.array(q, dtype=float)
+            q2[k] = lo[k] + (i + 0.5) / count * (hi[k] - lo[k])
+            out.append(q2)
+    return out
 
 
 def _starts(model: ArticulatedModel, inits: list, config: ArticulatedIcpConfig, center_base) -> list:
@@ -388,7 +437,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     Raises
     ------
     ValueError
-        Bad arguments: a model without movable joints, ``init`` not an
+        Bad arguments: a model without movable joints, points behind the camera, ``init`` not an
         :class:`ArticulatedPose` or outside the joint limits, points not ``(N, 3)`` finite.
     """
     t0 = time.perf_counter()
@@ -397,6 +446,8 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         raise ValueError(f"config: expected an ArticulatedIcpConfig, got {type(config).__name__}")
     provider = TemplateProvider(model, _surface=surface)  # validates the model (movable joints, meshes)
     points = observation.points_cam if isinstance(observation, Observation) else Observation(observation).points_cam
+    if points.shape[0] and np.any(points[:, 2] <= 0):
+        raise ValueError("observation: every point must be in front of the camera (z > 0); points are camera-frame")
     inits = [init] if isinstance(init, ArticulatedPose) else list(init) if isinstance(init, (list, tuple)) else None
     if not inits or not all(isinstance(i, ArticulatedPose) for i in inits):
         raise ValueError(f"init: expected an ArticulatedPose or a non-empty sequence of them, got {type(init).__name__}")
@@ -419,7 +470,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
                                 _surface=provider.surface, _canonical=provider.canonical)
     rest = model.forward_kinematics(model.rest_states)
     radii = [float(np.max(np.linalg.norm(p.vertices, axis=1))) for p in model.parts]
-    run = _Run(model, points, config, provider, diagonal, radii)
+    run = _Run(model, points, config, provider, diagonal, radii, rng)
     center_base = np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0)
 
     best = None
@@ -438,6 +489,25 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         return failed(FitStatus.TOO_FEW_POINTS,
                       f"no observed point within {run.gate(0):.3g} m of the model at any start (observation far from the estimate?)")
     _, est, hist, n = best
+    if config.joint_restarts and model.num_joints:
+        # Stage 2: with the object pose settled, restart each joint over its range (the
+        # others kept) and keep whatever scores best; this escapes joint local minima such
+        # as a drawer front matched to the drawer's side walls.
+        est, status, n2, _ = run.iterate(est, n, config.refine_iterations, hist)
+        iterations += n2 - n
+        n = n2
+        if status != FitStatus.TOO_FEW_POINTS:
+            best = (run.score(est), est, hist, n)
+            for q in _joint_grid(model, est.q, config.joint_starts):
+                h2: list = []
+                e2, st2, m, _ = run.iterate(ArticulatedPose(est.T_cam_base, q), 0, config.start_iterations, h2)
+                iterations += m
+                if st2 == FitStatus.TOO_FEW_POINTS:
+                    continue
+                sc = run.score(e2)
+                if sc[0] < best[0][0]:
+                    best = (sc, e2, hist + h2, m)
+            _, est, hist, n = best
     est, status, n2, _ = run.iterate(est, n, max(config.max_iterations - n, 1), hist)
     iterations += n2 - n
     if status == FitStatus.TOO_FEW_POINTS:

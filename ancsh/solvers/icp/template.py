@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...geometry._checks import as_array, as_points
+from ...geometry._checks import as_array, as_points, check_generator
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
 from ..types import Correspondences, Observation
@@ -156,23 +156,12 @@ class ModelSurface:
         """Replace hidden closest points by the ray hits of their observed points (in place)."""
         import open3d as o3d
 
-        scene = o3d.t.geometry.RaycastingScene()
-        table = {}
-        for j, (part, T) in enumerate(zip(self.model.parts, T_cam_parts)):
-            gid = scene.add_triangles(
-                np.ascontiguousarray(T.apply(np.asarray(part.mesh.vertices, dtype=np.float64)), dtype=np.float32),
-                np.ascontiguousarray(part.mesh.faces, dtype=np.uint32),
-            )
-            table[int(gid)] = j
+        scene, table = self.posed_scene(T_cam_parts)
         match_cam = np.empty_like(pts)
         for j, T in enumerate(T_cam_parts):
             sel = labels == j
             match_cam[sel] = T.apply(local[sel])
-        rays = np.zeros((len(pts), 6), dtype=np.float32)
-        rays[:, 3:] = match_cam  # camera centre -> match; t_hit = 1 at the match itself
-        t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
-        depth = np.linalg.norm(match_cam, axis=1)
-        hidden = t * depth < depth - np.maximum(1e-4, 1e-4 * depth)
+        hidden = ~_seen(scene, match_cam)
         if not np.any(hidden):
             return
         idx = np.flatnonzero(hidden)
@@ -198,15 +187,76 @@ class ModelSurface:
             normals[ii] = n_cam[sel] @ T.rotation  # camera -> part frame
             best[ii] = np.linalg.norm(pts[ii] - h_cam[sel], axis=1)
 
-    def sample(self, count: int, rng) -> tuple[np.ndarray, np.ndarray]:
-        """``count`` surface points per part in the part frames: ``(points (M*count, 3), labels)``."""
-        from ...model.articulated import sample_surface
+    def posed_scene(self, T_cam_parts):
+        """``(RaycastingScene, {geometry id: part})`` of the model posed in the camera frame."""
+        import open3d as o3d
 
-        pts, labels = [], []
+        scene = o3d.t.geometry.RaycastingScene()
+        table = {}
+        for j, (part, T) in enumerate(zip(self.model.parts, T_cam_parts)):
+            gid = scene.add_triangles(
+                np.ascontiguousarray(T.apply(np.asarray(part.mesh.vertices, dtype=np.float64)), dtype=np.float32),
+                np.ascontiguousarray(part.mesh.faces, dtype=np.uint32),
+            )
+            table[int(gid)] = j
+        return scene, table
+
+    def visible_samples(self, T_cam_parts, samples_part, labels, normals_part=None, *, min_cos: float = 0.3) -> np.ndarray:
+        """The camera-frame positions ``(V, 3)`` of surface samples the camera sees.
+
+        Parameters
+        ----------
+        T_cam_parts : sequence of Sim3
+            ``(M,)`` part poses.
+        samples_part : (S, 3) float64
+            Surface samples in their part frames (e.g. from :meth:`sample`).
+        labels : (S,) int
+            Part of each sample.
+        normals_part : (S, 3) float64, optional
+            Their unit normals (any sign): samples seen at a grazing angle (``|cos|`` between
+            normal and viewing ray below ``min_cos``) are dropped, since a depth camera
+            samples such surface too sparsely to expect an observed point near each of them.
+        """
+        pts = np.empty_like(samples_part)
+        keep = np.ones(len(pts), dtype=bool)
+        for j, T in enumerate(T_cam_parts):
+            sel = labels == j
+            pts[sel] = T.apply(samples_part[sel])
+            if normals_part is not None:
+                n = T.apply_direction(normals_part[sel])
+                ray = pts[sel] / np.maximum(np.linalg.norm(pts[sel], axis=1, keepdims=True), 1e-12)
+                keep[sel] = np.abs(np.einsum("ij,ij->i", n, ray)) >= min_cos
+        front = keep & (pts[:, 2] > 1e-6)
+        scene, _ = self.posed_scene(T_cam_parts)
+        ok = np.zeros(len(pts), dtype=bool)
+        ok[front] = _seen(scene, pts[front])
+        return pts[ok]
+
+    def sample(self, count: int, rng, *, normals: bool = False):
+        """``count`` surface samples per part in the part frames: ``(points (M*count, 3), labels)``,
+        plus their unit face normals ``(M*count, 3)`` when ``normals``."""
+        from .rigid import sample_with_normals
+
+        rng = check_generator(rng)
+        pts, nrm, labels = [], [], []
         for j, part in enumerate(self.model.parts):
-            pts.append(sample_surface(part.mesh, count, rng))
+            p, n = sample_with_normals(part.mesh, count, rng)
+            pts.append(p)
+            nrm.append(n)
             labels.append(np.full(count, j, dtype=np.int64))
-        return np.concatenate(pts), np.concatenate(labels)
+        out = (np.concatenate(pts), np.concatenate(labels))
+        return out + (np.concatenate(nrm),) if normals else out
+
+
+def _seen(scene, points_cam) -> np.ndarray:
+    """``(N,)`` bool: is each surface point the first hit of the ray from the camera centre?"""
+    import open3d as o3d
+
+    rays = np.zeros((len(points_cam), 6), dtype=np.float32)
+    rays[:, 3:] = points_cam  # camera centre -> point; t_hit = 1 at the point itself
+    t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
+    depth = np.linalg.norm(points_cam, axis=1)
+    return t * depth >= depth - np.maximum(1e-4, 1e-4 * depth)
 
 
 def robust_weights(residuals, loss: str, scale: float) -> np.ndarray:
