@@ -521,7 +521,8 @@ def _ratio_line(label, value, target, ok) -> str:
 
 
 def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> dict:
-    """Write the markdown report (and the JSON with every record); return the headline."""
+    """Write the markdown report (and a JSON of its numbers: headline, overall and per-category
+    summaries, config); return the headline. The per-frame records stay in ``report``."""
     head = headline(report)
     rows = summarize(report)
     cfg = report["config"]
@@ -616,9 +617,24 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> d
     out_md.parent.mkdir(parents=True, exist_ok=True)
     out_md.write_text("\n".join(lines))
     if out_json is not None:
-        payload = {"command": command, "generated": when, "headline": head, "summary": rows, **report}
-        Path(out_json).write_text(json.dumps(payload, indent=1, default=_json_default))
+        payload = {
+            "command": command, "generated": when, "config": cfg, "methods": report["methods"],
+            "frame_source": report["frame_source"], "headline": head,
+            "overall": {level: overall(report, level) for level in cfg["levels"]}, "summary": rows,
+        }
+        Path(out_json).write_text(json.dumps(_compact(payload), separators=(",", ":"), default=_json_default))
     return head
+
+
+def _compact(o):
+    """Floats to 6 significant digits (keeps 1e-14 errors readable, halves the file)."""
+    if isinstance(o, dict):
+        return {k: _compact(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_compact(v) for v in o]
+    if isinstance(o, (float, np.floating)):
+        return float(f"{float(o):.6g}") if np.isfinite(o) else None
+    return o
 
 
 def _json_default(o):

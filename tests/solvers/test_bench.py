@@ -28,7 +28,8 @@ def test_quick_path_writes_markdown_and_json(tmp_path, capsys):
     assert "| laptop | official | 100% |" in text
     payload = json.loads(out.with_suffix(".json").read_text())
     assert payload["config"]["levels"] == ["none", "realistic"]
-    assert {r["level"] for r in payload["records"]} == {"none", "realistic"}
+    assert {r["level"] for r in payload["summary"]} == {"none", "realistic"}
+    assert payload["overall"]["realistic"][0]["method"] == "official"
     nf = payload["headline"]["noise_free"]["official"]
     assert nf["failed"] == 0 and max(nf["rot_rad"], nf["trans"], nf["scale_rel"]) < 1e-6
     assert "wrote" in capsys.readouterr().out
