@@ -78,6 +78,12 @@ class FitConfig:
     common_scale_weight : float
         Weight of the soft common-object-scale term (``soft`` with ``optimize_scale``); 0 = off.
         (``exact_maximal`` with ``optimize_scale`` holds one object scale exactly.)
+    naocs_prior_weight : float
+        0 (default): the provider's canonical parameters (NPCS -> NAOCS translations ``G_t``,
+        revolute pivots) are taken as exact. ``> 0``: they get offset variables with this prior
+        weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
+        hold exactly for adjusted parameters that the data may move -- useful when the
+        provider's NAOCS parameters are noisy; the reported pivots use the adjusted values.
     robust : str or None
         ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
         the moments (each round reweights the points and re-solves with the same program).
@@ -96,13 +102,14 @@ class FitConfig:
     ransac: bool = True
     ransac_iterations: int = 200
     ransac_confidence: float = 0.99
-    inlier_threshold: float = 0.05
+    inlier_threshold: float = 0.1
     rescore_rounds: int = 0
     optimize_scale: bool = False
-    scale_estimator: str = "umeyama"
+    scale_estimator: str = "symmetric"
     soft_weight: float = 1.0
     soft_mu: float = 1.0
     common_scale_weight: float = 0.0
+    naocs_prior_weight: float = 0.1
     robust: str | None = None
     robust_scale: float = 0.02
     irls_iterations: int = 5
@@ -120,7 +127,7 @@ class FitConfig:
                 raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
         for name, positive in (
             ("ransac_confidence", True), ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
-            ("common_scale_weight", False), ("robust_scale", True), ("tol", True),
+            ("common_scale_weight", False), ("naocs_prior_weight", False), ("robust_scale", True), ("tol", True),
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
@@ -173,14 +180,15 @@ class Formulation:
             config.enforce_limits and corr.joint_limits is not None and bool(np.any(np.isfinite(corr.joint_limits)))
         )
         scale_term = ("common_scale",) if config.optimize_scale and config.common_scale_weight > 0 else ()
+        prior = ("naocs_prior",) if config.naocs_prior_weight > 0 else ()
         if self.name == "soft":
-            return ("data", "soft_joint") + scale_term
+            return ("data", "soft_joint") + scale_term + prior
         if self.name == "exact_maximal":
             # Optimised scales: one object scale, exactly (as in the reduced parameterisation).
             exact_scale = ("exact_common_scale",) if config.optimize_scale else ()
-            return ("data", "exact_joint") + exact_scale + (("joint_limits",) if has_limits else ())
+            return ("data", "exact_joint") + exact_scale + (("joint_limits",) if has_limits else ()) + prior
         if self.name == "exact_reduced":
-            return ("data",)
+            return ("data",) + prior
         return ()
 
 
@@ -353,7 +361,10 @@ class _Fit:
         from .program import ProgramKey, get_program
 
         cfg = self.config
-        key = ProgramKey(self.structure, self.form.parameterisation, bool(cfg.optimize_scale), self.form.terms(cfg, self.corr))
+        key = ProgramKey(
+            self.structure, self.form.parameterisation, bool(cfg.optimize_scale), self.form.terms(cfg, self.corr),
+            free_canonical=cfg.naocs_prior_weight > 0,
+        )
         prog = get_program(key)
         limits = self._limits()
         values = self._static_values(L)
@@ -390,7 +401,15 @@ class _Fit:
         costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, p)).ravel().tolist()))
         if cfg.robust:
             costs["robust_data"] = self._robust_energy(raw, inliers, L)
-        return self._finish(solved, inliers, L, outcome.status, outcome.message, total_iter, costs)
+        canonical = None
+        if "canonical" in prog.layout:  # report joints with the adjusted canonical parameters
+            canonical = self._static_values(L)
+            off = outcome.x[prog.layout["canonical"]]
+            for j in range(self.M):
+                canonical[f"Gt{j}"] = canonical[f"Gt{j}"] + off[3 * j : 3 * j + 3]
+            for i, k in enumerate(sorted(prog.canonical.dq)):
+                canonical[f"q{k}"] = canonical[f"q{k}"] + off[3 * (self.M + i) : 3 * (self.M + i) + 3]
+        return self._finish(solved, inliers, L, outcome.status, outcome.message, total_iter, costs, canonical)
 
     def _limits(self) -> np.ndarray:
         if self.config.enforce_limits and self.corr.joint_limits is not None:
@@ -403,7 +422,7 @@ class _Fit:
         cfg, corr = self.config, self.corr
         v = {
             "L": L, "soft_weight": cfg.soft_weight, "soft_mu": cfg.soft_mu,
-            "common_scale_weight": cfg.common_scale_weight,
+            "common_scale_weight": cfg.common_scale_weight, "naocs_prior_weight": cfg.naocs_prior_weight,
         }
         for j in range(self.M):
             v[f"Gs{j}"] = corr.npcs_scale[j]
@@ -483,8 +502,8 @@ class _Fit:
         return total
 
     # -- post-processing ------------------------------------------------------------------------
-    def _finish(self, poses, inliers, L, status, message, iterations, costs) -> FitResult:
-        values = self._static_values(L)
+    def _finish(self, poses, inliers, L, status, message, iterations, costs, values=None) -> FitResult:
+        values = self._static_values(L) if values is None else values
         axes, pivots, states = _postprocess(self.structure, poses, values)
         violation, eval_costs = self._check(poses, values, inliers if costs is None else None)
         if costs is None:

@@ -20,6 +20,10 @@ is optimised) a log-scale ``s_j = s0_j exp(rho_j)``.
 over the joint tree in NAOCS: a revolute child is ``X_c(g) = X_p(Rot(u, theta)(g - q) + q)``,
 a prismatic child ``X_c(g) = X_p(g) + theta R_p u``; then ``s_j = sigma Gs_j`` and
 ``t_j = X_j(Gt_j)``.
+
+With ``free_canonical`` the canonical parameters ``Gt_j`` and revolute pivots ``q_k`` get
+offset variables appended to ``x`` (see :class:`~ancsh.solvers.terms.Canonical`); the
+``naocs_prior`` term must then be among the terms.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .terms import TERMS, Context, KinematicStructure, Params, PoseExpr, axis_angle_sx, exp_so3_sx, joint_state_expr
+from .terms import TERMS, Canonical, Context, KinematicStructure, Params, PoseExpr, axis_angle_sx, exp_so3_sx, joint_state_expr
 
 __all__ = ["PARAMETERISATIONS", "Program", "ProgramKey", "PostProcess", "get_program", "postprocess_function", "program_build_count"]
 
@@ -45,9 +49,10 @@ class ProgramKey:
     parameterisation: str
     optimize_scale: bool
     terms: tuple
+    free_canonical: bool = False
 
 
-def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool):
+def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool, canonical: Canonical):
     xs, poses, layout = [], [], {}
     for j in range(st.num_parts):
         w = ca.SX.sym(f"w{j}", 3)
@@ -64,7 +69,7 @@ def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: b
     return ca.vertcat(*xs), poses, layout
 
 
-def _reduced_variables(st: KinematicStructure, params: Params, optimize_scale: bool):
+def _reduced_variables(st: KinematicStructure, params: Params, optimize_scale: bool, canonical: Canonical):
     w = ca.SX.sym("w", 3)
     dt = ca.SX.sym("dt", 3)
     xs = [w, dt]
@@ -85,7 +90,7 @@ def _reduced_variables(st: KinematicStructure, params: Params, optimize_scale: b
         p, c = st.joint_parents[k], st.joint_children[k]
         u = params.get(f"u{k}", 3)
         if st.is_revolute(k):
-            q = params.get(f"q{k}", 3)
+            q = canonical.pivot(k)
             Rk = axis_angle_sx(u, theta[k])
             R[c] = R[p] @ Rk
             tau[c] = tau[p] + sigma * (R[p] @ (q - Rk @ q))
@@ -94,9 +99,10 @@ def _reduced_variables(st: KinematicStructure, params: Params, optimize_scale: b
             tau[c] = tau[p] + theta[k] * (R[p] @ u)
     poses = []
     for j in range(st.num_parts):
-        Gs, Gt = params.get(f"Gs{j}"), params.get(f"Gt{j}", 3)
+        Gs, Gt = params.get(f"Gs{j}"), canonical.Gt(j)
         poses.append(PoseExpr(R[j], sigma * (R[j] @ Gt) + tau[j], sigma * Gs))
-    layout = {"theta": slice(xs[0].numel() + xs[1].numel() + (1 if optimize_scale else 0), None)}
+    start = 6 + (1 if optimize_scale else 0)
+    layout = {"theta": slice(start, start + st.num_joints)}
     return ca.vertcat(*xs), poses, layout
 
 
@@ -116,10 +122,18 @@ class Program:
         st = key.structure
         self.params = Params()
         self.params.get("L")
-        x, poses, layout = _VARIABLES[key.parameterisation](st, self.params, key.optimize_scale)
+        canonical = Canonical(st, self.params, free=key.free_canonical)
+        x, poses, layout = _VARIABLES[key.parameterisation](st, self.params, key.optimize_scale, canonical)
+        offsets = canonical.offsets()
+        if key.free_canonical:
+            if "naocs_prior" not in key.terms:
+                raise ValueError("terms: free canonical parameters need the 'naocs_prior' term")
+            layout["canonical"] = slice(int(x.numel()), int(x.numel() + offsets.numel()))
+            x = ca.vertcat(x, offsets)
         self.x = x
         self.layout = layout
-        ctx = Context(st, self.params, poses)
+        self.canonical = canonical
+        ctx = Context(st, self.params, poses, canonical)
         self.terms = [TERMS[name]() for name in key.terms]
         costs, eqs, ineqs = [], [], []
         self.cost_names, self.inequality_terms = [], []

@@ -28,6 +28,8 @@ from ..model.articulated import JointType
 
 __all__ = [
     "TERMS",
+    "Canonical",
+    "CanonicalPriorTerm",
     "CommonScaleTerm",
     "Context",
     "DataTerm",
@@ -140,20 +142,49 @@ class PoseExpr:
     s: ca.SX
 
 
+class Canonical:
+    """The canonical (NAOCS) parameters ``Gt_j`` and pivots ``q_k`` seen by the terms.
+
+    Fixed parameters by default. With ``free=True`` each ``Gt_j`` and each revolute pivot
+    ``q_k`` gets a decision-variable offset (``Gt_j + dGt_j``, ``q_k + dq_k``, NAOCS units), so
+    the joints hold exactly for *adjusted* canonical parameters; :class:`CanonicalPriorTerm`
+    keeps the offsets small (the provider's values are treated as noisy measurements).
+    """
+
+    def __init__(self, structure: KinematicStructure, params: Params, free: bool = False):
+        self.structure, self.params, self.free = structure, params, free
+        self.dGt = [ca.SX.sym(f"dGt{j}", 3) for j in range(structure.num_parts)] if free else []
+        self.dq = {k: ca.SX.sym(f"dq{k}", 3) for k in range(structure.num_joints) if structure.is_revolute(k)} if free else {}
+
+    def Gt(self, j: int) -> ca.SX:
+        base = self.params.get(f"Gt{j}", 3)
+        return base + self.dGt[j] if self.free else base
+
+    def pivot(self, k: int) -> ca.SX:
+        base = self.params.get(f"q{k}", 3)
+        return base + self.dq[k] if k in self.dq else base
+
+    def offsets(self) -> ca.SX:
+        """All offset variables, ``dGt_0..dGt_{M-1}`` then ``dq_k`` of the revolute joints."""
+        parts = self.dGt + [self.dq[k] for k in sorted(self.dq)]
+        return ca.vertcat(*parts) if parts else ca.SX(0, 1)
+
+
 class Context:
     """Symbolic part poses and the named parameters terms may use."""
 
-    def __init__(self, structure: KinematicStructure, params: Params, poses: list):
+    def __init__(self, structure: KinematicStructure, params: Params, poses: list, canonical: Canonical | None = None):
         self.structure = structure
         self.params = params
         self.poses = poses
+        self.canonical = Canonical(structure, params) if canonical is None else canonical
 
     # -- per part ---------------------------------------------------------------------
     def Gs(self, j: int) -> ca.SX:
         return self.params.get(f"Gs{j}")
 
     def Gt(self, j: int) -> ca.SX:
-        return self.params.get(f"Gt{j}", 3)
+        return self.canonical.Gt(j)
 
     @property
     def L(self) -> ca.SX:
@@ -173,7 +204,7 @@ class Context:
         return self.params.get(f"u{k}", 3)
 
     def pivot(self, k: int) -> ca.SX:
-        return self.params.get(f"q{k}", 3)
+        return self.canonical.pivot(k)
 
     def perpendiculars(self, k: int) -> tuple[ca.SX, ca.SX]:
         return self.params.get(f"a{k}", 3), self.params.get(f"b{k}", 3)
@@ -435,6 +466,22 @@ class ExactCommonScaleTerm(EnergyTerm):
 
     def expression(self, ctx: Context) -> ca.SX:
         return _object_scale_differences(ctx)
+
+
+@register_term
+class CanonicalPriorTerm(EnergyTerm):
+    """Prior on the canonical-parameter offsets: ``sqrt(w) [dGt_j; dq_k]`` (NAOCS units).
+
+    Only meaningful in a program whose canonical parameters are free (see :class:`Canonical`);
+    parameter ``naocs_prior_weight`` (``w``).
+    """
+
+    name = "naocs_prior"
+
+    def expression(self, ctx: Context) -> ca.SX:
+        if not ctx.canonical.free:
+            raise ValueError("naocs_prior: the program's canonical parameters are fixed (free_canonical=False)")
+        return ca.sqrt(ctx.params.get("naocs_prior_weight")) * ctx.canonical.offsets()
 
 
 def _object_scale_differences(ctx: Context) -> ca.SX:

@@ -38,11 +38,18 @@ def _central_jacobian(f, x, h=1e-6):
     return np.stack(cols, axis=1)
 
 
+@pytest.mark.parametrize("free_canonical", [False, True])
 @pytest.mark.parametrize("parameterisation", ["maximal", "reduced"])
 @pytest.mark.parametrize("name", sorted(TERMS))
-def test_term_jacobian_matches_central_differences(name, parameterisation):
-    rng = np.random.default_rng(zlib.crc32(f"{name}{parameterisation}".encode()))
-    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, (name,)))
+def test_term_jacobian_matches_central_differences(name, parameterisation, free_canonical):
+    """Also with respect to the canonical-parameter offsets (``free_canonical``)."""
+    if name == "naocs_prior" and not free_canonical:
+        with pytest.raises(ValueError, match="canonical parameters are fixed"):
+            Program(ProgramKey(STRUCTURE, parameterisation, True, (name,)))
+        return
+    rng = np.random.default_rng(zlib.crc32(f"{name}{parameterisation}{free_canonical}".encode()))
+    terms = (name,) + (("naocs_prior",) if free_canonical and name != "naocs_prior" else ())
+    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical))
     p = prog.pack(_random_values(prog, rng))
     x = rng.normal(scale=0.3, size=prog.num_x)
     if TERMS[name].kind == "cost":
