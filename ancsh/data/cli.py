@@ -149,9 +149,12 @@ def run_bench(args) -> int:
     intr = Intrinsics.kinect(args.width, args.height)
     print(
         f"ancsh bench render: {intr.width}x{intr.height}, {args.frames} frames per category, "
-        f"{args.threads} ray-casting thread(s), one process; {platform.machine()}, {os.cpu_count()} CPUs"
+        f"{args.threads} ray-casting thread(s), one process; {platform.machine()}, {os.cpu_count()} CPUs, "
+        f"load average {os.getloadavg()[0]:.1f}"
     )
-    print(f"{'category':16s} {'raycast fr/s':>13s} {'+visibility':>12s} {'full frame fr/s':>16s} {'pixels/frame':>13s}")
+    print("fr/s = wall-clock frames per second; CPU ms = process CPU time per frame (what a free core would take)")
+    header = ("category", "raycast fr/s", "CPU ms", "+visib. fr/s", "CPU ms", "full fr/s", "CPU ms", "obj. pixels")
+    print(f"{header[0]:16s}" + "".join(f"{h:>13s}" for h in header[1:]))
     for cat in cats:
         gen = FrameGenerator(GenerationConfig(category=cat, split="test", seed=args.seed, intrinsics=intr))
         rng = np.random.default_rng(args.seed)
@@ -163,17 +166,17 @@ def run_bench(args) -> int:
         for i in range(gen.num_instances):  # load every instance before timing
             gen.instance(i)
         jobs[0][0].render(jobs[0][1], jobs[0][2], intr, nthreads=args.threads)  # warm-up (open3d start-up)
-        rates, pixels = [], 0
+        cols, pixels = [], 0
         for vis in (False, True):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             for renderer, q, T in jobs:
                 view = renderer.render(q, T, intr, visibility=vis, nthreads=args.threads)
                 pixels += int((view.part_ids >= 0).sum()) if not vis else 0
-            rates.append(args.frames / (time.perf_counter() - t0))
-        t0 = time.perf_counter()
+            cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
+        t0, c0 = time.perf_counter(), time.process_time()
         for i in range(args.frames):
             gen.frame(i)
-        full = args.frames / (time.perf_counter() - t0)
-        print(f"{cat:16s} {rates[0]:13.1f} {rates[1]:12.1f} {full:16.1f} {pixels // args.frames:13d}")
+        cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
+        print(f"{cat:16s}" + "".join(f"{x:13.1f}" for x in cols) + f"{pixels // args.frames:13d}")
     sys.stdout.flush()
     return 0
