@@ -59,6 +59,7 @@ def test_stored_ground_truth_is_consistent(tmp_path, frames):
     """NPCS mapped by the stored part pose gives the stored points; NAOCS = s NPCS + t;
     the amodal boxes hold their parts' points; camera joints follow from NAOCS joints."""
     drawer, laptop = frames
+    associated = 0
     for frs, name in ((drawer, "d.h5"), (laptop, "l.h5")):
         for fr in ShardReader(_write(tmp_path / name, frs)):
             gt = fr.gt
@@ -70,9 +71,24 @@ def test_stored_ground_truth_is_consistent(tmp_path, frames):
                                            atol=1e-5)
                 assert gt.boxes_cam[j].contains(fr.points[sel], tol=2e-2 if fr.category == "laptop" else 1e-5).all()
             for k in range(fr.num_joints):
-                T = gt.T_cam_naocs_part(int(gt.joint_parents[k]))
-                np.testing.assert_allclose(T.apply_direction(gt.joint_axes_naocs[k]), gt.joint_axes_cam[k], atol=1e-9)
+                for part in (gt.joint_parents[k], gt.joint_children[k]):  # either connected part
+                    T = gt.T_cam_naocs_part(int(part))
+                    np.testing.assert_allclose(T.apply_direction(gt.joint_axes_naocs[k]), gt.joint_axes_cam[k],
+                                               atol=1e-9)
+                    if gt.joint_types[k].value == "revolute":
+                        np.testing.assert_allclose(T.apply(gt.joint_pivots_naocs[k]), gt.joint_pivots_cam[k], atol=1e-9)
+                assoc = gt.joint_association == k + 1
+                associated += assoc.sum()
+                np.testing.assert_allclose(gt.joint_targets[assoc, :3], np.broadcast_to(gt.joint_axes_naocs[k], (assoc.sum(), 3)),
+                                           atol=1e-6)
+                if gt.joint_types[k].value == "revolute":  # point + distance * direction lies on the axis
+                    foot = gt.naocs[assoc] + gt.joint_targets[assoc, 6:7] * gt.joint_targets[assoc, 3:6]
+                    rel = foot - gt.joint_pivots_naocs[k]
+                    off_axis = rel - np.outer(rel @ gt.joint_axes_naocs[k], gt.joint_axes_naocs[k])
+                    assert np.abs(off_axis).max() < 1e-5
+                    assert np.all(gt.joint_targets[assoc, 6] <= 0.2 + 1e-6)
             assert np.all(fr.visibility > 0) and np.all(fr.visibility <= 1)
+    assert associated > 0
 
 
 def test_frame_dataset_spans_shards_and_bulk_arrays(tmp_path, frames):
