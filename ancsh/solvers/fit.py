@@ -58,7 +58,7 @@ class FitConfig:
         In ``(0, 1]``.
     inlier_threshold : float
         Inlier distance in object diagonals (NAOCS units; the object's size in metres is
-        estimated from the point spread), ``> 0``.
+        estimated from the RANSAC minimal-sample scales), ``> 0``.
     rescore_rounds : int
         After a solve, recompute the inliers with the solved poses and solve again (at most
         this many times, stopping when the inliers do not change).
@@ -315,9 +315,9 @@ class _Fit:
         w = self.weights[active] if self.corr.weights is not None else None
         cfg = self.config
         if cfg.ransac:
-            scale = _spread_scale(pts, c, lab, self.corr.npcs_scale)
             res = articulated_ransac(
-                pts, c, lab, self.M, cfg.inlier_threshold * scale, self.rng, weights=w,
+                pts, c, lab, self.M, None, self.rng, relative_threshold=cfg.inlier_threshold,
+                npcs_scale=self.corr.npcs_scale, weights=w,
                 max_hypotheses=cfg.ransac_iterations, confidence=cfg.ransac_confidence,
             )
             if not res.success:
@@ -535,12 +535,13 @@ class _Fit:
         return viol, costs
 
     def _box(self, j: int, T: Sim3, inliers: np.ndarray) -> OrientedBox:
+        """Amodal box: the NPCS box (centred at the NPCS origin) mapped by the part pose."""
         if self.corr.npcs_extents is not None:
             extents = self.corr.npcs_extents[j]
         else:
             sel = inliers & (self.labels == j)
             extents = 2.0 * np.max(np.abs(self.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
-        return OrientedBox(np.zeros(3), np.eye(3), extents).transformed(T)
+        return OrientedBox(T.translation, T.rotation, T.scale * extents)
 
 
 def _postprocess(structure, poses: list, values: dict):
@@ -564,16 +565,3 @@ def _perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     b = np.array([y * a[2] - z * a[1], z * a[0] - x * a[2], x * a[1] - y * a[0]])  # u x a
     return a, b
 
-
-def _spread_scale(points, npcs, labels, npcs_scale, max_points: int = 128) -> float:
-    """Robust object scale (metres per NAOCS unit) from the point spread of each part."""
-    est = []
-    for j in range(len(npcs_scale)):
-        sel = np.flatnonzero(labels == j)
-        sel = sel[:: max(1, len(sel) // max_points)]
-        p, c = points[sel], npcs[sel]
-        dp = np.median(np.linalg.norm(p - np.median(p, axis=0), axis=1))
-        dc = np.median(np.linalg.norm(c - np.median(c, axis=0), axis=1))
-        if dc > 0 and dp > 0:
-            est.append(dp / dc / npcs_scale[j])
-    return float(np.median(est)) if est else 1.0

@@ -25,7 +25,7 @@ from ..geometry.umeyama import umeyama
 __all__ = ["ArticulatedRansacResult", "articulated_ransac", "batched_umeyama"]
 
 _RANK_TOL = 1e-8
-_MAX_REFITS = 3
+_MAX_REFITS = 2
 SAMPLE_SIZE = 3
 
 
@@ -106,8 +106,8 @@ class ArticulatedRansacResult:
 
 
 def articulated_ransac(
-    points, npcs, labels, num_parts: int, threshold: float, rng, *, weights=None, max_hypotheses: int = 200,
-    confidence: float = 0.99, batch: int = 8,
+    points, npcs, labels, num_parts: int, threshold: float | None, rng, *, relative_threshold: float | None = None,
+    npcs_scale=None, weights=None, max_hypotheses: int = 200, confidence: float = 0.99, batch: int = 8,
 ) -> ArticulatedRansacResult:
     """Per-part Umeyama hypotheses from 3-point samples of every part, scored jointly.
 
@@ -120,15 +120,23 @@ def articulated_ransac(
     labels : (n,) int
         Part of each point; every part ``0..num_parts-1`` needs >= 3 points.
     num_parts : int
-    threshold : float
-        Inlier distance ``|s R c + t - p|`` in metres.
+    threshold : float or None
+        Inlier distance ``|s R c + t - p|`` in metres; ``None`` to use ``relative_threshold``.
     rng : numpy.random.Generator
+    relative_threshold : float, optional
+        Inlier distance in object diagonals (NAOCS units) when ``threshold`` is None; the
+        object size in metres is the median of ``s / npcs_scale[j]`` over the first batch's
+        valid minimal-sample fits of all parts (robust to outliers: most samples are clean).
+    npcs_scale : (M,) float64, optional
+        NPCS -> NAOCS scales, needed with ``relative_threshold``.
     weights : (n,) float64, optional
         Weights of the final refits (samples are drawn uniformly).
     max_hypotheses, confidence, batch
         Stopping rule: at most ``max_hypotheses``; stop earlier once every part has drawn an
         all-inlier sample with probability ``confidence`` (estimated from its best ratio).
     """
+    if threshold is None and (relative_threshold is None or npcs_scale is None):
+        raise ValueError("threshold: give a threshold in metres, or relative_threshold and npcs_scale")
     part_idx = [np.flatnonzero(labels == j) for j in range(num_parts)]
     npcs_t = [np.ascontiguousarray(npcs[idx].T) for idx in part_idx]
     points_t = [np.ascontiguousarray(points[idx].T) for idx in part_idx]
@@ -138,16 +146,23 @@ def articulated_ransac(
     while drawn < min(needed, max_hypotheses):
         h = min(batch, max_hypotheses - drawn)
         drawn += h
+        fits = []
         for j, idx in enumerate(part_idx):
-            n = len(idx)
-            sample = rng.integers(0, n, size=(h, SAMPLE_SIZE))
+            sample = rng.integers(0, len(idx), size=(h, SAMPLE_SIZE))
             distinct = (sample[:, 0] != sample[:, 1]) & (sample[:, 0] != sample[:, 2]) & (sample[:, 1] != sample[:, 2])
             pick = idx[sample]
             R, t, s, valid = batched_umeyama(npcs[pick], points[pick])
             valid &= distinct
-            if not np.any(valid):
+            fits.append((R[valid], t[valid], s[valid]))
+        if threshold is None:
+            sizes = np.concatenate([f[2] / npcs_scale[j] for j, f in enumerate(fits)])
+            if sizes.size == 0:
                 continue
-            R, t, s = R[valid], t[valid], s[valid]
+            threshold = float(relative_threshold * np.median(sizes))
+        for j, (idx, (R, t, s)) in enumerate(zip(part_idx, fits)):
+            n = len(idx)
+            if s.size == 0:
+                continue
             diff = (s[:, None, None] * R) @ npcs_t[j] + t[:, :, None] - points_t[j]  # (h, 3, n)
             dist2 = np.sum(diff * diff, axis=1)
             ratio = np.count_nonzero(dist2 <= threshold**2, axis=1) / n
@@ -158,7 +173,7 @@ def articulated_ransac(
         if np.all(best_ratio > 0):
             needed = _hypotheses_needed(best_ratio, confidence, max_hypotheses)
     n_all = len(labels)
-    if any(b is None for b in best):
+    if threshold is None or any(b is None for b in best):
         missing = [j for j, b in enumerate(best) if b is None]
         return ArticulatedRansacResult(
             None, np.zeros(n_all, dtype=bool), np.maximum(best_ratio, 0.0), drawn,
