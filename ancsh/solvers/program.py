@@ -168,23 +168,23 @@ class Program:
         for P in poses:
             pose_out += [ca.vec(P.R), P.t, P.s]
         self.poses = ca.Function("poses", [x, p], [ca.vertcat(*pose_out)], ["x", "p"], ["poses"])
-        self._nlpsol = None
+        self._nlpsols: dict = {}
         self._nlp_lock = threading.Lock()
-        self._nlp_options = None
 
     def pack(self, values: dict) -> np.ndarray:
         return self.params.pack(values)
 
     def nlpsol(self, options: dict):
-        """The IPOPT solver of this program (built on first use for these ``options``)."""
+        """The IPOPT solver of this program for these ``options`` (built once per option set)."""
         opts_key = tuple(sorted(options.items()))
         with self._nlp_lock:
-            if self._nlpsol is None or self._nlp_options != opts_key:
+            solver = self._nlpsols.get(opts_key)
+            if solver is None:
                 nlp = {"x": self.x, "p": self._p, "f": ca.sumsqr(self._r), "g": self._g}
-                self._nlpsol = ca.nlpsol("ancsh_fit", "ipopt", nlp, dict(options))
-                self._nlp_options = opts_key
+                solver = ca.nlpsol("ancsh_fit", "ipopt", nlp, dict(options))
+                self._nlpsols[opts_key] = solver
                 _count_build("nlpsol")
-            return self._nlpsol
+            return solver
 
     def constraint_bounds(self, frame: dict) -> tuple[np.ndarray, np.ndarray]:
         lo = [np.zeros(self.num_equalities)]

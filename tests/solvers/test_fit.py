@@ -291,3 +291,18 @@ def test_canonical_prior_absorbs_noisy_naocs_parameters(fit_case):
         assert loose.max_constraint_violation < 1e-7  # the joints hold for the adjusted parameters
         for Ta, Tb in zip(stiff.T_cam_npcs, exact.T_cam_npcs):
             assert geodesic_angle(Ta.rotation, Tb.rotation) < 1e-5
+
+
+def test_paper_config_and_two_tolerances_share_one_program(fit_case):
+    case = fit_case(6, num_parts=3)
+    paper = FitConfig.paper()
+    assert paper.scale_estimator == "umeyama" and paper.naocs_prior_weight == 0.0
+    with pytest.raises(ValueError, match="unknown key"):
+        FitConfig.paper(lambda_=1.0)
+    configs = [FitConfig(tol=1e-10), FitConfig(tol=1e-9)]
+    for cfg in configs:
+        fit(case.observation, case.correspondences, "exact_maximal", config=cfg)
+    before = program_build_count()
+    for cfg in configs * 2:
+        assert fit(case.observation, case.correspondences, "exact_maximal", config=cfg).ok
+    assert program_build_count() == before
