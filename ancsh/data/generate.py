@@ -96,7 +96,7 @@ class GenerationConfig:
                 raise ValueError(f"category: unknown category {self.category!r}; known: {', '.join(CATEGORIES)}")
             instance_seeds(self.category, self.split)  # validates the split
         else:
-            object.__setattr__(self, "urdf", str(self.urdf))
+            object.__setattr__(self, "urdf", str(Path(self.urdf).resolve()))
             if not Path(self.urdf).is_file():
                 raise FileNotFoundError(f"urdf: no such file {self.urdf}")
         for name, lo in (("seed", 0), ("shard_size", 1), ("num_points", 1), ("min_part_pixels", 0), ("max_attempts", 1)):

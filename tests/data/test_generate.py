@@ -232,3 +232,34 @@ def test_cli_generate_from_urdf(tmp_path, capsys):
     ds = FrameDataset(out)
     assert len(ds) == 2 and ds[0].instance_seed == -1 and ds.readers[0].source == f"urdf:{laptops[0]}"
     assert ds.readers[0].path.name == f"{laptops[0].parent.name}_urdf_00000.h5"
+
+
+@pytest.mark.slow
+def test_killed_generator_resumes_to_the_same_dataset(tmp_path):
+    """SIGKILL a real `ancsh data generate` process after its first shard, then resume."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "killed"
+    args = ["--category", "laptop", "--frames", "40", "--shard-size", "2", "--points", "64", "--workers", "1",
+            "--width", "320", "--height", "240", "--seed", "4", "--quiet"]
+    proc = subprocess.Popen([sys.executable, "-m", "ancsh", "data", "generate", *args, "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "laptop_train_00000.h5").exists():
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    done = sorted(p.name for p in out.glob("*.h5"))
+    assert 1 <= len(done) < 20
+    assert main(["data", "generate", *args, "--out", str(out)]) == 0
+    assert not list(out.glob("*.tmp*"))
+    assert main(["data", "generate", *args, "--out", str(tmp_path / "clean")]) == 0
+    assert_same_arrays(read_arrays(out), read_arrays(tmp_path / "clean"))
