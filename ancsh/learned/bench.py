@@ -37,7 +37,11 @@ def _config(name: str, **kw):
 
 
 def timing(names, *, batch: int = 16, num_points: int = 1024, threads: int = 1, repeats: int = 4) -> list[dict]:
-    """Median training-step time (batch ``batch``) and single-frame forward time per setting."""
+    """Median training-step time (batch ``batch``) and single-frame forward time per setting.
+
+    Wall and process CPU times are both reported: on a shared machine the CPU time of a
+    one-thread run is the cost the network itself needs.
+    """
     import torch
 
     from .losses import Targets, ancsh_loss
@@ -58,25 +62,28 @@ def timing(names, *, batch: int = 16, num_points: int = 1024, threads: int = 1, 
         torch.manual_seed(0)
         net = build_network("ancsh", 2, 1, **cfg.network_kwargs())
         opt = torch.optim.Adam(net.parameters())
-        steps = []
+        steps, cpu = [], []
         for _ in range(repeats + 1):
-            s = time.perf_counter()
+            s, c = time.perf_counter(), time.process_time()
             loss, _ = ancsh_loss(net(x), t)
             opt.zero_grad()
             loss.backward()
             opt.step()
             steps.append(time.perf_counter() - s)
+            cpu.append(time.process_time() - c)
         net.eval()
-        fwd = []
+        fwd, fwd_cpu = [], []
         with torch.no_grad():
             for _ in range(repeats + 1):
-                s = time.perf_counter()
+                s, c = time.perf_counter(), time.process_time()
                 net(x[:1])
                 fwd.append(time.perf_counter() - s)
+                fwd_cpu.append(time.process_time() - c)
         rows.append({
             "setting": name, "width": cfg.width, "npoints": list(cfg.npoints), "nsamples": list(cfg.nsamples),
             "backbones": cfg.backbones, "params": sum(p.numel() for p in net.parameters()),
-            "step_s": float(np.median(steps[1:])), "forward_ms": 1e3 * float(np.min(fwd[1:])),
+            "step_s": float(np.median(steps[1:])), "step_cpu_s": float(np.median(cpu[1:])),
+            "forward_ms": 1e3 * float(np.min(fwd[1:])), "forward_cpu_ms": 1e3 * float(np.min(fwd_cpu[1:])),
             "threads": threads, "load_avg": os.getloadavg()[0],
         })
         print(json.dumps(rows[-1]), flush=True)

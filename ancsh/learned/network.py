@@ -57,6 +57,13 @@ def denormalize_joint_votes(joint: torch.Tensor, scale: torch.Tensor) -> torch.T
     return torch.cat([joint[..., :6], joint[..., 6:] * scale], dim=-1)
 
 
+def _check_structure(num_parts: int, num_joints: int) -> None:
+    if num_parts < 2:
+        raise ValueError(f"num_parts: expected >= 2, got {num_parts}")
+    if num_joints < 1:
+        raise ValueError(f"num_joints: expected >= 1, got {num_joints}")
+
+
 def _head(c_in: int, c_out: int, hidden: int) -> nn.Sequential:
     return nn.Sequential(shared_mlp([c_in, hidden], dim=1), nn.Conv1d(hidden, c_out, 1))
 
@@ -80,10 +87,7 @@ class AncshNet(nn.Module):
 
     def __init__(self, num_parts: int, num_joints: int, *, width=0.25, npoints=(256, 64), radii=(0.2, 0.4), nsamples=(32, 32), backbones=1):
         super().__init__()
-        if num_parts < 2:
-            raise ValueError(f"num_parts: expected >= 2, got {num_parts}")
-        if num_joints < 1:
-            raise ValueError(f"num_joints: expected >= 1, got {num_joints}")
+        _check_structure(num_parts, num_joints)
         if backbones not in (1, 2):
             raise ValueError(f"backbones: expected 1 or 2, got {backbones}")
         self.num_parts, self.num_joints = num_parts, num_joints
@@ -129,10 +133,7 @@ class DirectVotingNet(nn.Module):
 
     def __init__(self, num_parts: int, num_joints: int, *, width=0.25, npoints=(256, 64), radii=(0.2, 0.4), nsamples=(32, 32), backbones=1):
         super().__init__()
-        if num_parts < 2:
-            raise ValueError(f"num_parts: expected >= 2, got {num_parts}")
-        if num_joints < 1:
-            raise ValueError(f"num_joints: expected >= 1, got {num_joints}")
+        _check_structure(num_parts, num_joints)
         if backbones != 1:
             raise ValueError(f"backbones: the direct-voting network has one backbone, got {backbones}")
         self.num_parts, self.num_joints = num_parts, num_joints

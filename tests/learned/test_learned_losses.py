@@ -89,3 +89,14 @@ def test_losses_backpropagate_through_the_networks(tiny_arrays, tiny_config):
         assert all(p.grad is not None for p in net.parameters())
         if kind == "direct_voting":
             assert parts["npcs"] == 0 and parts["joint"] > 0
+
+
+def test_network_rejects_bad_structures():
+    with pytest.raises(ValueError, match="num_parts"):
+        build_network("ancsh", 1, 1)
+    with pytest.raises(ValueError, match="num_joints"):
+        build_network("direct_voting", 2, 0)
+    with pytest.raises(ValueError, match="backbones"):
+        build_network("direct_voting", 2, 1, backbones=2)
+    with pytest.raises(ValueError, match="kind"):
+        build_network("pointnet", 2, 1)
