@@ -439,7 +439,9 @@ class _Fit:
         for j in range(self.M):
             v[f"Gs{j}"] = corr.npcs_scale[j]
             v[f"Gt{j}"] = corr.npcs_translation[j]
+        limits = self._limits()
         for k in range(self.K):
+            v[f"state_ref{k}"] = _state_reference(*limits[k])
             u = corr.joint_axes_naocs[k]
             a, b = _perpendiculars(u)
             v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, corr.joint_pivots_naocs[k], a, b
@@ -562,6 +564,17 @@ def _postprocess(structure, poses: list, values: dict):
     post = postprocess_function(structure)
     vec = np.concatenate([np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in poses])
     return post(vec, values)
+
+
+def _state_reference(lower: float, upper: float) -> float:
+    """Centre of the window in which revolute states are reported: the middle of the limits."""
+    if np.isfinite(lower) and np.isfinite(upper):
+        return 0.5 * (lower + upper)
+    if np.isfinite(lower):
+        return max(lower + np.pi, 0.0)
+    if np.isfinite(upper):
+        return min(upper - np.pi, 0.0)
+    return 0.0
 
 
 def _perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

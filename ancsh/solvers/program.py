@@ -241,7 +241,12 @@ class PostProcess:
     params: Params
 
     def __call__(self, pose_vector: np.ndarray, values: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(axes (K, 3), pivots (K, 3), states (K,))`` for poses packed as in :meth:`Program.poses`."""
+        """``(axes (K, 3), pivots (K, 3), states (K,))`` for poses packed as in :meth:`Program.poses`.
+
+        ``values`` holds ``Gs{j}``, ``Gt{j}``, ``u{k}``, ``q{k}`` and optionally ``state_ref{k}``
+        (centre of the revolute state window, default 0: states in ``(-pi, pi]``).
+        """
+        values = {**{n: 0.0 for n in self.params.names if n.startswith("state_ref")}, **values}
         axes, pivots, states = self.function(pose_vector, self.params.pack(values))
         k = int(np.asarray(states).size)
         return (

@@ -256,8 +256,10 @@ def axis_angle_sx(u, theta) -> ca.SX:
 def joint_state_expr(ctx: Context, k: int) -> ca.SX:
     """State of joint ``k`` relative to rest, from the two part poses.
 
-    Revolute: the signed angle of ``R_p^T R_c`` about ``u_k`` (radians);
-    prismatic: ``(R_p u_k) . delta_k`` (metres).
+    Revolute: the signed angle of ``R_p^T R_c`` about ``u_k`` (radians), in the window
+    ``(ref_k - pi, ref_k + pi]`` around the parameter ``state_ref{k}`` (the middle of the joint's
+    limits), so a limit range wider than ``pi`` on one side of rest is represented without a
+    wrap; prismatic: ``(R_p u_k) . delta_k`` (metres).
     """
     p, c = ctx.joint_parts(k)
     u = ctx.axis(k)
@@ -266,7 +268,8 @@ def joint_state_expr(ctx: Context, k: int) -> ca.SX:
         Rrel = Rp.T @ Rc
         sin = ca.dot(u, vee_sx(Rrel))
         cos = 0.5 * (ca.trace(Rrel) - 1.0)
-        return ca.atan2(sin, cos)
+        ref = ctx.params.get(f"state_ref{k}")
+        return ref + ca.atan2(sin * ca.cos(ref) - cos * ca.sin(ref), cos * ca.cos(ref) + sin * ca.sin(ref))
     return ca.dot(Rp @ u, ctx.origin_offset(k))
 
 

@@ -306,3 +306,24 @@ def test_paper_config_and_two_tolerances_share_one_program(fit_case):
     for cfg in configs * 2:
         assert fit(case.observation, case.correspondences, "exact_maximal", config=cfg).ok
     assert program_build_count() == before
+
+
+def test_revolute_states_beyond_pi_inside_wide_limits(fit_case):
+    """A revolute joint limited to [-0.2, 5.5] rad at 4 rad is reported as 4 (not 4 - 2 pi) and fitted."""
+    from ancsh.model.articulated import ArticulatedModel, Joint
+    from ancsh.model.canonical import ancsh_ground_truth
+    from ancsh.model.synthetic import random_articulated_model, sample_frame
+
+    rng = np.random.default_rng(23)
+    m = random_articulated_model(rng, 2, joint_types="revolute")
+    j = m.joints[0]
+    joint = Joint(j.name, j.type, j.parent, j.child, j.axis, j.pivot, -0.2, 5.5, 0.0, j.origin)
+    model = ArticulatedModel(m.parts, (joint,), name="wide")
+    frame = sample_frame(model, rng, q=[4.0])
+    gt = ancsh_ground_truth(model, frame.q, frame.T_cam_base, frame.points_cam, frame.part_labels)
+    corr = Correspondences.from_ground_truth(gt, joint_limits=[[-0.2, 5.5]])
+    for f, s in ALL:
+        r = fit(Observation(frame.points_cam), corr, f, s)
+        assert r.ok, (f, s, r.message)
+        np.testing.assert_allclose(r.joint_states, [4.0], atol=1e-6)
+        assert r.max_constraint_violation < 1e-6
