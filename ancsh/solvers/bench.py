@@ -310,7 +310,6 @@ class _Sample:
     """What a method may know about the corruption (only the ``gt_refit`` reference uses it)."""
 
     clean: np.ndarray
-    ground_truth_poses: tuple
 
 
 def run_benchmark(config: BenchConfig, *, frames=None, methods=None, progress=None) -> dict:
@@ -347,14 +346,14 @@ def run_benchmark(config: BenchConfig, *, frames=None, methods=None, progress=No
             for m in methods:
                 if m.name != "official":
                     try:
-                        m.fit(obs, clean.correspondences, np.random.default_rng(0), _Sample(clean.clean, ()))
+                        m.fit(obs, clean.correspondences, np.random.default_rng(0), _Sample(clean.clean))
                     except Exception:  # reported by the timed run below
                         pass
         for l_i, level in enumerate(config.levels):
             seed = [config.seed, f_i, l_i]
             sample = corrupt_ground_truth(frame.gt, frame.points, level, np.random.default_rng(seed),
                                           joint_limits=frame.joint_limits)
-            info = _Sample(sample.clean, tuple(frame.gt.T_cam_npcs))
+            info = _Sample(sample.clean)
             line = []
             for m in methods:
                 t0 = time.perf_counter()
