@@ -38,7 +38,7 @@ from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .types import Correspondences, FitResult, FitStatus, Observation
 
-__all__ = ["FORMULATIONS", "FitConfig", "Formulation", "fit"]
+__all__ = ["FORMULATIONS", "FitConfig", "Formulation", "canonical_values", "fit"]
 
 _MIN_POINTS = 3
 SCALE_ESTIMATORS = ("umeyama", "symmetric")
@@ -436,15 +436,7 @@ class _Fit:
             "L": L, "soft_weight": cfg.soft_weight, "soft_mu": cfg.soft_mu,
             "common_scale_weight": cfg.common_scale_weight, "naocs_prior_weight": cfg.naocs_prior_weight,
         }
-        for j in range(self.M):
-            v[f"Gs{j}"] = corr.npcs_scale[j]
-            v[f"Gt{j}"] = corr.npcs_translation[j]
-        limits = self._limits()
-        for k in range(self.K):
-            v[f"state_ref{k}"] = _state_reference(*limits[k])
-            u = corr.joint_axes_naocs[k]
-            a, b = _perpendiculars(u)
-            v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, corr.joint_pivots_naocs[k], a, b
+        v.update(canonical_values(corr, self._limits()))
         self._static = dict(v)
         return v
 
@@ -556,6 +548,28 @@ class _Fit:
             sel = inliers & (self.labels == j)
             extents = 2.0 * np.max(np.abs(self.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
         return OrientedBox(T.translation, T.rotation, T.scale * extents)
+
+
+def canonical_values(corr: Correspondences, limits=None) -> dict:
+    """Parameter values of a correspondence set's canonical quantities, by program parameter name.
+
+    ``Gs{j}``, ``Gt{j}`` per part; ``u{k}``, ``q{k}``, the perpendiculars ``a{k}``, ``b{k}`` and
+    the revolute state window centre ``state_ref{k}`` per joint (from ``limits`` ``(K, 2)``
+    relative to rest, default the correspondences' limits). Use with
+    :func:`ancsh.solvers.program.postprocess_function` and the programs of :mod:`.program`.
+    """
+    if limits is None:
+        limits = corr.joint_limits if corr.joint_limits is not None else np.tile([-np.inf, np.inf], (corr.num_joints, 1))
+    v = {}
+    for j in range(corr.num_parts):
+        v[f"Gs{j}"] = corr.npcs_scale[j]
+        v[f"Gt{j}"] = corr.npcs_translation[j]
+    for k in range(corr.num_joints):
+        u = corr.joint_axes_naocs[k]
+        a, b = _perpendiculars(u)
+        v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, corr.joint_pivots_naocs[k], a, b
+        v[f"state_ref{k}"] = _state_reference(*limits[k])
+    return v
 
 
 def _postprocess(structure, poses: list, values: dict):
