@@ -54,6 +54,10 @@ def register(sub) -> None:
     g.add_argument("--height", type=_positive_int, default=480, help="image height (default 480)")
     g.add_argument("--noise", dest="noise", action="store_true", default=True, help="Kinect-like sensor noise (default)")
     g.add_argument("--no-noise", dest="noise", action="store_false", help="exact depth")
+    g.add_argument("--min-part-pixels", type=_non_negative_int, default=30,
+                   help="reject views where a part shows on fewer pixels (default 30)")
+    g.add_argument("--min-part-fraction", type=float, default=0.02,
+                   help="reject views where a part shows on less than this fraction of the object's pixels (default 0.02)")
     g.add_argument("--overwrite", action="store_true", help="replace shards made with other settings")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=run_generate)
@@ -68,7 +72,7 @@ def register(sub) -> None:
 def run_generate(args) -> int:
     from pathlib import Path
 
-    from .generate import GenerationConfig, generate_dataset
+    from .generate import FrameRejected, GenerationConfig, generate_dataset
     from .noise import DepthNoise
     from .render import Intrinsics
 
@@ -81,6 +85,8 @@ def run_generate(args) -> int:
         num_points=args.points,
         intrinsics=Intrinsics.kinect(args.width, args.height),
         noise=DepthNoise() if args.noise else DepthNoise.off(),
+        min_part_pixels=args.min_part_pixels,
+        min_part_fraction=args.min_part_fraction,
     )
     split = config.split if config.urdf is None else "urdf"
     out = Path(args.out) if args.out else Path("data") / f"{config.name}_{split}"
@@ -88,6 +94,9 @@ def run_generate(args) -> int:
         report = generate_dataset(
             config, args.frames, out, workers=args.workers, progress=not args.quiet, overwrite=args.overwrite
         )
+    except FrameRejected as exc:
+        print(f"ancsh data generate: error: {exc}; complete shards are kept in {out}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"\ninterrupted: complete shards are kept in {out}; run the same command again to resume",
               file=sys.stderr)

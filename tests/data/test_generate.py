@@ -263,3 +263,14 @@ def test_killed_generator_resumes_to_the_same_dataset(tmp_path):
     assert not list(out.glob("*.tmp*"))
     assert main(["data", "generate", *args, "--out", str(tmp_path / "clean")]) == 0
     assert_same_arrays(read_arrays(out), read_arrays(tmp_path / "clean"))
+
+
+def test_cli_reports_objects_without_acceptable_views(tmp_path, capsys):
+    doors = [p for p in _shared_objects() if p.parent.name == "doors"]
+    if doors:  # a door's frame link has no mesh: no ANCSH ground truth
+        code = main(["data", "generate", "--urdf", str(doors[0]), "--frames", "1", "--workers", "1", "--out",
+                     str(tmp_path), "--quiet"])
+        assert code == 2 and "have no mesh" in capsys.readouterr().err
+    code = main(["data", "generate", "--category", "laptop", "--frames", "1", "--workers", "1", "--width", "64",
+                 "--height", "48", "--min-part-pixels", "5000", "--out", str(tmp_path / "never"), "--quiet"])
+    assert code == 1 and "no view of" in capsys.readouterr().err
