@@ -109,7 +109,8 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         return np.asarray(prog.jacobian(x, p))
 
     tol = max(float(opts.tol), np.finfo(float).eps)
-    kwargs = dict(jac=jac, xtol=tol, ftol=tol, gtol=tol, max_nfev=int(opts.max_iterations) * (prog.num_x + 1))
+    # With an exact Jacobian, one residual evaluation per iteration: max_nfev bounds the iterations.
+    kwargs = dict(jac=jac, xtol=tol, ftol=tol, gtol=tol, max_nfev=int(opts.max_iterations))
     if bounded:
         # trf needs a strictly feasible start.
         span = np.where(np.isfinite(ubx - lbx), ubx - lbx, 1.0)

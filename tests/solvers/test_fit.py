@@ -327,3 +327,11 @@ def test_revolute_states_beyond_pi_inside_wide_limits(fit_case):
         assert r.ok, (f, s, r.message)
         np.testing.assert_allclose(r.joint_states, [4.0], atol=1e-6)
         assert r.max_constraint_violation < 1e-6
+
+
+@pytest.mark.parametrize("formulation, solver", [(f, s) for f, s in ALL if f != "per_part"])
+def test_iteration_limit_is_a_status_with_an_estimate(fit_case, formulation, solver):
+    case = fit_case(31, num_parts=3, npcs_noise=0.03)
+    r = fit(case.observation, case.correspondences, formulation, solver, FitConfig(max_iterations=1, ransac=False))
+    assert r.status == FitStatus.MAX_ITER and not r.ok
+    assert len(r.T_cam_npcs) == 3 and np.all(np.isfinite(r.joint_states)) and r.message
