@@ -85,6 +85,12 @@ class ArticulatedIcpConfig:
         (one at a time, the rest kept) at ``joint_starts`` states over its range for
         ``start_iterations`` iterations and continue whichever scores best.
     refine_iterations : int
+    candidates : int
+        The best-scoring starts (one per basin: starts that ended near a tried one are
+        skipped) are finished one after another (refine, joint restarts, convergence) until one explains ``accept_inliers`` of the observed points within
+        the final gate; at most ``candidates`` of them. The best-scoring result is returned.
+    accept_inliers : float
+        In ``(0, 1]``.
     num_points : int or None
         Random subsample of the observation used by ICP (``None``: all points).
     solver : str
@@ -102,18 +108,20 @@ class ArticulatedIcpConfig:
     loss_scale: float = 0.01
     point_to_plane: bool = True
     point_weight: float = 0.0
-    tolerance: float = 1e-5
+    tolerance: float = 1e-4
     joint_starts: int = 3
     orientations: tuple = ()
     start_iterations: int = 5
     joint_restarts: bool = True
     refine_iterations: int = 8
+    candidates: int = 4
+    accept_inliers: float = 0.9
     num_points: int | None = 1500
     solver: str = "lsq"
     solver_iterations: int = 8
 
     def __post_init__(self):
-        for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations"):
+        for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations", "candidates"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
                 raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
@@ -125,6 +133,8 @@ class ArticulatedIcpConfig:
                 raise ValueError(f"{name}: expected a positive number, got {v!r}")
         if self.gate_end > self.gate_start:
             raise ValueError(f"gate_end: {self.gate_end} exceeds gate_start {self.gate_start}")
+        if not 0 < self.accept_inliers <= 1:
+            raise ValueError(f"accept_inliers: expected a number in (0, 1], got {self.accept_inliers}")
         if not 0 < self.gate_decay <= 1:
             raise ValueError(f"gate_decay: expected a number in (0, 1], got {self.gate_decay}")
         if not (np.isfinite(self.point_weight) and self.point_weight >= 0):
@@ -342,6 +352,49 @@ class _Run:
         return float(np.mean(np.minimum(d / gate, 1.0) ** 2)) + back, float(inl.mean()), rmse
 
 
+def _same_basin(a: ArticulatedPose, b: ArticulatedPose, diagonal: float) -> bool:
+    """Base poses within 10 degrees and 5% of the diagonal, joint states within 0.1 rad / 5%."""
+    return (
+        geodesic_angle(a.T_cam_base.rotation, b.T_cam_base.rotation) < np.radians(10.0)
+        and np.linalg.norm(a.T_cam_base.translation - b.T_cam_base.translation) < 0.05 * diagonal
+        and bool(np.all(np.abs(a.q - b.q) < 0.1))
+    )
+
+
+def _finish_candidate(run: _Run, model, config, est, hist, n):
+    """Refine a start, restart its joints (stage 2), iterate to convergence.
+
+    Returns ``((score, inlier ratio, rmse), estimate, status, history)`` (``None`` when every
+    correspondence was lost) and the number of iterations used.
+    """
+    used = 0
+    if config.joint_restarts and model.num_joints:
+        # Stage 2: with the object pose settled, restart each joint over its range (the
+        # others kept) and keep whatever scores best; this escapes joint local minima such
+        # as a drawer front matched to the drawer's side walls.
+        est, status, n2, _ = run.iterate(est, n, config.refine_iterations, hist)
+        used += n2 - n
+        n = n2
+        if status == FitStatus.TOO_FEW_POINTS:
+            return None, used
+        best = (run.score(est)[0], est, hist, n)
+        for q in _joint_grid(model, est.q, config.joint_starts):
+            h2: list = []
+            e2, st2, m, _ = run.iterate(ArticulatedPose(est.T_cam_base, q), 0, config.start_iterations, h2)
+            used += m
+            if st2 == FitStatus.TOO_FEW_POINTS:
+                continue
+            sc = run.score(e2)[0]
+            if sc < best[0]:
+                best = (sc, e2, hist + h2, m)
+        _, est, hist, n = best
+    est, status, n2, _ = run.iterate(est, n, max(config.max_iterations - n, 1), hist)
+    used += n2 - n
+    if status == FitStatus.TOO_FEW_POINTS:
+        return None, used
+    return (run.score(est), est, status, hist), used
+
+
 def _joint_grid(model: ArticulatedModel, q, count: int) -> list:
     """States ``q`` with one joint at a time moved to ``(i + 0.5) / count`` of its range."""
     lo = np.maximum(model.lower_limits, -np.pi)
@@ -473,46 +526,36 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     run = _Run(model, points, config, provider, diagonal, radii, rng)
     center_base = np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0)
 
-    best = None
     starts = _starts(model, inits, config, center_base)
     iterations = 0
+    candidates = []
     for s in starts:
         hist: list = []
         est, status, n, _ = run.iterate(s, 0, config.start_iterations, hist)
         iterations += n
-        if status == FitStatus.TOO_FEW_POINTS:
-            continue
-        sc = run.score(est)
-        if best is None or sc[0] < best[0][0]:
-            best = (sc, est, hist, n)
-    if best is None:
+        if status != FitStatus.TOO_FEW_POINTS:
+            candidates.append((run.score(est)[0], len(candidates), est, hist, n))
+    if not candidates:
         return failed(FitStatus.TOO_FEW_POINTS,
                       f"no observed point within {run.gate(0):.3g} m of the model at any start (observation far from the estimate?)")
-    _, est, hist, n = best
-    if config.joint_restarts and model.num_joints:
-        # Stage 2: with the object pose settled, restart each joint over its range (the
-        # others kept) and keep whatever scores best; this escapes joint local minima such
-        # as a drawer front matched to the drawer's side walls.
-        est, status, n2, _ = run.iterate(est, n, config.refine_iterations, hist)
-        iterations += n2 - n
-        n = n2
-        if status != FitStatus.TOO_FEW_POINTS:
-            best = (run.score(est), est, hist, n)
-            for q in _joint_grid(model, est.q, config.joint_starts):
-                h2: list = []
-                e2, st2, m, _ = run.iterate(ArticulatedPose(est.T_cam_base, q), 0, config.start_iterations, h2)
-                iterations += m
-                if st2 == FitStatus.TOO_FEW_POINTS:
-                    continue
-                sc = run.score(e2)
-                if sc[0] < best[0][0]:
-                    best = (sc, e2, hist + h2, m)
-            _, est, hist, n = best
-    est, status, n2, _ = run.iterate(est, n, max(config.max_iterations - n, 1), hist)
-    iterations += n2 - n
-    if status == FitStatus.TOO_FEW_POINTS:
-        return failed(status, "lost every correspondence while iterating", est, hist)
-    sc, ratio, rmse = run.score(est)
+    candidates.sort(key=lambda c: (c[0], c[1]))
+    final = None
+    tried: list = []
+    for _, _, est, hist, n in candidates:
+        if len(tried) >= config.candidates:
+            break
+        if any(_same_basin(est, other, run.diagonal) for other in tried):
+            continue  # finishing a start that sits where a tried one sat would end where it ended
+        tried.append(est)
+        out, used = _finish_candidate(run, model, config, est, hist, n)
+        iterations += used
+        if out is not None and (final is None or out[0][0] < final[0][0]):
+            final = out
+        if final is not None and final[0][1] >= config.accept_inliers:
+            break
+    if final is None:
+        return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating", candidates[0][2], candidates[0][3])
+    (sc, ratio, rmse), est, status, hist = final
     msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
     return CadFitResult(
         method="articulated_icp", T_cam_parts=tuple(est.part_poses(model)), q=est.q.copy(), T_cam_base=est.T_cam_base,

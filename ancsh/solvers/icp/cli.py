@@ -37,7 +37,7 @@ def register(sub) -> None:
 
     e = sub.add_parser("evaluate-cad", help="AD accuracy of articulated ICP vs rigid ICP on rendered view sequences")
     e.add_argument("--quick", action="store_true", help="a ~2 minute subset")
-    e.add_argument("--frames", type=int, default=None, help="views per sequence (default 8, quick 3)")
+    e.add_argument("--frames", type=int, default=None, help="views per sequence (default 6, quick 3)")
     e.add_argument("--out", default="docs/results/cad_fitting.md", help="markdown report (a .json is written next to it)")
     e.set_defaults(func=run_evaluate)
 

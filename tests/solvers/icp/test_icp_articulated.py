@@ -14,7 +14,7 @@ from ancsh.solvers.icp.template import ArticulatedPose, TemplateProvider
 from ancsh.solvers.types import FitStatus
 
 INTR = Intrinsics.kinect(320, 240)
-CFG = ArticulatedIcpConfig(num_points=800)
+CFG = ArticulatedIcpConfig(num_points=600)
 LAPTOP_URDF = shared_data_dir() / "partnet_mobility" / "laptop_10697" / "mobility.urdf"
 
 
@@ -63,7 +63,7 @@ def test_recovers_a_urdf_object_from_automatic_initialisation():
     q = np.array([0.3 * model.lower_limits[0] + 0.7 * model.upper_limits[0]])
     T, pts = _view(model, q, azimuth_deg=-30.0)
     inits = auto_init(model, pts, azimuths=4)
-    res = articulated_icp(model, pts, inits, config=ArticulatedIcpConfig(num_points=800, joint_starts=2))
+    res = articulated_icp(model, pts, inits, config=ArticulatedIcpConfig(num_points=600, joint_starts=2))
     assert res.starts == 4 * 3
     _assert_recovered(model, res, T, q, 1e-3)
 
