@@ -1,6 +1,6 @@
 """Seeded articulated test cases for the solver tests."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -27,11 +27,7 @@ def build_fit_case(seed, num_parts=3, joint_types=None, tree=False, points_per_p
     lim = np.stack([model.lower_limits - model.rest_states, model.upper_limits - model.rest_states], axis=1)
     corr = Correspondences.from_ground_truth(gt, joint_limits=lim if limits else None)
     if npcs_noise:
-        corr = Correspondences(
-            corr.part_labels, corr.npcs + rng.normal(0.0, npcs_noise, corr.npcs.shape), corr.npcs_scale,
-            corr.npcs_translation, corr.joint_types, corr.joint_parents, corr.joint_children,
-            corr.joint_axes_naocs, corr.joint_pivots_naocs, None, corr.npcs_extents, corr.joint_limits,
-        )
+        corr = replace(corr, npcs=corr.npcs + rng.normal(0.0, npcs_noise, corr.npcs.shape))
     return FitCase(model, gt, Observation(frame.points_cam), corr)
 
 

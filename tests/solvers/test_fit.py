@@ -1,5 +1,7 @@
 """End-to-end fits: ground truth recovery, backend agreement, exact constraints, limits, errors."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -71,10 +73,7 @@ def test_joint_limits_hold_when_the_data_violates_them(fit_case):
     gt_states = case.gt.joint_states
     lim = np.stack([gt_states - 0.3, gt_states - 0.1], axis=1)  # the true states lie above the limits
     c = case.correspondences
-    corr = Correspondences(
-        c.part_labels, c.npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents,
-        c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs, None, c.npcs_extents, lim,
-    )
+    corr = replace(c, joint_limits=lim)
     cfg = FitConfig(ransac=False, rescore_rounds=0)
     for formulation, solver in [("exact_maximal", "ipopt"), ("exact_reduced", "ipopt"), ("exact_reduced", "lsq")]:
         r = fit(case.observation, corr, formulation, solver, cfg)
@@ -93,10 +92,7 @@ def test_ransac_rejects_outliers(fit_case):
     npcs = c.npcs.copy()
     shift = rng.normal(size=(bad.sum(), 3))
     npcs[bad] += shift / np.linalg.norm(shift, axis=1, keepdims=True) / c.npcs_scale[c.part_labels[bad], None]
-    corr = Correspondences(
-        c.part_labels, npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents, c.joint_children,
-        c.joint_axes_naocs, c.joint_pivots_naocs, None, c.npcs_extents, c.joint_limits,
-    )
+    corr = replace(c, npcs=npcs)
     for formulation in ("per_part", "exact_reduced", "exact_maximal"):
         r = fit(case.observation, corr, formulation, rng=1)
         assert r.ok, r.message
@@ -113,10 +109,7 @@ def test_robust_data_term_downweights_outliers(fit_case, kernel):
     bad = rng.random(c.num_points) < 0.1
     npcs = c.npcs.copy()
     npcs[bad] += rng.normal(0.0, 0.3, size=(bad.sum(), 3))
-    corr = Correspondences(
-        c.part_labels, npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents, c.joint_children,
-        c.joint_axes_naocs, c.joint_pivots_naocs, None, c.npcs_extents, c.joint_limits,
-    )
+    corr = replace(c, npcs=npcs)
     # Scales optimised: the Umeyama initial scales are biased by the outliers.
     base = FitConfig(ransac=False, rescore_rounds=0, optimize_scale=True)
     plain = fit(case.observation, corr, "exact_reduced", config=base)
@@ -146,17 +139,13 @@ def test_too_few_points_nan_and_empty_inputs(fit_case):
     case = fit_case(4, num_parts=3)
     c = case.correspondences
     keep = (c.part_labels != 2) | (np.cumsum(c.part_labels == 2) <= 2)  # part 2 keeps 2 points
-    corr = Correspondences(
-        c.part_labels[keep], c.npcs[keep], c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents,
-        c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs,
-    )
+    corr = replace(c, part_labels=c.part_labels[keep], npcs=c.npcs[keep], npcs_extents=None, joint_limits=None)
     obs = Observation(case.observation.points_cam[keep])
     for f, s in ALL:
         r = fit(obs, corr, f, s)
         assert r.status == FitStatus.TOO_FEW_POINTS and "part(s) [2]" in r.message
         assert r.joint_states.shape == (2,) and np.all(np.isnan(r.joint_states))
-    empty = Correspondences(np.zeros(0, int), np.zeros((0, 3)), c.npcs_scale, c.npcs_translation, c.joint_types,
-                            c.joint_parents, c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs)
+    empty = replace(c, part_labels=np.zeros(0, int), npcs=np.zeros((0, 3)))
     assert fit(Observation(np.zeros((0, 3))), empty).status == FitStatus.TOO_FEW_POINTS
     with pytest.raises(ValueError, match="points_cam"):
         pts = case.observation.points_cam.copy()
@@ -169,8 +158,7 @@ def test_degenerate_part_is_a_status(fit_case):
     c = case.correspondences
     npcs = c.npcs.copy()
     npcs[c.part_labels == 1] = npcs[c.part_labels == 1][0]  # all NPCS of part 1 coincide
-    corr = Correspondences(c.part_labels, npcs, c.npcs_scale, c.npcs_translation, c.joint_types, c.joint_parents,
-                           c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs)
+    corr = replace(c, npcs=npcs)
     for ransac in (True, False):
         r = fit(case.observation, corr, "exact_reduced", config=FitConfig(ransac=ransac))
         assert r.status == FitStatus.DEGENERATE and not r.ok
@@ -275,10 +263,9 @@ def test_canonical_prior_absorbs_noisy_naocs_parameters(fit_case):
     case = fit_case(17, num_parts=3, tree=True, joint_types="revolute")
     c = case.correspondences
     rng = np.random.default_rng(5)
-    corr = Correspondences(
-        c.part_labels, c.npcs, c.npcs_scale, c.npcs_translation + rng.normal(0, 0.02, (3, 3)), c.joint_types,
-        c.joint_parents, c.joint_children, c.joint_axes_naocs, c.joint_pivots_naocs + rng.normal(0, 0.02, (2, 3)),
-        None, c.npcs_extents, None,
+    corr = replace(
+        c, npcs_translation=c.npcs_translation + rng.normal(0, 0.02, (3, 3)),
+        joint_pivots_naocs=c.joint_pivots_naocs + rng.normal(0, 0.02, (2, 3)), joint_limits=None,
     )
     base = dict(ransac=False, optimize_scale=True)
     for formulation in ("exact_reduced", "exact_maximal"):
