@@ -29,6 +29,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import weakref
+
 import numpy as np
 
 from ..geometry._checks import as_array, as_points
@@ -103,7 +105,10 @@ class CanonicalSpace(_NpcsToNaocs):
 
 
 def canonical_space(model: ArticulatedModel) -> CanonicalSpace:
-    """NAOCS and per-part NPCS of ``model`` (paper Sec. 4.1).
+    """NAOCS and per-part NPCS of ``model`` (paper Sec. 4.1), computed once per model.
+
+    Models are immutable, so the result is cached per model object (weakly: the cache
+    entry goes with the model).
 
     Parameters
     ----------
@@ -118,6 +123,16 @@ def canonical_space(model: ArticulatedModel) -> CanonicalSpace:
     """
     if not isinstance(model, ArticulatedModel):
         raise ValueError(f"model: expected an ArticulatedModel, got {type(model).__name__}")
+    cached = _CANONICAL_CACHE.get(model)
+    if cached is None:
+        cached = _CANONICAL_CACHE[model] = _compute_canonical_space(model)
+    return cached
+
+
+_CANONICAL_CACHE: "weakref.WeakKeyDictionary[ArticulatedModel, CanonicalSpace]" = weakref.WeakKeyDictionary()
+
+
+def _compute_canonical_space(model: ArticulatedModel) -> CanonicalSpace:
     rest = model.rest_states
     poses_rest = model.forward_kinematics(rest)
     R = model.R_canon_base
