@@ -67,9 +67,9 @@ class ArticulatedIcpConfig:
     point_to_plane : bool
         Add the point-to-plane data term (faster, more accurate convergence on planar parts).
     point_weight : float
-        Weight of the point-to-point term relative to point-to-plane (when enabled). The
-        default 0 (pure point-to-plane) converges fastest; a small weight (0.01) keeps a
-        part from sliding when it shows only one plane.
+        Weight of the point-to-point term relative to point-to-plane (when enabled). Pure
+        point-to-plane (0) converges fastest but lets a part that shows one plane slide in
+        it (a sliding door); a small weight pins it through its edges.
     tolerance : float
         Convergence: every part moves less than ``tolerance`` diagonals (at its farthest
         model point) between two iterations.
@@ -107,7 +107,7 @@ class ArticulatedIcpConfig:
     loss: str = "huber"
     loss_scale: float = 0.01
     point_to_plane: bool = True
-    point_weight: float = 0.0
+    point_weight: float = 0.05
     tolerance: float = 1e-4
     joint_starts: int = 3
     orientations: tuple = ()
@@ -115,7 +115,7 @@ class ArticulatedIcpConfig:
     joint_restarts: bool = True
     refine_iterations: int = 8
     candidates: int = 4
-    accept_inliers: float = 0.9
+    accept_inliers: float = 0.8
     num_points: int | None = 1500
     solver: str = "lsq"
     solver_iterations: int = 8
