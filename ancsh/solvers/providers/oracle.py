@@ -42,10 +42,10 @@ switching one knob on or off never changes the draws of another.
 Presets (:data:`CORRUPTION_PRESETS`): ``"none"``, ``"low"``, ``"realistic"``, ``"high"``.
 The paper reports no per-point NPCS errors, so ``"realistic"`` is calibrated on what it does
 report: per-part fitting (its NPCS baseline) of ``"realistic"`` correspondences of rendered
-procedural test frames gives mean rotation errors of 2.5-3.6 deg on the large parts and 3.4-13
-deg on the thin ones (``docs/results/fit_benchmark.md``: eyeglasses 3.4 / 8.2 / 12.9, laptop
-6.7 / 3.4, oven 2.5 / 2.6, drawer 2.5-3.6 deg), the range of Table 1's NPCS row (1.1-11.6
-deg; eyeglasses 4.0 / 7.7 / 7.2, laptop 11.6 / 4.4, oven 1.3 / 3.5, drawer 1.8-3.5).
+procedural test frames gives mean rotation errors of 2.4-3.1 deg on the large parts and
+3.4-10.6 deg on the thin ones (``docs/results/fit_benchmark.md``: eyeglasses 3.1 / 8.4 / 10.6,
+laptop 2.8 / 3.4, oven 2.5 / 3.1, drawer 2.4-2.8 deg), the range of Table 1's NPCS row
+(1.1-11.6 deg; eyeglasses 4.0 / 7.7 / 7.2, laptop 11.6 / 4.4, oven 1.3 / 3.5, drawer 1.8-3.5).
 Joint axes get 1.5 deg and pivots 0.01 object units of noise, the size of ANCSH's
 camera-space joint errors in Table 2 (0.5-2.3 deg, 0.008-0.024). Translation errors come out
 lower than Table 1's.
