@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["draw_frame", "save_frame_figure"]
+__all__ = ["draw_fit", "draw_frame", "save_figure", "save_frame_figure"]
 
 # Box edges as pairs of corner indices (corner order of OrientedBox.corners: sx, sy, sz signs).
 _BOX_EDGES = [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)]
@@ -126,9 +126,107 @@ def draw_frame(frame, fig=None):
 
 def save_frame_figure(frame, out) -> Path:
     """Draw ``frame`` and save it as an image (format from the suffix, e.g. ``.png``)."""
+    return save_figure(draw_frame(frame), out)
+
+
+def save_figure(fig, out) -> Path:
+    """Save a figure, creating the folder; the format comes from the suffix (e.g. ``.png``)."""
     out = Path(out)
-    if out.parent and not out.parent.exists():
-        out.parent.mkdir(parents=True)
-    fig = draw_frame(frame)
+    out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)
     return out
+
+
+def _draw_boxes_and_axes(ax, boxes, pivots, axes, length: float, *, style: str, to_plot) -> list:
+    """Box edges per part (tab10 colours) and joint axes through their pivots; returns drawn points."""
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10"]
+    drawn = []
+    for j, box in enumerate(boxes):
+        c = box.corners()
+        drawn.append(c)
+        for a, b in _BOX_EDGES:
+            ax.plot(*to_plot(c[[a, b]]), color=cmap(j % 10), lw=1.2, ls=style)
+    for p, u in zip(pivots, axes):
+        if np.all(np.isfinite(p)) and np.all(np.isfinite(u)):
+            seg = np.stack([p - 0.5 * length * u, p + 0.5 * length * u])
+            drawn.append(seg)
+            ax.plot(*to_plot(seg), color="k", lw=2.0, ls=style)
+    return drawn
+
+
+def draw_fit(points_cam, result, intrinsics, *, labels=None, gt=None, title: str = "", fig=None):
+    """Draw a fit: estimated amodal boxes and joint axes over the points (and ground truth if given).
+
+    Two panels: the camera frame in 3D and the image plane (boxes and axes projected with
+    ``intrinsics``). Estimates are solid lines, ground truth dashed.
+
+    Parameters
+    ----------
+    points_cam : (N, 3) float64
+        Observed points, camera frame (metres).
+    result : FitResult
+        The fit (``boxes_cam``, ``joint_pivots_cam``, ``joint_axes_cam``).
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the image.
+    labels : (N,) int, optional
+        Part label per point (colours); grey when absent.
+    gt : AncshGroundTruth, optional
+        Drawn dashed for comparison.
+    """
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+
+    from .render import project
+
+    pts = np.asarray(points_cam, dtype=np.float64)
+    fig = fig or Figure(figsize=(13, 5.5), dpi=100)
+    colors = "0.6" if labels is None else colormaps["tab10"](np.asarray(labels) % 10)
+    length = 0.6 * max(float(np.linalg.norm(np.ptp(pts, axis=0))), 1e-3)
+    layers = [(result.boxes_cam, result.joint_pivots_cam, result.joint_axes_cam, "-")]
+    if gt is not None:
+        layers.append((gt.boxes_cam, gt.joint_pivots_cam, gt.joint_axes_cam, "--"))
+
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    ax.scatter(*_plot_coords(pts), c=colors, s=2, depthshade=False)
+    drawn = [pts]
+    for boxes, pivots, axes, style in layers:
+        drawn += _draw_boxes_and_axes(ax, boxes, pivots, axes, length, style=style, to_plot=_plot_coords)
+    _equal_aspect(ax, np.stack(_plot_coords(np.concatenate(drawn)), axis=1))
+    ax.view_init(elev=20, azim=-75)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("z (m)")
+    ax.set_zlabel("-y (m)")
+    ax.set_title("camera frame: estimate solid" + (", ground truth dashed" if gt is not None else ""), fontsize=9)
+
+    ax = fig.add_subplot(1, 2, 2)
+
+    def to_image(p):
+        # Points behind the camera (a failed fit) become NaN, which matplotlib leaves out.
+        p = np.atleast_2d(p)
+        uv = np.full((len(p), 2), np.nan)
+        front = p[:, 2] > 1e-6
+        if np.any(front):
+            uv[front] = project(p[front], intrinsics)[0]
+        return uv[:, 0], uv[:, 1]
+
+    u, v = to_image(pts)
+    ax.scatter(u, v, c=colors, s=3)
+    drawn_uv = [np.stack([u, v], axis=1)]
+    for boxes, pivots, axes, style in layers:
+        for seg in _draw_boxes_and_axes(ax, boxes, pivots, axes, length, style=style, to_plot=to_image):
+            drawn_uv.append(np.stack(to_image(seg), axis=1))
+    uv = np.concatenate(drawn_uv)
+    uv = uv[np.all(np.isfinite(uv), axis=1)]
+    margin = 0.05 * max(float(np.ptp(uv[:, 0])), float(np.ptp(uv[:, 1])), 10.0)
+    ax.set_xlim(uv[:, 0].min() - margin, uv[:, 0].max() + margin)
+    ax.set_ylim(uv[:, 1].max() + margin, uv[:, 1].min() - margin)
+    ax.set_aspect("equal")
+    ax.set_xlabel("u (pixels)")
+    ax.set_ylabel("v (pixels)")
+    ax.set_title("image plane", fontsize=9)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    return fig
