@@ -21,9 +21,23 @@ This is a thin wrapper over the core's public pieces (:func:`~ancsh.solvers.prog
 :func:`ancsh.solvers.fit` always initialises from RANSAC/per-part Umeyama and estimates the
 object scale, whereas ICP starts from a given estimate with a known scale.
 
-Multi-start: the initial estimate, plus joint states spread over their ranges and optional
-extra initial orientations, each run for a few iterations; the best-scoring start (truncated
-mean squared closest-point distance) is iterated to convergence.
+Multi-start, in three stages:
+
+1. every start -- each initial estimate, with the joint states as given and at
+   ``joint_starts`` states spread over their ranges, and with optional extra orientations --
+   runs ``start_iterations`` iterations and is scored symmetrically (observed points far
+   from the model, plus model surface the camera should see where nothing was observed);
+2. the best-scoring start is refined, then every joint is restarted over its range (one
+   at a time, the others kept) and the best-scoring state is kept: with the object pose
+   settled this escapes joint local minima, e.g. a drawer front matched to the drawer's
+   side walls;
+3. the result is iterated to convergence. When it explains fewer than ``accept_inliers``
+   of the points, the next best start from another basin goes through stages 2-3 (at
+   most ``candidates`` starts), and the best-scoring result wins.
+
+Visibility: correspondences are restricted to model surface the camera can see (see
+:meth:`~ancsh.solvers.icp.template.ModelSurface.closest`), so front-face points of a thin
+part are never matched to its back face.
 """
 
 from __future__ import annotations
@@ -537,7 +551,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
             candidates.append((run.score(est)[0], len(candidates), est, hist, n))
     if not candidates:
         return failed(FitStatus.TOO_FEW_POINTS,
-                      f"no observed point within {run.gate(0):.3g} m of the model at any start (observation far from the estimate?)")
+                      f"no observed point within {run.gate(0):.3g} (model units) of the model at any start (observation far from the estimate?)")
     candidates.sort(key=lambda c: (c[0], c[1]))
     final = None
     tried: list = []

@@ -357,7 +357,9 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
     lines += ["", "Targets: chain AD accuracy >= 95% without noise and >= 90% with noise; articulated ICP ahead of both rigid baselines.", ""]
     lines += ["## Per object", "",
               "Chain AD accuracy / per-part AD accuracy (part order as listed) / mean joint-state error "
-              "(degrees for revolute, cm for prismatic) / median ms per frame.", ""]
+              "(degrees for revolute; for prismatic joints hundredths of the model unit, i.e. cm for metric "
+              "models -- PartNet-Mobility objects are roughly unit-sized, not metric) / median ms per frame "
+              "(wall time on a shared 2-core CPU).", ""]
     objects = [o["name"] for o in meta["objects"]]
     for noise in (False, True):
         lines += [f"### {'With' if noise else 'Without'} sensor noise", "",
