@@ -384,9 +384,20 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
     text = "\n".join(lines)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
-    payload = {"command": command, "meta": meta, "records": [r.__dict__ for r in records]}
-    path.with_suffix(".json").write_text(json.dumps(payload, indent=1))
+    payload = {"command": command, "meta": meta, "records": [_rounded(r.__dict__) for r in records]}
+    path.with_suffix(".json").write_text(json.dumps(payload, separators=(",", ":")))
     return text
+
+
+def _rounded(value):
+    """Floats rounded to 6 significant digits, recursively (a compact JSON)."""
+    if isinstance(value, float):
+        return float(f"{value:.6g}")
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_rounded(v) for v in value]
+    return value
 
 
 def _protocol_text(meta) -> str:

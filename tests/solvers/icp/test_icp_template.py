@@ -118,3 +118,19 @@ def _shift(t):
     M = np.eye(4)
     M[:3, 3] = t
     return M
+
+
+@pytest.mark.parametrize("formulation", ["per_part", "soft", "exact_reduced"])
+def test_solver_core_formulations_fit_template_correspondences(formulation):
+    """The template is a CorrespondenceProvider: the core's fit() recovers the pose from it."""
+    from ancsh.solvers import FitConfig, fit
+
+    model, q, T, pts, _ = _scene(6, num_parts=2)
+    provider = TemplateProvider(model, ArticulatedPose(T, q), visible=False)
+    obs = Observation(pts)
+    res = fit(obs, provider.correspond(obs), formulation=formulation, config=FitConfig(ransac=False), rng=0)
+    assert res.ok, res.message
+    for est, true in zip(res.T_cam_npcs, [T @ P @ Tn.inverse() for P, Tn in zip(model.forward_kinematics(q), provider.T_npcs_part)]):
+        np.testing.assert_allclose(est.translation, true.translation, atol=1e-4)
+        np.testing.assert_allclose(est.rotation, true.rotation, atol=1e-4)
+    np.testing.assert_allclose(res.joint_states, q - model.rest_states, atol=1e-4)
