@@ -6,6 +6,10 @@ several widths / sampling settings (batch 16, 1024 points by default).
 ``python -m ancsh.learned.bench accuracy --data DIR --steps S`` -- short equal-step training
 runs at several widths on the same data, validation metrics on held-out instances.
 
+``python -m ancsh.learned.bench pipeline --data DIR --weights laptop`` -- the learned provider
+followed by each fitting formulation on test frames: per-part rotation/translation errors,
+joint-state error, and the time of the network and of each fit.
+
 Results go to stdout as a markdown table (and ``--json`` to a file).
 """
 
@@ -112,6 +116,52 @@ def accuracy(names, data, *, steps: int, frames: int | None = None, seed: int = 
     return rows
 
 
+def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", "soft", "exact_reduced")) -> list[dict]:
+    """Network + fit on ``frames`` evenly spaced frames of ``data``; mean errors per formulation."""
+    from ..data.dataset import FrameDataset
+    from ..geometry.metrics import axis_angle_error_deg, rotation_error_deg, translation_error
+    from ..solvers import Observation, fit
+    from .provider import LearnedProvider
+
+    ds = FrameDataset(data)
+    provider = LearnedProvider(weights)
+    picks = np.linspace(0, len(ds) - 1, frames).round().astype(int)
+    recs: dict[str, list] = {f: [] for f in formulations}
+    net_s, axis = [], []
+    for i in picks:
+        fr = ds[int(i)]
+        obs = Observation(fr.points)
+        t0 = time.perf_counter()
+        corr = provider.correspond(obs)
+        net_s.append(time.perf_counter() - t0)
+        axis.append([axis_angle_error_deg(corr.joint_axes_naocs[k], fr.gt.joint_axes_naocs[k]) for k in range(corr.num_joints)])
+        for f in formulations:
+            t0 = time.perf_counter()
+            r = fit(obs, corr, f)
+            dt = time.perf_counter() - t0
+            if not r.ok:
+                recs[f].append(None)
+                continue
+            M = corr.num_parts
+            rot = [rotation_error_deg(r.T_cam_npcs[j].rotation, fr.gt.T_cam_npcs[j].rotation) for j in range(M)]
+            tr = [translation_error(r.T_cam_npcs[j].translation, fr.gt.T_cam_npcs[j].translation) for j in range(M)]
+            state = np.abs(r.joint_states - fr.gt.joint_states)
+            recs[f].append((rot, tr, state, dt))
+    rows = []
+    for f, rr in recs.items():
+        ok = [r for r in rr if r is not None]
+        rows.append({
+            "formulation": f, "frames": len(rr), "failures": len(rr) - len(ok),
+            "rot_err_deg": np.mean([r[0] for r in ok], axis=0).round(2).tolist() if ok else None,
+            "trans_err_m": np.mean([r[1] for r in ok], axis=0).round(4).tolist() if ok else None,
+            "state_err": np.mean([r[2] for r in ok], axis=0).round(4).tolist() if ok else None,
+            "fit_s": float(np.mean([r[3] for r in ok])) if ok else None,
+            "network_s": float(np.mean(net_s)), "naocs_axis_err_deg": np.mean(axis, axis=0).round(3).tolist(),
+        })
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m ancsh.learned.bench", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="what", required=True)
@@ -125,11 +175,18 @@ def main(argv=None) -> int:
     a.add_argument("--frames", type=int)
     a.add_argument("--settings", nargs="+", default=["w0.125", "w0.25", "w0.5"], choices=list(SETTINGS))
     a.add_argument("--json")
+    pl = sub.add_parser("pipeline")
+    pl.add_argument("--data", required=True)
+    pl.add_argument("--weights", default="laptop", help="category name or weights file")
+    pl.add_argument("--frames", type=int, default=10)
+    pl.add_argument("--json")
     args = p.parse_args(argv)
     if args.what == "timing":
         rows = timing(args.settings, threads=args.threads)
-    else:
+    elif args.what == "accuracy":
         rows = accuracy(args.settings, args.data, steps=args.steps, frames=args.frames)
+    else:
+        rows = pipeline(args.data, args.weights, frames=args.frames)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
