@@ -25,7 +25,8 @@ def register(sub) -> None:
     p.add_argument("--max-steps", type=int, help="override config.max_steps (e.g. to extend a finished run)")
     p.add_argument("--time-limit-min", type=float, help="stop (with a checkpoint) after this many minutes")
     p.add_argument("--test-data", type=Path, help="held-out test shards: evaluate best.pt against trivial baselines")
-    p.add_argument("--export", type=Path, help="write compact weights of best.pt here after training")
+    p.add_argument("--export", type=Path, help="write compact weights of best.pt here after training, with the "
+                   "run's config, history and curves beside it (<stem>_config.json, _history.csv, _curves.png)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -81,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
 
         path = export_weights(best, args.export, metrics=metrics)
         print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
+        copy_training_log(out, path, metrics)
     return 0
 
 
@@ -94,3 +96,16 @@ def evaluate_checkpoint(checkpoint, test_data, config) -> dict:
     arrays = arrays_from_dataset(test_data, config.num_points, seed=config.seed + 1)
     scores = evaluate_arrays(net.model, arrays, net.config)
     return {"checkpoint": str(checkpoint), "test_frames": len(arrays), **scores, **trivial_baselines(arrays)}
+
+
+def copy_training_log(run_dir, weights, metrics: dict) -> None:
+    """Put the run's config, history, curves (and test metrics) beside an exported weights file."""
+    import json
+    import shutil
+
+    run_dir, weights = Path(run_dir), Path(weights)
+    for name, suffix in (("config.json", "_config.json"), ("history.csv", "_history.csv"), ("curves.png", "_curves.png")):
+        if (run_dir / name).is_file():
+            shutil.copy(run_dir / name, weights.with_name(weights.stem + suffix))
+    if metrics:
+        weights.with_name(weights.stem + "_test_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")

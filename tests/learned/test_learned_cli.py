@@ -45,6 +45,8 @@ def test_train_command_trains_resumes_and_exports(tmp_path, laptop_shards, capsy
     metrics = json.loads((run / "test_metrics.json").read_text())
     assert {"seg_acc", "npcs_err", "seg_acc_majority", "npcs_err_zero"} <= set(metrics)
     assert weights.is_file()
+    for suffix in ("_config.json", "_history.csv", "_curves.png", "_test_metrics.json"):
+        assert (tmp_path / f"w{suffix}").is_file()
 
 
 @pytest.mark.slow
