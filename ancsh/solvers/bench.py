@@ -269,40 +269,10 @@ def available_methods(config: BenchConfig) -> list:
 # evaluation
 # --------------------------------------------------------------------------------------
 def evaluate_fit(result, frame: BenchFrame) -> dict:
-    """Per-part and per-joint errors of one :class:`~ancsh.solvers.types.FitResult` (object units)."""
-    from ..geometry.metrics import axis_angle_error_deg, box_iou, joint_state_error, line_distance, rotation_error_deg
+    """Per-part and per-joint errors of one fit on ``frame`` (:func:`ancsh.evaluation.evaluate_fit`)."""
+    from ..evaluation import evaluate_fit as evaluate
 
-    gt, L = frame.gt, frame.object_scale
-    rec = {"status": result.status.value, "ok": bool(result.ok), "parts": [], "joints": []}
-    if not result.ok or len(result.T_cam_npcs) != gt.num_parts:
-        return rec
-    for j, (T, T_gt) in enumerate(zip(result.T_cam_npcs, gt.T_cam_npcs)):
-        iou = box_iou(result.boxes_cam[j], gt.boxes_cam[j]) if len(result.boxes_cam) == gt.num_parts else float("nan")
-        rec["parts"].append({
-            "name": frame.part_names[j],
-            "rot_deg": rotation_error_deg(T.rotation, T_gt.rotation),
-            "trans": float(np.linalg.norm(T.translation - T_gt.translation)) / L,
-            "scale_rel": abs(T.scale / T_gt.scale - 1.0),
-            "iou": float(iou),
-        })
-    for k in range(gt.num_joints):
-        jt = gt.joint_types[k]
-        revolute = jt.value == "revolute"
-        q, q_gt = float(result.joint_states[k]), float(gt.joint_states[k])
-        state = joint_state_error(q, q_gt, jt.value) if np.isfinite(q) else float("nan")
-        if not revolute:
-            state /= L
-        axis = result.joint_axes_cam[k]
-        ok_axis = np.all(np.isfinite(axis)) and np.linalg.norm(axis) > 0
-        rec["joints"].append({
-            "name": frame.joint_names[k],
-            "type": jt.value,
-            "state_err": state,
-            "axis_deg": axis_angle_error_deg(axis, gt.joint_axes_cam[k]) if ok_axis else float("nan"),
-            "line_dist": (line_distance(result.joint_pivots_cam[k], axis, gt.joint_pivots_cam[k], gt.joint_axes_cam[k]) / L
-                          if revolute and ok_axis and np.all(np.isfinite(result.joint_pivots_cam[k])) else float("nan")),
-        })
-    return rec
+    return evaluate(result, frame.gt, frame.part_names, frame.joint_names)
 
 
 @dataclass(frozen=True)
