@@ -116,21 +116,41 @@ def accuracy(names, data, *, steps: int, frames: int | None = None, seed: int = 
     return rows
 
 
-def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", "soft", "exact_reduced")) -> list[dict]:
-    """Network + fit on ``frames`` evenly spaced frames of ``data``; mean errors per formulation."""
+def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", "soft", "exact_reduced"),
+             direct: str | None = None) -> list[dict]:
+    """Network + fit on ``frames`` evenly spaced frames of ``data``; mean errors per formulation.
+
+    Camera-space joints: axis angle (deg) and line-line distance (m) of each formulation's fit,
+    and, with ``direct`` (direct-voting weights), of the direct-voting baseline.
+    """
     from ..data.dataset import FrameDataset
+    from ..geometry.lines import line_distance
     from ..geometry.metrics import axis_angle_error_deg, rotation_error_deg, translation_error
     from ..solvers import Observation, fit
     from .provider import LearnedProvider
 
     ds = FrameDataset(data)
     provider = LearnedProvider(weights)
+    voter = None
+    if direct is not None:
+        from .provider import DirectVotingPredictor
+
+        voter = DirectVotingPredictor(direct)
     picks = np.linspace(0, len(ds) - 1, frames).round().astype(int)
     recs: dict[str, list] = {f: [] for f in formulations}
-    net_s, axis = [], []
+    net_s, axis, direct_err = [], [], []
+
+    def joint_errors(axes, pivots, gt):
+        return [(axis_angle_error_deg(axes[k], gt.joint_axes_cam[k]),
+                 line_distance(pivots[k], axes[k], gt.joint_pivots_cam[k], gt.joint_axes_cam[k]))
+                for k in range(len(axes))]
+
     for i in picks:
         fr = ds[int(i)]
         obs = Observation(fr.points)
+        if voter is not None:
+            axes, pivots, _ = voter.joints(obs)
+            direct_err.append(joint_errors(axes, pivots, fr.gt))
         t0 = time.perf_counter()
         corr = provider.correspond(obs)
         net_s.append(time.perf_counter() - t0)
@@ -146,7 +166,7 @@ def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", 
             rot = [rotation_error_deg(r.T_cam_npcs[j].rotation, fr.gt.T_cam_npcs[j].rotation) for j in range(M)]
             tr = [translation_error(r.T_cam_npcs[j].translation, fr.gt.T_cam_npcs[j].translation) for j in range(M)]
             state = np.abs(r.joint_states - fr.gt.joint_states)
-            recs[f].append((rot, tr, state, dt))
+            recs[f].append((rot, tr, state, dt, joint_errors(r.joint_axes_cam, r.joint_pivots_cam, fr.gt)))
     rows = []
     for f, rr in recs.items():
         ok = [r for r in rr if r is not None]
@@ -156,7 +176,16 @@ def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", 
             "trans_err_m": np.mean([r[1] for r in ok], axis=0).round(4).tolist() if ok else None,
             "state_err": np.mean([r[2] for r in ok], axis=0).round(4).tolist() if ok else None,
             "fit_s": float(np.mean([r[3] for r in ok])) if ok else None,
+            "joint_axis_err_deg": np.mean([[e[0] for e in r[4]] for r in ok], axis=0).round(2).tolist() if ok else None,
+            "joint_line_dist_m": np.mean([[e[1] for e in r[4]] for r in ok], axis=0).round(4).tolist() if ok else None,
             "network_s": float(np.mean(net_s)), "naocs_axis_err_deg": np.mean(axis, axis=0).round(3).tolist(),
+        })
+        print(json.dumps(rows[-1]), flush=True)
+    if direct_err:
+        rows.append({
+            "formulation": "direct_voting", "frames": len(direct_err),
+            "joint_axis_err_deg": np.mean([[e[0] for e in d] for d in direct_err], axis=0).round(2).tolist(),
+            "joint_line_dist_m": np.mean([[e[1] for e in d] for d in direct_err], axis=0).round(4).tolist(),
         })
         print(json.dumps(rows[-1]), flush=True)
     return rows
@@ -179,6 +208,7 @@ def main(argv=None) -> int:
     pl.add_argument("--data", required=True)
     pl.add_argument("--weights", default="laptop", help="category name or weights file")
     pl.add_argument("--frames", type=int, default=10)
+    pl.add_argument("--direct", help="direct-voting weights (category name or file) to compare joints with")
     pl.add_argument("--json")
     args = p.parse_args(argv)
     if args.what == "timing":
@@ -186,7 +216,7 @@ def main(argv=None) -> int:
     elif args.what == "accuracy":
         rows = accuracy(args.settings, args.data, steps=args.steps, frames=args.frames)
     else:
-        rows = pipeline(args.data, args.weights, frames=args.frames)
+        rows = pipeline(args.data, args.weights, frames=args.frames, direct=args.direct)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
