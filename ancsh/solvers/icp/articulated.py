@@ -43,7 +43,7 @@ part are never matched to its back face.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -105,6 +105,10 @@ class ArticulatedIcpConfig:
         the final gate; at most ``candidates`` of them. The best-scoring result is returned.
     accept_inliers : float
         In ``(0, 1]``.
+    rescue_angle : float
+        When no start explains ``accept_inliers`` of the points, the initial and the best
+        estimates turned by this angle (radians) about each camera axis, both signs, are
+        searched as well; 0 turns this off.
     num_points : int or None
         Random subsample of the observation used by ICP (``None``: all points).
     solver : str
@@ -130,6 +134,7 @@ class ArticulatedIcpConfig:
     refine_iterations: int = 8
     candidates: int = 4
     accept_inliers: float = 0.8
+    rescue_angle: float = np.radians(25.0)
     num_points: int | None = 1500
     solver: str = "lsq"
     solver_iterations: int = 8
@@ -147,6 +152,8 @@ class ArticulatedIcpConfig:
                 raise ValueError(f"{name}: expected a positive number, got {v!r}")
         if self.gate_end > self.gate_start:
             raise ValueError(f"gate_end: {self.gate_end} exceeds gate_start {self.gate_start}")
+        if not (np.isfinite(self.rescue_angle) and self.rescue_angle >= 0):
+            raise ValueError(f"rescue_angle: expected a non-negative angle, got {self.rescue_angle}")
         if not 0 < self.accept_inliers <= 1:
             raise ValueError(f"accept_inliers: expected a number in (0, 1], got {self.accept_inliers}")
         if not 0 < self.gate_decay <= 1:
@@ -366,6 +373,36 @@ class _Run:
         return float(np.mean(np.minimum(d / gate, 1.0) ** 2)) + back, float(inl.mean()), rmse
 
 
+def _search(run: _Run, model, config, starts):
+    """Stages 1-3 (see the module docstring) from ``starts``: ``(final or None, iterations)``."""
+    iterations = 0
+    candidates = []
+    for s in starts:
+        hist: list = []
+        est, status, n, _ = run.iterate(s, 0, config.start_iterations, hist)
+        iterations += n
+        if status != FitStatus.TOO_FEW_POINTS:
+            candidates.append((run.score(est)[0], len(candidates), est, hist, n))
+    if not candidates:
+        return None, 0
+    candidates.sort(key=lambda c: (c[0], c[1]))
+    final = None
+    tried: list = []
+    for _, _, est, hist, n in candidates:
+        if len(tried) >= config.candidates:
+            break
+        if any(_same_basin(est, other, run.diagonal) for other in tried):
+            continue  # finishing a start that sits where a tried one sat would end where it ended
+        tried.append(est)
+        out, used = _finish_candidate(run, model, config, est, hist, n)
+        iterations += used
+        if out is not None and (final is None or out[0][0] < final[0][0]):
+            final = out
+        if final is not None and final[0][1] >= config.accept_inliers:
+            break
+    return (None if final is None else (final[0], final[1], final[2], final[3])), max(iterations, 1)
+
+
 def _same_basin(a: ArticulatedPose, b: ArticulatedPose, diagonal: float) -> bool:
     """Base poses within 10 degrees and 5% of the diagonal, joint states within 0.1 rad / 5%."""
     return (
@@ -541,34 +578,29 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     center_base = np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0)
 
     starts = _starts(model, inits, config, center_base)
-    iterations = 0
-    candidates = []
-    for s in starts:
-        hist: list = []
-        est, status, n, _ = run.iterate(s, 0, config.start_iterations, hist)
-        iterations += n
-        if status != FitStatus.TOO_FEW_POINTS:
-            candidates.append((run.score(est)[0], len(candidates), est, hist, n))
-    if not candidates:
+    final, iterations = _search(run, model, config, starts)
+    if final is None and iterations == 0:
         return failed(FitStatus.TOO_FEW_POINTS,
-                      f"no observed point within {run.gate(0):.3g} (model units) of the model at any start (observation far from the estimate?)")
-    candidates.sort(key=lambda c: (c[0], c[1]))
-    final = None
-    tried: list = []
-    for _, _, est, hist, n in candidates:
-        if len(tried) >= config.candidates:
-            break
-        if any(_same_basin(est, other, run.diagonal) for other in tried):
-            continue  # finishing a start that sits where a tried one sat would end where it ended
-        tried.append(est)
-        out, used = _finish_candidate(run, model, config, est, hist, n)
+                      f"no observed point within {run.gate(0):.3g} (model units) of the model at any start "
+                      "(observation far from the estimate?)")
+    if config.rescue_angle > 0 and (final is None or final[0][1] < config.accept_inliers):
+        # Rescue: no start explained the data; try the initial and the best estimates turned
+        # by rescue_angle about each camera axis (both signs), with the joint-state starts.
+        bases = [inits[0]] + ([final[1]] if final is not None else [])
+        rescue = []
+        for b in bases:
+            c = b.T_cam_base.apply(center_base)
+            for rv in config.rescue_angle * np.vstack([np.eye(3), -np.eye(3)]):
+                dR = exp_so3(rv)
+                T = Sim3(dR @ b.T_cam_base.rotation, dR @ (b.T_cam_base.translation - c) + c)
+                rescue.extend(_starts(model, [ArticulatedPose(T, b.q)], replace(config, orientations=()), center_base))
+        second, used = _search(run, model, config, rescue)
         iterations += used
-        if out is not None and (final is None or out[0][0] < final[0][0]):
-            final = out
-        if final is not None and final[0][1] >= config.accept_inliers:
-            break
+        starts = starts + rescue
+        if second is not None and (final is None or second[0][0] < final[0][0]):
+            final = second
     if final is None:
-        return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating", candidates[0][2], candidates[0][3])
+        return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
     (sc, ratio, rmse), est, status, hist = final
     msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
     return CadFitResult(
