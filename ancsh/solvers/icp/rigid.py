@@ -15,6 +15,7 @@ model: every observed point has a model point near it, not vice versa.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,8 +27,6 @@ from .result import CadFitResult, joint_states_from_part_poses
 from .template import ArticulatedPose, ModelSurface
 
 __all__ = ["RigidIcpConfig", "per_part_icp", "sample_with_normals", "whole_object_icp"]
-
-from dataclasses import dataclass
 
 
 @dataclass(frozen=True)

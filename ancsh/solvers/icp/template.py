@@ -14,7 +14,7 @@ a point sampling of them, so a noise-free view is matched without discretisation
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
