@@ -242,7 +242,7 @@ class _Reduced:
         return ArticulatedPose(Sim3(T.rotation, T.translation), x[self.theta] + self.model.rest_states)
 
 
-def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True, point_weight: float = 0.1,
+def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True, point_weight: float = 0.05,
                  solver: str = "lsq", max_iterations: int = 20):
     """One reduced-coordinate solve on template correspondences, from ``provider.estimate``.
 
