@@ -137,6 +137,7 @@ def register_bench(bench_sub) -> None:
     b.add_argument("--width", type=_positive_int, default=640)
     b.add_argument("--height", type=_positive_int, default=480)
     b.add_argument("--seed", type=_non_negative_int, default=0)
+    b.add_argument("--out", default=None, help="also write the table, with this command, to a Markdown file")
     b.set_defaults(func=run_bench)
 
 
@@ -156,14 +157,20 @@ def run_bench(args) -> int:
     if unknown:
         raise ValueError(f"--categories: unknown {unknown}; known: {', '.join(CATEGORIES)}")
     intr = Intrinsics.kinect(args.width, args.height)
-    print(
+    lines = []
+
+    def emit(line: str) -> None:
+        print(line, flush=True)
+        lines.append(line)
+
+    emit(
         f"ancsh bench render: {intr.width}x{intr.height}, {args.frames} frames per category, "
         f"{args.threads} ray-casting thread(s), one process; {platform.machine()}, {os.cpu_count()} CPUs, "
         f"load average {os.getloadavg()[0]:.1f}"
     )
-    print("fr/s = wall-clock frames per second; CPU ms = process CPU time per frame (what a free core would take)")
+    emit("fr/s = wall-clock frames per second; CPU ms = process CPU time per frame (what a free core would take)")
     header = ("category", "raycast fr/s", "CPU ms", "+visib. fr/s", "CPU ms", "full fr/s", "CPU ms", "obj. pixels")
-    print(f"{header[0]:16s}" + "".join(f"{h:>13s}" for h in header[1:]))
+    emit(f"{header[0]:16s}" + "".join(f"{h:>13s}" for h in header[1:]))
     for cat in cats:
         gen = FrameGenerator(GenerationConfig(category=cat, split="test", seed=args.seed, intrinsics=intr))
         rng = np.random.default_rng(args.seed)
@@ -186,6 +193,18 @@ def run_bench(args) -> int:
         for i in range(args.frames):
             gen.frame(i)
         cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
-        print(f"{cat:16s}" + "".join(f"{x:13.1f}" for x in cols) + f"{pixels // args.frames:13d}")
-    sys.stdout.flush()
+        emit(f"{cat:16s}" + "".join(f"{x:13.1f}" for x in cols) + f"{pixels // args.frames:13d}")
+    if args.out:
+        from pathlib import Path
+
+        command = "ancsh " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("ancsh") else "ancsh bench render"
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(
+            "# Rendering throughput\n\n"
+            f"Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} by `{command}`.\n"
+            "Target: >= 50 frames/s for 640x480 frames of each category on the 2-core machine.\n\n"
+            "```\n" + "\n".join(lines) + "\n```\n"
+        )
+        print(f"wrote {out}")
     return 0
