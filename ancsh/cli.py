@@ -18,6 +18,7 @@ from . import __version__
 COMMAND_MODULES = [
     "ancsh.demo",
     "ancsh.learned.cli",
+    "ancsh.learned.app_cli",
     "ancsh.data.cli",
     "ancsh.benchcli",
     "ancsh.solvers.icp.cli",
