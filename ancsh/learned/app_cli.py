@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
-import sys
 from pathlib import Path
 
 
@@ -105,15 +104,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
         num_threads=args.threads, progress=not args.no_progress,
     )
-    argv = sys.argv[1:] if sys.argv and Path(sys.argv[0]).name in ("ancsh", "__main__.py") else None
-    command = _command(argv) if argv else _rebuild(args)
-    paths = write_report(ev, args.out, command=command)
+    paths = write_report(ev, args.out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
     return 0
 
 
 def _rebuild(args: argparse.Namespace) -> str:
-    """The command line from the parsed arguments (when called through ``main(argv)``)."""
+    """The command line, rebuilt from the parsed arguments (defaults left out)."""
     parts = ["evaluate", "--category", args.category]
     if args.formulations:
         parts += ["--formulations", *args.formulations]
@@ -125,4 +122,6 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts.append("--quick")
     if args.seed:
         parts += ["--seed", str(args.seed)]
+    if args.threads != 1:
+        parts += ["--threads", str(args.threads)]
     return _command(parts)

@@ -1,0 +1,104 @@
+"""ancsh evaluate: the NAOCS baseline, statistics, the paper tables, and the --quick report."""
+
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.cli import main
+from ancsh.data.generate import FrameGenerator, GenerationConfig
+from ancsh.data.procedural import CATEGORY_INFO
+from ancsh.evaluation import evaluate_fit
+from ancsh.learned import evaluate as ev
+from ancsh.solvers.types import Correspondences, Observation
+
+
+@pytest.mark.parametrize("category", ["laptop", "eyeglasses"])
+def test_naocs_baseline_recovers_ground_truth_from_ground_truth_naocs(category):
+    gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=2))
+    frame = gen.frame(0)
+    gt = frame.gt
+    corr = Correspondences.from_ground_truth(gt)
+    obs = Observation(frame.points)
+    for naocs in (None, gt.naocs):  # per-part maps of corr, or the per-point NAOCS
+        r = ev.fit_naocs(obs, corr, naocs=naocs, rng=0)
+        assert r.ok and r.formulation == "naocs" and r.boxes_cam == ()
+        rec = evaluate_fit(r, gt, frame.part_names, frame.joint_names)
+        for p in rec["parts"]:
+            assert p["rot_deg"] < 1e-5 and p["trans"] < 1e-8 and p["scale_rel"] < 1e-8 and np.isnan(p["iou"])
+        for j in rec["joints"]:
+            assert j["state_err"] < 1e-5 and j["axis_deg"] < 1e-5 and not j["line_dist"] > 1e-8
+    # the baseline's input: NAOCS coordinates with identity NPCS -> NAOCS maps
+    nc = ev.naocs_correspondences(corr)
+    np.testing.assert_allclose(nc.npcs, gt.naocs, atol=1e-12)
+    assert np.all(nc.npcs_scale == 1) and np.all(nc.npcs_translation == 0)
+    with pytest.raises(ValueError, match="naocs"):
+        ev.naocs_correspondences(corr, np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="key"):
+        ev.fit_method("nope", obs, corr)
+
+
+def test_paper_tables_match_the_categories():
+    for category, info in CATEGORY_INFO.items():
+        M, K = len(info.part_names), len(info.joint_names)
+        for row in ev.PAPER_TABLE1[category].values():
+            for name, values in row.items():
+                assert len(values) == (M if name in ev.PART_METRICS else K), (category, name)
+        for row in ev.PAPER_TABLE2[category].values():
+            for values in row.values():
+                assert len(values) == K
+
+
+def _record(visibility, rot, ok=True):
+    parts = [{"name": f"p{j}", "rot_deg": r, "trans": 0.1 * r, "scale_rel": 0.0, "iou": 0.5} for j, r in enumerate(rot)]
+    joints = [{"name": "j0", "type": "revolute", "state_err": rot[1] - rot[0], "axis_deg": 1.0, "line_dist": float("nan")}]
+    return {"visibility": visibility, "network_ms": 1.0, "generate_ms": 1.0,
+            "methods": {"per_part": {"ok": ok, "parts": parts if ok else [], "joints": joints if ok else [], "fit_ms": 2.0}}}
+
+
+def test_summary_means_medians_failures_and_occlusion_bins():
+    recs = [_record([0.12, 0.9], [1.0, 2.0]), _record([0.13, 0.9], [3.0, 10.0]),
+            _record([0.42, 0.9], [5.0, 6.0]), _record([0.42, 0.9], [99.0, 99.0], ok=False)]
+    evaluation = {"category": "x", "records": recs, "timing": {"wall_s": 1.0},
+                  "settings": {"methods": ["per_part"], "part_names": ["p0", "p1"], "joint_names": ["j0"]}}
+    s = ev.summarize(evaluation)
+    row = s["methods"]["per_part"]
+    assert row["failures"] == 1 and row["frames"] == 4
+    np.testing.assert_allclose(row["rot_deg"]["mean"], [3.0, 6.0])
+    np.testing.assert_allclose(row["rot_deg"]["median"], [3.0, 6.0])
+    np.testing.assert_allclose(row["iou"]["mean"], [50.0, 50.0])
+    np.testing.assert_allclose(row["state_err"]["mean"], [(1 + 7 + 1) / 3])
+    assert row["line_dist"]["mean"] == [None]  # no finite value
+    occ = s["occlusion"]["parts"][0]
+    b = int(np.digitize(0.12, ev.OCCLUSION_EDGES)) - 1
+    assert occ["counts"][b] == 2 and occ["per_part"]["rot_deg"][b] == pytest.approx(2.0)
+    b2 = int(np.digitize(0.42, ev.OCCLUSION_EDGES)) - 1
+    assert occ["counts"][b2] == 2 and occ["per_part"]["rot_deg"][b2] == pytest.approx(5.0)  # failure left out
+
+
+def test_quick_evaluation_writes_the_report(tmp_path):
+    code = main(["evaluate", "--category", "laptop", "--quick", "--frames", "2", "--out", str(tmp_path), "--no-progress"])
+    assert code == 0
+    md = (tmp_path / "laptop.md").read_text()
+    for label in [m.label for m in ev.METHODS.values()] + ["paper: NPCS", "paper: NAOCS", "paper: ANCSH",
+                                                           "Table 2", "Direct voting", "--frames 2"]:
+        assert label in md
+    data = json.loads((tmp_path / "laptop.json").read_text())
+    assert data["settings"]["frames"] == 2 and set(data["summary"]["methods"]) == set(ev.METHODS)
+    for row in data["summary"]["methods"].values():
+        assert len(row["rot_deg"]["mean"]) == 2 and len(row["state_err"]["mean"]) == 1
+    assert data["summary"]["methods"]["naocs"]["iou"]["mean"] == [None, None]  # no boxes for NAOCS
+    assert data["paper"]["table1"]["ANCSH"]["rot_deg"] == [6.7, 4.3]
+    assert (tmp_path / "laptop_occlusion.png").stat().st_size > 0
+
+
+def test_missing_weights_name_the_available_ones(monkeypatch, tmp_path):
+    import ancsh.learned.weights as weights
+
+    monkeypatch.setattr(weights, "WEIGHTS_DIR", tmp_path)
+    with pytest.raises(FileNotFoundError, match="no shipped weights for 'laptop'; available: none"):
+        ev.evaluate_category("laptop", frames=1, progress=False)
+    with pytest.raises(ValueError, match="methods"):
+        ev.evaluate_category("laptop", frames=1, methods=("bogus",), progress=False)
+    with pytest.raises(ValueError, match="category"):
+        ev.evaluate_category("toaster", frames=1, progress=False)

@@ -1,0 +1,124 @@
+"""ancsh predict: depth image files in, result JSON / picture out; error paths."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ancsh.cli import main
+from ancsh.data.generate import FrameGenerator, GenerationConfig
+from ancsh.learned.predict import depth_to_points, predict_depth, read_depth, read_intrinsics
+from ancsh.learned.train import Trainer
+from ancsh.learned.weights import export_weights
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    """A noise-free depth image of a held-out laptop (test split) and its frame."""
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
+    frame = gen.frame(1)
+    _, renderer = gen.instance(frame.instance_index)
+    view = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics)
+    return frame, view.depth
+
+
+@pytest.fixture
+def files(tmp_path, rendered):
+    """The depth as a 16-bit PNG in millimetres and as .npy in metres, with K.json."""
+    frame, depth = rendered
+    Image.fromarray(np.round(depth * 1000).astype(np.uint16)).save(tmp_path / "depth.png")
+    np.save(tmp_path / "depth.npy", depth)
+    (tmp_path / "K.json").write_text(json.dumps(frame.intrinsics.to_json()))
+    return tmp_path
+
+
+@pytest.fixture
+def tiny_laptop_weights(tmp_path, tiny_arrays, tiny_config):
+    """A randomly initialised tiny two-part, one-revolute-joint network (the laptop structure)."""
+    cfg = dataclasses.replace(tiny_config, kind="ancsh")
+    trainer = Trainer(cfg, tiny_arrays, None, tmp_path / "run", progress=False)
+    return export_weights(trainer.save_checkpoint(tmp_path / "run" / "last.pt"), tmp_path / "tiny.pt")
+
+
+def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rendered):
+    frame, _ = rendered
+    out, png = files / "result.json", files / "view.png"
+    code = main(["predict", "--depth", str(files / "depth.png"), "--intrinsics", str(files / "K.json"),
+                 "--category", "laptop", "--weights", str(tiny_laptop_weights), "--points", "256",
+                 "--out", str(out), "--png", str(png)])
+    assert code == 0 and png.stat().st_size > 0
+    data = json.loads(out.read_text())
+    assert data["points"] == 256 and data["valid_pixels"] > 256
+    assert data["status"] in {"success", "max_iter", "infeasible", "numerical_failure", "too_few_points", "degenerate"}
+    assert [p["name"] for p in data["parts"]] == list(frame.part_names)
+    assert [j["name"] for j in data["joints"]] == list(frame.joint_names)
+    assert data["input"]["intrinsics"] == frame.intrinsics.to_json()
+    if data["ok"]:
+        for part in data["parts"]:
+            assert np.shape(part["pose"]["rotation"]) == (3, 3) and np.shape(part["pose"]["translation"]) == (3,)
+            assert np.shape(part["box"]["corners"]) == (8, 3) and np.shape(part["box"]["extents"]) == (3,)
+        assert np.shape(data["joints"][0]["axis_cam"]) == (3,) and data["joints"][0]["state_unit"] == "rad"
+    assert set(data["timings_ms"]) == {"backproject", "network", "fit", "total"}
+
+
+def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, rendered):
+    frame, depth = rendered
+    pred = predict_depth(read_depth(files / "depth.png"), read_intrinsics(files / "K.json"), "laptop")
+    data = pred.to_json()
+    assert data["ok"] and data["formulation"] == "exact_reduced"
+    # every part box centre lies within the observed cloud's extent (grown by its diagonal)
+    lo, hi = pred.points_cam.min(0), pred.points_cam.max(0)
+    diag = np.linalg.norm(hi - lo)
+    for part in data["parts"]:
+        c = np.array(part["box"]["center"])
+        assert np.all(c > lo - diag) and np.all(c < hi + diag)
+
+
+def test_png_and_npy_give_the_same_points_on_the_depth_rays(files, rendered):
+    frame, depth = rendered
+    intr = read_intrinsics(files / "K.json")
+    a, pix, valid = depth_to_points(read_depth(files / "depth.png"), intr, num_points=300, rng=4)
+    b, pix_b, _ = depth_to_points(read_depth(files / "depth.npy"), intr, num_points=300, rng=4)
+    np.testing.assert_array_equal(pix, pix_b)
+    np.testing.assert_allclose(a, b, atol=1e-3)  # millimetre quantisation of the PNG
+    u, v = pix[:, 0], pix[:, 1]
+    np.testing.assert_allclose(b[:, 2], depth[v, u])
+    np.testing.assert_allclose(b[:, 0], (u - intr.cx) / intr.fx * depth[v, u])
+    assert valid == np.count_nonzero(depth > 0) and len(np.unique(pix, axis=0)) == 300
+    # max depth and mask select pixels
+    cut = float(np.median(depth[depth > 0]))
+    c, _, n_cut = depth_to_points(depth, intr, max_depth=cut, num_points=None)
+    assert n_cut == np.count_nonzero((depth > 0) & (depth <= cut)) and np.all(c[:, 2] <= cut)
+
+
+def test_error_paths(files, rendered, tmp_path, capsys):
+    frame, depth = rendered
+    intr = read_intrinsics(files / "K.json")
+    with pytest.raises(FileNotFoundError, match="depth: no such file"):
+        read_depth(files / "missing.png")
+    assert main(["predict", "--depth", str(files / "missing.png"), "--intrinsics", str(files / "K.json"),
+                 "--category", "laptop"]) == 2
+    assert "no such file" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="no valid pixel"):
+        depth_to_points(depth, intr, mask=np.zeros(depth.shape, dtype=bool))
+    with pytest.raises(ValueError, match="no valid pixel"):
+        depth_to_points(np.zeros_like(depth), intr)
+    with pytest.raises(ValueError, match="does not match"):
+        depth_to_points(depth[:-1], intr)
+    Image.fromarray(np.zeros((4, 4), dtype=np.uint8)).save(tmp_path / "eight.png")
+    with pytest.raises(ValueError, match="16-bit"):
+        read_depth(tmp_path / "eight.png")
+    np.save(tmp_path / "rgb.npy", np.zeros((4, 4, 3)))
+    with pytest.raises(ValueError, match="2-D"):
+        read_depth(tmp_path / "rgb.npy")
+    (tmp_path / "bad.json").write_text(json.dumps({"fx": 1.0}))
+    with pytest.raises(ValueError, match="intrinsics"):
+        read_intrinsics(tmp_path / "bad.json")
+    with pytest.raises(FileNotFoundError, match=r"no shipped weights for 'toaster'; available: .*laptop"):
+        predict_depth(depth, intr, "toaster")
+    Image.fromarray(np.zeros((3, 3), dtype=np.uint8)).save(tmp_path / "mask.png")
+    assert main(["predict", "--depth", str(files / "depth.png"), "--intrinsics", str(files / "K.json"),
+                 "--category", "laptop", "--mask", str(tmp_path / "mask.png")]) == 2
+    assert "mask: expected shape" in capsys.readouterr().err
