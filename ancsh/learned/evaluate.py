@@ -47,6 +47,7 @@ __all__ = [
     "evaluate_category",
     "fit_method",
     "fit_naocs",
+    "json_safe",
     "naocs_correspondences",
     "per_point_naocs",
     "summarize",
@@ -512,12 +513,12 @@ def _per_frame(evaluation: dict) -> dict:
     return out
 
 
-def _clean(x):
-    """JSON-safe: NaN / inf -> None, numpy scalars -> Python."""
+def json_safe(x):
+    """A JSON-safe copy: NaN / inf -> ``None``, numpy scalars -> Python, tuples -> lists."""
     if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
+        return {k: json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
+        return [json_safe(v) for v in x]
     if isinstance(x, (np.floating, float)):
         return float(x) if np.isfinite(x) else None
     if isinstance(x, np.integer):
@@ -623,7 +624,10 @@ def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
     paths["md"].write_text("\n".join(md))
     data = {
         "category": category, "command": command, "date": date, "settings": s, "summary": summary,
-        "paper": {"table1": paper1, "table2": paper2}, "per_frame": _per_frame(evaluation),
+        "paper": {"table1": paper1, "table2": paper2},
     }
-    paths["json"].write_text(json.dumps(_clean(data), indent=1) + "\n")
+    # Readable summary; the per-frame arrays one line per entry to keep the file small.
+    head = json.dumps(json_safe(data), indent=1)[:-2]
+    frames = ",\n".join(f"  {json.dumps(k)}: {json.dumps(json_safe(v))}" for k, v in _per_frame(evaluation).items())
+    paths["json"].write_text(f'{head},\n "per_frame": {{\n{frames}\n }}\n}}\n')
     return paths

@@ -253,18 +253,10 @@ class DepthPrediction:
             "frames": "camera frame (x right, y down, z forward), metres; pose maps part NPCS c to the camera: "
                       "p = scale * rotation @ c + translation; joint states relative to the category's rest state",
         }
-        return _clean(data)
+        from .evaluate import json_safe
 
+        return json_safe(data)
 
-
-def _clean(x):
-    if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    return x
 
 
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
