@@ -45,3 +45,10 @@ def test_laptop_weights_beat_trivial_baselines_on_fresh_test_frames(laptop_test_
     assert np.mean(corr.part_labels == frame.gt.part_labels) > base["seg_acc_majority"]
     angle = np.degrees(np.arccos(np.clip(abs(corr.joint_axes_naocs[0] @ frame.gt.joint_axes_naocs[0]), -1, 1)))
     assert angle < 20.0
+
+
+def test_laptop_direct_voting_weights_beat_a_constant_axis():
+    net = load_network("laptop", kind="direct_voting")
+    assert net.kind == "direct_voting" and net.revolute.tolist() == [True]
+    assert net.metrics["seg_acc"] > net.metrics["seg_acc_majority"]
+    assert net.metrics["axis_err_deg"] < net.metrics["axis_err_deg_mean_axis"] / 4
