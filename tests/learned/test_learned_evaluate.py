@@ -81,7 +81,7 @@ def test_quick_evaluation_writes_the_report(tmp_path):
     assert code == 0
     md = (tmp_path / "laptop.md").read_text()
     for label in [m.label for m in ev.METHODS.values()] + ["paper: NPCS", "paper: NAOCS", "paper: ANCSH",
-                                                           "Table 2", "Direct voting", "--frames 2"]:
+                                                           "Table 2", "Direct voting", "voted joints in NAOCS", "--frames 2"]:
         assert label in md
     data = json.loads((tmp_path / "laptop.json").read_text())
     assert data["settings"]["frames"] == 2 and set(data["summary"]["methods"]) == set(ev.METHODS)
