@@ -18,7 +18,7 @@ def register(sub) -> None:
     )
     p.add_argument("--category", required=True, help="object category, e.g. laptop")
     p.add_argument("--config", type=Path, help="TrainConfig JSON (unknown keys are an error)")
-    p.add_argument("--kind", choices=("ancsh", "direct_voting"), help="network (default from the config: ancsh)")
+    p.add_argument("--kind", choices=("ancsh", "direct_voting"), help="network (default: the config's, else ancsh)")
     p.add_argument("--resume", action="store_true", help="continue from RUN/last.pt")
     p.add_argument("--data", type=Path, help="training shards (default data_out/<category>_train, else data/<category>_train)")
     p.add_argument("--out", type=Path, help="run directory (default runs/<category>_<kind>)")
@@ -37,14 +37,13 @@ def run(args: argparse.Namespace) -> int:
     from .config import TrainConfig
 
     overrides = {"category": args.category, "kind": args.kind, "max_steps": args.max_steps}
-    kind = args.kind or "ancsh"
+    config = None if args.config is None else TrainConfig.from_json(args.config, **overrides)
+    kind = config.kind if config is not None else args.kind or "ancsh"
     out = args.out or Path("runs") / f"{args.category}_{kind}"
     last = out / "last.pt"
-    if args.config is not None:
-        config = TrainConfig.from_json(args.config, **overrides)
-    elif args.resume and (out / "config.json").is_file():
+    if config is None and args.resume and (out / "config.json").is_file():
         config = TrainConfig.from_json(out / "config.json", **overrides)
-    else:
+    elif config is None:
         config = TrainConfig.from_dict({}, **overrides)
     if last.is_file() and not args.resume:
         raise ValueError(f"--out: {out} already holds a checkpoint; pass --resume to continue or choose another --out")
