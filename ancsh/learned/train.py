@@ -310,11 +310,11 @@ def plot_history(history: list[dict], path, title: str = "") -> None:
 
     steps = [r["step"] for r in history]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for k in ("total", *LOSS_NAMES):
-        for prefix, style in (("train_", "-"), ("val_", "--")):
+    for i, k in enumerate(("total", *LOSS_NAMES)):
+        for prefix, style in (("train_", "-"), ("val_", "--")):  # one colour per loss: solid train, dashed val
             ys = [r.get(prefix + k, np.nan) for r in history]
             if np.any(np.isfinite(ys)) and np.nanmax(ys) > 0:
-                axes[0].plot(steps, ys, style, label=prefix + k)
+                axes[0].plot(steps, ys, style, color=f"C{i}", label=prefix + k)
     axes[0].set_yscale("log")
     axes[0].set_xlabel("step")
     axes[0].set_title("losses")
