@@ -234,6 +234,12 @@ def _naocs_joint_errors(corr: Correspondences, gt) -> list[dict]:
     return out
 
 
+def _sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def evaluate_category(
     category: str,
     *,
@@ -343,6 +349,7 @@ def evaluate_category(
         "settings": {
             "frames_requested": int(frames), "frames": len(records), "seed": int(seed), "methods": list(methods),
             "weights": provider.network.source, "weights_step": provider.network.metrics.get("step"),
+            "weights_sha256": _sha256(provider.network.source),
             "direct_weights": None if voter is None else voter.network.source,
             "available_weights": available_weights(), "num_threads": int(num_threads),
             "test_instances": gen.num_instances, "num_points": gen.config.num_points,
@@ -576,7 +583,8 @@ def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
         f"Frames: {s['frames']} (requested {s['frames_requested']}) rendered frames `0..{s['frames'] - 1}` of the test "
         f"stream (seed {s['seed']}) over the {s['test_instances']} held-out {category} instances, "
         f"{s['num_points']} points each, Kinect-like depth noise  ",
-        f"Weights: `{Path(s['weights']).name}` (step {s['weights_step']})  ",
+        f"Weights: `{Path(s['weights']).name}` (step {s['weights_step']}, sha256 {s['weights_sha256'][:12]})"
+        + (f"; direct voting: `{Path(s['direct_weights']).name}`" if s["direct_weights"] else "") + "  ",
         f"Parts (in the order of every list below): {parts}; joints: {joints}",
         "",
         "Statistics: **means** over frames (the paper's official evaluation script averages per part; the paper "
