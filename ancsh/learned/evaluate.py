@@ -49,7 +49,9 @@ __all__ = [
     "fit_naocs",
     "json_safe",
     "naocs_correspondences",
+    "missing_weights_error",
     "per_point_naocs",
+    "shipped_categories",
     "summarize",
     "write_report",
 ]
@@ -234,6 +236,21 @@ def _naocs_joint_errors(corr: Correspondences, gt) -> list[dict]:
     return out
 
 
+def shipped_categories(kind: str = "ancsh") -> list[str]:
+    """Procedural categories with shipped weights of ``kind`` (``"ancsh"`` or ``"direct_voting"``)."""
+    from ..data.procedural import CATEGORIES
+    from .weights import weights_path
+
+    return [c for c in CATEGORIES if weights_path(c, kind).is_file()]
+
+
+def missing_weights_error(category: str) -> FileNotFoundError:
+    """The error for a category without shipped ANCSH weights, naming the categories that have them."""
+    return FileNotFoundError(
+        f"category: no shipped weights for {category!r}; available: {', '.join(shipped_categories()) or 'none'}"
+    )
+
+
 def _sha256(path) -> str:
     import hashlib
 
@@ -294,9 +311,7 @@ def evaluate_category(
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
     gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed)))
     if weights is None and not weights_path(category).is_file():
-        raise FileNotFoundError(
-            f"category: no shipped weights for {category!r}; available: {', '.join(available_weights()) or 'none'}"
-        )
+        raise missing_weights_error(category)
     provider = LearnedProvider(category if weights is None else weights, seed=seed, num_threads=num_threads)
     voter = None
     if direct_weights is not None:

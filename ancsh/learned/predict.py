@@ -294,16 +294,16 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     """
     from ..solvers import FORMULATIONS, Observation, fit
     from .provider import LearnedProvider
-    from .weights import available_weights, weights_path
+    from .weights import weights_path
 
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
     t_start = time.perf_counter()
     if provider is None:
         if weights is None and not weights_path(str(category)).is_file():
-            raise FileNotFoundError(
-                f"category: no shipped weights for {category!r}; available: {', '.join(available_weights()) or 'none'}"
-            )
+            from .evaluate import missing_weights_error
+
+            raise missing_weights_error(category)
         provider = LearnedProvider(category if weights is None else weights, seed=seed)
     t0 = time.perf_counter()
     pts, pixels, valid = depth_to_points(depth, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points, rng=seed)
