@@ -313,6 +313,7 @@ def evaluate_category(
     if weights is None and not weights_path(category).is_file():
         raise missing_weights_error(category)
     provider = LearnedProvider(category if weights is None else weights, seed=seed, num_threads=num_threads)
+    weights_sha = _sha256(provider.network.source)  # at load time: the file may be replaced while we run
     voter = None
     if direct_weights is not None:
         voter = DirectVotingPredictor(direct_weights, seed=seed)
@@ -364,7 +365,7 @@ def evaluate_category(
         "settings": {
             "frames_requested": int(frames), "frames": len(records), "seed": int(seed), "methods": list(methods),
             "weights": provider.network.source, "weights_step": provider.network.metrics.get("step"),
-            "weights_sha256": _sha256(provider.network.source),
+            "weights_sha256": weights_sha,
             "direct_weights": None if voter is None else voter.network.source,
             "available_weights": available_weights(), "num_threads": int(num_threads),
             "test_instances": gen.num_instances, "num_points": gen.config.num_points,
