@@ -1,6 +1,6 @@
 """Articulated models, forward kinematics and ANCSH ground truth."""
 
-from .articulated import ArticulatedModel, Joint, JointType, Part, sample_surface
+from .articulated import ArticulatedModel, Joint, JointType, Part, sample_surface, sample_surface_with_normals
 from .canonical import AncshGroundTruth, CanonicalSpace, ancsh_ground_truth, canonical_space, joint_association
 from .synthetic import SyntheticFrame, random_articulated_model, random_camera_pose, sample_frame
 
@@ -19,4 +19,5 @@ __all__ = [
     "random_camera_pose",
     "sample_frame",
     "sample_surface",
+    "sample_surface_with_normals",
 ]

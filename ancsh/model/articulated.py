@@ -325,17 +325,30 @@ class ArticulatedModel:
 
 
 def sample_surface(mesh, count: int, rng) -> np.ndarray:
-    """``count`` points uniformly on a trimesh surface (area-weighted), seeded."""
+    """``count`` points uniformly on a trimesh surface (area-weighted), seeded; ``(count, 3)``."""
+    return sample_surface_with_normals(mesh, count, rng)[0]
+
+
+def sample_surface_with_normals(mesh, count: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` area-weighted surface samples ``(count, 3)`` and their unit face normals ``(count, 3)``.
+
+    Seeded: the same ``rng`` state gives the same points as :func:`sample_surface`.
+    """
     rng = check_generator(rng)
     if mesh is None or not hasattr(mesh, "triangles"):
         raise ValueError(f"mesh: expected a trimesh.Trimesh, got {type(mesh).__name__}")
     tris = np.asarray(mesh.triangles, dtype=np.float64)
     if len(tris) == 0:
         raise ValueError("mesh: has no triangles to sample")
-    areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    areas = 0.5 * np.linalg.norm(cross, axis=1)
+    if areas.sum() <= 0:
+        raise ValueError("mesh: has zero surface area")
     face = rng.choice(len(tris), size=count, p=areas / areas.sum())
     u, v = rng.random(count), rng.random(count)
     flip = u + v > 1
     u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
     t = tris[face]
-    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+    points = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
+    normals = cross[face] / np.maximum(np.linalg.norm(cross[face], axis=1, keepdims=True), 1e-300)
+    return points, normals

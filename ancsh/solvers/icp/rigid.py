@@ -21,7 +21,7 @@ import numpy as np
 
 from ...geometry._checks import as_points, check_generator
 from ...geometry.transforms import Sim3
-from ...model.articulated import ArticulatedModel
+from ...model.articulated import ArticulatedModel, sample_surface_with_normals
 from ..types import FitStatus
 from .result import CadFitResult, joint_states_from_part_poses
 from .template import ArticulatedPose, ModelSurface
@@ -63,25 +63,8 @@ class RigidIcpConfig:
             raise ValueError(f"min_points: expected >= 3, got {self.min_points}")
 
 
-def sample_with_normals(mesh, count: int, rng) -> tuple[np.ndarray, np.ndarray]:
-    """``count`` area-weighted surface samples ``(count, 3)`` and their face normals ``(count, 3)``."""
-    rng = check_generator(rng)
-    tris = np.asarray(mesh.triangles, dtype=np.float64)
-    if len(tris) == 0:
-        raise ValueError("mesh: has no triangles to sample")
-    cross = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    areas = 0.5 * np.linalg.norm(cross, axis=1)
-    if areas.sum() <= 0:
-        raise ValueError("mesh: has zero surface area")
-    face = rng.choice(len(tris), size=count, p=areas / areas.sum())
-    u, v = rng.random(count), rng.random(count)
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    t = tris[face]
-    pts = t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
-    n = cross[face]
-    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    return pts, n
+# Surface samples with face normals (one definition, in the model package).
+sample_with_normals = sample_surface_with_normals
 
 
 def _cloud(points, normals=None):
