@@ -194,6 +194,20 @@ def backproject(depth, intrinsics: Intrinsics, mask=None) -> np.ndarray:
     (N, 3) float64
         Points of the selected pixels in row-major pixel order.
     """
+    d, valid = valid_depth_pixels(depth, intrinsics, mask)
+    v, u = np.nonzero(valid)
+    return _pixels_to_points(u, v, d[v, u], intrinsics)
+
+
+def valid_depth_pixels(depth, intrinsics: Intrinsics, mask=None) -> tuple[np.ndarray, np.ndarray]:
+    """Checked depth image ``(H, W)`` float64 (metres) and its valid pixels: depth > 0, inside ``mask``.
+
+    Raises
+    ------
+    ValueError
+        When ``depth`` does not match the intrinsics' image size or ``mask`` is not a bool
+        array of the same shape.
+    """
     d = _check_image(depth, intrinsics, "depth")
     valid = d > 0
     if mask is not None:
@@ -201,8 +215,7 @@ def backproject(depth, intrinsics: Intrinsics, mask=None) -> np.ndarray:
         if m.shape != d.shape or m.dtype != bool:
             raise ValueError(f"mask: expected a bool array of shape {d.shape}, got {m.dtype} {m.shape}")
         valid &= m
-    v, u = np.nonzero(valid)
-    return _pixels_to_points(u, v, d[v, u], intrinsics)
+    return d, valid
 
 
 def _pixels_to_points(u, v, z, intr: Intrinsics) -> np.ndarray:
@@ -215,7 +228,10 @@ def _check_image(image, intrinsics: Intrinsics, name: str) -> np.ndarray:
         raise ValueError(f"intrinsics: expected Intrinsics, got {type(intrinsics).__name__}")
     img = np.asarray(image, dtype=np.float64)
     if img.shape != (intrinsics.height, intrinsics.width):
-        raise ValueError(f"{name}: expected shape {(intrinsics.height, intrinsics.width)}, got {img.shape}")
+        raise ValueError(
+            f"{name}: image shape {img.shape} does not match the intrinsics' (height, width) "
+            f"{(intrinsics.height, intrinsics.width)}"
+        )
     return img
 
 

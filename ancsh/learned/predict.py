@@ -138,21 +138,10 @@ def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: floa
     ValueError
         When no valid pixel remains.
     """
-    from ..data.render import backproject
+    from ..data.render import backproject, valid_depth_pixels
     from ..geometry._checks import check_generator
 
-    d = np.asarray(depth, dtype=np.float64)
-    if not isinstance(intrinsics, Intrinsics):
-        raise ValueError(f"intrinsics: expected Intrinsics, got {type(intrinsics).__name__}")
-    if d.shape != (intrinsics.height, intrinsics.width):
-        raise ValueError(f"depth: image shape {d.shape} does not match the intrinsics' (height, width) "
-                         f"{(intrinsics.height, intrinsics.width)}")
-    sel = d > 0
-    if mask is not None:
-        m = np.asarray(mask)
-        if m.shape != d.shape or m.dtype != bool:
-            raise ValueError(f"mask: expected a bool array of shape {d.shape}, got {m.dtype} {m.shape}")
-        sel &= m
+    d, sel = valid_depth_pixels(depth, intrinsics, mask)
     if max_depth is not None:
         if not (np.isfinite(max_depth) and max_depth > 0):
             raise ValueError(f"max_depth: expected a positive number, got {max_depth}")
