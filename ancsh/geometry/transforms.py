@@ -53,6 +53,30 @@ class Sim3:
         return cls()
 
     @classmethod
+    def unchecked(cls, rotation: np.ndarray, translation: np.ndarray, scale: float) -> "Sim3":
+        """Build without validation, for hot loops whose values are valid by construction.
+
+        Parameters
+        ----------
+        rotation : (3, 3) float64
+            A rotation matrix (orthonormal, ``det = +1``); not checked.
+        translation : (3,) float64
+        scale : float
+            Positive; not checked.
+
+        The arrays are copied and made read-only, as by the validating constructor.
+        """
+        self = object.__new__(cls)
+        R = np.array(rotation, dtype=np.float64)
+        t = np.array(translation, dtype=np.float64)
+        R.flags.writeable = False
+        t.flags.writeable = False
+        object.__setattr__(self, "rotation", R)
+        object.__setattr__(self, "translation", t)
+        object.__setattr__(self, "scale", float(scale))
+        return self
+
+    @classmethod
     def from_matrix(cls, M) -> "Sim3":
         """From a ``(4, 4)`` homogeneous matrix ``[[s R, t], [0, 1]]``."""
         M = as_array(M, "M", (4, 4))
@@ -74,8 +98,8 @@ class Sim3:
     # --- algebra --------------------------------------------------------
     def __matmul__(self, other):
         """Compose with another ``Sim3`` or apply to ``(N, 3)`` / ``(3,)`` points."""
-        if isinstance(other, Sim3):
-            return Sim3(
+        if isinstance(other, Sim3):  # products of valid transforms are valid
+            return Sim3.unchecked(
                 self.rotation @ other.rotation,
                 self.scale * (self.rotation @ other.translation) + self.translation,
                 self.scale * other.scale,
@@ -84,7 +108,7 @@ class Sim3:
 
     def inverse(self) -> "Sim3":
         Rt = self.rotation.T
-        return Sim3(Rt, -(Rt @ self.translation) / self.scale, 1.0 / self.scale)
+        return Sim3.unchecked(Rt, -(Rt @ self.translation) / self.scale, 1.0 / self.scale)
 
     def apply(self, points) -> np.ndarray:
         """Map points; ``(N, 3) -> (N, 3)`` or ``(3,) -> (3,)``."""

@@ -67,16 +67,41 @@ def umeyama(src, dst, weights=None, with_scale: bool = True) -> Sim3:
             raise ValueError(f"weights: need at least 3 positive weights, got {np.count_nonzero(w)}")
         w = w / w.sum()
 
+    _check_spread(src, src - w @ src, w, "src")
+    _check_spread(dst, dst - w @ dst, w, "dst")
+    R, t, scale = umeyama_core(src, dst, w, with_scale)
+    return Sim3.unchecked(R, t, scale)
+
+
+def umeyama_core(src: np.ndarray, dst: np.ndarray, w: np.ndarray, with_scale: bool = True):
+    """The arithmetic of :func:`umeyama` without input validation, for hot loops (RANSAC refits).
+
+    Parameters
+    ----------
+    src, dst : (N, 3) float64
+        Finite corresponding points (not checked).
+    w : (N,) float64
+        Non-negative weights summing to 1 (not checked).
+    with_scale : bool
+
+    Returns
+    -------
+    R : (3, 3) float64, t : (3,) float64, s : float
+        ``dst ~= s R src + t``.
+
+    Raises
+    ------
+    DegeneratePointsError
+        When the weighted cross-covariance has rank < 2 (coincident or collinear points on
+        either side, or too few positive weights): the rotation is undetermined.
+    """
     mu_src = w @ src
     mu_dst = w @ dst
     x_src = src - mu_src
     x_dst = dst - mu_dst
-    var_src = _check_spread(src, x_src, w, "src")
-    _check_spread(dst, x_dst, w, "dst")
-
     sigma = (x_dst * w[:, None]).T @ x_src  # (3, 3) cross-covariance
     U, d, Vt = np.linalg.svd(sigma)
-    if d[1] <= _COV_RANK_TOL * d[0]:
+    if not d[1] > _COV_RANK_TOL * d[0]:
         raise DegeneratePointsError(
             "src: cross-covariance with dst has rank < 2 (singular values "
             f"{d[0]:.3g}, {d[1]:.3g}, {d[2]:.3g}); the rotation is undetermined"
@@ -85,8 +110,12 @@ def umeyama(src, dst, weights=None, with_scale: bool = True) -> Sim3:
     if np.linalg.det(U) * np.linalg.det(Vt) < 0:
         S[2] = -1.0  # reflection correction
     R = (U * S) @ Vt
-    scale = float(d @ S) / var_src if with_scale else 1.0
-    return Sim3(R, mu_dst - scale * (R @ mu_src), scale)
+    if with_scale:
+        var_src = float(w @ np.einsum("ij,ij->i", x_src, x_src))
+        scale = float(d @ S) / var_src
+    else:
+        scale = 1.0
+    return R, mu_dst - scale * (R @ mu_src), scale
 
 
 def _check_spread(points: np.ndarray, centred: np.ndarray, w: np.ndarray, name: str) -> float:

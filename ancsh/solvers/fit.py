@@ -365,7 +365,7 @@ class _Fit:
         if not var_c > 0 or not var_p > 0:
             return T
         s = np.sqrt(var_p / var_c)
-        return Sim3(T.rotation, pbar - s * (T.rotation @ cbar), s)
+        return Sim3.unchecked(T.rotation, pbar - s * (T.rotation @ cbar), s)
 
     # -- program solve --------------------------------------------------------------------------
     def _solve(self, poses: list, inliers: np.ndarray, L: float) -> FitResult:
@@ -409,7 +409,7 @@ class _Fit:
         raw = prog.unpack_poses(outcome.x, p)
         if not all(np.all(np.isfinite(R)) and np.all(np.isfinite(t)) and np.isfinite(s) and s > 0 for R, t, s in raw):
             return self._failure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
-        solved = [Sim3(R, t, s) for R, t, s in raw]
+        solved = [Sim3.unchecked(R, t, s) for R, t, s in raw]
         costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, p)).ravel().tolist()))
         if cfg.robust:
             costs["robust_data"] = self._robust_energy(raw, inliers, L)

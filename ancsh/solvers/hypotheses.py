@@ -6,8 +6,8 @@ ratio, so a large base part cannot outvote a thin part. That score is a sum of p
 terms of independent per-part fits, so the best hypothesis is the combination of each
 part's best sample: hypotheses are drawn in batches, every part keeps its best, and the
 loop stops once every part has drawn an all-inlier sample with probability ``confidence``.
-The winner is refitted on its inliers (:func:`ancsh.geometry.umeyama.umeyama`) until the
-inlier set stops changing.
+The winner is refitted on its inliers (the weighted Umeyama of
+:func:`ancsh.geometry.umeyama.umeyama_core`) until the inlier set stops changing.
 
 The minimal-sample fits are a batched closed-form Umeyama (many 3-point fits in one numpy
 call); the test suite checks it against :func:`ancsh.geometry.umeyama.umeyama`.
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.transforms import Sim3
-from ..geometry.umeyama import umeyama
+from ..geometry.umeyama import DegeneratePointsError, umeyama_core
 
 __all__ = ["ArticulatedRansacResult", "articulated_ransac", "batched_umeyama"]
 
@@ -48,9 +48,7 @@ def batched_umeyama(src: np.ndarray, dst: np.ndarray):
     mu_d = dst.mean(axis=1)
     xs = src - mu_s[:, None, :]
     xd = dst - mu_d[:, None, :]
-    xs_t = xs.transpose(0, 2, 1)
-    cov_s = xs_t @ xs
-    var_s = np.trace(cov_s, axis1=1, axis2=2) / k
+    var_s = np.einsum("hij,hij->h", xs, xs) / k
     sigma = (xd.transpose(0, 2, 1) @ xs) / k
     U, d, Vt = np.linalg.svd(sigma)
     S = np.ones((len(d), 3))
@@ -59,16 +57,9 @@ def batched_umeyama(src: np.ndarray, dst: np.ndarray):
     with np.errstate(divide="ignore", invalid="ignore"):
         s = np.sum(d * S, axis=1) / var_s
     t = mu_d - s[:, None] * (R @ mu_s[:, :, None])[:, :, 0]
-    # Spread of each point set: second eigenvalue of its covariance (collinear -> 0).
-    ev_s = np.linalg.eigvalsh(cov_s)
-    ev_d = np.linalg.eigvalsh(xd.transpose(0, 2, 1) @ xd)
-    valid = (
-        (d[:, 1] > _RANK_TOL * d[:, 0])
-        & (ev_s[:, 1] > _RANK_TOL * ev_s[:, 2])
-        & (ev_d[:, 1] > _RANK_TOL * ev_d[:, 2])
-        & np.isfinite(s)
-        & (s > 0)
-    )
+    # The cross-covariance has rank <= the rank of either centred point set, so this one test
+    # also rejects coincident or collinear samples on either side.
+    valid = (d[:, 1] > _RANK_TOL * d[:, 0]) & np.isfinite(s) & (s > 0)
     return R, t, s, valid
 
 
@@ -138,6 +129,12 @@ def articulated_ransac(
     if threshold is None and (relative_threshold is None or npcs_scale is None):
         raise ValueError("threshold: give a threshold in metres, or relative_threshold and npcs_scale")
     part_idx = [np.flatnonzero(labels == j) for j in range(num_parts)]
+    counts = np.array([len(idx) for idx in part_idx])
+    if np.any(counts == 0):
+        raise ValueError(f"labels: part(s) {np.flatnonzero(counts == 0).tolist()} have no points")
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    order = np.concatenate(part_idx)
+    npcs_sorted, points_sorted = npcs[order], points[order]  # part by part
     npcs_t = [np.ascontiguousarray(npcs[idx].T) for idx in part_idx]
     points_t = [np.ascontiguousarray(points[idx].T) for idx in part_idx]
     best_ratio = np.full(num_parts, -1.0)
@@ -146,14 +143,14 @@ def articulated_ransac(
     while drawn < min(needed, max_hypotheses):
         h = min(batch, max_hypotheses - drawn)
         drawn += h
-        fits = []
-        for j, idx in enumerate(part_idx):
-            sample = rng.integers(0, len(idx), size=(h, SAMPLE_SIZE))
-            distinct = (sample[:, 0] != sample[:, 1]) & (sample[:, 0] != sample[:, 2]) & (sample[:, 1] != sample[:, 2])
-            pick = idx[sample]
-            R, t, s, valid = batched_umeyama(npcs[pick], points[pick])
-            valid &= distinct
-            fits.append((R[valid], t[valid], s[valid]))
+        # One minimal sample per part and hypothesis, all parts fitted in one batched call.
+        sample = (rng.random((num_parts, h, SAMPLE_SIZE)) * counts[:, None, None]).astype(np.intp)
+        distinct = (sample[..., 0] != sample[..., 1]) & (sample[..., 0] != sample[..., 2]) & (sample[..., 1] != sample[..., 2])
+        pick = (sample + offsets[:, None, None]).reshape(-1, SAMPLE_SIZE)
+        R, t, s, valid = batched_umeyama(npcs_sorted[pick], points_sorted[pick])
+        valid = (valid & distinct.ravel()).reshape(num_parts, h)
+        R, t, s = R.reshape(num_parts, h, 3, 3), t.reshape(num_parts, h, 3), s.reshape(num_parts, h)
+        fits = [(R[j][valid[j]], t[j][valid[j]], s[j][valid[j]]) for j in range(num_parts)]
         if threshold is None:
             sizes = np.concatenate([f[2] / npcs_scale[j] for j, f in enumerate(fits)])
             if sizes.size == 0:
@@ -169,7 +166,7 @@ def articulated_ransac(
             i = int(np.argmax(ratio))
             if ratio[i] > best_ratio[j]:
                 best_ratio[j] = ratio[i]
-                best[j] = Sim3(R[i], t[i], s[i])
+                best[j] = (R[i], t[i], s[i])
         if np.all(best_ratio > 0):
             needed = _hypotheses_needed(best_ratio, confidence, max_hypotheses)
     n_all = len(labels)
@@ -185,32 +182,39 @@ def articulated_ransac(
     )
 
 
-def _inliers_of(T: Sim3, points, npcs, idx, threshold) -> np.ndarray:
-    d2 = np.sum((T.apply(npcs[idx]) - points[idx]) ** 2, axis=1)
-    return d2 <= threshold**2
+def _inliers_of(pose, points, npcs, idx, threshold) -> np.ndarray:
+    R, t, s = pose
+    d = s * (npcs[idx] @ R.T) + t - points[idx]
+    return np.einsum("ij,ij->i", d, d) <= threshold**2
 
 
 def _refit(best, points, npcs, part_idx, threshold, weights, n_all):
     poses, inliers = [], np.zeros(n_all, dtype=bool)
     ratios = np.zeros(len(best))
-    for j, (T, idx) in enumerate(zip(best, part_idx)):
-        inl = _inliers_of(T, points, npcs, idx, threshold)
+    for j, (pose, idx) in enumerate(zip(best, part_idx)):
+        inl = _inliers_of(pose, points, npcs, idx, threshold)
         for _ in range(_MAX_REFITS):
             sel = idx[inl]
             if sel.size < SAMPLE_SIZE:
                 break
-            try:
-                T_new = umeyama(npcs[sel], points[sel], weights=None if weights is None else weights[sel])
-            except ValueError:
+            if weights is None:
+                w = np.full(sel.size, 1.0 / sel.size)
+            elif np.count_nonzero(weights[sel]) >= SAMPLE_SIZE:
+                w = weights[sel] / weights[sel].sum()
+            else:
                 break
-            inl_new = _inliers_of(T_new, points, npcs, idx, threshold)
+            try:
+                pose_new = umeyama_core(npcs[sel], points[sel], w)
+            except DegeneratePointsError:
+                break
+            inl_new = _inliers_of(pose_new, points, npcs, idx, threshold)
             if np.count_nonzero(inl_new) < np.count_nonzero(inl):
                 break
             changed = not np.array_equal(inl_new, inl)
-            T, inl = T_new, inl_new
+            pose, inl = pose_new, inl_new
             if not changed:
                 break
-        poses.append(T)
+        poses.append(Sim3.unchecked(*pose))
         inliers[idx[inl]] = True
         ratios[j] = np.count_nonzero(inl) / len(idx)
     return poses, inliers, ratios
