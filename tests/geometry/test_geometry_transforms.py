@@ -95,3 +95,15 @@ def test_from_matrix_rejects_what_is_not_a_similarity():
 def test_apply_rejects_bad_shape(rng):
     with pytest.raises(ValueError, match=r"points: expected shape \(N, 3\)"):
         _random_sim3(rng).apply(np.zeros((4, 2)))
+
+
+def test_unchecked_matches_the_validating_constructor_and_is_read_only(rng):
+    T = _random_sim3(rng)
+    R, t = T.rotation.copy(), T.translation.copy()
+    U = Sim3.unchecked(R, t, T.scale)
+    assert U.allclose(T, atol=0.0)
+    R[0, 0] += 1.0  # the inputs are copied
+    assert U.allclose(T, atol=0.0)
+    with pytest.raises(ValueError, match="read-only"):
+        U.rotation[0, 0] = 2.0
+    assert isinstance(U.scale, float)

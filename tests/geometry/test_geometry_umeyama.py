@@ -156,3 +156,31 @@ def test_rank_one_cross_covariance_is_degenerate():
     dst = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 1, 0]])
     with pytest.raises(DegeneratePointsError, match="cross-covariance with dst has rank < 2"):
         umeyama(src, dst)
+
+
+def test_core_matches_umeyama_with_weights(rng):
+    from ancsh.geometry.umeyama import umeyama_core
+
+    T = _random_sim3(rng)
+    src = rng.standard_normal((40, 3))
+    dst = T @ src + 0.01 * rng.standard_normal((40, 3))
+    w = rng.uniform(0.0, 1.0, 40)
+    R, t, s = umeyama_core(src, dst, w / w.sum())
+    assert Sim3(R, t, s).allclose(umeyama(src, dst, weights=w), atol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["coincident", "collinear_src", "collinear_dst"])
+def test_core_rejects_degenerate_points(rng, case):
+    from ancsh.geometry.umeyama import umeyama_core
+
+    src = rng.standard_normal((10, 3))
+    dst = rng.standard_normal((10, 3))
+    line = np.outer(rng.standard_normal(10), [1.0, 2.0, -0.5])
+    if case == "coincident":
+        src[:] = 1.5
+    elif case == "collinear_src":
+        src = line
+    else:
+        dst = line + 3.0
+    with pytest.raises(DegeneratePointsError, match="rank < 2"):
+        umeyama_core(src, dst, np.full(10, 0.1))
