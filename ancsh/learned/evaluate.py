@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..solvers.types import Correspondences, FitResult, Observation
+from .weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 
 __all__ = [
     "METHODS",
@@ -234,14 +235,6 @@ def _naocs_joint_errors(corr: Correspondences, gt) -> list[dict]:
             "line_dist": line_distance(p, u, gt.joint_pivots_naocs[k], gt.joint_axes_naocs[k]) if revolute else float("nan"),
         })
     return out
-
-
-def shipped_categories(kind: str = "ancsh") -> list[str]:
-    """Procedural categories with shipped weights of ``kind`` (``"ancsh"`` or ``"direct_voting"``)."""
-    from ..data.procedural import CATEGORIES
-    from .weights import weights_path
-
-    return [c for c in CATEGORIES if weights_path(c, kind).is_file()]
 
 
 def missing_weights_error(category: str) -> FileNotFoundError:

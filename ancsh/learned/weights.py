@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "export_weights", "load_network"]
+__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network"]
 
 FORMAT = 1
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
@@ -63,6 +63,13 @@ def weights_path(category: str, kind: str = "ancsh") -> Path:
 def available_weights() -> list[str]:
     """Names (file stems) of the shipped weight files."""
     return sorted(p.stem for p in WEIGHTS_DIR.glob("*.pt"))
+
+
+def shipped_categories(kind: str = "ancsh") -> list[str]:
+    """Procedural categories with shipped weights of ``kind`` (``"ancsh"`` or ``"direct_voting"``)."""
+    from ..data.procedural import CATEGORIES
+
+    return [c for c in CATEGORIES if weights_path(c, kind).is_file()]
 
 
 def export_weights(checkpoint, out_path, *, metrics: dict | None = None) -> Path:

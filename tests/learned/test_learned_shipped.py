@@ -1,54 +1,80 @@
-"""The shipped laptop weights load by category name and beat trivial predictors on held-out instances."""
+"""Every shipped network loads by category name and beats trivial predictors on held-out instances."""
 
 import numpy as np
 import pytest
 
-from ancsh.learned.weights import available_weights, load_network
+from ancsh.learned.weights import load_network, shipped_categories
+
+SHIPPED = shipped_categories()
+SHIPPED_DIRECT = shipped_categories("direct_voting")
 
 
-@pytest.fixture(scope="module")
-def laptop_test_frames(tmp_path_factory):
-    from ancsh.data.generate import GenerationConfig, generate_dataset
-
-    out = tmp_path_factory.mktemp("laptop_test")
-    generate_dataset(GenerationConfig(category="laptop", split="test", seed=11, shard_size=4), 4, out, progress=False)
-    return out
+def test_laptop_weights_are_shipped():
+    assert "laptop" in SHIPPED and "laptop" in SHIPPED_DIRECT
 
 
-def test_laptop_weights_are_shipped_small_and_documented():
-    assert "laptop" in available_weights()
-    net = load_network("laptop")
-    assert net.kind == "ancsh" and net.num_parts == 2 and net.revolute.tolist() == [True]
+def _model_of(category):
+    from ancsh.data.procedural import load_instance
+
+    return load_instance(category, "test", 0)
+
+
+@pytest.mark.parametrize("category", SHIPPED)
+def test_weights_are_small_match_the_category_and_beat_their_stored_baselines(category):
+    from ancsh.learned.weights import weights_path
+
+    assert weights_path(category).stat().st_size < 5e6
+    net = load_network(category)
+    model = _model_of(category)
+    assert net.kind == "ancsh" and net.num_parts == model.num_parts
+    assert net.revolute.tolist() == [j.is_revolute for j in model.joints]
     assert net.metrics["seg_acc"] > net.metrics["seg_acc_majority"]
     assert net.metrics["npcs_err"] < net.metrics["npcs_err_zero"]
 
 
+@pytest.fixture(scope="module")
+def test_frames(tmp_path_factory):
+    from ancsh.data.generate import GenerationConfig, generate_dataset
+
+    def make(category):
+        out = tmp_path_factory.mktemp(f"{category}_test")
+        generate_dataset(GenerationConfig(category=category, split="test", seed=11, shard_size=4), 4, out, progress=False)
+        return out
+
+    return make
+
+
 @pytest.mark.slow
-def test_laptop_weights_beat_trivial_baselines_on_fresh_test_frames(laptop_test_frames):
+@pytest.mark.parametrize("category", SHIPPED)
+def test_weights_beat_trivial_baselines_on_fresh_test_frames(category, test_frames):
     from ancsh.data.dataset import read_frames
     from ancsh.learned.data import arrays_from_dataset
     from ancsh.learned.provider import LearnedProvider
     from ancsh.learned.train import evaluate_arrays, trivial_baselines
     from ancsh.solvers.types import Observation
 
-    net = load_network("laptop")
-    arrays = arrays_from_dataset(laptop_test_frames)
+    frames_dir = test_frames(category)
+    net = load_network(category)
+    arrays = arrays_from_dataset(frames_dir)
     scores = evaluate_arrays(net.model, arrays, net.config)
     base = trivial_baselines(arrays)
     assert scores["seg_acc"] > base["seg_acc_majority"] + 0.1
     assert scores["npcs_err"] < 0.5 * base["npcs_err_zero"]
     assert scores["axis_err_deg"] < 20.0
 
-    provider = LearnedProvider("laptop")
-    frame = read_frames(laptop_test_frames)[0]
+    provider = LearnedProvider(category)
+    frame = read_frames(frames_dir)[0]
     corr = provider.correspond(Observation(frame.points))
     assert np.mean(corr.part_labels == frame.gt.part_labels) > base["seg_acc_majority"]
-    angle = np.degrees(np.arccos(np.clip(abs(corr.joint_axes_naocs[0] @ frame.gt.joint_axes_naocs[0]), -1, 1)))
-    assert angle < 20.0
+    for k in range(frame.gt.num_joints):
+        cos = abs(corr.joint_axes_naocs[k] @ frame.gt.joint_axes_naocs[k])
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 20.0
 
 
-def test_laptop_direct_voting_weights_beat_a_constant_axis():
-    net = load_network("laptop", kind="direct_voting")
-    assert net.kind == "direct_voting" and net.revolute.tolist() == [True]
+@pytest.mark.parametrize("category", SHIPPED_DIRECT)
+def test_direct_voting_weights_beat_a_constant_axis(category):
+    net = load_network(category, kind="direct_voting")
+    model = _model_of(category)
+    assert net.kind == "direct_voting" and net.revolute.tolist() == [j.is_revolute for j in model.joints]
     assert net.metrics["seg_acc"] > net.metrics["seg_acc_majority"]
     assert net.metrics["axis_err_deg"] < net.metrics["axis_err_deg_mean_axis"] / 4
