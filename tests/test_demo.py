@@ -39,6 +39,7 @@ def test_exact_fit_of_noise_free_correspondences_scores_zero_error(frame_and_gt)
     assert max(p["rot_deg"] for p in rec["parts"]) < 1e-5
     assert max(p["trans"] for p in rec["parts"]) < 1e-6
     assert min(p["iou"] for p in rec["parts"]) > 1 - 1e-6
+    assert min(p["iou_pose"] for p in rec["parts"]) > 1 - 1e-6
     assert max(j["axis_deg"] for j in rec["joints"]) < 1e-5
 
 
@@ -53,3 +54,6 @@ def test_rotated_part_pose_shows_its_rotation_error(frame_and_gt):
     rec = evaluate_fit(bad, gt)
     assert rec["parts"][1]["rot_deg"] == pytest.approx(7.0, abs=1e-6)
     assert rec["parts"][0]["rot_deg"] < 1e-5
+    # the true-size box at the turned pose loses overlap; the untouched part keeps it
+    assert rec["parts"][1]["iou_pose"] < 1 - 1e-3
+    assert rec["parts"][0]["iou_pose"] > 1 - 1e-6
