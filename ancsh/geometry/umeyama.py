@@ -69,53 +69,63 @@ def umeyama(src, dst, weights=None, with_scale: bool = True) -> Sim3:
 
     _check_spread(src, src - w @ src, w, "src")
     _check_spread(dst, dst - w @ dst, w, "dst")
-    R, t, scale = umeyama_core(src, dst, w, with_scale)
-    return Sim3.unchecked(R, t, scale)
+    R, t, scale, valid = umeyama_batch(src[None], dst[None], w[None], with_scale=with_scale, rank_tol=_COV_RANK_TOL)
+    if not valid[0]:
+        raise DegeneratePointsError("src: cross-covariance with dst has rank < 2; the rotation is undetermined")
+    return Sim3.unchecked(R[0], t[0], scale[0])
 
 
-def umeyama_core(src: np.ndarray, dst: np.ndarray, w: np.ndarray, with_scale: bool = True):
-    """The arithmetic of :func:`umeyama` without input validation, for hot loops (RANSAC refits).
+def umeyama_batch(src, dst, weights=None, *, with_scale: bool = True, rank_tol: float = 1e-8):
+    """Many weighted Umeyama fits at once, without input validation (for hot loops).
+
+    The arithmetic of :func:`umeyama` (which calls it), vectorised over ``H`` problems: RANSAC
+    minimal samples, or every part's inliers padded to a common length with zero weights.
 
     Parameters
     ----------
-    src, dst : (N, 3) float64
+    src, dst : (H, k, 3) float64
         Finite corresponding points (not checked).
-    w : (N,) float64
-        Non-negative weights summing to 1 (not checked).
+    weights : (H, k) float64, optional
+        Non-negative weights (not checked), normalised per problem; default uniform.
     with_scale : bool
+        Estimate the scale; otherwise it is 1.
+    rank_tol : float
+        A problem is degenerate when the cross-covariance's second singular value is at most
+        ``rank_tol`` times the first (coincident or collinear points on either side: its rank is
+        at most that of either centred point set).
 
     Returns
     -------
-    R : (3, 3) float64, t : (3,) float64, s : float
-        ``dst ~= s R src + t``.
-
-    Raises
-    ------
-    DegeneratePointsError
-        When the weighted cross-covariance has rank < 2 (coincident or collinear points on
-        either side, or too few positive weights): the rotation is undetermined.
+    R : (H, 3, 3), t : (H, 3), s : (H,), valid : (H,) bool
+        ``dst ~= s R src + t``; ``valid`` is False for degenerate problems, fewer than 3 positive
+        weights, and non-finite or non-positive scales (their ``R, t, s`` are meaningless).
     """
-    mu_src = w @ src
-    mu_dst = w @ dst
-    x_src = src - mu_src
-    x_dst = dst - mu_dst
-    sigma = (x_dst * w[:, None]).T @ x_src  # (3, 3) cross-covariance
-    U, d, Vt = np.linalg.svd(sigma)
-    if not d[1] > _COV_RANK_TOL * d[0]:
-        raise DegeneratePointsError(
-            "src: cross-covariance with dst has rank < 2 (singular values "
-            f"{d[0]:.3g}, {d[1]:.3g}, {d[2]:.3g}); the rotation is undetermined"
-        )
-    S = np.ones(3)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
-        S[2] = -1.0  # reflection correction
-    R = (U * S) @ Vt
-    if with_scale:
-        var_src = float(w @ np.einsum("ij,ij->i", x_src, x_src))
-        scale = float(d @ S) / var_src
+    H, k = src.shape[:2]
+    if weights is None:
+        w = np.full((H, k), 1.0 / k)
+        enough = np.full(H, k >= 3)
     else:
-        scale = 1.0
-    return R, mu_dst - scale * (R @ mu_src), scale
+        total = weights.sum(axis=1)
+        enough = np.count_nonzero(weights, axis=1) >= 3
+        w = weights / np.where(total > 0, total, 1.0)[:, None]
+    mu_s = np.einsum("hk,hki->hi", w, src)
+    mu_d = np.einsum("hk,hki->hi", w, dst)
+    xs = src - mu_s[:, None, :]
+    xd = dst - mu_d[:, None, :]
+    sigma = (xd * w[:, :, None]).transpose(0, 2, 1) @ xs  # (H, 3, 3) cross-covariances
+    U, d, Vt = np.linalg.svd(sigma)
+    S = np.ones((H, 3))
+    S[np.linalg.det(U) * np.linalg.det(Vt) < 0, 2] = -1.0  # reflection correction
+    R = (U * S[:, None, :]) @ Vt
+    if with_scale:
+        var_s = np.einsum("hk,hki,hki->h", w, xs, xs)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.sum(d * S, axis=1) / var_s
+    else:
+        s = np.ones(H)
+    t = mu_d - s[:, None] * np.einsum("hij,hj->hi", R, mu_s)
+    valid = enough & (d[:, 1] > rank_tol * d[:, 0]) & np.isfinite(s) & (s > 0)
+    return R, t, s, valid
 
 
 def _check_spread(points: np.ndarray, centred: np.ndarray, w: np.ndarray, name: str) -> float:

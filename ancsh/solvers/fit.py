@@ -22,7 +22,7 @@ Every formulation shares the same pipeline:
 Formulations (:data:`FORMULATIONS`): ``per_part`` (Umeyama + RANSAC), ``soft`` (paper Sec.
 4.3: data + lambda soft joint energies), ``exact_maximal`` (every part SE(3)+scale with exact
 joint equalities and limit inequalities, IPOPT), ``exact_reduced`` (object pose + joint
-states, joints exact by construction, limits as bounds; IPOPT or least squares).
+states, joints exact by construction, limits as bounds; IPOPT, least squares or the projected Levenberg-Marquardt ``lm``).
 """
 
 from __future__ import annotations
@@ -208,9 +208,9 @@ FORMULATIONS: dict[str, Formulation] = {
     f.name: f
     for f in (
         Formulation("per_part", "per-part Umeyama + RANSAC (the paper's NPCS baseline)", ("umeyama",), None),
-        Formulation("soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt"), "maximal"),
+        Formulation("soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt", "lm"), "maximal"),
         Formulation("exact_maximal", "every part SE(3)+scale, exact joint equalities, limit inequalities", ("ipopt",), "maximal"),
-        Formulation("exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq"), "reduced"),
+        Formulation("exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced"),
     )
 }
 """Formulations by name; loop over it to compare them."""
@@ -405,7 +405,6 @@ class _Fit:
             if np.array_equal(new_inliers, inliers):
                 break
             inliers = new_inliers
-        p = prog.pack(values)
         raw = prog.unpack_poses(outcome.x, p)
         if not all(np.all(np.isfinite(R)) and np.all(np.isfinite(t)) and np.isfinite(s) and s > 0 for R, t, s in raw):
             return self._failure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
@@ -512,8 +511,7 @@ class _Fit:
         values = self._static_values(L) if values is None else values
         axes, pivots, states = _postprocess(self.structure, poses, values)
         violation, eval_costs = self._check(poses, values, inliers if costs is None else None)
-        if costs is None:
-            costs = eval_costs
+        costs = eval_costs if costs is None else costs
         boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
         return FitResult(
             formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
@@ -537,6 +535,8 @@ class _Fit:
         g = np.asarray(prog.constraints(x, p)).ravel()
         lo, hi = prog.constraint_bounds({"joint_limits": self._limits()})
         viol = float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
+        if inliers is None:  # the caller has the costs of its own program
+            return viol, {}
         costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(x, p)).ravel().tolist()))
         return viol, costs
 

@@ -20,47 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.transforms import Sim3
-from ..geometry.umeyama import DegeneratePointsError, umeyama_core
+from ..geometry.umeyama import umeyama_batch
 
-__all__ = ["ArticulatedRansacResult", "articulated_ransac", "batched_umeyama"]
+__all__ = ["ArticulatedRansacResult", "articulated_ransac"]
 
-_RANK_TOL = 1e-8
 _MAX_REFITS = 2
 SAMPLE_SIZE = 3
-
-
-def batched_umeyama(src: np.ndarray, dst: np.ndarray):
-    """Many small Umeyama similarity fits at once (uniform weights).
-
-    Parameters
-    ----------
-    src, dst : (H, k, 3) float64
-        ``H`` problems of ``k >= 3`` corresponding points.
-
-    Returns
-    -------
-    R : (H, 3, 3), t : (H, 3), s : (H,), valid : (H,) bool
-        ``dst ~= s R src + t``; ``valid`` is False for degenerate samples (coincident or
-        collinear points, rank < 2 cross-covariance) and non-positive scales.
-    """
-    k = src.shape[1]
-    mu_s = src.mean(axis=1)
-    mu_d = dst.mean(axis=1)
-    xs = src - mu_s[:, None, :]
-    xd = dst - mu_d[:, None, :]
-    var_s = np.einsum("hij,hij->h", xs, xs) / k
-    sigma = (xd.transpose(0, 2, 1) @ xs) / k
-    U, d, Vt = np.linalg.svd(sigma)
-    S = np.ones((len(d), 3))
-    S[np.linalg.det(U) * np.linalg.det(Vt) < 0, 2] = -1.0
-    R = (U * S[:, None, :]) @ Vt
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.sum(d * S, axis=1) / var_s
-    t = mu_d - s[:, None] * (R @ mu_s[:, :, None])[:, :, 0]
-    # The cross-covariance has rank <= the rank of either centred point set, so this one test
-    # also rejects coincident or collinear samples on either side.
-    valid = (d[:, 1] > _RANK_TOL * d[:, 0]) & np.isfinite(s) & (s > 0)
-    return R, t, s, valid
 
 
 @dataclass(frozen=True)
@@ -147,7 +112,7 @@ def articulated_ransac(
         sample = (rng.random((num_parts, h, SAMPLE_SIZE)) * counts[:, None, None]).astype(np.intp)
         distinct = (sample[..., 0] != sample[..., 1]) & (sample[..., 0] != sample[..., 2]) & (sample[..., 1] != sample[..., 2])
         pick = (sample + offsets[:, None, None]).reshape(-1, SAMPLE_SIZE)
-        R, t, s, valid = batched_umeyama(npcs_sorted[pick], points_sorted[pick])
+        R, t, s, valid = umeyama_batch(npcs_sorted[pick], points_sorted[pick])
         valid = (valid & distinct.ravel()).reshape(num_parts, h)
         R, t, s = R.reshape(num_parts, h, 3, 3), t.reshape(num_parts, h, 3), s.reshape(num_parts, h)
         fits = [(R[j][valid[j]], t[j][valid[j]], s[j][valid[j]]) for j in range(num_parts)]
@@ -182,42 +147,44 @@ def articulated_ransac(
     )
 
 
-def _inliers_of(pose, points, npcs, idx, threshold) -> np.ndarray:
-    R, t, s = pose
-    d = s * (npcs[idx] @ R.T) + t - points[idx]
-    return np.einsum("ij,ij->i", d, d) <= threshold**2
-
-
 def _refit(best, points, npcs, part_idx, threshold, weights, n_all):
-    poses, inliers = [], np.zeros(n_all, dtype=bool)
-    ratios = np.zeros(len(best))
-    for j, (pose, idx) in enumerate(zip(best, part_idx)):
-        inl = _inliers_of(pose, points, npcs, idx, threshold)
-        for _ in range(_MAX_REFITS):
-            sel = idx[inl]
-            if sel.size < SAMPLE_SIZE:
-                break
-            if weights is None:
-                w = np.full(sel.size, 1.0 / sel.size)
-            elif np.count_nonzero(weights[sel]) >= SAMPLE_SIZE:
-                w = weights[sel] / weights[sel].sum()
-            else:
-                break
-            try:
-                pose_new = umeyama_core(npcs[sel], points[sel], w)
-            except DegeneratePointsError:
-                break
-            inl_new = _inliers_of(pose_new, points, npcs, idx, threshold)
-            if np.count_nonzero(inl_new) < np.count_nonzero(inl):
-                break
-            changed = not np.array_equal(inl_new, inl)
-            pose, inl = pose_new, inl_new
-            if not changed:
-                break
-        poses.append(Sim3.unchecked(*pose))
-        inliers[idx[inl]] = True
-        ratios[j] = np.count_nonzero(inl) / len(idx)
-    return poses, inliers, ratios
+    """Refit every part's winner on its inliers (all parts at once, padded with zero weights)."""
+    M = len(part_idx)
+    counts = np.array([len(idx) for idx in part_idx])
+    pad = np.zeros((M, counts.max()), dtype=bool)
+    for j, n in enumerate(counts):
+        pad[j, :n] = True
+    C = np.zeros(pad.shape + (3,))
+    P = np.zeros(pad.shape + (3,))
+    W = np.zeros(pad.shape)
+    for j, idx in enumerate(part_idx):
+        C[j, : counts[j]], P[j, : counts[j]] = npcs[idx], points[idx]
+        W[j, : counts[j]] = 1.0 if weights is None else weights[idx]
+    R = np.stack([b[0] for b in best])
+    t = np.stack([b[1] for b in best])
+    s = np.array([b[2] for b in best], dtype=float)
+
+    def inliers_of(R, t, s):
+        d = s[:, None, None] * (C @ R.transpose(0, 2, 1)) + t[:, None, :] - P
+        return (np.einsum("mki,mki->mk", d, d) <= threshold**2) & pad
+
+    inl = inliers_of(R, t, s)
+    active = np.ones(M, dtype=bool)
+    for _ in range(_MAX_REFITS):
+        R_new, t_new, s_new, valid = umeyama_batch(C, P, W * inl)
+        inl_new = inliers_of(R_new, t_new, s_new)
+        n_old, n_new = inl.sum(axis=1), inl_new.sum(axis=1)
+        accept = active & valid & (n_new >= n_old)
+        changed = np.any(inl_new != inl, axis=1)
+        R[accept], t[accept], s[accept], inl[accept] = R_new[accept], t_new[accept], s_new[accept], inl_new[accept]
+        active = accept & changed
+        if not active.any():
+            break
+    inliers = np.zeros(n_all, dtype=bool)
+    for j, idx in enumerate(part_idx):
+        inliers[idx[inl[j, : counts[j]]]] = True
+    poses = [Sim3.unchecked(R[j], t[j], s[j]) for j in range(M)]
+    return poses, inliers, inl.sum(axis=1) / counts
 
 
 def _hypotheses_needed(ratios: np.ndarray, confidence: float, cap: int) -> int:

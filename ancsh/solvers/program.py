@@ -158,7 +158,9 @@ class Program:
         self.num_constraints = int(g.numel())
         self._r, self._g, self._p = r, g, p
         self.residual = ca.Function("residual", [x, p], [r], ["x", "p"], ["r"])
-        self.jacobian = ca.Function("jacobian", [x, p], [ca.densify(ca.jacobian(r, x))], ["x", "p"], ["J"])
+        J = ca.densify(ca.jacobian(r, x))
+        self.jacobian = ca.Function("jacobian", [x, p], [J], ["x", "p"], ["J"])
+        self.residual_jacobian = ca.Function("residual_jacobian", [x, p], [r, J], ["x", "p"], ["r", "J"])
         self.term_costs = ca.Function("term_costs", [x, p], [ca.vertcat(*[ca.sumsqr(c) for c in costs]) if costs else ca.SX(0, 1)])
         self.constraints = ca.Function("constraints", [x, p], [g], ["x", "p"], ["g"])
         self.constraint_jacobian = ca.Function(

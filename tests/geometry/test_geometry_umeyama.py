@@ -158,29 +158,46 @@ def test_rank_one_cross_covariance_is_degenerate():
         umeyama(src, dst)
 
 
-def test_core_matches_umeyama_with_weights(rng):
-    from ancsh.geometry.umeyama import umeyama_core
+def test_batch_matches_umeyama_one_problem_at_a_time(rng):
+    from ancsh.geometry.umeyama import umeyama_batch
 
-    T = _random_sim3(rng)
-    src = rng.standard_normal((40, 3))
-    dst = T @ src + 0.01 * rng.standard_normal((40, 3))
-    w = rng.uniform(0.0, 1.0, 40)
-    R, t, s = umeyama_core(src, dst, w / w.sum())
-    assert Sim3(R, t, s).allclose(umeyama(src, dst, weights=w), atol=1e-12)
+    src = rng.normal(size=(40, 5, 3))
+    dst = rng.normal(size=(40, 5, 3))  # unrelated points: reflections and poor fits included
+    R, t, s, valid = umeyama_batch(src, dst)
+    assert valid.all()
+    for h in range(40):
+        assert Sim3(R[h], t[h], s[h]).allclose(umeyama(src[h], dst[h]), atol=1e-10)
 
 
-@pytest.mark.parametrize("case", ["coincident", "collinear_src", "collinear_dst"])
-def test_core_rejects_degenerate_points(rng, case):
-    from ancsh.geometry.umeyama import umeyama_core
+def test_batch_weights_and_zero_padding_match_weighted_umeyama(rng):
+    from ancsh.geometry.umeyama import umeyama_batch
 
-    src = rng.standard_normal((10, 3))
-    dst = rng.standard_normal((10, 3))
-    line = np.outer(rng.standard_normal(10), [1.0, 2.0, -0.5])
-    if case == "coincident":
-        src[:] = 1.5
-    elif case == "collinear_src":
-        src = line
-    else:
-        dst = line + 3.0
-    with pytest.raises(DegeneratePointsError, match="rank < 2"):
-        umeyama_core(src, dst, np.full(10, 0.1))
+    sizes = (7, 30, 12)
+    src = np.zeros((3, 30, 3))
+    dst = np.zeros((3, 30, 3))
+    w = np.zeros((3, 30))
+    for h, n in enumerate(sizes):
+        T = _random_sim3(rng)
+        src[h, :n] = rng.standard_normal((n, 3))
+        dst[h, :n] = T @ src[h, :n] + 0.01 * rng.standard_normal((n, 3))
+        w[h, :n] = rng.uniform(0.1, 2.0, n)
+    for with_scale in (True, False):
+        R, t, s, valid = umeyama_batch(src, dst, w, with_scale=with_scale)
+        assert valid.all()
+        for h, n in enumerate(sizes):
+            ref = umeyama(src[h, :n], dst[h, :n], weights=w[h, :n], with_scale=with_scale)
+            assert Sim3(R[h], t[h], s[h]).allclose(ref, atol=1e-10)
+
+
+def test_batch_flags_degenerate_problems(rng):
+    from ancsh.geometry.umeyama import umeyama_batch
+
+    good = rng.normal(size=(4, 3))
+    line = np.outer([0.0, 1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
+    same = np.ones((4, 3))
+    src = np.stack([good, line, same, good, good])
+    dst = np.stack([good @ random_rotation(rng).T, good, good, same, good + 1.0])
+    w = np.ones((5, 4))
+    w[4, 2:] = 0.0  # only two points carry weight
+    _, _, _, valid = umeyama_batch(src, dst, w)
+    np.testing.assert_array_equal(valid, [True, False, False, False, False])

@@ -40,11 +40,12 @@ def test_noise_free_correspondences_recover_ground_truth(fit_case, formulation, 
 
 
 @pytest.mark.parametrize("formulation", ["soft", "exact_reduced"])
-def test_ipopt_and_least_squares_agree_from_the_same_start(fit_case, formulation):
+@pytest.mark.parametrize("other", ["lsq", "lm"])
+def test_ipopt_and_least_squares_agree_from_the_same_start(fit_case, formulation, other):
     case = fit_case(5, num_parts=3, npcs_noise=0.01)
     cfg = FitConfig(ransac=False, rescore_rounds=0, tol=1e-12, max_iterations=200)
     a = fit(case.observation, case.correspondences, formulation, "ipopt", cfg)
-    b = fit(case.observation, case.correspondences, formulation, "lsq", cfg)
+    b = fit(case.observation, case.correspondences, formulation, other, cfg)
     assert a.ok and b.ok, (a.message, b.message)
     for Ta, Tb in zip(a.T_cam_npcs, b.T_cam_npcs):
         assert geodesic_angle(Ta.rotation, Tb.rotation) < 1e-6
@@ -75,7 +76,8 @@ def test_joint_limits_hold_when_the_data_violates_them(fit_case):
     c = case.correspondences
     corr = replace(c, joint_limits=lim)
     cfg = FitConfig(ransac=False, rescore_rounds=0)
-    for formulation, solver in [("exact_maximal", "ipopt"), ("exact_reduced", "ipopt"), ("exact_reduced", "lsq")]:
+    for formulation, solver in [("exact_maximal", "ipopt"), ("exact_reduced", "ipopt"), ("exact_reduced", "lsq"),
+                                ("exact_reduced", "lm")]:
         r = fit(case.observation, corr, formulation, solver, cfg)
         assert r.ok, r.message
         assert np.all(r.joint_states <= lim[:, 1] + 1e-6) and np.all(r.joint_states >= lim[:, 0] - 1e-6)
@@ -171,6 +173,8 @@ def test_bad_arguments_raise(fit_case):
         fit(obs, corr, "magic")
     with pytest.raises(ValueError, match="solver"):
         fit(obs, corr, "exact_maximal", "lsq")
+    with pytest.raises(ValueError, match="solver"):
+        fit(obs, corr, "exact_maximal", "lm")
     with pytest.raises(ValueError, match="observation"):
         fit(obs.points_cam, corr)
     with pytest.raises(ValueError, match="do not match"):

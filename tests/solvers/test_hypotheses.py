@@ -1,35 +1,11 @@
-"""Batched minimal-sample Umeyama and the articulated RANSAC initialisation."""
+"""The articulated RANSAC initialisation."""
 
 import numpy as np
 import pytest
 
 from ancsh.geometry.rotations import random_rotation
 from ancsh.geometry.umeyama import umeyama
-from ancsh.solvers.hypotheses import articulated_ransac, batched_umeyama
-
-
-def test_batched_umeyama_matches_geometry_umeyama():
-    rng = np.random.default_rng(0)
-    src = rng.normal(size=(40, 5, 3))
-    dst = rng.normal(size=(40, 5, 3))  # unrelated points: reflections and poor fits included
-    R, t, s, valid = batched_umeyama(src, dst)
-    assert valid.all()
-    for h in range(40):
-        T = umeyama(src[h], dst[h])
-        np.testing.assert_allclose(R[h], T.rotation, atol=1e-10)
-        np.testing.assert_allclose(t[h], T.translation, atol=1e-10)
-        assert abs(s[h] - T.scale) < 1e-10
-
-
-def test_batched_umeyama_flags_degenerate_samples():
-    rng = np.random.default_rng(1)
-    good = rng.normal(size=(3, 3))
-    line = np.outer([0.0, 1.0, 2.0], [1.0, 2.0, 3.0])
-    same = np.ones((3, 3))
-    src = np.stack([good, line, same, good])
-    dst = np.stack([good @ random_rotation(rng).T, good, good, same])
-    _, _, _, valid = batched_umeyama(src, dst)
-    np.testing.assert_array_equal(valid, [True, False, False, False])
+from ancsh.solvers.hypotheses import articulated_ransac
 
 
 def test_articulated_ransac_finds_every_part_despite_outliers():

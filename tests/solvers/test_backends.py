@@ -1,0 +1,44 @@
+"""The numerical backends on one program: status reporting and the projected LM's bounds."""
+
+import numpy as np
+import pytest
+
+from ancsh.solvers import FitConfig, FitStatus, fit
+from ancsh.solvers.backends import SolverOptions, solve
+from ancsh.solvers.program import ProgramKey, get_program
+from ancsh.solvers.terms import KinematicStructure
+
+
+def test_lm_iteration_limit_is_a_status_not_an_exception(fit_case):
+    case = fit_case(6, num_parts=3, npcs_noise=0.02)
+    r = fit(case.observation, case.correspondences, "exact_reduced", "lm",
+            FitConfig(ransac=False, max_iterations=1, tol=1e-14))
+    assert r.status == FitStatus.MAX_ITER and not r.ok and "iteration limit" in r.message
+
+
+def test_lm_keeps_bounds_and_matches_ipopt_on_a_bounded_problem(fit_case):
+    # joint limits that exclude the data's states: both backends end on the bound
+    case = fit_case(8, num_parts=3, joint_types="revolute", npcs_noise=0.01)
+    from dataclasses import replace
+
+    q = case.gt.joint_states
+    corr = replace(case.correspondences, joint_limits=np.stack([q + 0.05, q + 0.4], axis=1))
+    cfg = FitConfig(ransac=False, tol=1e-12, max_iterations=200)
+    a = fit(case.observation, corr, "exact_reduced", "ipopt", cfg)
+    b = fit(case.observation, corr, "exact_reduced", "lm", cfg)
+    assert a.ok and b.ok, (a.message, b.message)
+    assert np.all(b.joint_states >= q + 0.05 - 1e-9)
+    assert np.any(np.abs(b.joint_states - (q + 0.05)) < 1e-9)  # held at the bound
+    np.testing.assert_allclose(b.joint_states, a.joint_states, atol=1e-6)
+
+
+def test_lm_and_lsq_refuse_programs_with_constraints():
+    structure = KinematicStructure(2, ("revolute",), (0,), (1,))
+    prog = get_program(ProgramKey(structure, "maximal", False, ("data", "exact_joint")))
+    x0 = np.zeros(prog.num_x)
+    p = np.zeros(prog.params.vector().numel())
+    for backend in ("lm", "lsq"):
+        with pytest.raises(ValueError, match=f"'{backend}' cannot handle"):
+            solve(backend, prog, p, x0, x0 - np.inf, x0 + np.inf, None, None, SolverOptions())
+    with pytest.raises(ValueError, match="solver: expected one of"):
+        solve("newton", prog, p, x0, x0, x0, None, None, SolverOptions())
