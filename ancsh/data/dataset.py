@@ -163,6 +163,9 @@ class Frame:
     seed : int
         Seed of the frame's random stream (reproduces the frame with the same settings).
     part_names, joint_names : tuple of str
+    depth : (H, W) float64 or None
+        The noisy depth image the points were sampled from (metres, 0 = no return), when the
+        frame was generated with ``keep_depth=True``; shards do not store it.
     """
 
     points: np.ndarray
@@ -180,6 +183,7 @@ class Frame:
     seed: int
     part_names: tuple
     joint_names: tuple
+    depth: np.ndarray | None = None
 
     @property
     def num_parts(self) -> int:

@@ -201,8 +201,12 @@ class FrameGenerator:
             and np.all(visibility >= cfg.min_visibility)
         )
 
-    def frame(self, index: int) -> Frame:
-        """Frame ``index`` of the dataset (deterministic)."""
+    def frame(self, index: int, *, keep_depth: bool = False) -> Frame:
+        """Frame ``index`` of the dataset (deterministic).
+
+        ``keep_depth=True`` also returns the noisy depth image the points were sampled from
+        (``Frame.depth``; the input of ``ancsh predict``), at no extra cost.
+        """
         from ..model.canonical import ancsh_ground_truth
 
         cfg = self.config
@@ -242,6 +246,7 @@ class FrameGenerator:
             seed=seed,
             part_names=tuple(model.part_names),
             joint_names=tuple(j.name for j in model.joints),
+            depth=depth if keep_depth else None,
         )
 
 

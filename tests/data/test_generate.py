@@ -42,6 +42,20 @@ def test_frames_are_a_function_of_seed_and_index():
     assert frame_seed(0, 1) != frame_seed(1, 0)
 
 
+def test_kept_depth_is_the_image_the_points_come_from():
+    from ancsh.data.render import backproject
+
+    gen = FrameGenerator(config())
+    plain, kept = gen.frame(3), gen.frame(3, keep_depth=True)
+    assert plain.depth is None
+    np.testing.assert_array_equal(kept.points, plain.points)  # same frame, same draws
+    assert kept.depth.shape == (SMALL.height, SMALL.width)
+    cloud = backproject(kept.depth, SMALL)
+    # every sampled point is one of the image's back-projected pixels
+    d = np.min(np.linalg.norm(kept.points[:, None, :] - cloud[None, :, :], axis=2), axis=1)
+    assert d.max() < 1e-12
+
+
 def test_accepted_views_show_every_part():
     cfg = config(category="eyeglasses", min_part_pixels=20, min_part_fraction=0.05)
     gen = FrameGenerator(cfg)
