@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network"]
+__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
+           "weights_summary"]
 
 FORMAT = 1
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
@@ -164,3 +165,33 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
         metrics=dict(ck.get("metrics", {})),
         source=str(path),
     )
+
+
+def weights_summary() -> list[dict]:
+    """One row per shipped weights file: kind, category, size, training step and wall time, held-out scores.
+
+    The training wall time is the last ``elapsed_s`` of the ``<name>_history.csv`` shipped beside
+    the weights (``nan`` without it); the scores are those stored in the file (held-out test frames,
+    beside the trivial baselines: majority label, all-zero NPCS, mean axis).
+    """
+    import csv
+
+    rows = []
+    for name in available_weights():
+        net = load_network(WEIGHTS_DIR / f"{name}.pt")
+        history = WEIGHTS_DIR / f"{name}_history.csv"
+        minutes, steps = float("nan"), None
+        if history.is_file():
+            with open(history, newline="") as f:
+                last = list(csv.DictReader(f))[-1:]
+            if last:
+                minutes, steps = float(last[0]["elapsed_s"]) / 60.0, int(float(last[0]["step"]))
+        m = net.metrics
+        rows.append({
+            "name": name, "kind": net.kind, "category": net.config.category, "parts": net.num_parts,
+            "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": m.get("step"),
+            "trained_steps": steps, "train_min": minutes, "test_frames": m.get("test_frames"),
+            **{k: m.get(k, float("nan")) for k in (
+                "seg_acc", "seg_acc_majority", "npcs_err", "npcs_err_zero", "assoc_acc", "axis_err_deg")},
+        })
+    return rows

@@ -78,3 +78,17 @@ def test_direct_voting_weights_beat_a_constant_axis(category):
     assert net.kind == "direct_voting" and net.revolute.tolist() == [j.is_revolute for j in model.joints]
     assert net.metrics["seg_acc"] > net.metrics["seg_acc_majority"]
     assert net.metrics["axis_err_deg"] < net.metrics["axis_err_deg_mean_axis"] / 4
+
+
+def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
+    from ancsh.cli import main
+    from ancsh.learned.weights import available_weights
+
+    out = tmp_path / "weights.md"
+    assert main(["weights", "--out", str(out)]) == 0
+    text, printed = out.read_text(), capsys.readouterr().out
+    assert "ancsh weights --out" in text
+    for name in available_weights():
+        assert f"`{name}.pt`" in text and f"`{name}.pt`" in printed
+    rows = [line for line in text.splitlines() if line.startswith("| `")]
+    assert len(rows) == len(available_weights())
