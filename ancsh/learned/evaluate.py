@@ -357,7 +357,7 @@ def evaluate_category(
         "records": records,
         "settings": {
             "frames_requested": int(frames), "frames": len(records), "seed": int(seed), "methods": list(methods),
-            "weights": provider.network.source, "weights_step": provider.network.metrics.get("step"),
+            "weights": provider.network.source, "weights_step": provider.network.step,
             "weights_sha256": weights_sha,
             "direct_weights": None if voter is None else voter.network.source,
             "available_weights": available_weights(), "num_threads": int(num_threads),

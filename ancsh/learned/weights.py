@@ -39,6 +39,8 @@ class LoadedNetwork:
     metrics : dict
     source : str
         File it was loaded from.
+    step : int or None
+        Training step of the weights.
     """
 
     model: object
@@ -49,6 +51,7 @@ class LoadedNetwork:
     num_parts: int
     metrics: dict
     source: str
+    step: int | None = None
 
     @property
     def kind(self) -> str:
@@ -164,6 +167,7 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
         num_parts=int(ck["num_parts"]),
         metrics=dict(ck.get("metrics", {})),
         source=str(path),
+        step=None if ck.get("step") is None else int(ck["step"]),
     )
 
 
@@ -189,7 +193,7 @@ def weights_summary() -> list[dict]:
         m = net.metrics
         rows.append({
             "name": name, "kind": net.kind, "category": net.config.category, "parts": net.num_parts,
-            "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": m.get("step"),
+            "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": net.step,
             "trained_steps": steps, "train_min": minutes, "test_frames": m.get("test_frames"),
             **{k: m.get(k, float("nan")) for k in (
                 "seg_acc", "seg_acc_majority", "npcs_err", "npcs_err_zero", "assoc_acc", "axis_err_deg")},

@@ -26,7 +26,7 @@ def test_weights_are_small_match_the_category_and_beat_their_stored_baselines(ca
     assert weights_path(category).stat().st_size < 5e6
     net = load_network(category)
     model = _model_of(category)
-    assert net.kind == "ancsh" and net.num_parts == model.num_parts
+    assert net.kind == "ancsh" and net.num_parts == model.num_parts and net.step > 0
     assert net.revolute.tolist() == [j.is_revolute for j in model.joints]
     assert net.metrics["seg_acc"] > net.metrics["seg_acc_majority"]
     assert net.metrics["npcs_err"] < net.metrics["npcs_err_zero"]
