@@ -380,6 +380,8 @@ class _Fit:
         prog = get_program(key)
         limits = self._limits()
         values = self._static_values(L)
+        if self.form.name == "exact_maximal" and self.K:
+            poses = self._onto_joints(poses, L, limits)
         values.update(self._init_values(poses, L))
         x0, lbx, ubx = self._x_start(prog, poses, values, limits)
         opts = SolverOptions(cfg.max_iterations, cfg.tol)
@@ -421,6 +423,23 @@ class _Fit:
             for i, k in enumerate(sorted(prog.canonical.dq)):
                 canonical[f"q{k}"] = canonical[f"q{k}"] + off[3 * (self.M + i) : 3 * (self.M + i) + 3]
         return self._finish(solved, inliers, L, outcome.status, outcome.message, total_iter, costs, canonical)
+
+    def _onto_joints(self, poses: list, L: float, limits: np.ndarray) -> list:
+        """The per-part poses moved onto the joints: the root part's pose and each joint's state
+        (from the per-part poses, clipped to the limits) through forward kinematics; scales kept.
+
+        The exact maximal program starts there, feasible, as the reduced one does: started from
+        the raw per-part poses, a thin part fitted upside down stays in that basin (the joint
+        equalities then hold with the part turned about its axis).
+        """
+        from .program import ProgramKey, get_program
+
+        prog = get_program(ProgramKey(self.structure, "reduced", False, ()))
+        values = self._static_values(L)
+        values.update(self._init_values(poses, L))
+        x0, _, _ = self._x_start(prog, poses, values, limits)
+        moved = prog.unpack_poses(x0, prog.pack(values))
+        return [Sim3.unchecked(R, t, T.scale) for (R, t, _), T in zip(moved, poses)]
 
     def _limits(self) -> np.ndarray:
         if self.config.enforce_limits and self.corr.joint_limits is not None:

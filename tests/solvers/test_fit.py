@@ -326,3 +326,31 @@ def test_iteration_limit_is_a_status_with_an_estimate(fit_case, formulation, sol
     r = fit(case.observation, case.correspondences, formulation, solver, FitConfig(max_iterations=1, ransac=False))
     assert r.status == FitStatus.MAX_ITER and not r.ok
     assert len(r.T_cam_npcs) == 3 and np.all(np.isfinite(r.joint_states)) and r.message
+
+
+def test_exact_maximal_starts_on_the_joints(fit_case):
+    """The maximal program's start: per-part poses moved onto the joints (root pose kept, states
+    clipped to the limits), so it starts feasible as the reduced one does."""
+    import sys
+
+    from ancsh.geometry.rotations import axis_angle_matrix
+    from ancsh.geometry.transforms import Sim3
+    from ancsh.solvers.fit import FORMULATIONS
+
+    fit_module = sys.modules["ancsh.solvers.fit"]
+    case = fit_case(9, num_parts=3, tree=False)
+    rng = np.random.default_rng(3)
+    gt = case.gt.T_cam_npcs
+    # per-part poses: root exact, the others turned by large random rotations (not about their axes)
+    poses = [gt[0]] + [Sim3(axis_angle_matrix(rng.normal(size=3), 2.0) @ T.rotation, T.translation, T.scale)
+                       for T in gt[1:]]
+    limits = np.tile([-0.2, 0.2], (case.gt.num_joints, 1))
+    run = fit_module._Fit(case.observation, replace(case.correspondences, joint_limits=limits),
+                          FORMULATIONS["exact_maximal"], "ipopt", FitConfig(), rng, 0.0)
+    L = float(np.median([T.scale / g for T, g in zip(gt, case.correspondences.npcs_scale)]))
+    moved = run._onto_joints(poses, L, limits)
+    assert moved[0].allclose(poses[0], atol=1e-12)
+    assert [T.scale for T in moved] == [T.scale for T in poses]
+    violation, _ = run._check(moved, run._static_values(L), None)
+    assert violation < 1e-9
+    assert run._check(poses, run._static_values(L), None)[0] > 1e-2  # the raw per-part poses are not
