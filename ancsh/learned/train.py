@@ -97,13 +97,21 @@ def evaluate_arrays(model, arrays: TrainingArrays, config: TrainConfig, batch_si
 
 
 def trivial_baselines(arrays: TrainingArrays) -> dict[str, float]:
-    """Scores of trivial predictors on ``arrays``: majority part label, NPCS = 0, no joint association."""
+    """Scores of trivial predictors on ``arrays``: majority part label, NPCS = 0, no joint association,
+    one constant camera-frame joint axis (the mean of the true axes: the direct-voting baseline)."""
     counts = np.bincount(arrays.labels.ravel(), minlength=arrays.num_parts)
-    return {
+    out = {
         "seg_acc_majority": float(counts.max() / counts.sum()),
         "npcs_err_zero": float(np.linalg.norm(arrays.npcs, axis=-1).mean()),
         "assoc_acc_none": float(np.mean(arrays.association == 0)),
     }
+    axes = arrays.joint_cam[..., :3][arrays.association > 0].astype(np.float64)
+    if len(axes):
+        mean = axes.mean(axis=0)
+        if np.linalg.norm(mean) > 0:
+            cos = np.clip(axes @ (mean / np.linalg.norm(mean)), -1.0, 1.0)
+            out["axis_err_deg_mean_axis"] = float(np.degrees(np.arccos(cos)).mean())
+    return out
 
 
 class Trainer:
