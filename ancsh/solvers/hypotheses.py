@@ -6,8 +6,8 @@ ratio, so a large base part cannot outvote a thin part. That score is a sum of p
 terms of independent per-part fits, so the best hypothesis is the combination of each
 part's best sample: hypotheses are drawn in batches, every part keeps its best, and the
 loop stops once every part has drawn an all-inlier sample with probability ``confidence``.
-The winner is refitted on its inliers (the weighted Umeyama of
-:func:`ancsh.geometry.umeyama.umeyama_core`) until the inlier set stops changing.
+The winner is refitted on its inliers (the weighted, batched
+:func:`ancsh.geometry.umeyama.umeyama_batch`) until the inlier set stops changing.
 
 The minimal-sample fits are a batched closed-form Umeyama (many 3-point fits in one numpy
 call); the test suite checks it against :func:`ancsh.geometry.umeyama.umeyama`.
@@ -97,11 +97,7 @@ def articulated_ransac(
     counts = np.array([len(idx) for idx in part_idx])
     if np.any(counts == 0):
         raise ValueError(f"labels: part(s) {np.flatnonzero(counts == 0).tolist()} have no points")
-    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    order = np.concatenate(part_idx)
-    npcs_sorted, points_sorted = npcs[order], points[order]  # part by part
-    npcs_t = [np.ascontiguousarray(npcs[idx].T) for idx in part_idx]
-    points_t = [np.ascontiguousarray(points[idx].T) for idx in part_idx]
+    C, P, pad = _padded(part_idx, npcs, points)  # (M, n_max, 3) NPCS and points of each part
     best_ratio = np.full(num_parts, -1.0)
     best = [None] * num_parts
     drawn, needed = 0, max_hypotheses
@@ -111,8 +107,8 @@ def articulated_ransac(
         # One minimal sample per part and hypothesis, all parts fitted in one batched call.
         sample = (rng.random((num_parts, h, SAMPLE_SIZE)) * counts[:, None, None]).astype(np.intp)
         distinct = (sample[..., 0] != sample[..., 1]) & (sample[..., 0] != sample[..., 2]) & (sample[..., 1] != sample[..., 2])
-        pick = (sample + offsets[:, None, None]).reshape(-1, SAMPLE_SIZE)
-        R, t, s, valid = umeyama_batch(npcs_sorted[pick], points_sorted[pick])
+        part = np.arange(num_parts)[:, None, None]
+        R, t, s, valid = umeyama_batch(C[part, sample].reshape(-1, SAMPLE_SIZE, 3), P[part, sample].reshape(-1, SAMPLE_SIZE, 3))
         valid = (valid & distinct.ravel()).reshape(num_parts, h)
         R, t, s = R.reshape(num_parts, h, 3, 3), t.reshape(num_parts, h, 3), s.reshape(num_parts, h)
         fits = [(R[j][valid[j]], t[j][valid[j]], s[j][valid[j]]) for j in range(num_parts)]
@@ -121,11 +117,10 @@ def articulated_ransac(
             if sizes.size == 0:
                 continue
             threshold = float(relative_threshold * np.median(sizes))
-        for j, (idx, (R, t, s)) in enumerate(zip(part_idx, fits)):
-            n = len(idx)
+        for j, (n, (R, t, s)) in enumerate(zip(counts, fits)):
             if s.size == 0:
                 continue
-            diff = (s[:, None, None] * R) @ npcs_t[j] + t[:, :, None] - points_t[j]  # (h, 3, n)
+            diff = (s[:, None, None] * R) @ C[j, :n].T + t[:, :, None] - P[j, :n].T  # (h, 3, n)
             dist2 = np.sum(diff * diff, axis=1)
             ratio = np.count_nonzero(dist2 <= threshold**2, axis=1) / n
             i = int(np.argmax(ratio))
@@ -141,25 +136,31 @@ def articulated_ransac(
             None, np.zeros(n_all, dtype=bool), np.maximum(best_ratio, 0.0), drawn,
             f"no valid minimal sample for part(s) {missing} in {drawn} hypotheses (degenerate points)",
         )
-    poses, inliers, ratios = _refit(best, points, npcs, part_idx, threshold, weights, n_all)
+    poses, inliers, ratios = _refit(best, C, P, pad, part_idx, threshold, weights, n_all)
     return ArticulatedRansacResult(
         poses, inliers, ratios, drawn, f"mean inlier ratio {ratios.mean():.3f} after {drawn} hypotheses",
     )
 
 
-def _refit(best, points, npcs, part_idx, threshold, weights, n_all):
-    """Refit every part's winner on its inliers (all parts at once, padded with zero weights)."""
-    M = len(part_idx)
-    counts = np.array([len(idx) for idx in part_idx])
-    pad = np.zeros((M, counts.max()), dtype=bool)
-    for j, n in enumerate(counts):
-        pad[j, :n] = True
+def _padded(part_idx, npcs, points):
+    """Each part's NPCS and points, ``(M, n_max, 3)`` padded with zeros, and the ``(M, n_max)`` mask of real entries."""
+    counts = [len(idx) for idx in part_idx]
+    pad = np.arange(max(counts))[None, :] < np.array(counts)[:, None]
     C = np.zeros(pad.shape + (3,))
     P = np.zeros(pad.shape + (3,))
-    W = np.zeros(pad.shape)
     for j, idx in enumerate(part_idx):
         C[j, : counts[j]], P[j, : counts[j]] = npcs[idx], points[idx]
-        W[j, : counts[j]] = 1.0 if weights is None else weights[idx]
+    return C, P, pad
+
+
+def _refit(best, C, P, pad, part_idx, threshold, weights, n_all):
+    """Refit every part's winner on its inliers (all parts at once, padded with zero weights)."""
+    M = len(part_idx)
+    counts = pad.sum(axis=1)
+    W = pad.astype(float)
+    if weights is not None:
+        for j, idx in enumerate(part_idx):
+            W[j, : counts[j]] = weights[idx]
     R = np.stack([b[0] for b in best])
     t = np.stack([b[1] for b in best])
     s = np.array([b[2] for b in best], dtype=float)
