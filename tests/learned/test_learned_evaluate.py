@@ -1,5 +1,6 @@
 """ancsh evaluate: the NAOCS baseline, statistics, the paper tables, and the --quick report."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -54,6 +55,36 @@ def _record(visibility, rot, ok=True):
     joints = [{"name": "j0", "type": "revolute", "state_err": rot[1] - rot[0], "axis_deg": 1.0, "line_dist": float("nan")}]
     return {"visibility": visibility, "network_ms": 1.0, "generate_ms": 1.0,
             "methods": {"per_part": {"ok": ok, "parts": parts if ok else [], "joints": joints if ok else [], "fit_ms": 2.0}}}
+
+
+def test_error_budget_recovers_a_known_npcs_rotation_and_matches_the_fit():
+    from ancsh.geometry import axis_angle_matrix, umeyama
+    from ancsh.learned.provider import Prediction
+
+    frame = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)).frame(0)
+    gt = frame.gt
+    N, M = gt.npcs.shape[0], len(gt.T_cam_npcs)
+    rng = np.random.default_rng(0)
+    angles = np.radians([4.0, 11.0])
+    npcs = rng.normal(size=(N, M, 3))  # junk for the points of the other part
+    for j, a in enumerate(angles):  # part j's points: true NPCS rotated by a known angle and shifted
+        m = gt.part_labels == j
+        npcs[m, j] = gt.npcs[m] @ axis_angle_matrix(rng.normal(size=3), a).T + 0.05
+    seg = np.eye(M)[gt.part_labels]
+    seg[:10] = np.eye(M)[1 - gt.part_labels[:10]]  # 10 points mislabelled
+    pred = Prediction(seg_prob=seg, npcs=npcs, scale=None, translation=None, assoc_prob=np.ones((N, 2)), joint=np.zeros((N, 7)))
+    b = ev.npcs_error_budget(pred, gt)
+    assert b["seg_acc"] == pytest.approx(1 - 10 / N)
+    for j, p in enumerate(b["parts"]):
+        assert p["npcs_rot_deg"] == pytest.approx(np.degrees(angles[j]), abs=1e-6)
+        assert p["npcs_resid"] < 1e-9 and p["npcs_err"] > 0.05
+        # the orientation error is the rotation error of an Umeyama fit of the predicted NPCS to the points
+        m = gt.part_labels == j
+        fit = umeyama(npcs[m, j], frame.points[m])
+        err = np.degrees(np.arccos(np.clip((np.trace(fit.rotation.T @ gt.T_cam_npcs[j].rotation) - 1) / 2, -1, 1)))
+        assert err == pytest.approx(p["npcs_rot_deg"], abs=1e-5)
+    few = dataclasses.replace(gt, part_labels=np.where(np.arange(N) < 3, 1, 0))  # part 1 has 3 points
+    assert np.isnan(ev.npcs_error_budget(pred, few)["parts"][1]["npcs_rot_deg"])
 
 
 def test_summary_means_medians_failures_and_occlusion_bins():
