@@ -88,7 +88,23 @@ def run_weights(args: argparse.Namespace) -> int:
             f"{f(r['seg_acc'], '.3f')} ({f(r['seg_acc_majority'], '.3f')}) | {f(r['npcs_err'], '.4f')} "
             f"({f(r['npcs_err_zero'], '.3f')}) | {f(r['assoc_acc'], '.3f')} | {f(r['axis_err_deg'], '.2f')} |"
         )
+    curves = [
+        "| weights | training (min) | validation NPCS error, last | power-law exponent | training time for 2x lower "
+        "error | for 5x lower error |",
+        "|---|---|---|---|---|---|",
+    ]
+    def hours(factor, minutes):
+        return "not reached (flat curve)" if factor == float("inf") else f"{factor * minutes / 60:.0f} h ({factor:.0f}x)"
+
+    for r in rows:
+        c = r["curve"]
+        if c is not None:
+            curves.append(
+                f"| `{r['name']}.pt` | {f(r['train_min'], '.0f')} | {c['fitted_final']:.4f} | {c['exponent']:.2f} | "
+                f"{hours(c['time_factor_2x'], r['train_min'])} | {hours(c['time_factor_5x'], r['train_min'])} |"
+            )
     print("\n".join(lines))
+    print("\n".join(curves))
     if args.out is not None:
         date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         cmd = _command(["weights", "--out", str(args.out)])
@@ -101,6 +117,15 @@ def run_weights(args: argparse.Namespace) -> int:
             "in the camera frame). Training on one thread of a shared 2-core CPU; steps of batch 16, 1024 points. "
             "Each file's config, history (CSV), curves (PNG) and test metrics ship beside it in `ancsh/weights/`.",
             "", *lines, "",
+            "## Learning curves: what more training time would buy", "",
+            "A power law `err = a·t^b` fitted (least squares in log-log) to the validation NPCS error of the "
+            "second half of each run's history (`ancsh.learned.weights.learning_curve_fit`), and the training "
+            "time it projects for a 2x and a 5x lower error at the same settings, on one thread. 'last' is the "
+            "fit at the end of the run. Extrapolating this far is an order-of-magnitude guide only (curves "
+            "usually flatten, so the projections are optimistic). The fitted part rotations follow the NPCS "
+            "orientation error of the network (see *Where the rotation error comes from* in each "
+            "`docs/results/<category>.md`).", "",
+            *curves, "",
         ]
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text("\n".join(text))

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
-           "weights_summary"]
+           "learning_curve_fit", "weights_summary"]
 
 FORMAT = 1
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
@@ -171,12 +171,64 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
     )
 
 
+def learning_curve_fit(elapsed_s, val_err, *, tail_fraction: float = 0.5) -> dict:
+    """Power law ``err = a * t**b`` fitted to the late part of a validation curve, and what it projects.
+
+    A least-squares line in log-log coordinates through the points with
+    ``t >= (1 - tail_fraction) * t_final``. Extrapolation far beyond the measured range is only an
+    order-of-magnitude guide (curves usually flatten further).
+
+    Parameters
+    ----------
+    elapsed_s : (R,) float
+        Training wall time of each validation, seconds (increasing, positive).
+    val_err : (R,) float
+        Validation error at those times (positive).
+    tail_fraction : float
+        Fraction of the run (by time, from its end) the fit uses, in ``(0, 1]``.
+
+    Returns
+    -------
+    dict
+        ``exponent`` ``b`` (negative while the error falls), ``points`` used, ``fitted_final``
+        (the fit at the last time), and ``time_factor_2x`` / ``time_factor_5x``: the factors by
+        which the training time must grow for 2x / 5x lower error (``inf`` when ``b >= 0``).
+
+    Raises
+    ------
+    ValueError
+        On mismatched lengths, non-positive or non-finite values, a bad ``tail_fraction``, or fewer
+        than 3 points in the fitted range.
+    """
+    t = np.asarray(elapsed_s, dtype=np.float64)
+    e = np.asarray(val_err, dtype=np.float64)
+    if t.ndim != 1 or t.shape != e.shape:
+        raise ValueError(f"val_err: expected the shape of elapsed_s {t.shape}, got {e.shape}")
+    if not (np.all(np.isfinite(t)) and np.all(t > 0)):
+        raise ValueError("elapsed_s: expected positive finite times")
+    if not (np.all(np.isfinite(e)) and np.all(e > 0)):
+        raise ValueError("val_err: expected positive finite errors")
+    if not 0.0 < tail_fraction <= 1.0:
+        raise ValueError(f"tail_fraction: expected a value in (0, 1], got {tail_fraction}")
+    sel = t >= (1.0 - tail_fraction) * t.max()
+    if sel.sum() < 3:
+        raise ValueError(f"elapsed_s: {int(sel.sum())} points in the fitted range, need at least 3")
+    b, log_a = np.polyfit(np.log(t[sel]), np.log(e[sel]), 1)
+    with np.errstate(over="ignore", divide="ignore"):  # a flat curve projects no finite time
+        factors = np.exp(np.log([2.0, 5.0]) / -b) if b < 0 else np.full(2, np.inf)
+    return {
+        "exponent": float(b), "points": int(sel.sum()), "fitted_final": float(np.exp(log_a) * t.max() ** b),
+        "time_factor_2x": float(factors[0]), "time_factor_5x": float(factors[1]),
+    }
+
+
 def weights_summary() -> list[dict]:
     """One row per shipped weights file: kind, category, size, training step and wall time, held-out scores.
 
     The training wall time is the last ``elapsed_s`` of the ``<name>_history.csv`` shipped beside
     the weights (``nan`` without it); the scores are those stored in the file (held-out test frames,
-    beside the trivial baselines: majority label, all-zero NPCS, mean axis).
+    beside the trivial baselines: majority label, all-zero NPCS, mean axis). ``curve`` is
+    :func:`learning_curve_fit` of the history's validation NPCS error (``None`` without one).
     """
     import csv
 
@@ -184,17 +236,22 @@ def weights_summary() -> list[dict]:
     for name in available_weights():
         net = load_network(WEIGHTS_DIR / f"{name}.pt")
         history = WEIGHTS_DIR / f"{name}_history.csv"
-        minutes, steps = float("nan"), None
+        minutes, steps, curve = float("nan"), None, None
         if history.is_file():
             with open(history, newline="") as f:
-                last = list(csv.DictReader(f))[-1:]
-            if last:
-                minutes, steps = float(last[0]["elapsed_s"]) / 60.0, int(float(last[0]["step"]))
+                hist = list(csv.DictReader(f))
+            if hist:
+                minutes, steps = float(hist[-1]["elapsed_s"]) / 60.0, int(float(hist[-1]["step"]))
+            if hist and hist[0].get("val_npcs_err"):
+                try:
+                    curve = learning_curve_fit([float(r["elapsed_s"]) for r in hist], [float(r["val_npcs_err"]) for r in hist])
+                except ValueError:  # too short a history to fit
+                    curve = None
         m = net.metrics
         rows.append({
             "name": name, "kind": net.kind, "category": net.config.category, "parts": net.num_parts,
             "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": net.step,
-            "trained_steps": steps, "train_min": minutes, "test_frames": m.get("test_frames"),
+            "trained_steps": steps, "train_min": minutes, "test_frames": m.get("test_frames"), "curve": curve,
             **{k: m.get(k, float("nan")) for k in (
                 "seg_acc", "seg_acc_majority", "npcs_err", "npcs_err_zero", "assoc_acc", "axis_err_deg")},
         })

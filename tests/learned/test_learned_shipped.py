@@ -90,5 +90,30 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     assert "ancsh weights --out" in text
     for name in available_weights():
         assert f"`{name}.pt`" in text and f"`{name}.pt`" in printed
-    rows = [line for line in text.splitlines() if line.startswith("| `")]
+    table, curves = text.split("## Learning curves")
+    rows = [line for line in table.splitlines() if line.startswith("| `")]
     assert len(rows) == len(available_weights())
+    curve_rows = [line for line in curves.splitlines() if line.startswith("| `")]
+    assert len(curve_rows) == len(shipped_categories())  # every ANCSH network has a validation NPCS curve
+
+
+def test_learning_curve_fit_recovers_a_power_law_and_its_projections():
+    from ancsh.learned.weights import learning_curve_fit
+
+    rng = np.random.default_rng(0)
+    t = np.sort(rng.uniform(100.0, 3000.0, size=20))
+    early = t < 1500.0
+    err = np.where(early, 5.0, 0.4 * t**-0.25)  # the early part off the law: only the second half is fitted
+    c = learning_curve_fit(t, err)
+    assert c["exponent"] == pytest.approx(-0.25) and c["points"] == int((t >= 1500.0).sum())
+    assert c["fitted_final"] == pytest.approx(0.4 * t.max() ** -0.25)
+    assert c["time_factor_2x"] == pytest.approx(2.0**4) and c["time_factor_5x"] == pytest.approx(5.0**4)
+    assert learning_curve_fit(t, np.full(20, 0.1))["time_factor_2x"] == float("inf")  # flat: no projection
+    with pytest.raises(ValueError, match="val_err"):
+        learning_curve_fit(t, err[:-1])
+    with pytest.raises(ValueError, match="val_err"):
+        learning_curve_fit(t, -err)
+    with pytest.raises(ValueError, match="tail_fraction"):
+        learning_curve_fit(t, err, tail_fraction=0.0)
+    with pytest.raises(ValueError, match="points in the fitted range"):
+        learning_curve_fit(t[:2], err[:2])
