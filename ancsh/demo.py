@@ -46,6 +46,20 @@ def _fmt(x: float, spec: str) -> str:
     return "   -" if x != x else format(x, spec)
 
 
+def _part_cell(p: dict) -> str:
+    return f"{_fmt(p['rot_deg'], '8.2f')} {_fmt(p['trans'], '.4f')} {_fmt(100 * p['iou'], '6.1f')}      "
+
+
+def _joint_cell(jr: dict) -> str:
+    unit = "deg" if jr["type"] == "revolute" else "obj"
+    return f"state {_fmt(jr['state_err'], '.3f')} {unit} axis {_fmt(jr['axis_deg'], '.2f')} line {_fmt(jr['line_dist'], '.3f')}"
+
+
+def _row(label: str, per_method: list, index: int, cell) -> str:
+    """One table line: ``cell`` of entry ``index`` for each method (``failed`` when a fit gave no entries)."""
+    return f"   {label}" + "".join(f" | {cell(entries[index])}" if entries else f" | {'failed':28s}" for entries in per_method)
+
+
 def run(args) -> int:
     import numpy as np
 
@@ -82,27 +96,9 @@ def run(args) -> int:
         print(f"   {'part':14s}" + "".join(f" | {n:^28s}" for n, _ in methods))
         print(f"   {'':14s}" + " | rot(deg) trans   IoU(%)     " * len(methods))
         for j, part in enumerate(frame.part_names):
-            row = f"   {part:14s}"
-            for name, _ in methods:
-                parts = records[name][1]["parts"]
-                if parts:
-                    p = parts[j]
-                    row += f" | {_fmt(p['rot_deg'], '8.2f')} {_fmt(p['trans'], '.4f')} {_fmt(100 * p['iou'], '6.1f')}      "
-                else:
-                    row += f" | {'failed':28s}"
-            print(row)
+            print(_row(f"{part:14s}", [records[n][1]["parts"] for n, _ in methods], j, _part_cell))
         for k, jname in enumerate(frame.joint_names):
-            row = f"   joint {jname:8s}"
-            for name, _ in methods:
-                joints = records[name][1]["joints"]
-                if joints:
-                    jr = joints[k]
-                    unit = "deg" if jr["type"] == "revolute" else "obj"
-                    row += (f" | state {_fmt(jr['state_err'], '.3f')} {unit} axis {_fmt(jr['axis_deg'], '.2f')}"
-                            f" line {_fmt(jr['line_dist'], '.3f')}")
-                else:
-                    row += f" | {'failed':28s}"
-            print(row)
+            print(_row(f"joint {jname:8s}", [records[n][1]["joints"] for n, _ in methods], k, _joint_cell))
         result = records["ANCSH exact"][0]
         if result.ok:
             fig = draw_fit(frame.points, result, frame.intrinsics, labels=corr.part_labels, gt=frame.gt,
