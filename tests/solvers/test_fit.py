@@ -288,6 +288,7 @@ def test_paper_config_and_two_tolerances_share_one_program(fit_case):
     case = fit_case(6, num_parts=3)
     paper = FitConfig.paper()
     assert paper.scale_estimator == "umeyama" and paper.naocs_prior_weight == 0.0
+    assert FitConfig.paper(max_iterations=7).max_iterations == 7  # overrides win
     with pytest.raises(ValueError, match="unknown key"):
         FitConfig.paper(lambda_=1.0)
     configs = [FitConfig(tol=1e-10), FitConfig(tol=1e-9)]
