@@ -122,9 +122,10 @@ def run_weights(args: argparse.Namespace) -> int:
             "second half of each run's history (`ancsh.learned.weights.learning_curve_fit`), and the training "
             "time it projects for a 2x and a 5x lower error at the same settings, on one thread. 'last' is the "
             "fit at the end of the run. Extrapolating this far is an order-of-magnitude guide only (curves "
-            "usually flatten, so the projections are optimistic). The fitted part rotations follow the NPCS "
-            "orientation error of the network (see *Where the rotation error comes from* in each "
-            "`docs/results/<category>.md`).", "",
+            "usually flatten, so the projections are optimistic). The NPCS error is only a proxy for the pose: "
+            "the fitted part rotations follow the network's NPCS *orientation* error (see *Where the rotation "
+            "error comes from* in each `docs/results/<category>.md`), which a lower mean NPCS error does not "
+            "guarantee (eyeglasses, 50 -> 90 min: NPCS error 0.044 -> 0.040, exact-fit rotation errors up).", "",
             *curves, "",
         ]
         args.out.parent.mkdir(parents=True, exist_ok=True)
