@@ -58,7 +58,7 @@ def _record(visibility, rot, ok=True):
 
 
 def test_error_budget_recovers_a_known_npcs_rotation_and_matches_the_fit():
-    from ancsh.geometry import axis_angle_matrix, umeyama
+    from ancsh.geometry import axis_angle_matrix, geodesic_angle, umeyama
     from ancsh.learned.provider import Prediction
 
     frame = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)).frame(0)
@@ -81,7 +81,7 @@ def test_error_budget_recovers_a_known_npcs_rotation_and_matches_the_fit():
         # the orientation error is the rotation error of an Umeyama fit of the predicted NPCS to the points
         m = gt.part_labels == j
         fit = umeyama(npcs[m, j], frame.points[m])
-        err = np.degrees(np.arccos(np.clip((np.trace(fit.rotation.T @ gt.T_cam_npcs[j].rotation) - 1) / 2, -1, 1)))
+        err = np.degrees(geodesic_angle(fit.rotation, gt.T_cam_npcs[j].rotation))
         assert err == pytest.approx(p["npcs_rot_deg"], abs=1e-5)
     few = dataclasses.replace(gt, part_labels=np.where(np.arange(N) < 3, 1, 0))  # part 1 has 3 points
     assert np.isnan(ev.npcs_error_budget(pred, few)["parts"][1]["npcs_rot_deg"])
