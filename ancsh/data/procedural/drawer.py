@@ -12,17 +12,11 @@ import numpy as np
 
 from ...geometry.transforms import SE3
 from ...model.articulated import ArticulatedModel, Joint, Part
+from ..conventions import convention
 from . import _mesh as m
-from .registry import PRISMATIC, CategoryInfo
+from .registry import PRISMATIC
 
-INFO = CategoryInfo(
-    name="drawer",
-    part_names=("base", "lowest", "middle", "top"),
-    joint_names=("lowest_slide", "middle_slide", "top_slide"),
-    joint_types=(PRISMATIC, PRISMATIC, PRISMATIC),
-    diagonal_range=(0.75, 1.60),
-    rest_description="all drawers closed (0)",
-)
+INFO = convention("drawer")  # the category's one definition (ancsh.data.conventions)
 
 #: Largest distance a handle sticks out in front of the drawer front (metres).
 MAX_HANDLE_PROTRUSION = 0.045

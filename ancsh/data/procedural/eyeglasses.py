@@ -16,17 +16,11 @@ import numpy as np
 
 from ...geometry.transforms import SE3
 from ...model.articulated import ArticulatedModel, Joint, Part
+from ..conventions import convention
 from . import _mesh as m
-from .registry import REVOLUTE, CategoryInfo
+from .registry import REVOLUTE
 
-INFO = CategoryInfo(
-    name="eyeglasses",
-    part_names=("base", "left_temple", "right_temple"),
-    joint_names=("left_hinge", "right_hinge"),
-    joint_types=(REVOLUTE, REVOLUTE),
-    diagonal_range=(0.17, 0.27),
-    rest_description="temples at right angles to the front frame (0)",
-)
+INFO = convention("eyeglasses")  # the category's one definition (ancsh.data.conventions)
 
 _N = 48
 _UP = np.array([0.0, 1.0, 0.0])

@@ -11,17 +11,11 @@ import numpy as np
 
 from ...geometry.transforms import SE3
 from ...model.articulated import ArticulatedModel, Joint, Part
+from ..conventions import convention
 from . import _mesh as m
-from .registry import REVOLUTE, CategoryInfo
+from .registry import REVOLUTE
 
-INFO = CategoryInfo(
-    name="laptop",
-    part_names=("base", "display"),
-    joint_names=("display_hinge",),
-    joint_types=(REVOLUTE,),
-    diagonal_range=(0.35, 0.62),
-    rest_description="display at right angles to the base (pi/2)",
-)
+INFO = convention("laptop")  # the category's one definition (ancsh.data.conventions)
 
 
 def build(rng: np.random.Generator, name: str) -> ArticulatedModel:

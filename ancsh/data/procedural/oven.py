@@ -13,17 +13,11 @@ import numpy as np
 
 from ...geometry.transforms import SE3
 from ...model.articulated import ArticulatedModel, Joint, Part
+from ..conventions import convention
 from . import _mesh as m
-from .registry import REVOLUTE, CategoryInfo
+from .registry import REVOLUTE
 
-INFO = CategoryInfo(
-    name="oven",
-    part_names=("base", "door"),
-    joint_names=("door_hinge",),
-    joint_types=(REVOLUTE,),
-    diagonal_range=(0.50, 1.55),
-    rest_description="door closed (0)",
-)
+INFO = convention("oven")  # the category's one definition (ancsh.data.conventions)
 
 _STYLES = {  # width, height, depth ranges (metres)
     "range": ((0.50, 0.76), (0.85, 0.95), (0.55, 0.66)),

@@ -13,11 +13,11 @@ training instances (they are unseen shapes from the same parameter distribution)
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
 
 import numpy as np
 
 from ...model.articulated import JointType
+from ..conventions import CategoryConvention
 
 NUM_TRAIN = 200
 NUM_TEST = 20
@@ -25,44 +25,9 @@ TEST_SEED_OFFSET = 1_000_000
 SPLITS = ("train", "test")
 
 
-@dataclass(frozen=True)
-class CategoryInfo:
-    """What other modules need to know about a procedural category.
-
-    Attributes
-    ----------
-    name : str
-    part_names : tuple of str
-        Part order (labels ``0..M-1``), base first, as in the paper's part table.
-    joint_names : tuple of str
-        Joint order (``0..K-1``); joint ``k`` moves part ``k + 1``.
-    joint_types : tuple of JointType
-    diagonal_range : (float, float)
-        Range of the diagonal of the tight axis-aligned box of all parts at the rest
-        state (metres) over all instances; a guide for camera distances.
-    rest_description : str
-        The rest state that defines NAOCS (paper Sec. 4.1).
-    """
-
-    name: str
-    part_names: tuple
-    joint_names: tuple
-    joint_types: tuple
-    diagonal_range: tuple
-    rest_description: str
-
-    @property
-    def typical_size(self) -> float:
-        """Typical rest-state box diagonal (metres): the middle of :attr:`diagonal_range`."""
-        return 0.5 * (self.diagonal_range[0] + self.diagonal_range[1])
-
-    @property
-    def num_parts(self) -> int:
-        return len(self.part_names)
-
-    @property
-    def num_joints(self) -> int:
-        return len(self.joint_names)
+#: A procedural category's metadata is its convention (:mod:`ancsh.data.conventions`): part and
+#: joint names and types, rest states, size range. Kept under this name for callers of the registry.
+CategoryInfo = CategoryConvention
 
 
 def category_rng(category: str, seed: int) -> np.random.Generator:

@@ -12,17 +12,11 @@ import numpy as np
 
 from ...geometry.transforms import SE3
 from ...model.articulated import ArticulatedModel, Joint, Part
+from ..conventions import convention
 from . import _mesh as m
-from .registry import REVOLUTE, CategoryInfo
+from .registry import REVOLUTE
 
-INFO = CategoryInfo(
-    name="washing_machine",
-    part_names=("base", "door"),
-    joint_names=("door_hinge",),
-    joint_types=(REVOLUTE,),
-    diagonal_range=(0.95, 1.35),
-    rest_description="door closed (0)",
-)
+INFO = convention("washing_machine")  # the category's one definition (ancsh.data.conventions)
 
 _N = 64  # outline samples
 

@@ -1,0 +1,127 @@
+"""New models from old ones: scale, re-parameterise a joint, rename and reorder parts.
+
+Every function returns a new :class:`~ancsh.model.articulated.ArticulatedModel` and leaves its
+input untouched; meshes are copied where they change. The URDF importer uses these to put a
+real object into its category's convention (:mod:`ancsh.data.conventions`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..geometry._checks import as_rotation
+from ..geometry.transforms import Sim3
+from .articulated import ArticulatedModel, Joint, Part
+
+__all__ = ["reparameterized", "restructured", "scaled", "with_orientation"]
+
+
+def _model(model: ArticulatedModel, parts, joints, **kw) -> ArticulatedModel:
+    args = dict(name=model.name, category=model.category, R_canon_base=model.R_canon_base)
+    args.update(kw)
+    return ArticulatedModel(tuple(parts), tuple(joints), **args)
+
+
+def scaled(model: ArticulatedModel, factor: float) -> ArticulatedModel:
+    """The model uniformly scaled by ``factor`` (> 0): meshes, pivots, joint origins and
+    prismatic limits and rest states scale; revolute angles do not.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    factor : float
+        Positive, finite scale factor (e.g. object units -> metres).
+    """
+    factor = float(factor)
+    if not np.isfinite(factor) or factor <= 0:
+        raise ValueError(f"factor: expected a positive finite scale, got {factor}")
+    parts = []
+    for p in model.parts:
+        mesh = None
+        if p.mesh is not None:
+            mesh = p.mesh.copy()
+            mesh.apply_scale(factor)
+        parts.append(Part(p.name, mesh))
+    joints = []
+    for j in model.joints:
+        s = 1.0 if j.is_revolute else factor
+        origin = Sim3(j.origin.rotation, factor * j.origin.translation)
+        joints.append(replace(j, pivot=factor * j.pivot, origin=origin, lower=s * j.lower, upper=s * j.upper, rest=s * j.rest))
+    return _model(model, parts, joints)
+
+
+def reparameterized(model: ArticulatedModel, k: int, *, zero: float, sign: int = 1, rest: float | None = None,
+                    name: str | None = None) -> ArticulatedModel:
+    """Joint ``k`` re-parameterised as ``q_new = sign * (q_old - zero)``; same motion.
+
+    The child's pose at ``q_new`` equals the old pose at ``q_old = zero + sign * q_new``:
+    the joint origin absorbs the old motion at ``zero`` and the axis is flipped when
+    ``sign = -1``; limits are mapped and re-ordered.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    k : int
+        Joint index.
+    zero : float
+        Old state that becomes state 0 (radians or model units).
+    sign : {1, -1}
+    rest : float, optional
+        New rest state (in the new parameterisation; default: the old rest mapped).
+    name : str, optional
+        New joint name.
+    """
+    if sign not in (1, -1):
+        raise ValueError(f"sign: expected 1 or -1, got {sign!r}")
+    if not 0 <= k < model.num_joints:
+        raise ValueError(f"k: joint index {k} outside 0..{model.num_joints - 1}")
+    j = model.joints[k]
+    zero = float(zero)
+    if not np.isfinite(zero):
+        raise ValueError(f"zero: expected a finite state, got {zero}")
+    origin = j.motion(zero) @ j.origin
+    lo, hi = sorted((sign * (j.lower - zero), sign * (j.upper - zero)))
+    new_rest = sign * (j.rest - zero) if rest is None else float(rest)
+    new = Joint(name or j.name, j.type, j.parent, j.child, axis=sign * j.axis, pivot=j.pivot,
+                lower=lo, upper=hi, rest=min(max(new_rest, lo), hi) if rest is None else new_rest, origin=origin)
+    joints = list(model.joints)
+    joints[k] = new
+    return _model(model, model.parts, joints)
+
+
+def restructured(model: ArticulatedModel, part_order, part_names, joint_names=None) -> ArticulatedModel:
+    """Parts reordered and renamed; joints reordered so that joint ``k`` moves new part ``k+1``.
+
+    Parameters
+    ----------
+    part_order : sequence of int
+        Old part index of each new part (a permutation; new part 0 must be the base).
+    part_names : sequence of str
+        New name of each new part.
+    joint_names : sequence of str, optional
+        New name of each new joint (default: keep the names).
+    """
+    order = [int(i) for i in part_order]
+    if sorted(order) != list(range(model.num_parts)):
+        raise ValueError(f"part_order: expected a permutation of 0..{model.num_parts - 1}, got {order}")
+    if order[0] != model.base_index:
+        raise ValueError(f"part_order: the new part 0 must be the base (old part {model.base_index}), got {order[0]}")
+    if len(part_names) != len(order):
+        raise ValueError(f"part_names: expected {len(order)} names, got {len(part_names)}")
+    rename = {model.parts[old].name: new for old, new in zip(order, part_names)}
+    parts = [Part(rename[model.parts[old].name], model.parts[old].mesh) for old in order]
+    joints = []
+    for new_child in range(1, len(order)):
+        k = model.parent_joint(order[new_child])
+        j = model.joints[k]
+        jname = j.name if joint_names is None else joint_names[new_child - 1]
+        joints.append(replace(j, name=jname, parent=rename[j.parent], child=rename[j.child]))
+    return _model(model, parts, joints)
+
+
+def with_orientation(model: ArticulatedModel, R_canon_base) -> ArticulatedModel:
+    """The same model with another canonical orientation ``R_canon_base`` (3, 3)."""
+    R = as_rotation(R_canon_base, "R_canon_base")
+    return _model(model, model.parts, model.joints, R_canon_base=R)
