@@ -1,4 +1,4 @@
-"""``ancsh data generate``, ``ancsh data show`` and ``ancsh bench render``."""
+"""``ancsh data generate``, ``ancsh data import``, ``ancsh data show`` and ``ancsh bench render``."""
 
 from __future__ import annotations
 
@@ -44,6 +44,10 @@ def register(sub) -> None:
     src.add_argument("--category", help="procedural category: eyeglasses, oven, washing_machine, laptop, drawer")
     src.add_argument("--urdf", help="path of a URDF object (e.g. a PartNet-Mobility mobility.urdf)")
     g.add_argument("--split", default="train", choices=("train", "test"), help="instance split (default train)")
+    g.add_argument("--real", default=None, metavar="CATALOG",
+                   help="mix in the real objects of this split from a catalog ('builtin' = the shipped one)")
+    g.add_argument("--real-fraction", type=float, default=0.5,
+                   help="with --real: fraction of frames showing a real object (default 0.5; 1 = real only)")
     g.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
     g.add_argument("--workers", type=_positive_int, default=2, help="worker processes (default 2)")
     g.add_argument("--seed", type=_non_negative_int, default=0, help="base seed (default 0)")
@@ -61,6 +65,21 @@ def register(sub) -> None:
     g.add_argument("--overwrite", action="store_true", help="replace shards made with other settings")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=run_generate)
+
+    im = data_sub.add_parser(
+        "import",
+        help="import real URDF objects into a category's convention (catalog, report, preview sheets)",
+        description="Map URDF objects (PartNet-Mobility folders, or any URDF) onto a category's convention: "
+        "moving parts, state 0 and direction from the geometry, NAOCS front, part order, metric scale, "
+        "train/test split. Objects that the category cannot hold are rejected with the reason. "
+        "Example: ancsh data import ../shared/data/partnet_mobility --out catalog_out",
+    )
+    im.add_argument("paths", nargs="+", help="URDF files, object folders, or folders of object folders")
+    im.add_argument("--category", default=None, help="import everything into this category (default: each object's own)")
+    im.add_argument("--out", required=True, help="output folder: catalog.json, import_report.md, previews/")
+    im.add_argument("--override", default=None, help="JSON file of per-object overrides (see ancsh.data.importer)")
+    im.add_argument("--no-previews", dest="previews", action="store_false", help="skip the preview sheets")
+    im.set_defaults(func=run_import)
 
     s = data_sub.add_parser("show", help="draw one frame of a shard (points by part, NPCS, boxes, joint axes)")
     s.add_argument("file", help="a shard (.h5) or a directory of shards")
@@ -80,6 +99,8 @@ def run_generate(args) -> int:
         category=args.category,
         split=args.split,
         urdf=args.urdf,
+        real=args.real,
+        real_fraction=args.real_fraction if args.real else 0.0,
         seed=args.seed,
         shard_size=args.shard_size,
         num_points=args.points,
@@ -108,6 +129,30 @@ def run_generate(args) -> int:
         f"{out}: {len(report.paths)} shards, {report.frames_generated} frames generated in "
         f"{report.seconds:.1f} s{rate}; {len(report.skipped)} complete shards kept"
     )
+    return 0
+
+
+def run_import(args) -> int:
+    import shlex
+    from pathlib import Path
+
+    from .catalog import build_catalog, draw_preview_sheet, write_catalog, write_import_report
+    from .importer import load_overrides
+
+    overrides = load_overrides(args.override) if args.override else None
+    out = Path(args.out)
+    words = list(args.paths) + (["--category", args.category] if args.category else []) + ["--out", args.out]
+    words += ["--override", args.override] if args.override else []
+    command = "ancsh data import " + " ".join(shlex.quote(str(w)) for w in words)
+    catalog = build_catalog(args.paths, args.category, overrides=overrides, command=command,
+                            progress=lambda name: print(f"importing {name}", file=sys.stderr))
+    write_catalog(catalog, out / "catalog.json")
+    write_import_report(catalog, out / "import_report.md")
+    if args.previews:
+        for cat in catalog.categories:
+            draw_preview_sheet(catalog.instances(cat), out / "previews" / f"{cat}.png", title=f"{cat}: rest state and a moved state")
+    print(f"{out}: {len(catalog.objects)} objects imported, {len(catalog.rejected)} rejected "
+          f"(reasons in {out / 'import_report.md'})")
     return 0
 
 

@@ -345,6 +345,14 @@ def _long_axis(v: np.ndarray) -> np.ndarray:
     return np.linalg.svd(c, full_matrices=False)[2][0]
 
 
+def _horizontal_angle_to_front_deg(v: np.ndarray) -> float:
+    """Angle (degrees) between the horizontal part of ``v``'s long axis and the front axis
+    (temples may bend down at the ear: only their course in the horizontal plane counts)."""
+    a = _long_axis(v)
+    h = np.hypot(a[0], a[2])
+    return 90.0 if h < 1e-12 else float(np.degrees(np.arccos(min(1.0, abs(a[2]) / h))))
+
+
 def _side_ok(base_v, child_v, sides) -> bool:
     b_lo, b_hi = base_v.min(axis=0), base_v.max(axis=0)
     offset = child_v.mean(axis=0) - (b_lo + b_hi) / 2
@@ -412,6 +420,29 @@ def convention_violations(model: ArticulatedModel, conv: CategoryConvention, *, 
     return out
 
 
+#: A revolute part counts as closed only where its thinnest direction is within this angle of a
+#: canonical axis: a door lies in the front face's plane, a display on the keyboard. This keeps
+#: a door swung *into* the body (which some files' limits allow, and which makes a smaller box)
+#: from counting as closed.
+CLOSED_AXIS_TOL_DEG = 10.0
+
+
+def _thin_axis_off_deg(v: np.ndarray) -> float:
+    """Angle (degrees) between the thinnest direction of ``v`` and the nearest canonical axis."""
+    c = v - v.mean(axis=0)
+    n = np.linalg.svd(c, full_matrices=False)[2][-1]
+    return float(np.degrees(np.arccos(min(1.0, float(np.abs(n).max())))))
+
+
+def _closed_score(model, k, q) -> float:
+    """Box volume around base and part at state ``q`` of joint ``k``; infinite for a revolute
+    part that does not lie in a canonical plane (:data:`CLOSED_AXIS_TOL_DEG`)."""
+    base, child = _joint_pair(model, k, _with_state(model, k, q))
+    if model.joints[k].is_revolute and _thin_axis_off_deg(child) > CLOSED_AXIS_TOL_DEG:
+        return np.inf
+    return box_volume(base, child)
+
+
 def _joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg) -> list[str]:
     joint = model.joints[k]
     out = []
@@ -423,15 +454,14 @@ def _joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg) -> list[str]:
     span = hi - lo
     base0, child0 = _joint_pair(model, k, _with_state(model, k, 0.0))
     if jc.zero == "closed":
-        v0 = box_volume(base0, child0)
+        v0 = _closed_score(model, k, 0.0)
         qs = np.linspace(lo, hi, 61)
-        vols = [box_volume(*_joint_pair(model, k, _with_state(model, k, q))) for q in qs]
+        vols = [_closed_score(model, k, q) for q in qs]
         i = int(np.argmin(vols))
         if vols[i] < v0 * (1 - rel_tol):
             out.append(f"joint {joint.name!r}: state 0 is not closed (state {qs[i]:.4g} is {100 * (1 - vols[i] / v0):.1f}% tighter)")
     else:  # perpendicular
-        a = _long_axis(child0)
-        ang = np.degrees(np.arccos(min(1.0, abs(float(a @ FRONT)))))
+        ang = _horizontal_angle_to_front_deg(child0)
         if ang > angle_tol_deg:
             out.append(f"joint {joint.name!r}: at state 0 the part's long axis is {ang:.1f} deg from the front axis, not perpendicular to the base")
     step = min(0.1 * span, 0.25 if joint.is_revolute else 0.1 * span)

@@ -51,7 +51,13 @@ class GenerationConfig:
     category : str or None
         Procedural category (:data:`ancsh.data.procedural.CATEGORIES`); ``None`` with ``urdf``.
     split : str
-        ``"train"`` or ``"test"`` instances (procedural only).
+        ``"train"`` or ``"test"`` instances (procedural and real).
+    real : str or None
+        A catalog of imported real objects (:mod:`.catalog`; ``"builtin"`` = the shipped one)
+        whose objects of ``category`` and ``split`` join the procedural instances.
+    real_fraction : float
+        With ``real``: probability that a frame shows a real object (1 = real objects only).
+        When the split has no real object of the category, every frame is procedural.
     urdf : str or None
         Path of a URDF object (instead of a procedural category).
     seed : int
@@ -76,6 +82,8 @@ class GenerationConfig:
     category: str | None = None
     split: str = "train"
     urdf: str | None = None
+    real: str | None = None
+    real_fraction: float = 0.0
     seed: int = 0
     shard_size: int = 500
     num_points: int = 1024
@@ -104,7 +112,11 @@ class GenerationConfig:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
                 raise ValueError(f"{name}: expected an int >= {lo}, got {v!r}")
             object.__setattr__(self, name, int(v))
-        for name in ("min_part_fraction", "min_visibility"):
+        if self.real is not None and self.urdf is not None:
+            raise ValueError("real: real catalog objects mix with a procedural category, not with a URDF")
+        if self.real is None and self.real_fraction != 0.0:
+            raise ValueError("real_fraction: needs a real catalog (real=...)")
+        for name in ("min_part_fraction", "min_visibility", "real_fraction"):
             v = float(getattr(self, name))
             if not 0.0 <= v <= 1.0:
                 raise ValueError(f"{name}: expected a fraction in [0, 1], got {v}")
@@ -120,6 +132,8 @@ class GenerationConfig:
         if self.urdf is not None:
             p = Path(self.urdf)
             return p.parent.name if p.stem in ("mobility", "model") else p.stem
+        if self.real is not None:
+            return f"{self.category}_{'real' if self.real_fraction >= 1.0 else 'mixed'}"
         return self.category
 
     def to_json(self) -> str:
@@ -149,12 +163,25 @@ class FrameGenerator:
             raise ValueError(f"config: expected GenerationConfig, got {type(config).__name__}")
         self.config = config
         self._cache: dict = {}
+        self._real: tuple = ()
         if config.urdf is not None:
             self._seeds = (-1,)
         else:
             from .procedural import instance_seeds
 
             self._seeds = tuple(instance_seeds(config.category, config.split))
+            if config.real is not None:
+                from .catalog import load_catalog
+
+                catalog = load_catalog(None if config.real == "builtin" else config.real)
+                self._real = catalog.instances(config.category, config.split)
+        self._num_procedural = len(self._seeds)
+        self._seeds = self._seeds + (-1,) * len(self._real)
+
+    @property
+    def real_instances(self) -> tuple:
+        """The imported real objects among the instances (indices after the procedural ones)."""
+        return self._real
 
     @property
     def num_instances(self) -> int:
@@ -168,6 +195,8 @@ class FrameGenerator:
                 from .urdf import load_urdf
 
                 model = load_urdf(cfg.urdf)
+            elif index >= self._num_procedural:
+                model = self._real[index - self._num_procedural].model()
             else:
                 from .procedural import load_instance
 
@@ -212,7 +241,13 @@ class FrameGenerator:
         cfg = self.config
         seed = frame_seed(cfg.seed, index)
         rng = np.random.default_rng(seed)
-        inst = int(rng.integers(self.num_instances))
+        if self._real and cfg.real_fraction > 0:  # an extra draw only for mixed data: procedural frames stay as they were
+            if cfg.real_fraction >= 1.0 or rng.random() < cfg.real_fraction:
+                inst = self._num_procedural + int(rng.integers(len(self._real)))
+            else:
+                inst = int(rng.integers(self._num_procedural))
+        else:
+            inst = int(rng.integers(self._num_procedural))
         model, renderer = self.instance(inst)
         vr = self._viewpoints(model)
         for _ in range(cfg.max_attempts):

@@ -62,7 +62,7 @@ class _Link:
     T_part_link: np.ndarray  # (4, 4)
 
 
-def load_urdf(path, *, category: str | None = None) -> ArticulatedModel:
+def load_urdf(path, *, category: str | None = None, joint_types=None) -> ArticulatedModel:
     """Load a URDF file into an :class:`ArticulatedModel`.
 
     Parameters
@@ -73,6 +73,12 @@ def load_urdf(path, *, category: str | None = None) -> ArticulatedModel:
         Category to record on the model. Default: the folder name's prefix when it names a
         procedural category (``laptop_10101`` -> ``laptop``), else PartNet-Mobility's
         ``meta.json`` ``model_cat`` in snake case, else ``None``.
+    joint_types : mapping of str to str, optional
+        ``{urdf joint name: type}`` replacing the file's joint types before loading:
+        ``"fixed"`` freezes a movable joint (a knob the category does not model);
+        ``"revolute"``/``"prismatic"``/``"continuous"`` restores a joint that the file froze
+        (GenSim2's copies keep one movable joint; ``mobility_v2.json`` has the others),
+        using the file's ``<axis>`` and ``<limit>``. Unknown joint names raise ``ValueError``.
 
     Returns
     -------
@@ -90,7 +96,7 @@ def load_urdf(path, *, category: str | None = None) -> ArticulatedModel:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"path: URDF file {str(path)!r} does not exist")
-    robot = _parse(path)
+    robot = _parse(path, joint_types or {})
     links = {link.name: link for link in robot.links}
     if not links:
         raise ValueError(f"{path}: <robot> has no <link> elements")
@@ -153,7 +159,7 @@ def load_urdf(path, *, category: str | None = None) -> ArticulatedModel:
 
 
 # --- parsing ----------------------------------------------------------------------------------
-def _parse(path: Path):
+def _parse(path: Path, joint_types: dict):
     import yourdfpy
 
     try:
@@ -165,6 +171,13 @@ def _parse(path: Path):
     root = tree.getroot()
     if root.tag != "robot":
         raise ValueError(f"{path}: root element is <{root.tag}>, expected <robot>")
+    by_name = {j.get("name"): j for j in root.findall("joint")}
+    for name, jtype in joint_types.items():
+        if name not in by_name:
+            raise ValueError(f"joint_types: {path} has no <joint name={name!r}> (joints: {sorted(n for n in by_name if n)})")
+        if jtype not in _SUPPORTED:
+            raise ValueError(f"joint_types: type {jtype!r} of joint {name!r} is not one of {sorted(_SUPPORTED)}")
+        by_name[name].set("type", jtype)
     for j in root.findall("joint"):  # direct children (<transmission> also holds <joint>)
         name, jtype = j.get("name"), j.get("type")
         if name is None or jtype is None:

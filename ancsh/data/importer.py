@@ -1,0 +1,521 @@
+"""Import real articulated objects (URDF) into a category's convention.
+
+:func:`import_object` turns one URDF object into an :class:`ImportedObject`: a small, JSON-able
+record of *how* the file maps onto the category (:mod:`ancsh.data.conventions`) — which of the
+file's joints move, which file state is the category's state 0 and in which direction the state
+grows, whether the front is turned round, the metric scale and the instance split. Its
+:meth:`ImportedObject.model` rebuilds the category-convention :class:`ArticulatedModel` from the
+file each time; no mesh is copied. An object whose structure the category cannot hold is
+rejected with :class:`ImportRejected` and the reason; it is never mis-evaluated.
+
+Rules (each measured on the geometry, see :mod:`ancsh.data.conventions`)
+-------------------------------------------------------------------------
+1. Category: given, or PartNet-Mobility's ``meta.json`` ``model_cat`` matched against each
+   convention's ``source_categories``.
+2. Moving parts: with ``semantics.txt`` (PartNet-Mobility), the links whose original joint
+   has the convention's type (``hinge`` = revolute, ``slider`` = prismatic) and whose part name
+   is one of the convention's ``semantics``; those joints are restored when the file froze them
+   (GenSim2's copies keep one movable joint), every other movable joint is frozen (knobs,
+   buttons, trays). Without it, the file's movable joints. The count must match the convention.
+3. State 0: ``closed`` — the state within the limits minimising the box around base and part;
+   ``perpendicular`` — the state with the part's long axis along the front axis, on the
+   convention's side. Direction: the sign under which the state ``opens`` / ``folds``.
+4. Orientation: the loader's up/front (:mod:`ancsh.data.urdf`); turned 180 degrees about up when
+   the moving parts sit on the wrong side for the convention at rest.
+5. Part order by role (``order_by``), names from the convention.
+6. Scale: the rest-state diagonal drawn uniformly from the category's range, seeded by the
+   object's name (or given by an override).
+7. The result must pass :func:`~ancsh.data.conventions.convention_violations`; otherwise the
+   object is rejected with the violations as the reason.
+
+Overrides (``--override FILE``, JSON): ``{"<object name>": {"zero": {"<joint>": value},
+"sign": {"<joint>": 1|-1}, "flip_front": bool, "diagonal_m": float, "moving_links": [...],
+"reject": "reason"}}`` where ``<joint>`` is a convention joint name and ``zero`` is in the
+file's units. Unknown objects, keys or joint names are errors naming the object.
+
+Split: a category with at most :data:`MIN_REAL_FOR_TRAINING` real objects keeps them all for
+testing; otherwise an object is a test object when ``crc32(name) % 4 == 0`` — fixed per object,
+independent of which other objects are imported.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import zlib
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.rotations import axis_angle_matrix
+from ..model.articulated import ArticulatedModel
+from ..model.edit import reparameterized, restructured, scaled, with_orientation
+from .conventions import (
+    CONVENTIONS,
+    UP,
+    CategoryConvention,
+    _joint_pair,
+    _closed_score,
+    _horizontal_angle_to_front_deg,
+    _side_ok,
+    _with_state,
+    box_volume,
+    convention,
+    convention_violations,
+    part_vertices_canonical,
+    rest_diagonal,
+)
+
+__all__ = [
+    "ImportRejected",
+    "ImportedObject",
+    "MIN_REAL_FOR_TRAINING",
+    "assign_splits",
+    "import_object",
+    "load_overrides",
+]
+
+#: Categories with at most this many real objects keep them all for testing.
+MIN_REAL_FOR_TRAINING = 2
+_KIND = {"hinge": "revolute", "slider": "prismatic"}
+_OVERRIDE_KEYS = {"zero", "sign", "flip_front", "diagonal_m", "moving_links", "reject"}
+_GRID = 241
+
+
+class ImportRejected(ValueError):
+    """The object cannot be an instance of the category; ``reason`` says why."""
+
+    def __init__(self, name: str, reason: str):
+        super().__init__(f"{name}: {reason}")
+        self.name = name
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class ImportedObject:
+    """How one URDF file maps onto its category's convention (JSON-able).
+
+    Attributes
+    ----------
+    name : str
+        Object name (the URDF's folder, e.g. ``laptop_10101``).
+    category : str
+    urdf : str
+        Path of the URDF: relative to the shared data folder when inside it (``shared:`` prefix),
+        else absolute.
+    joint_types : dict
+        ``{urdf joint: type}`` overrides (restored and frozen joints) passed to the loader.
+    moving_links : tuple of str
+        URDF child link of each convention joint, in convention order.
+    zero : tuple of float
+        File state that is the convention's state 0, per convention joint (file units).
+    sign : tuple of int
+        ``+1``/``-1`` per convention joint: ``q_convention = sign * (q_file - zero)``.
+    flip_front : bool
+        The loader's front turned round (180 degrees about up).
+    scale : float
+        File units -> metres.
+    split : str
+        ``"train"`` or ``"test"``.
+    notes : tuple of str
+        Overrides applied, clipped values, anything a person checking the catalog should know.
+    """
+
+    name: str
+    category: str
+    urdf: str
+    joint_types: dict
+    moving_links: tuple
+    zero: tuple
+    sign: tuple
+    flip_front: bool
+    scale: float
+    split: str = "test"
+    notes: tuple = field(default_factory=tuple)
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name, "category": self.category, "urdf": self.urdf,
+            "joint_types": dict(self.joint_types), "moving_links": list(self.moving_links),
+            "zero": [float(z) for z in self.zero], "sign": [int(s) for s in self.sign],
+            "flip_front": bool(self.flip_front), "scale": float(self.scale), "split": self.split,
+            "notes": list(self.notes),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict, where: str = "catalog") -> "ImportedObject":
+        try:
+            return cls(
+                name=str(d["name"]), category=str(d["category"]), urdf=str(d["urdf"]),
+                joint_types={str(k): str(v) for k, v in dict(d["joint_types"]).items()},
+                moving_links=tuple(str(x) for x in d["moving_links"]),
+                zero=tuple(float(z) for z in d["zero"]), sign=tuple(int(s) for s in d["sign"]),
+                flip_front=bool(d["flip_front"]), scale=float(d["scale"]), split=str(d["split"]),
+                notes=tuple(str(n) for n in d.get("notes", ())),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: malformed object entry {d.get('name', '?') if isinstance(d, dict) else d!r}: {exc}") from None
+
+    @property
+    def urdf_path(self) -> Path:
+        """The URDF file (``shared:`` paths resolved against the shared data folder)."""
+        from .paths import shared_data_dir
+
+        if self.urdf.startswith("shared:"):
+            return shared_data_dir() / self.urdf[len("shared:"):]
+        return Path(self.urdf)
+
+    @cached_property
+    def _model(self) -> ArticulatedModel:
+        from .urdf import load_urdf
+
+        conv = convention(self.category)
+        path = self.urdf_path
+        if not path.is_file():
+            raise FileNotFoundError(f"{self.name}: URDF {path} not found (is ../shared/data beside the repository?)")
+        raw = load_urdf(path, category=self.category, joint_types=self.joint_types)
+        return _to_convention(raw, conv, self.moving_links, self.zero, self.sign, self.flip_front, self.scale, self.name)
+
+    def model(self) -> ArticulatedModel:
+        """The object in its category's convention (metres, canonical orientation, rest, roles)."""
+        return self._model
+
+
+def _relative_urdf(path: Path) -> str:
+    from .paths import shared_data_dir
+
+    path = path.resolve()
+    try:
+        return "shared:" + path.relative_to(shared_data_dir()).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def _object_name(path: Path) -> str:
+    """The folder's name for generic file names (``mobility.urdf``, ``model.urdf``), else the file's stem."""
+    return path.parent.name if path.stem in ("mobility", "model") else path.stem
+
+
+def _guess_category(path: Path) -> str | None:
+    meta = path.parent / "meta.json"
+    cat = None
+    if meta.is_file():
+        try:
+            cat = json.loads(meta.read_text()).get("model_cat")
+        except (ValueError, OSError):
+            cat = None
+    for conv in CONVENTIONS.values():
+        if cat in conv.source_categories:
+            return conv.name
+    prefix = re.sub(r"_\d+$", "", path.parent.name)
+    return prefix if prefix in CONVENTIONS else None
+
+
+def _mobility_joints(path: Path) -> dict | None:
+    """``{link name: (joint kind, part name)}`` of a PartNet-Mobility object, or ``None``.
+
+    From ``semantics.txt`` (``link_name joint_kind part_name`` per line), which names the URDF's
+    links; ``mobility_v2.json`` ids do not always match the link names of re-hosted copies.
+    """
+    file = path.parent / "semantics.txt"
+    if not file.is_file():
+        return None
+    out = {}
+    for n, line in enumerate(file.read_text().splitlines(), 1):
+        fields = line.split()
+        if not fields:
+            continue
+        if len(fields) != 3:
+            raise ValueError(f"{path.parent.name}: semantics.txt line {n} is not 'link kind name': {line!r}")
+        out[fields[0]] = (fields[1], fields[2])
+    return out
+
+
+def _urdf_joints(path: Path) -> dict:
+    """``{child link: (joint name, type)}`` of the file (no geometry loaded)."""
+    from lxml import etree
+
+    try:
+        root = etree.parse(str(path)).getroot()
+    except Exception as exc:  # noqa: BLE001 - any parser failure is a malformed file
+        raise ValueError(f"{path}: malformed URDF XML: {exc}") from None
+    out = {}
+    for j in root.findall("joint"):
+        child = j.find("child")
+        if child is not None and child.get("link") is not None:
+            out[child.get("link")] = (j.get("name"), j.get("type"))
+    return out
+
+
+def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links=None) -> tuple[dict, list]:
+    """Joint-type overrides and the moving child links (file order)."""
+    joints = _urdf_joints(path)
+    movable = {link for link, (_, t) in joints.items() if t in ("revolute", "prismatic", "continuous")}
+    wanted_type = {j.type.value for j in conv.joints}
+    semantics = {s for j in conv.joints for s in j.semantics}
+    if forced_links is not None:
+        moving = [str(x) for x in forced_links]
+        unknown = [x for x in moving if x not in joints]
+        if unknown:
+            raise ValueError(f"{name}: override moving_links names unknown link(s) {unknown}")
+    else:
+        mobility = _mobility_joints(path)
+        if mobility is None:
+            moving = [link for link in joints if link in movable]
+        else:
+            moving = [link for link in joints if link in mobility and _KIND.get(mobility[link][0]) in wanted_type
+                      and mobility[link][1] in semantics]
+    if len(moving) != conv.num_joints:
+        mobility = _mobility_joints(path) or {}
+        kinds = [f"{mobility[link][1]} ({mobility[link][0]})" for link in joints if link in mobility and mobility[link][0] in _KIND]
+        kinds = kinds or [f"{link} ({joints[link][1]})" for link in joints if link in movable]
+        raise ImportRejected(name, f"has {len(moving)} moving part(s) of the kind the {conv.name} category needs "
+                                   f"({'/'.join(sorted(semantics))}; {'/'.join(sorted(wanted_type))}), it needs "
+                                   f"{conv.num_joints}; the file's movable parts: {', '.join(kinds) or 'none'}")
+    overrides = {}
+    mobility = _mobility_joints(path) or {}
+    for link, (jname, jtype) in joints.items():
+        if link in moving:
+            kind = _KIND.get(mobility.get(link, ("",))[0], jtype)
+            if kind == "revolute" and jtype == "continuous":
+                kind = "continuous"
+            if kind != jtype:
+                overrides[jname] = kind
+        elif jtype in ("revolute", "prismatic", "continuous"):
+            overrides[jname] = "fixed"
+    return overrides, moving
+
+
+# --- finding state 0 and the direction ---------------------------------------------------------
+def _limits(joint) -> tuple[float, float]:
+    lo = joint.lower if np.isfinite(joint.lower) else -np.pi
+    hi = joint.upper if np.isfinite(joint.upper) else np.pi
+    return lo, hi
+
+
+def _argbest(score, lo, hi):
+    """Grid search then a finer grid around the best value; ``score`` is minimised."""
+    qs = np.linspace(lo, hi, _GRID)
+    vals = np.array([score(q) for q in qs])
+    i = int(np.argmin(vals))
+    step = (hi - lo) / (_GRID - 1)
+    fine = np.linspace(max(lo, qs[i] - step), min(hi, qs[i] + step), 21)
+    fvals = np.array([score(q) for q in fine])
+    j = int(np.argmin(fvals))
+    return float(fine[j]), float(fvals[j])
+
+
+def _find_zero(model, k, jc) -> float:
+    lo, hi = _limits(model.joints[k])
+    if jc.zero == "closed":
+        vol0 = box_volume(*_joint_pair(model, k, model.rest_states))
+
+        def score(q):  # box volume (parts swung into the body excluded); ties go to the file's 0
+            return _closed_score(model, k, q) / vol0 + 1e-6 * abs(q)
+
+        qz, best = _argbest(score, lo, hi)
+        if np.isfinite(best):
+            return qz
+
+        def score(q):  # no state lies in a canonical plane (an odd shape): the smallest box
+            return box_volume(*_joint_pair(model, k, _with_state(model, k, q))) / vol0 + 1e-6 * abs(q)
+
+        return _argbest(score, lo, hi)[0]
+
+    def score(q):  # perpendicular: long axis along the front axis, on the convention's side
+        base, child = _joint_pair(model, k, _with_state(model, k, q))
+        return _horizontal_angle_to_front_deg(child) + (0.0 if _side_ok(base, child, jc.side) else 180.0)
+
+    return _argbest(score, lo, hi)[0]
+
+
+def _find_sign(model, k, jc, zero) -> int:
+    lo, hi = _limits(model.joints[k])
+    step = min(0.2, 0.25 * (hi - lo)) if model.joints[k].is_revolute else 0.1 * (hi - lo)
+    base0, child0 = _joint_pair(model, k, _with_state(model, k, zero))
+    gains = {}
+    for s in (1, -1):
+        q = zero + s * step
+        if not lo - 1e-12 <= q <= hi + 1e-12:
+            q = min(max(q, lo), hi)
+            if abs(q - zero) < 1e-9:
+                continue
+        base, child = _joint_pair(model, k, _with_state(model, k, q))
+        if jc.positive == "opens":
+            gains[s] = box_volume(base, child) / box_volume(base0, child0) - 1.0
+        else:
+            cx = (base0.min(axis=0)[0] + base0.max(axis=0)[0]) / 2
+            gains[s] = abs(child0.mean(axis=0)[0] - cx) - abs(child.mean(axis=0)[0] - cx)
+    if not gains:
+        raise ImportRejected(model.name, f"joint {model.joints[k].name!r} has no range to move in")
+    return max(gains, key=gains.get)
+
+
+def _to_convention(raw: ArticulatedModel, conv: CategoryConvention, moving_links, zero, sign, flip_front, scale,
+                   name) -> ArticulatedModel:
+    """Apply an import record to the loaded model (see :class:`ImportedObject`)."""
+    model = raw
+    if flip_front:
+        model = with_orientation(model, axis_angle_matrix(UP, np.pi) @ model.R_canon_base)
+    index = {j.child: k for k, j in enumerate(model.joints)}
+    ks = [index[link] for link in moving_links]
+    for jc, k, z, s in zip(conv.joints, ks, zero, sign):
+        model = reparameterized(model, k, zero=z, sign=s, rest=jc.rest)
+    order = [0] + [model.part_index(link) for link in moving_links]
+    model = restructured(model, order, conv.part_names, conv.joint_names)
+    model = scaled(model, scale)
+    return ArticulatedModel(model.parts, model.joints, name=name, category=conv.name, R_canon_base=model.R_canon_base)
+
+
+def load_overrides(path) -> dict:
+    """Read and check an override file (JSON; see the module docstring)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"override: cannot read {path}: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"override: {path} must hold an object {{name: {{...}}}}")
+    for name, entry in data.items():
+        if not isinstance(entry, dict):
+            raise ValueError(f"override: {path}: entry {name!r} must be an object")
+        unknown = set(entry) - _OVERRIDE_KEYS
+        if unknown:
+            raise ValueError(f"override: {path}: entry {name!r} has unknown key(s) {sorted(unknown)}; known: {sorted(_OVERRIDE_KEYS)}")
+    return data
+
+
+def import_object(urdf, category: str | None = None, *, override: dict | None = None) -> ImportedObject:
+    """Map one URDF object onto a category's convention (see the module docstring).
+
+    Parameters
+    ----------
+    urdf : str or Path
+        The object's URDF file.
+    category : str, optional
+        A category with a convention; default: from the object's ``meta.json``.
+    override : dict, optional
+        This object's override entry (module docstring).
+
+    Returns
+    -------
+    ImportedObject
+        With ``split`` provisionally ``"test"``; :func:`assign_splits` sets the split of a catalog.
+
+    Raises
+    ------
+    ImportRejected
+        The object's structure or geometry cannot be an instance of the category (with the reason).
+    ValueError
+        A malformed file, missing meshes, or a bad override, naming the object.
+    """
+    from .urdf import load_urdf
+
+    path = Path(urdf)
+    if path.is_dir() and (path / "mobility.urdf").is_file():
+        path = path / "mobility.urdf"
+    name = _object_name(path)
+    if not path.is_file():
+        raise ValueError(f"{name}: URDF file {path} does not exist")
+    override = dict(override or {})
+    if "reject" in override:
+        raise ImportRejected(name, f"rejected by override: {override['reject']}")
+    if category is None:
+        category = _guess_category(path)
+        if category is None:
+            raise ImportRejected(name, "no category convention matches its meta.json category "
+                                       f"(known: {', '.join(CONVENTIONS)})")
+    conv = convention(category)
+    joint_types, moving = _select_moving(path, conv, name, override.get("moving_links"))
+    try:
+        raw = load_urdf(path, category=category, joint_types=joint_types)
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+    empty = [p.name for p in raw.parts if p.mesh is None]
+    if empty:
+        raise ImportRejected(name, f"part(s) {empty} carry no geometry")
+    index = {j.child: k for k, j in enumerate(raw.joints)}
+    for link, jc in zip(moving, conv.joints):
+        j = raw.joints[index[link]]
+        if raw.joint_parts(index[link])[0] != raw.base_index:
+            raise ImportRejected(name, f"moving link {link!r} hangs from another moving part, not from the base")
+    notes = []
+    for key in set(override.get("zero", {})) | set(override.get("sign", {})):
+        if key not in conv.joint_names:
+            raise ValueError(f"{name}: override names unknown joint {key!r}; joints of {conv.name}: {conv.joint_names}")
+
+    # provisional role order by file order; joint conventions are alike within a category
+    zeros, signs = [], []
+    for link, jc in zip(moving, conv.joints):
+        k = index[link]
+        if jc.name in override.get("zero", {}):
+            z = float(override["zero"][jc.name])
+            notes.append(f"{jc.name} zero {z:.4g} from override")
+        else:
+            z = _find_zero(raw, k, jc)
+        if jc.name in override.get("sign", {}):
+            s = int(override["sign"][jc.name])
+            if s not in (1, -1):
+                raise ValueError(f"{name}: override sign of {jc.name!r} must be 1 or -1, got {s}")
+        else:
+            s = _find_sign(raw, k, jc, z)
+        zeros.append(z)
+        signs.append(s)
+
+    def build(order_links, zs, ss, flip, scale):
+        return _to_convention(raw, conv, order_links, zs, ss, flip, scale, name)
+
+    # NAOCS front: flip when the moving parts sit on the wrong side at rest
+    probe = _try_build(build, moving, zeros, signs, False, 1.0, conv, name)
+    verts = part_vertices_canonical(probe, probe.rest_states)
+    wrong = sum(not _side_ok(verts[0], verts[k + 1], jc.side) for k, jc in enumerate(conv.joints))
+    flip = bool(override.get("flip_front", wrong > conv.num_joints / 2))
+    if "flip_front" in override:
+        notes.append(f"flip_front={flip} from override")
+    # role order: sort moving parts by the ordering axis at rest
+    if conv.order_by is not None:
+        probe = _try_build(build, moving, zeros, signs, flip, 1.0, conv, name)
+        verts = part_vertices_canonical(probe, probe.rest_states)
+        axis = {"x": 0, "y": 1}[conv.order_by]
+        perm = sorted(range(len(moving)), key=lambda i: verts[i + 1].mean(axis=0)[axis])
+        moving, zeros, signs = [moving[i] for i in perm], [zeros[i] for i in perm], [signs[i] for i in perm]
+    probe = _try_build(build, moving, zeros, signs, flip, 1.0, conv, name)
+    d0 = rest_diagonal(probe)
+    if "diagonal_m" in override:
+        target = float(override["diagonal_m"])
+        notes.append(f"diagonal {target:.3f} m from override")
+    else:
+        lo, hi = conv.diagonal_range
+        target = float(np.random.default_rng(zlib.crc32(name.encode())).uniform(lo, hi))
+    scale = target / d0
+    model = build(moving, zeros, signs, flip, scale)
+    problems = convention_violations(model, conv)
+    if problems:
+        raise ImportRejected(name, "does not meet the category's convention after import: " + "; ".join(problems))
+    return ImportedObject(name=name, category=conv.name, urdf=_relative_urdf(path), joint_types=joint_types,
+                          moving_links=tuple(moving), zero=tuple(zeros), sign=tuple(signs), flip_front=flip,
+                          scale=float(scale), split="test", notes=tuple(notes))
+
+
+def _try_build(build, moving, zeros, signs, flip, scale, conv, name):
+    try:
+        return build(moving, zeros, signs, flip, scale)
+    except ValueError as exc:  # e.g. the rest state outside the mapped limits
+        raise ImportRejected(name, f"cannot take the {conv.name} convention: {exc}") from None
+
+
+def assign_splits(objects) -> list:
+    """The fixed instance split of imported objects (module docstring), as new records."""
+    from dataclasses import replace
+
+    objects = list(objects)
+    counts = {}
+    for o in objects:
+        counts[o.category] = counts.get(o.category, 0) + 1
+    out = []
+    for o in objects:
+        test = counts[o.category] <= MIN_REAL_FOR_TRAINING or zlib.crc32(o.name.encode()) % 4 == 0
+        out.append(replace(o, split="test" if test else "train"))
+    return out

@@ -1,0 +1,243 @@
+"""URDF import into category conventions: known state 0, direction, restored and frozen joints,
+rejections with reasons, overrides, catalogs and mixed datasets.
+
+Synthetic URDF objects with known ground truth are written into a temporary folder, so these
+tests need no shared data; the tests on the shared PartNet-Mobility objects skip without it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ancsh.data.catalog import (
+    Catalog,
+    build_catalog,
+    builtin_catalog_path,
+    draw_preview_sheet,
+    load_catalog,
+    write_catalog,
+    write_import_report,
+)
+from ancsh.data.conventions import convention, convention_violations, rest_diagonal
+from ancsh.data.importer import ImportedObject, ImportRejected, assign_splits, import_object, load_overrides
+from ancsh.data.paths import shared_data_dir
+
+OPEN_AT_FILE_ZERO = 0.6  # the synthetic oven's door is open by this angle at the file's state 0
+
+
+def _oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False, base_geometry=True) -> Path:
+    """A 0.6 m cube (z up) with a bottom-hinged door on its +x face, open by
+    ``OPEN_AT_FILE_ZERO`` at the file's state 0 (closed at ``-OPEN_AT_FILE_ZERO``)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    base_visual = ('<visual><origin xyz="0 0 0.3"/><geometry><box size="0.6 0.6 0.6"/></geometry></visual>'
+                   if base_geometry else "")
+    door_type = "fixed" if door_fixed else "revolute"
+    parts = [
+        f'<link name="body">{base_visual}</link>',
+        '<link name="door"><visual><origin xyz="0.01 0 0.29"/><geometry><box size="0.02 0.56 0.58"/></geometry></visual></link>',
+        f'<joint name="door_joint" type="{door_type}"><parent link="body"/><child link="door"/>'
+        f'<origin xyz="0.3 0 0" rpy="0 {OPEN_AT_FILE_ZERO} 0"/><axis xyz="0 1 0"/>'
+        f'<limit lower="{-OPEN_AT_FILE_ZERO}" upper="1.2"/></joint>',
+    ]
+    semantics = ["body heavy oven_body", "door hinge door"]
+    if knob:
+        parts += [
+            '<link name="knob"><visual><geometry><cylinder radius="0.02" length="0.02"/></geometry></visual></link>',
+            '<joint name="knob_joint" type="continuous"><parent link="body"/><child link="knob"/>'
+            '<origin xyz="0.31 0.2 0.55"/><axis xyz="1 0 0"/></joint>',
+        ]
+        semantics.append("knob hinge knob")
+    if drawer:
+        parts += [
+            '<link name="tray"><visual><origin xyz="-0.2 0 0"/><geometry><box size="0.4 0.5 0.05"/></geometry></visual></link>',
+            '<joint name="tray_joint" type="prismatic"><parent link="body"/><child link="tray"/>'
+            '<origin xyz="0.29 0 0.1"/><axis xyz="1 0 0"/><limit lower="0" upper="0.3"/></joint>',
+        ]
+        semantics.append("tray slider drawer")
+    (folder / "model.urdf").write_text('<?xml version="1.0"?><robot name="t">' + "".join(parts) + "</robot>")
+    (folder / "semantics.txt").write_text("\n".join(semantics) + "\n")
+    return folder / "model.urdf"
+
+
+def test_state_zero_direction_and_scale_are_found_from_geometry(tmp_path):
+    urdf = _oven_urdf(tmp_path / "oven_a")
+    obj = import_object(urdf, "oven")
+    conv = convention("oven")
+    assert obj.zero[0] == pytest.approx(-OPEN_AT_FILE_ZERO, abs=0.02)  # the closed door, not the file's 0
+    assert obj.sign == (1,)
+    assert obj.joint_types == {"knob_joint": "fixed"}  # the knob is frozen
+    model = obj.model()
+    assert model.part_names == list(conv.part_names) and model.num_joints == 1
+    assert convention_violations(model, conv) == []
+    lo, hi = conv.diagonal_range
+    assert lo <= rest_diagonal(model) <= hi
+    # the same draw for the same object: the scale is a function of the name
+    assert import_object(urdf, "oven").scale == obj.scale
+
+
+def test_a_frozen_joint_is_restored_from_the_semantics(tmp_path):
+    urdf = _oven_urdf(tmp_path / "oven_b", door_fixed=True)
+    obj = import_object(urdf, "oven")
+    assert obj.joint_types["door_joint"] == "revolute"
+    assert obj.moving_links == ("door",)
+    assert convention_violations(obj.model(), convention("oven")) == []
+
+
+def test_a_structure_the_category_cannot_hold_is_rejected_with_the_reason(tmp_path):
+    urdf = _oven_urdf(tmp_path / "drawer_a", drawer=True)
+    with pytest.raises(ImportRejected, match=r"has 1 moving part\(s\).*needs 3"):
+        import_object(urdf, "drawer")
+    bare = _oven_urdf(tmp_path / "oven_c", base_geometry=False, knob=False)
+    with pytest.raises(ImportRejected, match="no geometry"):
+        import_object(bare, "oven")
+    with pytest.raises(ValueError, match="no convention"):
+        import_object(urdf, "teapot")
+
+
+def test_bad_files_and_overrides_name_the_object(tmp_path):
+    folder = tmp_path / "oven_bad"
+    urdf = _oven_urdf(folder)
+    urdf.write_text(urdf.read_text()[:-20])  # truncated XML
+    with pytest.raises(ValueError, match="malformed"):
+        import_object(urdf, "oven")
+    good = _oven_urdf(tmp_path / "oven_d")
+    with pytest.raises(ValueError, match="oven_d.*unknown joint 'lid'"):
+        import_object(good, "oven", override={"zero": {"lid": 0.0}})
+    with pytest.raises(ImportRejected, match="by override: broken hinge"):
+        import_object(good, "oven", override={"reject": "broken hinge"})
+    bad = tmp_path / "override.json"
+    bad.write_text(json.dumps({"oven_d": {"zeroo": 1}}))
+    with pytest.raises(ValueError, match="oven_d.*unknown key"):
+        load_overrides(bad)
+    with pytest.raises(ValueError, match="not among the imported"):
+        build_catalog([good], "oven", overrides={"oven_zz": {"flip_front": True}})
+
+
+def test_a_missing_mesh_names_the_object_and_a_catalog_records_it(tmp_path):
+    urdf = _oven_urdf(tmp_path / "objs" / "oven_m")
+    urdf.write_text(urdf.read_text().replace('<box size="0.02 0.56 0.58"/>', '<mesh filename="door.obj"/>'))
+    with pytest.raises(ValueError, match="oven_m.*door.obj.*not found"):
+        import_object(urdf, "oven")
+    good = _oven_urdf(tmp_path / "objs" / "oven_g")
+    catalog = build_catalog([urdf, good], "oven")
+    assert [o.name for o in catalog.objects] == ["oven_g"]
+    assert catalog.rejected[0].name == "oven_m" and "unreadable" in catalog.rejected[0].reason
+
+
+def test_a_mixed_dataset_resumes_like_a_procedural_one(tmp_path):
+    from ancsh.data.generate import GenerationConfig, generate_dataset
+
+    objs = [import_object(_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
+    path = write_catalog(Catalog(tuple(assign_splits(objs))), tmp_path / "catalog.json")
+    cfg = GenerationConfig(category="oven", split="test", real=str(path), real_fraction=0.5, shard_size=2,
+                           min_part_pixels=5, min_part_fraction=0.0)
+    first = generate_dataset(cfg, 4, tmp_path / "ds", workers=1, progress=False)
+    assert len(first.written) == 2
+    (tmp_path / "ds" / first.paths[1].name).unlink()  # an interrupted run: the second shard is missing
+    again = generate_dataset(cfg, 4, tmp_path / "ds", workers=1, progress=False)
+    assert again.skipped == (0,) and again.written == (1,)
+
+
+def test_an_override_replaces_the_automatic_rule(tmp_path):
+    urdf = _oven_urdf(tmp_path / "oven_e")
+    obj = import_object(urdf, "oven", override={"zero": {"door_hinge": -OPEN_AT_FILE_ZERO}, "diagonal_m": 1.0})
+    assert obj.zero == (-OPEN_AT_FILE_ZERO,)
+    assert rest_diagonal(obj.model()) == pytest.approx(1.0, rel=1e-9)
+    assert any("override" in n for n in obj.notes)
+    # an override that breaks the convention is refused, not imported
+    with pytest.raises(ImportRejected, match="not closed"):
+        import_object(urdf, "oven", override={"zero": {"door_hinge": 0.0}})
+
+
+def test_catalog_round_trip_report_preview_and_split(tmp_path):
+    urdfs = [_oven_urdf(tmp_path / "objs" / f"oven_{i}") for i in range(4)]
+    _oven_urdf(tmp_path / "objs" / "drawer_x", drawer=True)
+    catalog = build_catalog([tmp_path / "objs" / f"oven_{i}" / "model.urdf" for i in range(4)], "oven", command="test")
+    assert len(catalog.objects) == 4 and not catalog.rejected
+    path = write_catalog(catalog, tmp_path / "out" / "catalog.json")
+    again = load_catalog(path)
+    assert [o.to_dict() for o in again.objects] == [o.to_dict() for o in catalog.objects]
+    # split: more than two objects of a category -> by the name's hash; two or fewer -> all test
+    import zlib
+
+    for o in again.objects:
+        assert o.split == ("test" if zlib.crc32(o.name.encode()) % 4 == 0 else "train")
+    few = assign_splits(catalog.objects[:2])
+    assert all(o.split == "test" for o in few)
+    report = write_import_report(catalog, tmp_path / "out" / "import_report.md").read_text()
+    assert all(o.name in report for o in catalog.objects)
+    png = draw_preview_sheet(catalog.objects[:2], tmp_path / "out" / "oven.png")
+    assert png.stat().st_size > 1000
+    with pytest.raises(ValueError, match="no catalog file"):
+        load_catalog(tmp_path / "missing.json")
+    assert urdfs
+
+
+def test_import_cli_writes_catalog_report_and_previews(tmp_path):
+    from ancsh.cli import main
+
+    _oven_urdf(tmp_path / "objs" / "oven_1")
+    _oven_urdf(tmp_path / "objs" / "oven_2", drawer=True)
+    out = tmp_path / "cat"
+    assert main(["data", "import", str(tmp_path / "objs" / "oven_1" / "model.urdf"),
+                 str(tmp_path / "objs" / "oven_2" / "model.urdf"), "--category", "drawer", "--out", str(out)]) == 0
+    catalog = load_catalog(out)
+    assert not catalog.objects and len(catalog.rejected) == 2  # an oven is not a drawer cabinet
+    assert "needs 3" in (out / "import_report.md").read_text()
+
+
+def test_mixed_generation_renders_real_objects_and_keeps_procedural_frames(tmp_path):
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+
+    objs = [import_object(_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
+    catalog = Catalog(tuple(assign_splits(objs)))
+    path = write_catalog(catalog, tmp_path / "catalog.json")
+    real = FrameGenerator(GenerationConfig(category="oven", split="test", real=str(path), real_fraction=1.0,
+                                           min_part_pixels=5, min_part_fraction=0.0))
+    frame = real.frame(0)
+    assert frame.instance in {o.name for o in objs} and frame.instance_seed == -1
+    assert frame.part_names == convention("oven").part_names
+    # procedural frames of a config without real objects are unchanged by the feature
+    plain = FrameGenerator(GenerationConfig(category="oven", split="test")).frame(3)
+    none_real = FrameGenerator(GenerationConfig(category="oven", split="train", real=str(path), real_fraction=0.5))
+    assert not none_real.real_instances  # both objects are test objects (two or fewer)
+    again = FrameGenerator(GenerationConfig(category="oven", split="test")).frame(3)
+    np.testing.assert_array_equal(plain.points, again.points)
+    with pytest.raises(ValueError, match="real_fraction"):
+        GenerationConfig(category="oven", real_fraction=0.5)
+
+
+# --- the shared PartNet-Mobility objects -------------------------------------------------------
+needs_shared = pytest.mark.skipif(not (shared_data_dir() / "partnet_mobility").is_dir(),
+                                  reason="needs ../shared/data/partnet_mobility beside the repository")
+
+
+@needs_shared
+@pytest.mark.parametrize("name", ["laptop_10101", "eyeglasses_101328", "safe_101623", "microwave_7128"])
+def test_the_builtin_catalog_is_what_the_importer_gives(name):
+    builtin = {o.name: o for o in load_catalog().objects}
+    fresh = import_object(shared_data_dir() / "partnet_mobility" / name / "mobility.urdf")
+    ours = builtin[name]
+    assert fresh.to_dict() | {"split": ours.split} == ours.to_dict()
+
+
+@needs_shared
+@pytest.mark.slow
+def test_every_shared_object_is_imported_or_rejected_with_a_reason():
+    catalog = load_catalog()
+    names = {p.name for p in (shared_data_dir() / "partnet_mobility").iterdir() if (p / "mobility.urdf").is_file()}
+    assert {o.name for o in catalog.objects} | {r.name for r in catalog.rejected} == names
+    assert all(r.reason for r in catalog.rejected)
+    for obj in catalog.objects:
+        assert convention_violations(obj.model(), convention(obj.category)) == [], obj.name
+
+
+def test_the_builtin_catalog_is_shipped():
+    assert builtin_catalog_path().is_file()
+    catalog = load_catalog()
+    assert {"laptop", "microwave", "safe"} <= set(catalog.categories)
+    assert all(isinstance(o, ImportedObject) for o in catalog.objects)
