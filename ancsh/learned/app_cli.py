@@ -50,6 +50,9 @@ def register(sub) -> None:
     e.add_argument("--weights", type=Path, help="ANCSH weights file instead of the shipped ones")
     e.add_argument("--direct-weights", type=Path, help="direct-voting weights (default: shipped, if any)")
     e.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    e.add_argument("--real", default=None, metavar="CATALOG",
+                   help="also evaluate the real test split of a catalog ('builtin' = the shipped one) and write "
+                        "<category>_real.md beside the procedural report")
     e.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder (default docs/results)")
     e.add_argument("--no-progress", action="store_true")
     e.set_defaults(func=run_evaluate)
@@ -185,6 +188,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
     )
     paths = write_report(ev, args.out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
+    if args.real:
+        from .evaluate import write_real_report
+
+        real = evaluate_category(
+            args.category, frames=frames, methods=methods, seed=args.seed, weights=args.weights,
+            direct_weights=args.direct_weights,
+            time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
+            num_threads=args.threads, progress=not args.no_progress, real=args.real,
+        )
+        path = write_real_report(ev, real, args.out, command=_rebuild(args))
+        print(f"{real['settings']['frames']} real frames; wrote {path}")
     return 0
 
 
@@ -199,6 +213,8 @@ def _rebuild(args: argparse.Namespace) -> str:
             parts += [flag, str(value)]
     if args.quick:
         parts.append("--quick")
+    if args.real:
+        parts += ["--real", args.real]
     if args.seed:
         parts += ["--seed", str(args.seed)]
     if args.threads != 1:

@@ -26,48 +26,11 @@ from ancsh.data.conventions import convention, convention_violations, rest_diago
 from ancsh.data.importer import ImportedObject, ImportRejected, assign_splits, import_object, load_overrides
 from ancsh.data.paths import shared_data_dir
 
-OPEN_AT_FILE_ZERO = 0.6  # the synthetic oven's door is open by this angle at the file's state 0
-
-
-def _oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False, base_geometry=True) -> Path:
-    """A 0.6 m cube (z up) with a bottom-hinged door on its +x face, open by
-    ``OPEN_AT_FILE_ZERO`` at the file's state 0 (closed at ``-OPEN_AT_FILE_ZERO``)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    base_visual = ('<visual><origin xyz="0 0 0.3"/><geometry><box size="0.6 0.6 0.6"/></geometry></visual>'
-                   if base_geometry else "")
-    door_type = "fixed" if door_fixed else "revolute"
-    parts = [
-        f'<link name="body">{base_visual}</link>',
-        '<link name="door"><visual><origin xyz="0.01 0 0.29"/><geometry><box size="0.02 0.56 0.58"/></geometry></visual></link>',
-        f'<joint name="door_joint" type="{door_type}"><parent link="body"/><child link="door"/>'
-        f'<origin xyz="0.3 0 0" rpy="0 {OPEN_AT_FILE_ZERO} 0"/><axis xyz="0 1 0"/>'
-        f'<limit lower="{-OPEN_AT_FILE_ZERO}" upper="1.2"/></joint>',
-    ]
-    semantics = ["body heavy oven_body", "door hinge door"]
-    if knob:
-        parts += [
-            '<link name="knob"><visual><geometry><cylinder radius="0.02" length="0.02"/></geometry></visual></link>',
-            '<joint name="knob_joint" type="continuous"><parent link="body"/><child link="knob"/>'
-            '<origin xyz="0.31 0.2 0.55"/><axis xyz="1 0 0"/></joint>',
-        ]
-        semantics.append("knob hinge knob")
-    if drawer:
-        parts += [
-            '<link name="tray"><visual><origin xyz="-0.2 0 0"/><geometry><box size="0.4 0.5 0.05"/></geometry></visual></link>',
-            '<joint name="tray_joint" type="prismatic"><parent link="body"/><child link="tray"/>'
-            '<origin xyz="0.29 0 0.1"/><axis xyz="1 0 0"/><limit lower="0" upper="0.3"/></joint>',
-        ]
-        semantics.append("tray slider drawer")
-    (folder / "model.urdf").write_text('<?xml version="1.0"?><robot name="t">' + "".join(parts) + "</robot>")
-    (folder / "semantics.txt").write_text("\n".join(semantics) + "\n")
-    return folder / "model.urdf"
-
-
-def test_state_zero_direction_and_scale_are_found_from_geometry(tmp_path):
-    urdf = _oven_urdf(tmp_path / "oven_a")
+def test_state_zero_direction_and_scale_are_found_from_geometry(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "oven_a")
     obj = import_object(urdf, "oven")
     conv = convention("oven")
-    assert obj.zero[0] == pytest.approx(-OPEN_AT_FILE_ZERO, abs=0.02)  # the closed door, not the file's 0
+    assert obj.zero[0] == pytest.approx(-make_oven_urdf.open_at_file_zero, abs=0.02)  # the closed door, not the file's 0
     assert obj.sign == (1,)
     assert obj.joint_types == {"knob_joint": "fixed"}  # the knob is frozen
     model = obj.model()
@@ -79,32 +42,32 @@ def test_state_zero_direction_and_scale_are_found_from_geometry(tmp_path):
     assert import_object(urdf, "oven").scale == obj.scale
 
 
-def test_a_frozen_joint_is_restored_from_the_semantics(tmp_path):
-    urdf = _oven_urdf(tmp_path / "oven_b", door_fixed=True)
+def test_a_frozen_joint_is_restored_from_the_semantics(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "oven_b", door_fixed=True)
     obj = import_object(urdf, "oven")
     assert obj.joint_types["door_joint"] == "revolute"
     assert obj.moving_links == ("door",)
     assert convention_violations(obj.model(), convention("oven")) == []
 
 
-def test_a_structure_the_category_cannot_hold_is_rejected_with_the_reason(tmp_path):
-    urdf = _oven_urdf(tmp_path / "drawer_a", drawer=True)
+def test_a_structure_the_category_cannot_hold_is_rejected_with_the_reason(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "drawer_a", drawer=True)
     with pytest.raises(ImportRejected, match=r"has 1 moving part\(s\).*needs 3"):
         import_object(urdf, "drawer")
-    bare = _oven_urdf(tmp_path / "oven_c", base_geometry=False, knob=False)
+    bare = make_oven_urdf(tmp_path / "oven_c", base_geometry=False, knob=False)
     with pytest.raises(ImportRejected, match="no geometry"):
         import_object(bare, "oven")
     with pytest.raises(ValueError, match="no convention"):
         import_object(urdf, "teapot")
 
 
-def test_bad_files_and_overrides_name_the_object(tmp_path):
+def test_bad_files_and_overrides_name_the_object(tmp_path, make_oven_urdf):
     folder = tmp_path / "oven_bad"
-    urdf = _oven_urdf(folder)
+    urdf = make_oven_urdf(folder)
     urdf.write_text(urdf.read_text()[:-20])  # truncated XML
     with pytest.raises(ValueError, match="malformed"):
         import_object(urdf, "oven")
-    good = _oven_urdf(tmp_path / "oven_d")
+    good = make_oven_urdf(tmp_path / "oven_d")
     with pytest.raises(ValueError, match="oven_d.*unknown joint 'lid'"):
         import_object(good, "oven", override={"zero": {"lid": 0.0}})
     with pytest.raises(ImportRejected, match="by override: broken hinge"):
@@ -117,21 +80,21 @@ def test_bad_files_and_overrides_name_the_object(tmp_path):
         build_catalog([good], "oven", overrides={"oven_zz": {"flip_front": True}})
 
 
-def test_a_missing_mesh_names_the_object_and_a_catalog_records_it(tmp_path):
-    urdf = _oven_urdf(tmp_path / "objs" / "oven_m")
+def test_a_missing_mesh_names_the_object_and_a_catalog_records_it(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "objs" / "oven_m")
     urdf.write_text(urdf.read_text().replace('<box size="0.02 0.56 0.58"/>', '<mesh filename="door.obj"/>'))
     with pytest.raises(ValueError, match="oven_m.*door.obj.*not found"):
         import_object(urdf, "oven")
-    good = _oven_urdf(tmp_path / "objs" / "oven_g")
+    good = make_oven_urdf(tmp_path / "objs" / "oven_g")
     catalog = build_catalog([urdf, good], "oven")
     assert [o.name for o in catalog.objects] == ["oven_g"]
     assert catalog.rejected[0].name == "oven_m" and "unreadable" in catalog.rejected[0].reason
 
 
-def test_a_mixed_dataset_resumes_like_a_procedural_one(tmp_path):
+def test_a_mixed_dataset_resumes_like_a_procedural_one(tmp_path, make_oven_urdf):
     from ancsh.data.generate import GenerationConfig, generate_dataset
 
-    objs = [import_object(_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
+    objs = [import_object(make_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
     path = write_catalog(Catalog(tuple(assign_splits(objs))), tmp_path / "catalog.json")
     cfg = GenerationConfig(category="oven", split="test", real=str(path), real_fraction=0.5, shard_size=2,
                            min_part_pixels=5, min_part_fraction=0.0)
@@ -142,10 +105,10 @@ def test_a_mixed_dataset_resumes_like_a_procedural_one(tmp_path):
     assert again.skipped == (0,) and again.written == (1,)
 
 
-def test_an_override_replaces_the_automatic_rule(tmp_path):
-    urdf = _oven_urdf(tmp_path / "oven_e")
-    obj = import_object(urdf, "oven", override={"zero": {"door_hinge": -OPEN_AT_FILE_ZERO}, "diagonal_m": 1.0})
-    assert obj.zero == (-OPEN_AT_FILE_ZERO,)
+def test_an_override_replaces_the_automatic_rule(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "oven_e")
+    obj = import_object(urdf, "oven", override={"zero": {"door_hinge": -make_oven_urdf.open_at_file_zero}, "diagonal_m": 1.0})
+    assert obj.zero == (-make_oven_urdf.open_at_file_zero,)
     assert rest_diagonal(obj.model()) == pytest.approx(1.0, rel=1e-9)
     assert any("override" in n for n in obj.notes)
     # an override that breaks the convention is refused, not imported
@@ -153,9 +116,9 @@ def test_an_override_replaces_the_automatic_rule(tmp_path):
         import_object(urdf, "oven", override={"zero": {"door_hinge": 0.0}})
 
 
-def test_catalog_round_trip_report_preview_and_split(tmp_path):
-    urdfs = [_oven_urdf(tmp_path / "objs" / f"oven_{i}") for i in range(4)]
-    _oven_urdf(tmp_path / "objs" / "drawer_x", drawer=True)
+def test_catalog_round_trip_report_preview_and_split(tmp_path, make_oven_urdf):
+    urdfs = [make_oven_urdf(tmp_path / "objs" / f"oven_{i}") for i in range(4)]
+    make_oven_urdf(tmp_path / "objs" / "drawer_x", drawer=True)
     catalog = build_catalog([tmp_path / "objs" / f"oven_{i}" / "model.urdf" for i in range(4)], "oven", command="test")
     assert len(catalog.objects) == 4 and not catalog.rejected
     path = write_catalog(catalog, tmp_path / "out" / "catalog.json")
@@ -177,11 +140,11 @@ def test_catalog_round_trip_report_preview_and_split(tmp_path):
     assert urdfs
 
 
-def test_import_cli_writes_catalog_report_and_previews(tmp_path):
+def test_import_cli_writes_catalog_report_and_previews(tmp_path, make_oven_urdf):
     from ancsh.cli import main
 
-    _oven_urdf(tmp_path / "objs" / "oven_1")
-    _oven_urdf(tmp_path / "objs" / "oven_2", drawer=True)
+    make_oven_urdf(tmp_path / "objs" / "oven_1")
+    make_oven_urdf(tmp_path / "objs" / "oven_2", drawer=True)
     out = tmp_path / "cat"
     assert main(["data", "import", str(tmp_path / "objs" / "oven_1" / "model.urdf"),
                  str(tmp_path / "objs" / "oven_2" / "model.urdf"), "--category", "drawer", "--out", str(out)]) == 0
@@ -190,10 +153,10 @@ def test_import_cli_writes_catalog_report_and_previews(tmp_path):
     assert "needs 3" in (out / "import_report.md").read_text()
 
 
-def test_mixed_generation_renders_real_objects_and_keeps_procedural_frames(tmp_path):
+def test_mixed_generation_renders_real_objects_and_keeps_procedural_frames(tmp_path, make_oven_urdf):
     from ancsh.data.generate import FrameGenerator, GenerationConfig
 
-    objs = [import_object(_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
+    objs = [import_object(make_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
     catalog = Catalog(tuple(assign_splits(objs)))
     path = write_catalog(catalog, tmp_path / "catalog.json")
     real = FrameGenerator(GenerationConfig(category="oven", split="test", real=str(path), real_fraction=1.0,

@@ -133,3 +133,23 @@ def test_missing_weights_name_the_available_ones(monkeypatch, tmp_path):
         ev.evaluate_category("laptop", frames=1, methods=("bogus",), progress=False)
     with pytest.raises(ValueError, match="category"):
         ev.evaluate_category("toaster", frames=1, progress=False)
+
+
+def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_urdf):
+    """`evaluate --real`: the real test objects of a catalog are rendered instead of the procedural
+    instances, and the report puts both splits side by side with their ratio."""
+    from ancsh.data.catalog import Catalog, write_catalog
+    from ancsh.data.importer import assign_splits, import_object
+
+    objs = [import_object(make_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
+    catalog = write_catalog(Catalog(tuple(assign_splits(objs))), tmp_path / "catalog.json")
+    kw = dict(frames=2, methods=("per_part", "exact_reduced"), progress=False)
+    proc = ev.evaluate_category("oven", **kw)
+    real = ev.evaluate_category("oven", real=str(catalog), **kw)
+    assert proc["settings"]["split"] == "procedural" and real["settings"]["split"] == "real"
+    assert {r["instance"] for r in real["records"]} <= {o.name for o in objs}
+    assert not {r["instance"] for r in proc["records"]} & {o.name for o in objs}
+    text = ev.write_real_report(proc, real, tmp_path / "out", command="test").read_text()
+    assert "oven_0" in text and "| ANCSH-exact reduced (ours) | door |" in text and "x |" in text
+    with pytest.raises(ValueError, match="no real test object"):
+        ev.evaluate_category("laptop", real=str(catalog), **kw)

@@ -1,0 +1,52 @@
+"""Fixtures shared by every test folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+_OPEN_AT_FILE_ZERO = 0.6  # the synthetic oven's door is open by this angle at the file's state 0
+
+
+def _write_oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False, base_geometry=True) -> Path:
+    """A 0.6 m cube (z up) with a bottom-hinged door on its +x face, open by
+    ``_OPEN_AT_FILE_ZERO`` at the file's state 0 (closed at ``-_OPEN_AT_FILE_ZERO``)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    base_visual = ('<visual><origin xyz="0 0 0.3"/><geometry><box size="0.6 0.6 0.6"/></geometry></visual>'
+                   if base_geometry else "")
+    door_type = "fixed" if door_fixed else "revolute"
+    parts = [
+        f'<link name="body">{base_visual}</link>',
+        '<link name="door"><visual><origin xyz="0.01 0 0.29"/><geometry><box size="0.02 0.56 0.58"/></geometry></visual></link>',
+        f'<joint name="door_joint" type="{door_type}"><parent link="body"/><child link="door"/>'
+        f'<origin xyz="0.3 0 0" rpy="0 {_OPEN_AT_FILE_ZERO} 0"/><axis xyz="0 1 0"/>'
+        f'<limit lower="{-_OPEN_AT_FILE_ZERO}" upper="1.2"/></joint>',
+    ]
+    semantics = ["body heavy oven_body", "door hinge door"]
+    if knob:
+        parts += [
+            '<link name="knob"><visual><geometry><cylinder radius="0.02" length="0.02"/></geometry></visual></link>',
+            '<joint name="knob_joint" type="continuous"><parent link="body"/><child link="knob"/>'
+            '<origin xyz="0.31 0.2 0.55"/><axis xyz="1 0 0"/></joint>',
+        ]
+        semantics.append("knob hinge knob")
+    if drawer:
+        parts += [
+            '<link name="tray"><visual><origin xyz="-0.2 0 0"/><geometry><box size="0.4 0.5 0.05"/></geometry></visual></link>',
+            '<joint name="tray_joint" type="prismatic"><parent link="body"/><child link="tray"/>'
+            '<origin xyz="0.29 0 0.1"/><axis xyz="1 0 0"/><limit lower="0" upper="0.3"/></joint>',
+        ]
+        semantics.append("tray slider drawer")
+    (folder / "model.urdf").write_text('<?xml version="1.0"?><robot name="t">' + "".join(parts) + "</robot>")
+    (folder / "semantics.txt").write_text("\n".join(semantics) + "\n")
+    return folder / "model.urdf"
+
+
+
+@pytest.fixture
+def make_oven_urdf():
+    """``make_oven_urdf(folder, **options) -> Path``: a synthetic URDF oven with known ground truth
+    (its door is closed at file state ``-make_oven_urdf.open_at_file_zero``; see :func:`_write_oven_urdf`)."""
+    _write_oven_urdf.open_at_file_zero = _OPEN_AT_FILE_ZERO
+    return _write_oven_urdf
