@@ -389,6 +389,7 @@ def evaluate_category(
         t0 = time.perf_counter()
         fr = gen.frame(i)
         t_gen = time.perf_counter() - t0
+        provider.check_structure(fr.part_names, fr.gt.joint_types, where=f"test instance {fr.instance!r}")
         obs = Observation(fr.points)
         t0 = time.perf_counter()
         corr = provider.correspond(obs)

@@ -157,6 +157,32 @@ class LearnedProvider:
     def num_joints(self) -> int:
         return len(self.joint_types)
 
+    def check_structure(self, part_names, joint_types, where: str = "object") -> None:
+        """Refuse an object whose structure this network does not predict.
+
+        Parameters
+        ----------
+        part_names : sequence of str
+            The object's parts (label order).
+        joint_types : sequence of JointType or str
+            The object's joint types (joint order).
+        where : str
+            What the object is, for the message.
+
+        Raises
+        ------
+        ValueError
+            When the part count or the joint types differ (a 2-part cabinet against a 4-part
+            drawer network would otherwise be fitted and scored on the wrong parts).
+        """
+        types = tuple(JointType(t) for t in joint_types)
+        category = getattr(self.network.config, "category", "?")
+        if len(part_names) != self.num_parts or types != self.joint_types:
+            raise ValueError(
+                f"{where}: has {len(part_names)} parts and joints {[t.value for t in types]}, but the {category} network "
+                f"predicts {self.num_parts} parts and joints {[t.value for t in self.joint_types]}"
+            )
+
     def predict(self, points_cam) -> Prediction:
         """Raw per-point predictions for ``(N, 3)`` camera-frame points (metres)."""
         pts = Observation(points_cam).points_cam

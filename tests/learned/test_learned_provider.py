@@ -40,6 +40,16 @@ def test_provider_returns_valid_correspondences(tiny_weights, tiny_arrays):
     np.testing.assert_array_equal(again.npcs, corr.npcs)  # deterministic per observation
 
 
+def test_provider_refuses_an_object_of_another_structure(tiny_weights, tiny_arrays):
+    provider = LearnedProvider(tiny_weights["ancsh"])
+    names = [f"p{i}" for i in range(tiny_arrays.num_parts)]
+    provider.check_structure(names, provider.joint_types)  # its own structure passes
+    with pytest.raises(ValueError, match="cabinet_1: has 4 parts.*predicts"):
+        provider.check_structure(names + ["a", "b"], ["prismatic"] * 3, where="cabinet_1")
+    with pytest.raises(ValueError, match="prismatic"):
+        provider.check_structure(names, ["prismatic"] * len(provider.joint_types))
+
+
 def test_provider_prediction_is_per_point_and_order_equivariant(tiny_weights):
     provider = LearnedProvider(tiny_weights["ancsh"])
     pts = np.random.default_rng(1).normal(size=(64, 3)) * 0.1 + [0, 0, 1.5]
