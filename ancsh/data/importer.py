@@ -437,8 +437,7 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
     if empty:
         raise ImportRejected(name, f"part(s) {empty} carry no geometry")
     index = {j.child: k for k, j in enumerate(raw.joints)}
-    for link, jc in zip(moving, conv.joints):
-        j = raw.joints[index[link]]
+    for link in moving:
         if raw.joint_parts(index[link])[0] != raw.base_index:
             raise ImportRejected(name, f"moving link {link!r} hangs from another moving part, not from the base")
     notes = []
