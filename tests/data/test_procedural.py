@@ -295,3 +295,58 @@ def test_every_split_instance_is_valid_and_within_the_size_range(category):
             v = np.concatenate(_world_vertices(model, model.rest_states))
             diag = np.linalg.norm(v.max(axis=0) - v.min(axis=0))
             assert lo <= diag <= hi, f"{model.name}: rest diagonal {diag:.3f} m outside [{lo}, {hi}]"
+
+
+# --- variants (issue #11): every one occurs among the instances and obeys the convention ---------
+# A small upper oven door: shorter than half the front, centred above its middle.
+SMALL_DOOR_LENGTH_FRAC = 0.5
+# A drawer column this far (fraction of the width) from the centre stands beside a knee space;
+# drawers starting this high (fraction of the height) stand above a shelf.
+SIDE_COLUMN_X = 0.15
+RAISED_DRAWERS = 0.25
+# Hooked temples drop several times as far as straight ones (ratio of the extremes).
+TEMPLE_DROP_SPREAD = 3.0
+
+
+def _variants(category, measured) -> set:
+    """The variant labels that ``measured`` (measure_instance results) show for ``category``."""
+    labels = set()
+    for mm in measured:
+        if "hinge" in mm:
+            labels.add(f"{mm['door_on']}/{mm['hinge']}")
+        if category == "oven" and mm["door_length_frac"] < SMALL_DOOR_LENGTH_FRAC and mm["door_centre_height_frac"] > 0.5:
+            labels.add("small upper door")
+        if category == "safe":
+            labels.add("recessed door" if mm["door_recess_frac"] > 0 else "door on the face")
+        if category == "drawer":
+            if abs(mm["drawer_column_x"]) > SIDE_COLUMN_X:
+                labels.add("side column")
+            elif mm["drawers_bottom_frac"] > RAISED_DRAWERS:
+                labels.add("above a shelf")
+            else:
+                labels.add("full stack")
+    return labels
+
+
+EXPECTED_VARIANTS = {
+    "oven": {"front/bottom", "front/left", "front/right", "small upper door"},
+    "washing_machine": {"front/left", "top/back"},
+    "microwave": {"front/left", "front/right"},
+    "safe": {"front/left", "front/right", "recessed door", "door on the face"},
+    "drawer": {"side column", "above a shelf", "full stack"},
+}
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_every_variant_occurs_and_obeys_the_convention(objects, category):
+    from ancsh.data.conventions import convention, convention_violations
+    from ancsh.data.measure import measure_instance
+
+    conv = convention(category)
+    for model in objects[category]:
+        assert convention_violations(model, conv) == [], model.name
+    measured = [measure_instance(model, conv) for model in objects[category]]
+    assert EXPECTED_VARIANTS.get(category, set()) <= _variants(category, measured)
+    if category == "eyeglasses":  # straight and hooked temples
+        drops = [mm["temple_drop_ratio"] for mm in measured]
+        assert max(drops) > TEMPLE_DROP_SPREAD * min(drops)
