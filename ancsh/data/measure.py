@@ -126,7 +126,7 @@ def _front_plane(model, d_lo, d_hi) -> float:
         return float(centres[:, 2].max())
     z = centres[front, 2]
     step = _PLANE_BIN * max(float(np.ptp(centres[:, 2])), 1e-12)
-    labels, inverse = np.unique(np.round(z / step), return_inverse=True)
+    _, inverse = np.unique(np.round(z / step), return_inverse=True)
     area = np.bincount(inverse, weights=mesh.area_faces[front])
     return float(z[inverse == int(np.argmax(area))].max())
 
@@ -136,11 +136,10 @@ def _door(model, verts, child, b_lo, b_hi) -> dict:
     ext, base_ext = d_hi - d_lo, b_hi - b_lo
     on_top = int(np.argmin(ext)) == 1
     # the hinge line: the door's points that move least when it opens a little
-    k = model.joint_parts(0)  # (parent, child) of joint 0
     joint = model.joints[0]
     q = model.rest_states.copy()
     q[0] = min(joint.upper, q[0] + 0.2) if joint.upper > q[0] else max(joint.lower, q[0] - 0.2)
-    moved = part_vertices_canonical(model, q)[k[1]]
+    moved = part_vertices_canonical(model, q)[child]
     still = verts[child][np.argsort(np.linalg.norm(moved - verts[child], axis=1))]
     hinge_at = (still[: max(2, int(_HINGE_QUANTILE * len(still)))].mean(axis=0) - d_lo) / np.maximum(ext, 1e-12)
     if on_top:

@@ -147,7 +147,8 @@ def test_partnet_and_replicacad_objects_face_the_canonical_front(loaded):
             v = poses[k].apply(model.parts[k].vertices) @ R.T
             dz = (v.min(axis=0) + v.max(axis=0))[2] / 2 - centre[2]
             if name.startswith(front_parts):
-                assert dz > 0, f"{name}: part {model.parts[k].name} is not at the front"
+                # the part's front face: a drawer's long box may reach behind the base's centre (drawer_25308)
+                assert v[:, 2].max() > b[:, 2].max() - (b[:, 2].max() - centre[2]) / 2, f"{name}: part {model.parts[k].name} is not at the front"
                 checked += 1
             elif name.startswith(back_parts):
                 assert dz < 0, f"{name}: part {model.parts[k].name} is not at the back"

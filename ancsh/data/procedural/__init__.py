@@ -5,17 +5,23 @@ canonical orientation shared by all categories: +y up, +z towards the object's f
 side a user faces), +x to the right; part 0 is the base and joints follow the paper's part
 table. ``instance_seeds(category, split)`` gives the fixed, disjoint train/test instances.
 
-===============  ==============================================  ===========================================
+===============  ==============================================  ===================================================
 category         parts (label order)                             joints (state meaning; rest)
-===============  ==============================================  ===========================================
+===============  ==============================================  ===================================================
 eyeglasses       base (front frame), left_temple, right_temple   2 revolute, vertical (fold; rest 0 = right angles)
-oven             base, door                                      1 revolute, bottom hinge (opening; rest 0 closed)
-washing_machine  base, door                                      1 revolute, left side hinge (opening; rest 0 closed)
+oven             base, door                                      1 revolute, bottom or side hinge (opening; rest 0 closed)
+washing_machine  base, door                                      1 revolute, left side hinge or top lid's back edge (opening; rest 0 closed)
 laptop           base, display                                   1 revolute (opening; rest pi/2 upright)
 drawer           base, lowest, middle, top                       3 prismatic, +z (pull-out; rest 0 closed)
 microwave        base, door                                      1 revolute, left or right side hinge (opening; rest 0 closed)
 safe             base, door                                      1 revolute, right or left side hinge (opening; rest 0 closed)
-===============  ==============================================  ===========================================
+===============  ==============================================  ===================================================
+
+Each generator's docstring lists its shape variants and their probabilities (door and hinge
+variants, drawer layouts, temple shapes, proportions calibrated on the PartNet-Mobility
+objects); :mod:`ancsh.data.measure` measures them. The variants of issue #11 changed the
+instances of every seed of the paper's categories (the seeds and the split are unchanged), so
+datasets generated before them differ from those generated now.
 
 :data:`CATEGORIES` lists every procedural category; :data:`PAPER_CATEGORIES` the paper's five,
 the ones with shipped weights, the demo and the published evaluations (``microwave`` and
