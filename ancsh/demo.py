@@ -16,7 +16,7 @@ from pathlib import Path
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="full pipeline on built-in data: render, predict, fit, per-part error table, pictures")
-    p.add_argument("--categories", default="all", help="comma-separated categories (default: all five)")
+    p.add_argument("--categories", default="all", help="comma-separated procedural categories (default: all = the paper's five)")
     p.add_argument("--frame", type=int, default=0, help="frame index of the held-out test stream (default 0)")
     p.add_argument("--seed", type=int, default=0, help="base seed of the test frames (default 0)")
     p.add_argument("--provider", choices=("auto", "learned", "oracle"), default="auto",
@@ -64,12 +64,12 @@ def run(args) -> int:
     import numpy as np
 
     from .data.generate import FrameGenerator, GenerationConfig
-    from .data.procedural import CATEGORIES
+    from .data.procedural import CATEGORIES, PAPER_CATEGORIES
     from .data.show import draw_fit, save_figure
     from .evaluation import evaluate_fit
     from .solvers import Observation, fit
 
-    categories = CATEGORIES if args.categories == "all" else tuple(c.strip() for c in args.categories.split(","))
+    categories = PAPER_CATEGORIES if args.categories == "all" else tuple(c.strip() for c in args.categories.split(","))
     unknown = [c for c in categories if c not in CATEGORIES]
     if unknown:
         raise ValueError(f"categories: unknown {unknown}; known: {', '.join(CATEGORIES)}")

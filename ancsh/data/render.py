@@ -534,6 +534,8 @@ VIEWPOINTS = {
     "washing_machine": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
     "laptop": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-90, 90), elevation=_deg(10, 70)),
     "drawer": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
+    "microwave": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
+    "safe": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
 }
 
 

@@ -75,7 +75,8 @@ class BenchConfig:
     Attributes
     ----------
     categories : tuple of str
-        Procedural categories (``()`` = all of :data:`ancsh.data.procedural.CATEGORIES`).
+        Procedural categories (``()`` = the paper's five, :data:`ancsh.data.procedural.PAPER_CATEGORIES`;
+        any of :data:`~ancsh.data.procedural.CATEGORIES` may be named).
     frames_per_category : int
     levels : tuple of str
         Corruption presets.
@@ -159,9 +160,9 @@ def _limits(model) -> np.ndarray:
 
 def load_frames(config: BenchConfig) -> list:
     """Test frames of every category of ``config`` (deterministic in ``config.seed``)."""
-    from ..data.procedural import CATEGORIES, load_instance
+    from ..data.procedural import CATEGORIES, PAPER_CATEGORIES, load_instance
 
-    categories = config.categories or CATEGORIES
+    categories = config.categories or PAPER_CATEGORIES
     unknown = [c for c in categories if c not in CATEGORIES]
     if unknown:
         raise ValueError(f"categories: unknown {unknown}; known: {list(CATEGORIES)}")
@@ -636,7 +637,7 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="also write the records as JSON next to the markdown")
     p.add_argument("--out", default="docs/results/fit_benchmark.md", help="markdown report path")
     p.add_argument("--frames", type=int, default=None, help="frames per category (default 8; quick 2)")
-    p.add_argument("--categories", default=None, help="comma-separated categories (default: all)")
+    p.add_argument("--categories", default=None, help="comma-separated categories (default: the paper's five)")
     p.add_argument("--levels", default=None, help="comma-separated corruption presets")
     p.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
     p.add_argument("--official-hypotheses", type=int, default=None,

@@ -150,7 +150,8 @@ def test_partnet_and_replicacad_objects_face_the_canonical_front(loaded):
                 # a deep drawer's box centre may lie behind the cabinet's centre (drawer_25308): its front does not
                 dz = v.max(axis=0)[2] - centre[2]
             if name.startswith(front_parts):
-                assert dz > 0, f"{name}: part {model.parts[k].name} is not at the front"
+                # the part's front face: a drawer's long box may reach behind the base's centre (drawer_25308)
+                assert v[:, 2].max() > b[:, 2].max() - (b[:, 2].max() - centre[2]) / 2, f"{name}: part {model.parts[k].name} is not at the front"
                 checked += 1
             elif name.startswith(back_parts):
                 assert dz < 0, f"{name}: part {model.parts[k].name} is not at the back"
@@ -327,17 +328,24 @@ def test_other_structural_errors_name_the_element(chain, tmp_path):
 
 @needs_data
 def test_partnet_joint_axes_match_the_procedural_conventions(loaded):
-    """Real objects of the paper's categories, in canonical orientation, move like the
-    procedural ones: same axis direction (with sign) for the matching joints."""
-    from ancsh.data.procedural import CATEGORIES, make_object
+    """Real objects of the procedural categories, in canonical orientation, move like the
+    procedural ones: each joint axis (with sign) is one that the category's generator makes
+    (a category may have several hinge variants: left or right doors, top lids)."""
+    from ancsh.data.procedural import CATEGORIES, instance_seeds, make_object
 
+    variants_seen_within = 12  # instances per category: every hinge variant occurs among them
+    max_axis_deg = 2.0  # hand-modelled URDF axes are off by up to ~1 deg (laptop_11477)
+    axes = {}
     checked = 0
     for path, model in loaded.items():
         if model.category not in CATEGORIES or path.name != "mobility.urdf":
             continue
-        proc = make_object(model.category, 0)
+        if model.category not in axes:
+            procs = [make_object(model.category, s) for s in instance_seeds(model.category, "train")[:variants_seen_within]]
+            axes[model.category] = [np.array([p.joints[k].axis for p in procs]) for k in range(procs[0].num_joints)]
         for k, joint in enumerate(model.joints):
-            ref = proc.joints[min(k, proc.num_joints - 1)]
-            np.testing.assert_allclose(model.R_canon_base @ joint.axis, ref.axis, atol=1e-2, err_msg=model.name)
+            candidates = axes[model.category][min(k, len(axes[model.category]) - 1)]
+            gap_deg = np.degrees(np.arccos(np.clip(candidates @ (model.R_canon_base @ joint.axis), -1.0, 1.0))).min()
+            assert gap_deg < max_axis_deg, f"{model.name}: joint {joint.name} axis {model.R_canon_base @ joint.axis} is no procedural variant's"
             checked += 1
     assert checked >= 9

@@ -4,6 +4,17 @@ Frame: cabinet floor centre at the origin, +y up, +z towards the drawer fronts, 
 Joint state = how far the drawer is pulled out along +z (metres): 0 closed (rest; the
 drawer box lies inside the cabinet, only its handle sticks out), upper limit 55-90 % of the
 drawer box depth.
+
+Layouts (the category keeps exactly three drawers, stacked in one column; the shared
+PartNet-Mobility cabinets have width : height 0.7-2.0 and their drawers across the whole
+width, in a column beside a knee space or a cupboard, or in the upper part above a shelf):
+
+- ``stack`` (50 %): a chest of drawers, the drawers across the whole width and height;
+- ``column`` (25 %): a desk, 0.9-1.2 m wide, with the drawer column (0.3-0.45 of the width) on
+  the left or right and an open knee space beside it under the desk top;
+- ``upper`` (25 %): the drawers fill the upper 45-70 % of the cabinet, above an open shelf.
+
+Adding the layouts (issue #11) changed every instance of a seed; the split is unchanged.
 """
 
 from __future__ import annotations
@@ -20,6 +31,8 @@ INFO = convention("drawer")  # the category's one definition (ancsh.data.convent
 
 #: Largest distance a handle sticks out in front of the drawer front (metres).
 MAX_HANDLE_PROTRUSION = 0.045
+#: Layouts and their probabilities (module docstring).
+LAYOUTS = {"stack": 0.5, "column": 0.25, "upper": 0.25}
 
 
 def _handle(rng: np.random.Generator, style: str, front_w: float, front_h: float) -> list:
@@ -51,9 +64,11 @@ def _handle(rng: np.random.Generator, style: str, front_w: float, front_h: float
 
 
 def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
-    width = rng.uniform(0.40, 0.90)
-    height = rng.uniform(0.45, 1.10)
-    depth = rng.uniform(0.35, 0.60)
+    layout = str(rng.choice(list(LAYOUTS), p=list(LAYOUTS.values())))
+    if layout == "column":
+        width, height, depth = rng.uniform(0.90, 1.20), rng.uniform(0.70, 0.78), rng.uniform(0.45, 0.60)
+    else:
+        width, height, depth = rng.uniform(0.40, 0.90), rng.uniform(0.50 if layout == "upper" else 0.45, 1.10), rng.uniform(0.35, 0.60)
     t = rng.uniform(0.012, 0.025)  # board thickness
     plinth_style = rng.choice(["plinth", "feet", "none"])
     plinth_h = 0.0 if plinth_style == "none" else rng.uniform(0.03, 0.10)
@@ -64,18 +79,37 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     front_t = rng.uniform(0.015, 0.025)
     graded = rng.random() < 0.5
 
-    # --- cabinet ------------------------------------------------------------------------
+    # --- cabinet: outer sides, top, and the drawer column [cx0, cx1] x [ya0, y_top] --------
     x0, x1 = -width / 2, width / 2
     z0, z1 = -depth / 2, depth / 2
     y_bottom = plinth_h
     y_top = height - t
+    cx0, cx1 = x0 + t, x1 - t  # inner edges of the column's side boards
+    if layout == "column":
+        column_w = width * rng.uniform(0.30, 0.45)
+        if rng.random() < 0.5:
+            cx1 = x0 + column_w - t  # column on the left
+        else:
+            cx0 = x1 - column_w + t  # column on the right
+    ya0 = y_bottom + t  # the lowest drawer's opening starts here
     pieces = [
         m.box_between([x0, y_bottom, z0], [x0 + t, y_top, z1]),  # left side
         m.box_between([x1 - t, y_bottom, z0], [x1, y_top, z1]),  # right side
-        m.box_between([x0 + t, y_bottom, z0], [x1 - t, y_bottom + t, z1]),  # bottom board
-        m.box_between([x0 + t, y_bottom + t, z0], [x1 - t, y_top, z0 + t]),  # back
+        m.box_between([cx0, y_bottom, z0], [cx1, y_bottom + t, z1]),  # bottom board of the column
+        m.box_between([cx0, y_bottom + t, z0], [cx1, y_top, z0 + t]),  # back of the column
         m.box_between([x0 - top_over, y_top, z0], [x1 + top_over, height, z1 + top_over]),  # top
     ]
+    if layout == "column":  # the column's inner side board; a modesty panel at the back of the knee space
+        xs = (cx1, cx1 + t) if cx0 == x0 + t else (cx0 - t, cx0)
+        pieces.append(m.box_between([xs[0], y_bottom, z0], [xs[1], y_top, z1]))
+        kx = (xs[1], x1 - t) if cx0 == x0 + t else (x0 + t, xs[0])
+        pieces.append(m.box_between([kx[0], y_top - 0.25 * height, z0], [kx[1], y_top, z0 + t]))
+    elif layout == "upper":  # an open shelf below the drawers
+        ya0 = y_bottom + t + (y_top - y_bottom) * rng.uniform(0.30, 0.55)
+        pieces.append(m.box_between([cx0, ya0 - t, z0 + t], [cx1, ya0, z1]))
+        if rng.random() < 0.5:
+            y_shelf = (y_bottom + ya0) / 2
+            pieces.append(m.box_between([cx0, y_shelf, z0 + t], [cx1, y_shelf + t, z1 - 0.02]))
     if plinth_style == "plinth":
         setback = rng.uniform(0.0, 0.04)
         pieces.append(m.box_between([x0 + 0.01, 0.0, z0 + 0.01], [x1 - 0.01, plinth_h, z1 - setback]))
@@ -83,22 +117,23 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
         r = rng.uniform(0.012, 0.025)
         pieces += m.feet(r, plinth_h, width / 2 - 2 * r, depth / 2 - 2 * r, 16)
     # openings, bottom to top, separated by dividers of thickness t
-    inner_h = y_top - (y_bottom + t) - 2 * t
+    inner_h = y_top - ya0 - 2 * t
     weights = np.array([1.3, 1.0, 0.8]) * rng.uniform(0.9, 1.1, 3) if graded else np.ones(3)
     heights = inner_h * weights / weights.sum()
-    y = y_bottom + t
+    y = ya0
     openings = []
     for k, h in enumerate(heights):
         openings.append((y, y + h))
         y += h
         if k < 2:
-            pieces.append(m.box_between([x0 + t, y, z0 + t], [x1 - t, y + t, z1]))
+            pieces.append(m.box_between([cx0, y, z0 + t], [cx1, y + t, z1]))
             y += t
     base = Part("base", m.concat(pieces))
 
     # --- drawers (child frame: front-face centre at q = 0, axes as the cabinet) ------------
     parts, joints = [base], []
-    open_w = width - 2 * t
+    open_w = cx1 - cx0
+    x_column = (cx0 + cx1) / 2
     wall = rng.uniform(0.008, 0.014)
     box_depth = depth - t - front_t - recess - rng.uniform(0.01, 0.03)
     travel_frac = rng.uniform(0.55, 0.9)
@@ -119,7 +154,7 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
         hy = fh * (0.3 if handle_style == "ledge" else rng.uniform(0.0, 0.2))
         dp += [m.transformed(p, translation=(0.0, hy, 0.0)) for p in _handle(rng, handle_style, fw, fh)]
         parts.append(Part(name_k, m.concat(dp)))
-        front_centre = np.array([0.0, (ya + yb) / 2, z1 - recess])
+        front_centre = np.array([x_column, (ya + yb) / 2, z1 - recess])
         joints.append(
             Joint(
                 joint_name,

@@ -8,6 +8,18 @@ Hinge axes are vertical: -y for the left temple, +y for the right one, so that f
 positive state folds the temple inwards (the PartNet-Mobility eyeglasses use the same
 convention). Joint state: 0 = temple at right angles to the frame (rest), up to about
 pi/2 folded, slightly negative = splayed outwards.
+
+Temple shapes (the two PartNet-Mobility eyeglasses: one nearly straight temple, one with a
+long ear hook dropping by a third of the frame width; temple length 0.7-0.76 of the frame
+width, real eyeglasses about 1):
+
+- ``bent`` (50 %): straight, then an ear piece bent down by 15-35 degrees over 15-30 % of it;
+- ``straight`` (20 %): no ear bend (sports and reading glasses);
+- ``hooked`` (30 %): an ear hook curling down by 40-65 degrees in three steps over 25-35 %.
+
+Temple length is 0.8-1.15 of the frame width (at least 11 cm); the temple is a thin wire
+(60 %) or a wider acetate bar tapering towards the end (40 %). Adding the shapes (issue #11)
+changed every instance of a seed; the split is unchanged.
 """
 
 from __future__ import annotations
@@ -26,19 +38,41 @@ _N = 48
 _UP = np.array([0.0, 1.0, 0.0])
 
 
-def _temple(rng, length, width_y, thick_x, bend_frac, bend_angle, tip_style) -> list:
-    """Temple pieces in the hinge frame: starts at the origin, extends towards -z."""
-    straight = length * (1 - bend_frac)
+#: Temple shapes and their probabilities (module docstring).
+TEMPLE_SHAPES = {"bent": 0.5, "straight": 0.2, "hooked": 0.3}
+
+
+def _ear_piece(rng: np.random.Generator, shape: str) -> tuple:
+    """``(tip_frac, angles)``: the ear piece's share of the temple length and its segments'
+    downward angles (rad), for a temple ``shape`` of :data:`TEMPLE_SHAPES`."""
+    if shape == "straight":
+        return 0.0, []
+    if shape == "bent":
+        return rng.uniform(0.15, 0.3), [np.deg2rad(rng.uniform(15.0, 35.0))]
+    tip_frac, total = rng.uniform(0.25, 0.35), np.deg2rad(rng.uniform(40.0, 65.0))
+    return tip_frac, list(total * np.array([1.0, 2.0, 3.0]) / 3)
+
+
+def _temple(length, width_y, thick_x, tip_frac, angles, taper) -> list:
+    """Temple pieces in the hinge frame: starts at the origin, extends towards -z.
+
+    A straight bar, then ear-piece segments (``tip_frac`` of the length, see
+    :func:`_ear_piece`), each turned further down about x; ``taper`` narrows the far end's
+    height (fraction).
+    """
+    straight = length * (1 - tip_frac)
     pieces = [m.box_between([-thick_x / 2, -width_y / 2, -straight], [thick_x / 2, width_y / 2, 0.0])]
     # the hinge knuckle
     knuckle_r = max(thick_x, 0.0015) * 0.9
     pieces.append(m.along(m.cylinder(knuckle_r, width_y * 0.9, 12), "y", (0.0, 0.0, -knuckle_r)))
-    tip_len = length * bend_frac
-    tip_w = width_y * (0.7 if tip_style == "thin" else 1.0)
-    tip = m.box_between([-thick_x / 2, -tip_w / 2, -tip_len - 0.001], [thick_x / 2, tip_w / 2, 0.001])
-    # bend the ear piece downwards (rotate about x so -z goes towards -y)
-    tip = m.rotated(tip, [1.0, 0.0, 0.0], -bend_angle)
-    pieces.append(m.transformed(tip, translation=(0.0, 0.0, -straight)))
+    start = np.array([0.0, 0.0, -straight])
+    seg_len = length * tip_frac / max(len(angles), 1)
+    for k, angle in enumerate(angles):
+        w = width_y * (1 - taper * (k + 1) / len(angles))
+        seg = m.box_between([-thick_x / 2, -w / 2, -seg_len - 0.001], [thick_x / 2, w / 2, 0.001])
+        # bend the segment downwards (rotate about x so -z goes towards -y)
+        pieces.append(m.transformed(m.rotated(seg, [1.0, 0.0, 0.0], -angle), translation=start))
+        start = start + seg_len * np.array([0.0, -np.sin(angle), -np.cos(angle)])
     return pieces
 
 
@@ -92,17 +126,19 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     base = Part("base", m.concat(pieces))
 
     # --- temples (child frames: origin on the hinge axis, axes as the frame at q = 0) ------
-    length = rng.uniform(0.125, 0.150)
-    width_y = rng.uniform(0.002, 0.008)
+    frame_width = 2 * (hinge_x + 0.0015)
+    length = max(frame_width * rng.uniform(0.8, 1.15), 0.11)
+    acetate = rng.random() < 0.4
+    width_y = rng.uniform(0.006, 0.012) if acetate else rng.uniform(0.002, 0.005)
     thick_x = rng.uniform(0.0015, 0.0035)
-    bend_frac = rng.uniform(0.15, 0.3)
-    bend_angle = np.deg2rad(rng.uniform(15.0, 35.0))
-    tip_style = str(rng.choice(["thin", "straight"]))
+    taper = rng.uniform(0.3, 0.6) if acetate else 0.0
+    shape = str(rng.choice(list(TEMPLE_SHAPES), p=list(TEMPLE_SHAPES.values())))
+    tip_frac, angles = _ear_piece(rng, shape)
     fold = rng.uniform(1.45, 1.62)
     parts, joints = [base], []
     for side, part_name, joint_name in ((-1, "left_temple", "left_hinge"), (1, "right_temple", "right_hinge")):
         splay = rng.uniform(0.05, 0.25)
-        temple = m.concat(_temple(rng, length, width_y, thick_x, bend_frac, bend_angle, tip_style))
+        temple = m.concat(_temple(length, width_y, thick_x, tip_frac, angles, taper))
         parts.append(Part(part_name, temple))
         pivot = np.array([side * hinge_x, hinge_y, z_back])
         # a positive rotation about side * y swings the temple's -z direction towards -side * x

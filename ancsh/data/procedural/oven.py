@@ -1,21 +1,31 @@
-"""Oven: body (base) and a door on a revolute hinge along its bottom edge.
+"""Oven: body (base) and a door on a revolute hinge along its bottom edge or one side.
 
 Frame: body floor centre at the origin, +y up, +z towards the door, +x right. Three styles:
 a freestanding range (cooktop, knobs above the door), a built-in wall oven and a countertop
 oven (control column beside the door). The body is hollow behind the door (a cavity with a
-rack). Joint state = door opening angle: 0 closed (rest), the door's top edge swings forward
-and down, upper limit 80-95 degrees.
+rack). Joint state = door opening angle: 0 closed (rest), the door's free edge swings forward
+(a bottom-hinged door's top edge forward and down), upper limit 80-95 degrees (side doors
+85-120).
+
+Door variants (the issue #11 failures: small upper doors, side-hinged doors; the shared
+PartNet-Mobility oven has a bottom-hinged door over 0.65 of the front's height):
+
+- ``full`` (60 %): bottom-hinged, filling the front below the controls;
+- ``upper`` (20 %, range and wall styles): a small bottom-hinged door, 0.28-0.45 of the height,
+  in the upper part of the front above a fixed lower panel (a storage drawer front);
+- ``side`` (20 %, wall and countertop styles): hinged on the left or right side (even odds).
+
+Changing the variants (issue #11) changed every instance of a seed; the split is unchanged.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ...geometry.transforms import SE3
-from ...model.articulated import ArticulatedModel, Joint, Part
+from ...model.articulated import ArticulatedModel, Part
 from ..conventions import convention
+from . import _door
 from . import _mesh as m
-from .registry import REVOLUTE
 
 INFO = convention("oven")  # the category's one definition (ancsh.data.conventions)
 
@@ -24,6 +34,9 @@ _STYLES = {  # width, height, depth ranges (metres)
     "wall": ((0.55, 0.76), (0.45, 0.72), (0.50, 0.60)),
     "countertop": ((0.40, 0.56), (0.25, 0.38), (0.30, 0.45)),
 }
+#: Door variants, their probabilities and the styles they apply to.
+_DOORS = {"full": 0.6, "upper": 0.2, "side": 0.2}
+_DOOR_STYLES = {"full": tuple(_STYLES), "upper": ("range", "wall"), "side": ("wall", "countertop")}
 
 
 def _knobs(rng, n, xs_range, y, z_face, radius) -> list:
@@ -33,7 +46,8 @@ def _knobs(rng, n, xs_range, y, z_face, radius) -> list:
 
 
 def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
-    style = str(rng.choice(list(_STYLES)))
+    variant = str(rng.choice(list(_DOORS), p=list(_DOORS.values())))
+    style = str(rng.choice(_DOOR_STYLES[variant]))
     (w0, w1), (h0, h1), (d0, d1) = _STYLES[style]
     width, height, depth = rng.uniform(w0, w1), rng.uniform(h0, h1), rng.uniform(d0, d1)
     scale = height / 0.9 if style != "range" else 1.0
@@ -52,9 +66,15 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
         panel_h = rng.uniform(0.08, 0.16) * (1.0 if style == "range" else 0.8)
         door_y0 = feet_h + (rng.uniform(0.08, 0.18) if style == "range" else rng.uniform(0.02, 0.06))
         door_y1 = height - panel_h
+    lower_panel = None
+    if variant == "upper":  # a small door high up; a fixed drawer front below it
+        door_y0_full = door_y0
+        door_y0 = door_y1 - (height - feet_h) * rng.uniform(0.28, 0.45)
+        lower_panel = (door_y0_full, door_y0 - rng.uniform(0.01, 0.02))
     door_w, door_h = x_door1 - x_door0, door_y1 - door_y0
-    door_xc = (x_door0 + x_door1) / 2
     door_t = rng.uniform(0.03, 0.06) * (0.6 if style == "countertop" else 1.0)
+    hinge = "bottom" if variant != "side" else str(rng.choice(["left", "right"]))
+    door = _door.DoorFrame(x_door0, x_door1, door_y0, door_y1, z_front, door_t, hinge)
 
     # --- body with a cavity behind the door --------------------------------------------
     cav_x0, cav_x1 = x_door0 + wall, x_door1 - wall
@@ -62,13 +82,11 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     cav_d = (depth - 2 * wall) * rng.uniform(0.75, 0.92)
     zc = z_front - cav_d  # cavity back
     y_body0 = feet_h
-    pieces = [
-        m.box_between([-width / 2, y_body0, -depth / 2], [width / 2, height, zc]),  # back block
-        m.box_between([-width / 2, y_body0, zc], [cav_x0, height, z_front]),  # left wall
-        m.box_between([cav_x1, y_body0, zc], [width / 2, height, z_front]),  # right wall (+ panel)
-        m.box_between([cav_x0, y_body0, zc], [cav_x1, cav_y0, z_front]),  # floor
-        m.box_between([cav_x0, cav_y1, zc], [cav_x1, height, z_front]),  # roof (+ panel)
-    ]
+    pieces = _door.cavity_body(-width / 2, width / 2, y_body0, height, -depth / 2, z_front, (cav_x0, cav_x1, cav_y0, cav_y1), cav_d)
+    if lower_panel is not None:
+        y_a, y_b = lower_panel
+        pieces.append(m.box_between([x_door0, y_a, z_front], [x_door1, y_b, z_front + 0.01]))
+        pieces += [m.transformed(p, translation=(0.0, (y_a + y_b) / 2, z_front + 0.01)) for p in m.bar_handle(0.5 * door_w, 0.008, 0.025)]
     rack_y = cav_y0 + (cav_y1 - cav_y0) * rng.uniform(0.3, 0.6)
     pieces.append(m.box_between([cav_x0, rack_y, zc], [cav_x1, rack_y + 0.006, z_front - 0.04]))
     if feet_h > 0:
@@ -102,12 +120,12 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     base = Part("base", m.concat(pieces))
 
     # --- door (child frame: origin on the hinge line, axes as the body at q = 0) --------
-    # door spans x in [x_door0, x_door1] - door_xc, y in [0, door_h], z in [0, door_t]
+    # pieces built centred on x = 0, y in [0, door_h], z in [0, door_t], then placed on the door
     corner = rng.uniform(0.002, 0.03)
     handle = str(rng.choice(["bar", "lip", "none"] if style == "countertop" else ["bar", "bar", "lip"]))
     if rng.random() < 0.75:  # window
         win_w = door_w * rng.uniform(0.5, 0.8)
-        top_space = 0.12 if handle == "bar" else 0.06
+        top_space = 0.12 if handle == "bar" and hinge == "bottom" else 0.06
         win_h = min(door_h * rng.uniform(0.4, 0.7), door_h - top_space - 0.04)
         win_yc = (door_h - top_space) / 2 + rng.uniform(-0.01, 0.01) * scale
         outer = m.outline_rounded_rect(door_w, door_h, corner, 64, center=(0.0, door_h / 2 - win_yc))
@@ -119,28 +137,22 @@ def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
     else:
         outline = m.outline_rounded_rect(door_w, door_h, corner, 64)
         door_pieces = [m.transformed(m.prism(outline, door_t), translation=(0.0, door_h / 2, door_t / 2))]
-    if handle == "bar":
-        length = door_w * rng.uniform(0.6, 0.9)
-        r = rng.uniform(0.008, 0.014)
-        stand = rng.uniform(0.03, 0.05)
-        y = door_h - rng.uniform(0.03, 0.06)
-        door_pieces += [m.transformed(p, translation=(0.0, y, door_t)) for p in m.bar_handle(length, r, stand)]
-    elif handle == "lip":
-        lip_h = rng.uniform(0.015, 0.03)
-        door_pieces.append(m.box([door_w * rng.uniform(0.5, 0.95), lip_h, 0.025], [0.0, door_h - lip_h / 2, door_t + 0.0125]))
-    door = Part("door", m.concat(door_pieces))
+    door_pieces = [door.place(p, door_w / 2, 0.0, 0.0) for p in door_pieces]
+    if hinge == "bottom":  # handle along the top edge
+        if handle == "bar":
+            length = door_w * rng.uniform(0.6, 0.9)
+            bar = m.bar_handle(length, rng.uniform(0.008, 0.014), rng.uniform(0.03, 0.05))
+            door_pieces += [door.place(p, door_w / 2, door_h - rng.uniform(0.03, 0.06), door_t) for p in bar]
+        elif handle == "lip":
+            lip_h = rng.uniform(0.015, 0.03)
+            lip_w = door_w * rng.uniform(0.5, 0.95)
+            door_pieces.append(door.box([(door_w - lip_w) / 2, door_h - lip_h, door_t], [(door_w + lip_w) / 2, door_h, door_t + 0.025]))
+    elif handle != "none":  # side door: a vertical handle along the free edge
+        free_u = door_w - 0.035 if hinge == "left" else 0.035
+        bar = _door.vertical_bar(door_h * rng.uniform(0.4, 0.7), rng.uniform(0.008, 0.014), rng.uniform(0.025, 0.04))
+        door_pieces += [door.place(p, free_u, door_h / 2, door_t) for p in bar]
+    door_part = Part("door", m.concat(door_pieces))
 
-    pivot = np.array([door_xc, door_y0, z_front])
-    joint = Joint(
-        "door_hinge",
-        REVOLUTE,
-        "base",
-        "door",
-        axis=np.array([1.0, 0.0, 0.0]),  # positive angle tips the door's top edge towards +z
-        pivot=pivot,
-        lower=0.0,
-        upper=np.deg2rad(rng.uniform(80.0, 95.0)),
-        rest=0.0,
-        origin=SE3(None, pivot),
-    )
-    return ArticulatedModel((base, door), (joint,), name=name, category="oven")
+    upper = rng.uniform(80.0, 95.0) if hinge == "bottom" else rng.uniform(85.0, 120.0)
+    joint = door.joint("door_hinge", np.deg2rad(upper))
+    return ArticulatedModel((base, door_part), (joint,), name=name, category="oven")

@@ -1,9 +1,19 @@
-"""Washing machine (front loader): body (base) and a round-ish door on a vertical side hinge.
+"""Washing machine: body (base) and a door, either a front loader's round door on a vertical
+side hinge or a top loader's lid on a hinge along its back edge.
 
-Frame: body floor centre at the origin, +y up, +z towards the door, +x right. The front
-panel has a porthole opening (the drum recess) that the door covers; the hinge sits on the
-door's left (-x) side. Joint state = door opening angle: 0 closed (rest), the door's right
-edge swings towards +z, upper limit 90-180 degrees.
+Frame: body floor centre at the origin, +y up, +z towards the front, +x right. Joint state =
+door opening angle: 0 closed (rest).
+
+Variants (the convention allows the door in front or on top):
+
+- ``front`` loader (65 %): the front panel has a porthole opening (the drum recess) that the
+  door covers; the hinge sits on the door's left (-x) side; the door's right edge swings towards
+  +z, upper limit 90-180 degrees;
+- ``top`` loader (35 %): the top deck has a round opening into the drum under a rectangular
+  lid hinged along its back edge (axis -x, the front edge rises), upper limit 80-110 degrees;
+  the controls are on a low backsplash behind the lid (55 %) or on a strip in front of it.
+
+Adding the top loader (issue #11) changed every instance of a seed; the split is unchanged.
 """
 
 from __future__ import annotations
@@ -13,15 +23,73 @@ import numpy as np
 from ...geometry.transforms import SE3
 from ...model.articulated import ArticulatedModel, Joint, Part
 from ..conventions import convention
+from . import _door
 from . import _mesh as m
 from .registry import REVOLUTE
 
 INFO = convention("washing_machine")  # the category's one definition (ancsh.data.conventions)
 
 _N = 64  # outline samples
+#: Loader variants and their probabilities.
+_LOADERS = {"front": 0.65, "top": 0.35}
 
 
 def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
+    loader = str(rng.choice(list(_LOADERS), p=list(_LOADERS.values())))
+    return _front_loader(rng, name) if loader == "front" else _top_loader(rng, name)
+
+
+def _top_loader(rng: np.random.Generator, name: str) -> ArticulatedModel:
+    width = rng.uniform(0.55, 0.65)
+    deck_y = rng.uniform(0.78, 0.88)  # top of the deck the lid rests on
+    depth = rng.uniform(0.52, 0.62)
+    feet_h = float(rng.choice([0.0, rng.uniform(0.01, 0.03)]))
+    deck_t = rng.uniform(0.03, 0.07)  # deck thickness = depth of the recess around the drum
+    margin = rng.uniform(0.02, 0.04)  # deck visible around the lid
+    z0, z1 = -depth / 2, depth / 2
+    backsplash = rng.random() < 0.55
+    bs_d = rng.uniform(0.08, 0.12) if backsplash else 0.0
+    bs_h = rng.uniform(0.04, 0.08)  # low: the lid's front edge clears it as soon as it opens
+    strip = 0.0 if backsplash else rng.uniform(0.06, 0.1)  # control strip in front of the lid
+    lid = _door.DoorFrame(-width / 2 + margin, width / 2 - margin, z0 + bs_d + margin, z1 - margin - strip,
+                          deck_y, rng.uniform(0.02, 0.045), "top")
+
+    # --- body: cabinet, deck with a round opening over the drum, controls -------------------
+    pieces = [m.box_between([-width / 2, feet_h, z0], [width / 2, deck_y - deck_t, z1])]
+    hole_c = np.array([0.0, (lid.a0 + lid.a1) / 2])  # (x, z) centre of the opening
+    hole_r = 0.42 * min(lid.width, lid.length)
+    # the deck outline in (x, -z), sampled along rays from the opening's centre (see _mesh)
+    outer = m.outline_rounded_rect(width, depth, rng.uniform(0.0, 0.03), _N, center=(-hole_c[0], hole_c[1]))
+    ang = np.arctan2(outer[:, 1], outer[:, 0])
+    hole = hole_r * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    deck = m.along(m.ring_prism(outer, hole, deck_t), "y", (hole_c[0], deck_y - deck_t / 2, hole_c[1]))
+    pieces.append(deck)
+    knob_r = rng.uniform(0.02, 0.035)
+    if backsplash:
+        pieces.append(m.box_between([-width / 2, deck_y, z0], [width / 2, deck_y + bs_h, z0 + bs_d]))
+        for x in np.linspace(-width / 3, width / 3, int(rng.integers(1, 4))):
+            pieces.append(m.along(m.cylinder(knob_r, 0.02, 20), "z", (x, deck_y + bs_h / 2, z0 + bs_d + 0.01)))
+    else:
+        for x in np.linspace(-width / 3, width / 3, int(rng.integers(1, 4))):
+            pieces.append(m.along(m.cylinder(knob_r * 0.8, 0.02, 20), "y", (x, deck_y + 0.01, z1 - strip / 2)))
+    if feet_h > 0:
+        pieces += m.feet(0.02, feet_h, width / 2 - 0.05, depth / 2 - 0.05)
+    base = Part("base", m.concat(pieces))
+
+    # --- lid: a slab, a glass window (55 %), a grip along the front edge --------------------
+    lid_pieces = [lid.box([0.0, 0.0, 0.0], [lid.width, lid.length, lid.thickness])]
+    if rng.random() < 0.55:
+        inset = 0.2 * min(lid.width, lid.length)
+        lid_pieces.append(lid.box([inset, inset, lid.thickness], [lid.width - inset, lid.length - inset, lid.thickness + 0.004]))
+    grip_w = lid.width * rng.uniform(0.3, 0.7)
+    lid_pieces.append(lid.box([(lid.width - grip_w) / 2, lid.length - 0.03, lid.thickness],
+                              [(lid.width + grip_w) / 2, lid.length, lid.thickness + rng.uniform(0.008, 0.02)]))
+    door = Part("door", m.concat(lid_pieces))
+    joint = lid.joint("door_hinge", np.deg2rad(rng.uniform(80.0, 110.0)))
+    return ArticulatedModel((base, door), (joint,), name=name, category="washing_machine")
+
+
+def _front_loader(rng: np.random.Generator, name: str) -> ArticulatedModel:
     width = rng.uniform(0.55, 0.66)
     height = rng.uniform(0.70, 0.92)
     depth = rng.uniform(0.42, 0.66)
