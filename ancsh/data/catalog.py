@@ -30,6 +30,7 @@ __all__ = [
     "builtin_catalog_path",
     "draw_preview_sheet",
     "load_catalog",
+    "ranges_report",
     "write_catalog",
     "write_import_report",
 ]
@@ -307,3 +308,36 @@ def draw_preview_sheet(objects, out, *, title: str = "", points_per_part: int = 
         Path(tmp).unlink(missing_ok=True)
         raise
     return out
+
+
+def ranges_report(catalog: Catalog, *, procedural_instances: int = 60, command: str = "") -> str:
+    """Markdown: per category, the real objects' measured variation beside the generator's.
+
+    Real objects are measured after import (metres, canonical orientation, rest state); the
+    generator over its first ``procedural_instances`` training instances
+    (:func:`ancsh.data.measure.procedural_summary`). Categories without real objects are left out.
+    """
+    from .conventions import convention
+    from .measure import measure_instance, procedural_summary, ranges_table, summarize
+    from .procedural import CATEGORIES
+
+    lines = [
+        "# Real objects' variation beside the procedural generators'",
+        "",
+        f"Produced by `{command or 'ancsh data ranges'}`.",
+        "",
+        "Each category's real objects (every imported object of the catalog, both splits, after import: metres, "
+        "NAOCS orientation, rest state) and the generator's first training instances, measured by the same "
+        "function (`ancsh.data.measure.measure_instance`, on the geometry). Numbers are `min - max (median)`; "
+        "labels are shares. Unitless ratios compare directly; `width`/`height`/`depth`/`diagonal` are metres.",
+        "",
+    ]
+    for category in catalog.categories:
+        objs = catalog.instances(category)
+        conv = convention(category)
+        real = summarize([measure_instance(o.model(), conv) for o in objs])
+        columns = {f"real ({len(objs)})": real}
+        if category in CATEGORIES:
+            columns[f"procedural ({procedural_instances})"] = procedural_summary(category, procedural_instances)
+        lines += [f"## {category}", "", ranges_table(columns)]
+    return "\n".join(lines)

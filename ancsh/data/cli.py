@@ -81,6 +81,17 @@ def register(sub) -> None:
     im.add_argument("--no-previews", dest="previews", action="store_false", help="skip the preview sheets")
     im.set_defaults(func=run_import)
 
+    rg = data_sub.add_parser(
+        "ranges",
+        help="real objects' measured variation beside the procedural generators' (a Markdown table per category)",
+        description="Measure every imported object of a catalog and the generator's training instances with the "
+        "same function and write the ranges side by side. Example: ancsh data ranges --out ranges.md",
+    )
+    rg.add_argument("--catalog", default="builtin", help="catalog file or folder (default: the shipped one)")
+    rg.add_argument("--instances", type=_positive_int, default=60, help="procedural instances per category (default 60)")
+    rg.add_argument("--out", required=True, help="Markdown file to write")
+    rg.set_defaults(func=run_ranges)
+
     s = data_sub.add_parser("show", help="draw one frame of a shard (points by part, NPCS, boxes, joint axes)")
     s.add_argument("file", help="a shard (.h5) or a directory of shards")
     s.add_argument("--frame", type=_non_negative_int, default=0, help="frame index (default 0)")
@@ -153,6 +164,19 @@ def run_import(args) -> int:
             draw_preview_sheet(catalog.instances(cat), out / "previews" / f"{cat}.png", title=f"{cat}: rest state and a moved state")
     print(f"{out}: {len(catalog.objects)} objects imported, {len(catalog.rejected)} rejected "
           f"(reasons in {out / 'import_report.md'})")
+    return 0
+
+
+def run_ranges(args) -> int:
+    from pathlib import Path
+
+    from .catalog import _atomic_write, load_catalog, ranges_report
+
+    catalog = load_catalog(None if args.catalog == "builtin" else args.catalog)
+    command = f"ancsh data ranges --catalog {args.catalog} --instances {args.instances} --out {args.out}"
+    text = ranges_report(catalog, procedural_instances=args.instances, command=command)
+    _atomic_write(Path(args.out), text.encode())
+    print(f"wrote {args.out}")
     return 0
 
 

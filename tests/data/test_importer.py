@@ -204,3 +204,12 @@ def test_the_builtin_catalog_is_shipped():
     catalog = load_catalog()
     assert {"laptop", "microwave", "safe"} <= set(catalog.categories)
     assert all(isinstance(o, ImportedObject) for o in catalog.objects)
+
+
+def test_ranges_report_puts_real_objects_beside_the_generator(tmp_path, make_oven_urdf):
+    from ancsh.data.catalog import ranges_report
+
+    objs = [import_object(make_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
+    text = ranges_report(Catalog(tuple(assign_splits(objs))), procedural_instances=3, command="test")
+    assert "## oven" in text and "| real (2) | procedural (3) |" in text
+    assert "door_on | front 100 %" in text  # the synthetic ovens' doors are on the front
