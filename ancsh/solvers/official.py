@@ -436,17 +436,11 @@ def camera_joints(poses, correspondences):
     axes : (K, 3), pivots : (K, 3) metres, states : (K,) radians / metres
     """
     from .program import postprocess_function
-    from .terms import KinematicStructure
+    from .terms import CanonicalParameters, KinematicStructure
 
     c = correspondences
     post = postprocess_function(KinematicStructure.from_correspondences(c))
-    values = {}
-    for j in range(c.num_parts):
-        values[f"Gs{j}"], values[f"Gt{j}"] = c.npcs_scale[j], c.npcs_translation[j]
-    for k in range(c.num_joints):
-        values[f"u{k}"], values[f"q{k}"] = c.joint_axes_naocs[k], c.joint_pivots_naocs[k]
-    vec = np.concatenate([np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in poses])
-    return post(vec, values)
+    return post(poses, CanonicalParameters.of(c))
 
 
 def amodal_boxes(poses, correspondences, inliers):

@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 from ancsh.geometry.rotations import exp_so3, random_rotation
+from ancsh.geometry.transforms import Sim3
 from ancsh.solvers.program import Program, ProgramKey
-from ancsh.solvers.terms import ROBUST_KERNELS, TERMS, DataTerm, KinematicStructure, exp_so3_sx, part_moments
+from ancsh.solvers.terms import (
+    ROBUST_KERNELS, TERMS, CanonicalParameters, DataTerm, KinematicStructure, ProgramInputs, ProgramStart, exp_so3_sx,
+    part_moments,
+)
 
 # Both joint types, a branching tree: 0 -> 1 (revolute), 0 -> 2 (prismatic), 2 -> 3 (revolute).
 STRUCTURE = KinematicStructure(4, ("revolute", "prismatic", "revolute"), (0, 0, 2), (1, 2, 3))
@@ -50,7 +54,7 @@ def test_term_jacobian_matches_central_differences(name, parameterisation, free_
     rng = np.random.default_rng(zlib.crc32(f"{name}{parameterisation}{free_canonical}".encode()))
     terms = (name,) + (("naocs_prior",) if free_canonical and name != "naocs_prior" else ())
     prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical))
-    p = prog.pack(_random_values(prog, rng))
+    p = prog.params.pack(_random_values(prog, rng))
     x = rng.normal(scale=0.3, size=prog.num_x)
     if TERMS[name].kind == "cost":
         f, J = prog.residual, prog.jacobian
@@ -75,12 +79,14 @@ def test_data_term_moments_reproduce_the_point_energy(planar):
     p_cam = rng.normal(size=(50, 3)) + 2.0
     w = rng.uniform(0.1, 2.0, size=50)
     L = 0.7
-    values = {"L": L, "R0_0": random_rotation(rng), "t0_0": rng.normal(size=3), "s0_0": 0.4}
-    values.update({f"{k}0": v for k, v in part_moments(p_cam, c, w, L).items()})
+    canonical = CanonicalParameters(np.ones(1), np.zeros((1, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    start = ProgramStart(T_cam_npcs=(Sim3(random_rotation(rng), rng.normal(size=3), 0.4),))
+    p = prog.pack(ProgramInputs(L, canonical, start, (part_moments(p_cam, c, w, L),)))
     x = rng.normal(scale=0.2, size=prog.num_x)
-    R, t, s = prog.unpack_poses(x, prog.pack(values))[0]
+    T = prog.unpack(x, p).T_cam_npcs[0]
+    R, t, s = T.rotation, T.translation, T.scale
     expected = np.sum(w * np.sum((p_cam - (s * c @ R.T + t)) ** 2, axis=1)) / w.sum() / L**2
-    r = np.asarray(prog.residual(x, prog.pack(values))).ravel()
+    r = np.asarray(prog.residual(x, p)).ravel()
     assert r.size == 13
     np.testing.assert_allclose(r @ r, expected, rtol=1e-9)
 

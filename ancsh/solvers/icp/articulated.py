@@ -176,70 +176,53 @@ class ArticulatedIcpConfig:
 # one reduced-coordinate solve
 # ---------------------------------------------------------------------------------------------
 class _Reduced:
-    """The reduced-coordinate program of one model with its static parameter values."""
+    """The reduced-coordinate program of one model with its static inputs."""
 
     def __init__(self, provider: TemplateProvider, point_to_plane: bool, point_data: bool = True):
         from ..program import ProgramKey, get_program
-        from ..terms import KinematicStructure
-        from . import terms as _icp_terms  # noqa: F401  (registers "point_to_plane")
+        from ..terms import CanonicalParameters, DataTerm, KinematicStructure, PointToPlaneTerm
 
         model, cs = provider.model, provider.canonical
         corr = provider.empty_correspondences()
         self.structure = KinematicStructure.from_correspondences(corr)
-        names = (("data",) if point_data else ()) + (("point_to_plane",) if point_to_plane else ())
-        self.program = get_program(ProgramKey(self.structure, "reduced", False, names))
+        terms = ((DataTerm,) if point_data else ()) + ((PointToPlaneTerm,) if point_to_plane else ())
+        self.program = get_program(ProgramKey(self.structure, "reduced", False, terms))
         self.model, self.cs = model, cs
         self.diagonal = 1.0 / cs.T_naocs_base.scale  # metres per NAOCS unit
-        v = {"L": self.diagonal, "sigma0": self.diagonal}
-        for j in range(model.num_parts):
-            v[f"Gs{j}"], v[f"Gt{j}"] = cs.npcs_scale[j], cs.npcs_translation[j]
-        for k in range(model.num_joints):
-            v[f"u{k}"], v[f"q{k}"] = cs.joint_axes_naocs[k], cs.joint_pivots_naocs[k]
-        self.static = v
-        limits = corr.joint_limits
-        self.theta = self.program.layout["theta"]
-        self.lbx = np.full(self.program.num_x, -np.inf)
-        self.ubx = np.full(self.program.num_x, np.inf)
-        self.lbx[self.theta], self.ubx[self.theta] = limits[:, 0], limits[:, 1]
+        self.canonical = CanonicalParameters.of(cs)
+        self.lbx, self.ubx = self.program.variable_bounds(corr.joint_limits)
 
-    def values(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool) -> dict:
-        from ..terms import part_moments
-        from .terms import plane_moments
+    def inputs(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool):
+        """The program's inputs: the start at ``estimate`` and the moments of ``corr``."""
+        from ..terms import PartMoments, ProgramInputs, ProgramStart, part_moments, plane_moments
 
         T_cam_naocs = estimate.T_cam_base @ self.cs.T_naocs_base.inverse()
-        v = dict(self.static)
-        v["R0_obj"], v["tau0_obj"] = T_cam_naocs.rotation, T_cam_naocs.translation
+        start = ProgramStart(T_cam_naocs=Sim3.unchecked(T_cam_naocs.rotation, T_cam_naocs.translation, self.diagonal))
         w = np.asarray(corr.weights)
         total = w.sum()
+        moments = []
         for j in range(self.model.num_parts):
             sel = (corr.part_labels == j) & (w > 0)
             share = w[sel].sum() / total if total > 0 else 0.0
             if share <= 0 or sel.sum() < 1:
-                v.update({f"Lm{j}": np.zeros((4, 4)), f"B{j}": np.zeros((3, 4)), f"sqrt_c0_{j}": 0.0,
-                          f"cbar{j}": np.zeros(3), f"pbar{j}": np.zeros(3), f"Lp{j}": np.zeros((13, 13))})
+                moments.append(PartMoments.zeros())
                 continue
             mom = part_moments(points[sel], corr.npcs[sel], w[sel], self.diagonal)
             a = np.sqrt(share * point_weight)
-            v[f"Lm{j}"], v[f"B{j}"], v[f"sqrt_c0_{j}"] = a * mom["Lm"], a * mom["B"], a * mom["sqrt_c0_"]
-            v[f"cbar{j}"], v[f"pbar{j}"] = mom["cbar"], mom["pbar"]
+            Lp = None
             if plane:
-                v[f"Lp{j}"] = np.sqrt(share) * plane_moments(points[sel], corr.npcs[sel], corr.normals_npcs[sel], w[sel], mom["pbar"])
-        return v
+                Lp = np.sqrt(share) * plane_moments(points[sel], corr.npcs[sel], corr.normals_npcs[sel], w[sel], mom.pbar)
+            moments.append(PartMoments(a * mom.Lm, a * mom.B, a * mom.sqrt_c0, mom.cbar, mom.pbar, Lp))
+        return ProgramInputs(self.diagonal, self.canonical, start, tuple(moments))
 
     def x0(self, estimate: ArticulatedPose) -> np.ndarray:
-        x = np.zeros(self.program.num_x)
-        x[self.theta] = estimate.q - self.model.rest_states
-        return x
+        return self.program.initial_x(estimate.q - self.model.rest_states)
 
-    def estimate(self, x, values) -> ArticulatedPose:
-        """The base pose and absolute joint states at the solution ``x``."""
-        x = np.asarray(x, dtype=float)
-        w, dt = x[:3], x[3:6]
-        R = values["R0_obj"] @ exp_so3(w)
-        tau = values["tau0_obj"] + values["L"] * dt
-        T_cam_naocs = Sim3(R, tau, values["sigma0"])
-        T = T_cam_naocs @ self.cs.T_naocs_base
-        return ArticulatedPose(Sim3(T.rotation, T.translation), x[self.theta] + self.model.rest_states)
+    def estimate(self, x, p) -> ArticulatedPose:
+        """The base pose and absolute joint states at the solution ``x`` (parameters ``p``)."""
+        sol = self.program.unpack(x, p)
+        T = sol.T_cam_naocs @ self.cs.T_naocs_base
+        return ArticulatedPose(Sim3(T.rotation, T.translation), sol.joint_states + self.model.rest_states)
 
 
 def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True, point_weight: float = 0.05,
@@ -263,14 +246,14 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
     from ..backends import SolverOptions, solve
 
     red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane)
-    v = red.values(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
-    p = red.program.pack(v)
+    inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
+    p = red.program.pack(inputs)
     x0 = red.x0(provider.estimate)
     lo, hi = red.lbx, red.ubx
     out = solve(solver, red.program, p, x0, lo, hi, np.zeros(0), np.zeros(0), SolverOptions(max_iterations, 1e-12))
     if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or not np.all(np.isfinite(out.x)):
         return provider.estimate, out
-    return red.estimate(out.x, v), out
+    return red.estimate(out.x, p), out
 
 
 _REDUCED_CACHE: dict = {}
