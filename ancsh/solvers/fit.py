@@ -298,6 +298,31 @@ def fit(
     return _Fit(observation, correspondences, form, solver, config, rng, start).run()
 
 
+class _FitFailure(Exception):
+    """Raised inside :class:`_Fit` when the data cannot be fitted; :meth:`_Fit.run` turns it into
+    a failed :class:`FitResult` (the one failure path)."""
+
+    def __init__(self, status: FitStatus, message: str):
+        super().__init__(message)
+        self.status, self.message = status, message
+
+
+@dataclass
+class _SolveRun:
+    """The state of one program solve: the program, its fixed inputs, the current iterate."""
+
+    program: object
+    start: ProgramStart
+    x: np.ndarray
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    p: np.ndarray | None = None
+    outcome: object = None
+    iterations: int = 0
+
+
 class _Fit:
     """One call of :func:`fit` (keeps the per-frame arrays together)."""
 
@@ -317,36 +342,42 @@ class _Fit:
         )
 
     # -- results ---------------------------------------------------------------------------
-    def _failure(self, status: FitStatus, message: str) -> FitResult:
-        return FitResult.failure(
-            status, message, formulation=self.form.name, solver=self.solver, num_joints=self.K,
-            num_points=self.N, time_s=time.perf_counter() - self.start,
-        )
-
     def run(self) -> FitResult:
+        """The fit's result; every failure raised below (:class:`_FitFailure`) becomes a status here."""
+        try:
+            return self._run()
+        except _FitFailure as failure:
+            return FitResult.failure(
+                failure.status, failure.message, formulation=self.form.name, solver=self.solver, num_joints=self.K,
+                num_points=self.N, time_s=time.perf_counter() - self.start,
+            )
+
+    def _run(self) -> FitResult:
         active = self.weights > 0
         counts = np.bincount(self.labels[active], minlength=self.M)
         if self.N == 0:
-            return self._failure(FitStatus.TOO_FEW_POINTS, "the observation has no points")
+            raise _FitFailure(FitStatus.TOO_FEW_POINTS, "the observation has no points")
         short = np.flatnonzero(counts < _MIN_POINTS)
         if short.size:
-            return self._failure(
+            raise _FitFailure(
                 FitStatus.TOO_FEW_POINTS,
                 f"part(s) {short.tolist()} have fewer than {_MIN_POINTS} points (counts {counts[short].tolist()})",
             )
-        init = self._initial_poses(active)
-        if isinstance(init, FitResult):
-            return init
-        poses, inliers = init
+        poses, inliers = self._initial_poses(active)
         if self.config.scale_estimator == "symmetric":
             poses = [self._symmetric_scale(j, T, inliers) for j, T in enumerate(poses)]
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         if self.form.parameterisation is None:
-            return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, None)
-        return self._solve(poses, inliers, L)
+            costs = self._data_costs(poses, L, inliers)
+            return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, costs,
+                                self.canonical)
+        run = self._start_solve(poses, L)
+        inliers = self._solve_loop(run, inliers, L)
+        return self._extract(run, inliers, L)
 
     # -- RANSAC + per-part Umeyama ------------------------------------------------------------
-    def _initial_poses(self, active: np.ndarray):
+    def _initial_poses(self, active: np.ndarray) -> tuple[list, np.ndarray]:
+        """Per-part poses (RANSAC + Umeyama, or Umeyama on all points) and the inlier mask ``(N,)``."""
         from .hypotheses import articulated_ransac
 
         idx_active = np.flatnonzero(active)
@@ -360,11 +391,11 @@ class _Fit:
                 max_hypotheses=cfg.ransac_iterations, confidence=cfg.ransac_confidence,
             )
             if not res.success:
-                return self._failure(FitStatus.DEGENERATE, f"RANSAC: {res.message}")
+                raise _FitFailure(FitStatus.DEGENERATE, f"RANSAC: {res.message}")
             model, inl = res.poses, res.inliers
             counts = np.bincount(lab[inl], minlength=self.M)
             if np.any(counts < _MIN_POINTS):
-                return self._failure(
+                raise _FitFailure(
                     FitStatus.TOO_FEW_POINTS,
                     f"RANSAC left part(s) {np.flatnonzero(counts < _MIN_POINTS).tolist()} with < {_MIN_POINTS} inliers",
                 )
@@ -375,7 +406,7 @@ class _Fit:
                 try:
                     model.append(umeyama(c[sel], pts[sel], weights=None if w is None else w[sel]))
                 except ValueError as exc:
-                    return self._failure(FitStatus.DEGENERATE, f"part {j}: {exc}")
+                    raise _FitFailure(FitStatus.DEGENERATE, f"part {j}: {exc}") from exc
             inl = np.ones(len(pts), dtype=bool)
         inliers = np.zeros(self.N, dtype=bool)
         inliers[idx_active[inl]] = True
@@ -395,8 +426,9 @@ class _Fit:
         return Sim3.unchecked(T.rotation, pbar - s * (T.rotation @ cbar), s)
 
     # -- program solve --------------------------------------------------------------------------
-    def _solve(self, poses: list, inliers: np.ndarray, L: float) -> FitResult:
-        from .backends import SolverOptions, solve
+    def _start_solve(self, poses: list, L: float) -> _SolveRun:
+        """The formulation's program, its start (per-part poses moved onto the joints for
+        ``exact_maximal``) and bounds."""
         from .program import ProgramKey, get_program
 
         cfg = self.config
@@ -408,43 +440,56 @@ class _Fit:
         limits = self._limits()
         if self.form.name == "exact_maximal" and self.K:
             poses = self._onto_joints(poses, L, limits)
-        start = self._start(poses, L)
         x0, lbx, ubx = self._x_start(prog, poses, limits)
         lbg, ubg = prog.constraint_bounds(limits)
+        return _SolveRun(prog, self._start(poses, L), x0, lbx, ubx, lbg, ubg)
+
+    def _solve_loop(self, run: _SolveRun, inliers: np.ndarray, L: float) -> np.ndarray:
+        """Solve; optionally reweight (IRLS) and re-score the inliers and solve again.
+
+        Leaves the last outcome (and its parameters) in ``run``; returns the final inliers.
+        """
+        from .backends import SolverOptions, solve
+
+        cfg = self.config
+        prog = run.program
         opts = SolverOptions(cfg.max_iterations, cfg.tol)
         weights = self.weights.copy()
-        total_iter = 0
-        outcome = None
         rounds = cfg.irls_iterations if cfg.robust else 1
         for rescore in range(cfg.rescore_rounds + 1):
             for _ in range(rounds):
-                inputs = ProgramInputs(L, self.canonical, start, self._moments(inliers, weights, L), self.term_weights)
-                p = prog.pack(inputs)
-                outcome = solve(self.solver, prog, p, x0, lbx, ubx, lbg, ubg, opts)
-                total_iter += outcome.iterations
-                if outcome.status != FitStatus.SUCCESS:
-                    break
-                x0 = outcome.x
+                inputs = ProgramInputs(L, self.canonical, run.start, self._moments(inliers, weights, L), self.term_weights)
+                run.p = prog.pack(inputs)
+                run.outcome = solve(self.solver, prog, run.p, run.x, run.lbx, run.ubx, run.lbg, run.ubg, opts)
+                run.iterations += run.outcome.iterations
+                if run.outcome.status != FitStatus.SUCCESS:
+                    return inliers
+                run.x = run.outcome.x
                 if cfg.robust:
-                    weights = self._irls_weights(prog.unpack(outcome.x, p).T_cam_npcs, L)
-            if outcome.status != FitStatus.SUCCESS or rescore == cfg.rescore_rounds:
-                break
-            new_inliers = self._rescore(prog.unpack(outcome.x, p).T_cam_npcs, L, inliers)
+                    weights = self._irls_weights(prog.unpack(run.x, run.p).T_cam_npcs, L)
+            if rescore == cfg.rescore_rounds:
+                return inliers
+            new_inliers = self._rescore(prog.unpack(run.x, run.p).T_cam_npcs, L, inliers)
             if np.array_equal(new_inliers, inliers):
-                break
+                return inliers
             inliers = new_inliers
-        solution = prog.unpack(outcome.x, p)
+        return inliers
+
+    def _extract(self, run: _SolveRun, inliers: np.ndarray, L: float) -> FitResult:
+        """The result of the last solve: poses, costs, joints (with adjusted canonical parameters)."""
+        prog, outcome = run.program, run.outcome
+        solution = prog.unpack(outcome.x, run.p)
         solved = list(solution.T_cam_npcs)
         if not all(np.all(np.isfinite(T.rotation)) and np.all(np.isfinite(T.translation)) and np.isfinite(T.scale) and T.scale > 0
                    for T in solved):
-            return self._failure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
-        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, p)).ravel().tolist()))
-        if cfg.robust:
+            raise _FitFailure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
+        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, run.p)).ravel().tolist()))
+        if self.config.robust:
             costs["robust_data"] = self._robust_energy(solved, inliers, L)
-        canonical = None
+        canonical = self.canonical
         if solution.canonical_offsets is not None:  # report joints with the adjusted canonical parameters
-            canonical = self.canonical.with_offsets(solution.canonical_offsets)
-        return self._finish(solved, inliers, L, outcome.status, outcome.message, total_iter, costs, canonical)
+            canonical = canonical.with_offsets(solution.canonical_offsets)
+        return self._finish(solved, inliers, L, outcome.status, outcome.message, run.iterations, costs, canonical)
 
     def _onto_joints(self, poses: list, L: float, limits: np.ndarray) -> list:
         """The per-part poses moved onto the joints: the root part's pose and each joint's state
@@ -525,11 +570,9 @@ class _Fit:
         return total
 
     # -- post-processing ------------------------------------------------------------------------
-    def _finish(self, poses, inliers, L, status, message, iterations, costs, canonical=None) -> FitResult:
-        canonical = self.canonical if canonical is None else canonical
+    def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical) -> FitResult:
         axes, pivots, states = _postprocess(self.structure, poses, canonical)
-        violation, eval_costs = self._check(poses, canonical, L, inliers if costs is None else None)
-        costs = eval_costs if costs is None else costs
+        violation = self._violation(poses, canonical, L)
         boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
         return FitResult(
             formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
@@ -538,22 +581,24 @@ class _Fit:
             time_s=time.perf_counter() - self.start,
         )
 
-    def _check(self, poses, canonical, L, inliers) -> tuple[float, dict]:
-        """Exact-joint and limit violation at the given poses (and the data energy of ``inliers``)."""
+    def _violation(self, poses, canonical, L) -> float:
+        """Largest exact-joint or limit violation at the given poses."""
         from .program import ProgramKey, get_program
 
-        terms = ((DataTerm,) if inliers is not None else ()) + (ExactJointTerm,) + ((JointLimitTerm,) if self.K else ())
-        prog = get_program(ProgramKey(self.structure, "maximal", False, terms))
-        moments = self._moments(inliers, self.weights, L) if inliers is not None else None
-        p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_npcs=tuple(poses)), moments))
-        x = prog.initial_x()
-        g = np.asarray(prog.constraints(x, p)).ravel()
+        prog = get_program(ProgramKey(self.structure, "maximal", False, (ExactJointTerm,) + ((JointLimitTerm,) if self.K else ())))
+        p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_npcs=tuple(poses))))
+        g = np.asarray(prog.constraints(prog.initial_x(), p)).ravel()
         lo, hi = prog.constraint_bounds(self._limits())
-        viol = float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
-        if inliers is None:  # the caller has the costs of its own program
-            return viol, {}
-        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(x, p)).ravel().tolist()))
-        return viol, costs
+        return float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
+
+    def _data_costs(self, poses, L, inliers) -> dict:
+        """``{"data": e}``: the data energy of ``inliers`` at the given poses (closed-form fits)."""
+        from .program import ProgramKey, get_program
+
+        prog = get_program(ProgramKey(self.structure, "maximal", False, (DataTerm,)))
+        inputs = ProgramInputs(L, self.canonical, ProgramStart(T_cam_npcs=tuple(poses)), self._moments(inliers, self.weights, L))
+        p = prog.pack(inputs)
+        return dict(zip(prog.cost_names, np.asarray(prog.term_costs(prog.initial_x(), p)).ravel().tolist()))
 
     def _box(self, j: int, T: Sim3, inliers: np.ndarray) -> OrientedBox:
         """Amodal box: the NPCS box (centred at the NPCS origin) mapped by the part pose."""

@@ -352,6 +352,6 @@ def test_exact_maximal_starts_on_the_joints(fit_case):
     moved = run._onto_joints(poses, L, limits)
     assert moved[0].allclose(poses[0], atol=1e-12)
     assert [T.scale for T in moved] == [T.scale for T in poses]
-    violation, _ = run._check(moved, run.canonical, L, None)
+    violation = run._violation(moved, run.canonical, L)
     assert violation < 1e-9
-    assert run._check(poses, run.canonical, L, None)[0] > 1e-2  # the raw per-part poses are not
+    assert run._violation(poses, run.canonical, L) > 1e-2  # the raw per-part poses are not
