@@ -32,7 +32,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..geometry._checks import check_generator
+from ..geometry._checks import check_bool, check_choice, check_generator, check_int, check_number
+from ..geometry.robust import robust_loss, robust_weights
 from ..geometry.boxes import OrientedBox
 from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
@@ -46,6 +47,9 @@ __all__ = ["FORMULATIONS", "FitConfig", "Formulation", "fit"]
 
 _MIN_POINTS = 3
 SCALE_ESTIMATORS = ("umeyama", "symmetric")
+FIT_ROBUST_KERNELS = ("huber", "cauchy")
+"""The kernels of :data:`ancsh.geometry.robust.ROBUST_LOSSES` that ``FitConfig.robust`` accepts
+(Tukey's zero weights could leave a part without points)."""
 
 
 @dataclass(frozen=True)
@@ -123,27 +127,18 @@ class FitConfig:
 
     def __post_init__(self):
         for name in ("ransac", "optimize_scale", "enforce_limits"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+            check_bool(getattr(self, name), name)
         for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+            check_int(getattr(self, name), name, minimum=lo)
         for name, positive in (
-            ("ransac_confidence", True), ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
+            ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
             ("common_scale_weight", False), ("naocs_prior_weight", False), ("robust_scale", True), ("tol", True),
         ):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
-                raise ValueError(f"{name}: expected a finite number, got {v!r}")
-            if v < 0 or (positive and v == 0):
-                raise ValueError(f"{name}: expected a {'positive' if positive else 'non-negative'} number, got {v!r}")
-        if not 0 < self.ransac_confidence <= 1:
-            raise ValueError(f"ransac_confidence: expected a number in (0, 1], got {self.ransac_confidence}")
-        if self.scale_estimator not in SCALE_ESTIMATORS:
-            raise ValueError(f"scale_estimator: expected one of {SCALE_ESTIMATORS}, got {self.scale_estimator!r}")
-        if self.robust is not None and self.robust not in _robust_kernel_names():
-            raise ValueError(f"robust: expected None or one of {_robust_kernel_names()}, got {self.robust!r}")
+            check_number(getattr(self, name), name, minimum=0.0, lower_open=positive)
+        check_number(self.ransac_confidence, "ransac_confidence", minimum=0.0, maximum=1.0, lower_open=True)
+        check_choice(self.scale_estimator, "scale_estimator", SCALE_ESTIMATORS)
+        if self.robust is not None and self.robust not in FIT_ROBUST_KERNELS:
+            raise ValueError(f"robust: expected None or one of {FIT_ROBUST_KERNELS}, got {self.robust!r}")
 
     @classmethod
     def paper(cls, **overrides) -> "FitConfig":
@@ -170,10 +165,6 @@ class FitConfig:
         if unknown:
             raise ValueError(f"config: unknown key(s) {unknown}; known: {sorted(known)}")
         return cls(**values)
-
-
-def _robust_kernel_names() -> tuple:
-    return ("huber", "cauchy")
 
 
 def _has_limits(config: FitConfig, corr: Correspondences) -> bool:
@@ -550,18 +541,11 @@ class _Fit:
         return current if np.any(counts < _MIN_POINTS) else inl
 
     def _irls_weights(self, poses: list, L: float) -> np.ndarray:
-        from .terms import ROBUST_KERNELS
-
-        r2 = (self._point_distances(poses) / L) ** 2
-        _, w = ROBUST_KERNELS[self.config.robust](r2[None, :], self.config.robust_scale)
-        return self.weights * np.asarray(w).ravel()
+        r = self._point_distances(poses) / L
+        return self.weights * robust_weights(r, self.config.robust, self.config.robust_scale)
 
     def _robust_energy(self, poses: list, inliers: np.ndarray, L: float) -> float:
-        from .terms import ROBUST_KERNELS
-
-        r2 = (self._point_distances(poses) / L) ** 2
-        rho, _ = ROBUST_KERNELS[self.config.robust](r2[None, :], self.config.robust_scale)
-        rho = np.asarray(rho).ravel()
+        rho = robust_loss(self._point_distances(poses) / L, self.config.robust, self.config.robust_scale)
         total = 0.0
         for j in range(self.M):
             sel = inliers & (self.labels == j)

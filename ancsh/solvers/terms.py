@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 
 from ..geometry.transforms import Sim3
-from ..model.articulated import JointType
+from ..model.articulated import JointType, joint_tree_order, joint_tree_root
 
 __all__ = [
     "TERMS",
@@ -50,7 +50,6 @@ __all__ = [
     "PointToPlaneTerm",
     "ProgramInputs",
     "ProgramStart",
-    "ROBUST_KERNELS",
     "SoftJointTerm",
     "TermWeights",
     "exp_so3_sx",
@@ -93,18 +92,12 @@ class KinematicStructure:
 
     @property
     def root(self) -> int:
-        kids = set(self.joint_children)
-        return next(j for j in range(self.num_parts) if j not in kids)
+        """The part that is no joint's child (the base)."""
+        return joint_tree_root(self.num_parts, self.joint_children)
 
     def topological_joints(self) -> tuple[int, ...]:
         """Joints ordered so that each joint's parent part is reached before it."""
-        placed, order = {self.root}, []
-        while len(order) < self.num_joints:
-            for k in range(self.num_joints):
-                if k not in order and self.joint_parents[k] in placed:
-                    order.append(k)
-                    placed.add(self.joint_children[k])
-        return tuple(order)
+        return joint_tree_order(self.num_parts, self.joint_parents, self.joint_children)
 
     def is_revolute(self, k: int) -> bool:
         return self.joint_types[k] == JointType.REVOLUTE.value
@@ -817,25 +810,3 @@ def _object_scale_differences(ctx: Context) -> ca.SX:
     r = ctx.structure.root
     out = [(ctx.object_scale(j) - ctx.object_scale(r)) / ctx.L for j in range(ctx.structure.num_parts) if j != r]
     return ca.vertcat(*out) if out else ca.SX(0, 1)
-
-
-# --------------------------------------------------------------------------------------------
-# Robust kernels for the IRLS data term (defined once, symbolically)
-# --------------------------------------------------------------------------------------------
-def _kernel_functions() -> dict:
-    r2 = ca.SX.sym("r2")  # squared normalised residual
-    c = ca.SX.sym("c")  # kernel scale
-    r = ca.sqrt(r2 + 1e-300)
-    huber_rho = ca.if_else(r <= c, r2, 2.0 * c * r - c * c)
-    cauchy_rho = c * c * ca.log1p(r2 / (c * c))
-    out = {}
-    for name, rho in (("huber", huber_rho), ("cauchy", cauchy_rho)):
-        # IRLS weight: rho'(r2) * 2 / 2 -> weight multiplying r^2 so that grad matches (d rho / d r2).
-        weight = ca.jacobian(rho, r2)
-        out[name] = ca.Function(f"{name}_kernel", [r2, c], [rho, weight], ["r2", "c"], ["rho", "weight"])
-    return out
-
-
-ROBUST_KERNELS: dict = _kernel_functions()
-"""``name -> casadi.Function(r2, c) -> (rho, weight)``: ``rho(r^2)`` and the IRLS weight
-``d rho / d(r^2)`` (1 for an inlier under Huber). Evaluate on rows of many points at once."""

@@ -47,7 +47,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...geometry._checks import as_array, check_generator
+from ...geometry._checks import as_array, check_bool, check_choice, check_generator, check_int, check_number, check_positive
+from ...geometry.robust import ROBUST_LOSSES
 from ...geometry.rotations import exp_so3, geodesic_angle
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
@@ -141,31 +142,24 @@ class ArticulatedIcpConfig:
 
     def __post_init__(self):
         for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations", "candidates"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
-        if isinstance(self.joint_starts, bool) or not isinstance(self.joint_starts, (int, np.integer)) or self.joint_starts < 0:
-            raise ValueError(f"joint_starts: expected an integer >= 0, got {self.joint_starts!r}")
+            check_int(getattr(self, name), name, minimum=1)
+        check_int(self.joint_starts, "joint_starts", minimum=0)
         for name in ("gate_start", "gate_end", "gate_floor", "loss_scale", "tolerance"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: expected a positive number, got {v!r}")
+            check_positive(getattr(self, name), name)
         if self.gate_end > self.gate_start:
             raise ValueError(f"gate_end: {self.gate_end} exceeds gate_start {self.gate_start}")
-        if not (np.isfinite(self.rescue_angle) and self.rescue_angle >= 0):
-            raise ValueError(f"rescue_angle: expected a non-negative angle, got {self.rescue_angle}")
-        if not 0 < self.accept_inliers <= 1:
-            raise ValueError(f"accept_inliers: expected a number in (0, 1], got {self.accept_inliers}")
-        if not 0 < self.gate_decay <= 1:
-            raise ValueError(f"gate_decay: expected a number in (0, 1], got {self.gate_decay}")
-        if not (np.isfinite(self.point_weight) and self.point_weight >= 0):
-            raise ValueError(f"point_weight: expected a non-negative number, got {self.point_weight}")
+        check_number(self.rescue_angle, "rescue_angle", minimum=0.0)
+        check_number(self.accept_inliers, "accept_inliers", minimum=0.0, maximum=1.0, lower_open=True)
+        check_number(self.gate_decay, "gate_decay", minimum=0.0, maximum=1.0, lower_open=True)
+        check_number(self.point_weight, "point_weight", minimum=0.0)
+        for name in ("point_to_plane", "joint_restarts"):
+            check_bool(getattr(self, name), name)
         if not self.point_to_plane and self.point_weight == 0:
             raise ValueError("point_weight: must be positive without the point-to-plane term")
-        if self.num_points is not None and (isinstance(self.num_points, bool) or int(self.num_points) < 3):
-            raise ValueError(f"num_points: expected None or an integer >= 3, got {self.num_points!r}")
-        if self.solver not in ("lsq", "ipopt"):
-            raise ValueError(f"solver: expected 'lsq' or 'ipopt', got {self.solver!r}")
+        if self.num_points is not None:
+            check_int(self.num_points, "num_points", minimum=3)
+        check_choice(self.solver, "solver", ("lsq", "ipopt"))
+        check_choice(self.loss, "loss", ROBUST_LOSSES)
         rots = []
         for i, r in enumerate(self.orientations):
             rots.append(as_array(r, f"orientations[{i}]", (3,)))

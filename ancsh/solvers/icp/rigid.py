@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry._checks import as_points, check_generator
+from ...geometry._checks import as_points, check_bool, check_generator, check_int, check_positive
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel, sample_surface_with_normals
 from ..types import FitStatus
@@ -53,14 +53,11 @@ class RigidIcpConfig:
     min_points: int = 10
 
     def __post_init__(self):
-        if not (np.isfinite(self.max_distance) and self.max_distance > 0):
-            raise ValueError(f"max_distance: expected a positive number, got {self.max_distance}")
-        if int(self.max_iterations) < 1:
-            raise ValueError(f"max_iterations: expected >= 1, got {self.max_iterations}")
-        if int(self.samples_per_part) < 10:
-            raise ValueError(f"samples_per_part: expected >= 10, got {self.samples_per_part}")
-        if int(self.min_points) < 3:
-            raise ValueError(f"min_points: expected >= 3, got {self.min_points}")
+        check_positive(self.max_distance, "max_distance")
+        check_bool(self.point_to_plane, "point_to_plane")
+        check_int(self.max_iterations, "max_iterations", minimum=1)
+        check_int(self.samples_per_part, "samples_per_part", minimum=10)
+        check_int(self.min_points, "min_points", minimum=3)
 
 
 # Surface samples with face normals (one definition, in the model package).

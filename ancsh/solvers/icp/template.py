@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry._checks import as_array, as_points, check_generator
+from ...geometry.robust import robust_weights  # noqa: F401  (re-exported)
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
 from ..types import Correspondences, Observation
@@ -31,8 +32,6 @@ __all__ = [
     "TemplateProvider",
     "robust_weights",
 ]
-
-ROBUST_LOSSES = ("none", "huber", "cauchy", "tukey")
 
 
 @dataclass(frozen=True)
@@ -257,28 +256,6 @@ def _seen(scene, points_cam) -> np.ndarray:
     t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
     depth = np.linalg.norm(points_cam, axis=1)
     return t * depth >= depth - np.maximum(1e-4, 1e-4 * depth)
-
-
-def robust_weights(residuals, loss: str, scale: float) -> np.ndarray:
-    """IRLS weights ``w(r)`` of a robust loss for non-negative residuals ``(N,)`` (metres).
-
-    ``none``: 1; ``huber``: ``min(1, c / r)``; ``cauchy``: ``1 / (1 + (r / c)^2)``;
-    ``tukey``: ``(1 - (r / c)^2)^2`` inside ``c``, 0 outside.
-    """
-    r = np.abs(as_array(residuals, "residuals", (None,)))
-    if loss not in ROBUST_LOSSES:
-        raise ValueError(f"loss: expected one of {ROBUST_LOSSES}, got {loss!r}")
-    scale = float(scale)
-    if not np.isfinite(scale) or scale <= 0:
-        raise ValueError(f"scale: expected a positive finite number, got {scale}")
-    if loss == "none":
-        return np.ones_like(r)
-    if loss == "huber":
-        return np.minimum(1.0, scale / np.maximum(r, 1e-300))
-    u = r / scale
-    if loss == "cauchy":
-        return 1.0 / (1.0 + u * u)
-    return np.where(u < 1.0, (1.0 - u * u) ** 2, 0.0)
 
 
 @dataclass(frozen=True)

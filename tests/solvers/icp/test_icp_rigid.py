@@ -74,3 +74,14 @@ def test_samples_lie_on_the_mesh_with_unit_normals():
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0)
     # every sample lies on a face: one coordinate at the half extent, along the normal
     np.testing.assert_allclose(np.abs(np.sum(p * n, axis=1)), np.abs(n) @ np.array([0.1, 0.2, 0.3]), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [(dict(max_iterations=True), "max_iterations"), (dict(max_iterations=2.7), "max_iterations"),
+     (dict(samples_per_part=9), "samples_per_part"), (dict(point_to_plane=1), "point_to_plane"),
+     (dict(max_distance=float("inf")), "max_distance")],
+)
+def test_rigid_config_rejects_non_integer_and_out_of_range_values(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        RigidIcpConfig(**kwargs)
