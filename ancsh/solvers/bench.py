@@ -41,6 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geometry._checks import check_bool, check_int
+
 __all__ = [
     "BenchConfig",
     "BenchFrame",
@@ -104,11 +106,9 @@ class BenchConfig:
         from .providers.oracle import CORRUPTION_PRESETS
 
         for name in ("frames_per_category", "num_points", "official_hypotheses"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
-        if not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
-            raise ValueError(f"seed: expected an integer >= 0, got {self.seed!r}")
+            check_int(getattr(self, name), name, minimum=1)
+        check_int(self.seed, "seed", minimum=0)
+        check_bool(self.rendered, "rendered")
         bad = [lv for lv in self.levels if lv not in CORRUPTION_PRESETS]
         if bad or not self.levels:
             raise ValueError(f"levels: expected names from {list(CORRUPTION_PRESETS)}, got {list(self.levels)}")
