@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._machine import describe_machine, machine_facts
 from ..solvers.types import Correspondences, FitResult, Observation
 from .weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 
@@ -382,14 +383,15 @@ def evaluate_category(
         t_gen = time.perf_counter() - t0
         obs = Observation(fr.points)
         t0 = time.perf_counter()
-        corr = provider.correspond(obs)
+        inference = provider.infer(obs)
+        corr = inference.correspondences
         t_net = time.perf_counter() - t0
-        naocs = per_point_naocs(provider.last_prediction, corr)
+        naocs = per_point_naocs(inference.prediction, corr)
         rec = {
             "frame": i, "instance": fr.instance, "visibility": fr.visibility.tolist(),
             "generate_ms": 1e3 * t_gen, "network_ms": 1e3 * t_net, "methods": {},
             "naocs_joints": _naocs_joint_errors(corr, fr.gt),
-            "budget": npcs_error_budget(provider.last_prediction, fr.gt),
+            "budget": npcs_error_budget(inference.prediction, fr.gt),
         }
         for key in methods:
             r = fit_method(key, obs, corr, naocs=naocs, rng=seed + i)
@@ -415,7 +417,7 @@ def evaluate_category(
             "weights": provider.network.source, "weights_step": provider.network.step,
             "weights_sha256": weights_sha,
             "direct_weights": None if voter is None else voter.network.source,
-            "available_weights": available_weights(), "num_threads": int(num_threads),
+            "available_weights": available_weights(), "num_threads": int(num_threads), "machine": machine_facts(),
             "test_instances": gen.num_instances, "num_points": gen.config.num_points,
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
@@ -758,7 +760,7 @@ def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
         f"![error vs visible-area ratio]({paths['png'].name})",
         "",
         *_occlusion_table(summary["occlusion"], s["methods"]),
-        "## Timings (this 2-core machine, shared with other jobs)",
+        f"## Timings ({describe_machine(s.get('machine'))})",
         "",
         f"- network forward (all points, {s['num_threads']} torch thread(s)), per frame: "
         f"mean {t['network_ms']['mean']:.1f} ms, median {t['network_ms']['median']:.1f} ms",

@@ -42,6 +42,8 @@ class SolveOutcome:
     message : str
         The backend's own status text.
     iterations : int
+        Iterations of the backend (IPOPT's ``iter_count``; ``least_squares``' Jacobian
+        evaluations, one per iteration; the projected LM's outer iterations).
     """
 
     x: np.ndarray
@@ -113,7 +115,8 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         return np.asarray(prog.jacobian(x, p))
 
     tol = max(float(opts.tol), np.finfo(float).eps)
-    # With an exact Jacobian, one residual evaluation per iteration: max_nfev bounds the iterations.
+    # scipy bounds function evaluations, not iterations: with an exact Jacobian an iteration takes
+    # at least one, so max_nfev = max_iterations also caps the iterations (reported: njev).
     kwargs = dict(jac=jac, xtol=tol, ftol=tol, gtol=tol, max_nfev=int(opts.max_iterations))
     if bounded:
         # trf needs a strictly feasible start.
@@ -134,7 +137,7 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         status = FitStatus.MAX_ITER
     else:
         status = FitStatus.NUMERICAL_FAILURE
-    return SolveOutcome(np.asarray(res.x), status, f"least_squares: {res.message}", int(res.nfev))
+    return SolveOutcome(np.asarray(res.x), status, f"least_squares: {res.message}", int(res.njev))
 
 
 def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
@@ -142,8 +145,10 @@ def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverO
 
     For programs without constraints; bounds on ``x`` are kept by projection, with the
     variables held at a bound (the gradient pushing outwards) removed from the step.
-    Converges when the projected gradient, the step or the relative cost decrease falls
-    below ``opts.tol`` (relative to the problem's scale).
+    Converges (``SUCCESS``) when the projected gradient, the step or the relative cost decrease
+    falls below ``opts.tol`` (relative to the problem's scale). A stall -- no decrease even with
+    the damping grown past ``1e12`` while none of these tests holds -- is ``NUMERICAL_FAILURE``,
+    with the last iterate.
     """
     if prog.num_constraints:
         raise ValueError(
@@ -190,7 +195,11 @@ def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverO
             lam *= nu
             nu *= 2.0
             if lam > 1e12:
-                return SolveOutcome(x, FitStatus.SUCCESS, f"lm: no further decrease after {it} iterations", it)
+                gmax = float(np.max(np.abs(g[free]), initial=0.0))
+                return SolveOutcome(
+                    x, FitStatus.NUMERICAL_FAILURE,
+                    f"lm: stalled after {it} iterations (no decrease; projected gradient {gmax:.3g} above the tolerance)", it,
+                )
         small_step = np.linalg.norm(h) <= tol * (tol + np.linalg.norm(x))
         small_decrease = cost - cost_new <= tol * cost
         x, r, J, cost = x_new, r_new, J_new, cost_new

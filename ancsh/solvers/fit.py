@@ -87,9 +87,9 @@ class FitConfig:
         Weight of the soft common-object-scale term (``soft`` with ``optimize_scale``); 0 = off.
         (``exact_maximal`` with ``optimize_scale`` holds one object scale exactly.)
     naocs_prior_weight : float
-        0 (default): the provider's canonical parameters (NPCS -> NAOCS translations ``G_t``,
-        revolute pivots) are taken as exact. ``> 0``: they get offset variables with this prior
-        weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
+        0: the provider's canonical parameters (NPCS -> NAOCS translations ``G_t``, revolute
+        pivots) are taken as exact (as in the paper, :meth:`paper`). ``> 0`` (default 0.1): they
+        get offset variables with this prior weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
         hold exactly for adjusted parameters that the data may move -- useful when the
         provider's NAOCS parameters are noisy; the reported pivots use the adjusted values.
     robust : str or None

@@ -115,7 +115,7 @@ class Solution:
     canonical_offsets: CanonicalOffsets | None
 
 
-def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool, canonical: Canonical):
+def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool):
     xs, poses, layout = [], [], {}
     for j in range(st.num_parts):
         w = ca.SX.sym(f"w{j}", 3)
@@ -187,7 +187,11 @@ def _reduced_values(st: KinematicStructure, start: ProgramStart) -> dict:
     return {"R0_obj": T.rotation, "tau0_obj": T.translation, "sigma0": T.scale}
 
 
-_VARIABLES = {"maximal": (_maximal_variables, _maximal_values), "reduced": (_reduced_variables, _reduced_values)}
+_VARIABLES = {
+    # (variables(structure, params, optimize_scale, canonical) -> (x, poses, layout), start values)
+    "maximal": (lambda st, params, optimize_scale, canonical: _maximal_variables(st, params, optimize_scale), _maximal_values),
+    "reduced": (_reduced_variables, _reduced_values),
+}
 
 
 class Program:

@@ -267,7 +267,7 @@ def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: b
 # ---------------------------------------------------------------------------------------------
 # the ICP loop
 # ---------------------------------------------------------------------------------------------
-def _pose_change(model, parts_a, parts_b, radii) -> float:
+def _pose_change(parts_a, parts_b, radii) -> float:
     """Largest displacement of any part's farthest point between two pose sets (metres)."""
     worst = 0.0
     for A, B, r in zip(parts_a, parts_b, radii):
@@ -307,7 +307,7 @@ class _Run:
             if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
                 return estimate, out.status, it, corr
             new_parts = new.part_poses(self.model)
-            move = _pose_change(self.model, prov_parts, new_parts, self.radii)
+            move = _pose_change(prov_parts, new_parts, self.radii)
             estimate = new
             inl = corr.weights > 0
             history.append(IcpIteration(tuple(new_parts), new.q.copy(), float(inl.mean()),

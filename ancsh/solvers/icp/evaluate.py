@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..._machine import describe_machine, machine_facts
 from ...geometry.metrics import ad_error, joint_state_error
 from ...geometry.rotations import exp_so3
 from ...geometry.transforms import Sim3
@@ -315,6 +316,7 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
             if progress is not None:
                 progress(name, noise, [r for r in records if r.object == name and r.noise == noise])
     meta = {
+        "machine": machine_facts(),
         "objects": [
             {"name": n, "parts": m.part_names, "joints": [(j.name, j.type.value) for j in m.joints]} for n, m in objects
         ],
@@ -359,7 +361,7 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
               "Chain AD accuracy / per-part AD accuracy (part order as listed) / median joint-state error "
               "(degrees for revolute; for prismatic joints hundredths of the model unit, i.e. cm for metric "
               "models -- PartNet-Mobility objects are roughly unit-sized, not metric) / median ms per frame "
-              "(wall time on a shared 2-core CPU).", ""]
+              f"(wall time on {describe_machine(meta.get('machine'))}).", ""]
     objects = [o["name"] for o in meta["objects"]]
     for noise in (False, True):
         lines += [f"### {'With' if noise else 'Without'} sensor noise", "",

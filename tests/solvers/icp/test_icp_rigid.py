@@ -85,3 +85,16 @@ def test_samples_lie_on_the_mesh_with_unit_normals():
 def test_rigid_config_rejects_non_integer_and_out_of_range_values(kwargs, match):
     with pytest.raises(ValueError, match=match):
         RigidIcpConfig(**kwargs)
+
+
+def test_rigid_baselines_report_max_iter_when_the_iteration_limit_stops_them():
+    """One ICP iteration from a 0.1 rad / 3 cm offset does not converge: MAX_ITER, not SUCCESS;
+    the iteration count is not reported by open3d (-1)."""
+    model, q, T, pts, labels = _observation(2)
+    init = ArticulatedPose(Sim3(exp_so3([0.1, -0.05, 0.05]) @ T.rotation, T.translation + 0.03), q)
+    one = RigidIcpConfig(max_iterations=1)
+    for res in (whole_object_icp(model, pts, init, config=one), per_part_icp(model, pts, init, labels=labels, config=one)):
+        assert res.status == FitStatus.MAX_ITER and "not converged" in res.message
+        assert res.iterations == -1
+    converged = whole_object_icp(model, pts, init, config=RigidIcpConfig(max_iterations=200))
+    assert converged.status == FitStatus.SUCCESS and converged.message == "converged"
