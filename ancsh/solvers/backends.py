@@ -12,14 +12,39 @@ A failed solve is reported in :class:`SolveOutcome`, never raised.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .program import Program
 from .types import FitStatus
 
-__all__ = ["BACKENDS", "SolveOutcome", "SolverOptions", "solve"]
+__all__ = ["BACKENDS", "Bounds", "SolveOutcome", "SolverOptions", "solve"]
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Bounds of one solve: ``lbx <= x <= ubx`` and ``lbg <= g(x) <= ubg``.
+
+    Attributes
+    ----------
+    lbx, ubx : (n,) float64
+        Variable bounds (``-inf`` / ``inf`` where free).
+    lbg, ubg : (m,) float64
+        Constraint bounds of the program's equalities then inequalities (empty without constraints).
+    """
+
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ubg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def of(cls, program: Program, joint_limits=None) -> "Bounds":
+        """The bounds of ``program`` given the joint limits ``(K, 2)`` (relative to rest; default none)."""
+        lbx, ubx = program.variable_bounds(joint_limits)
+        lbg, ubg = program.constraint_bounds(joint_limits)
+        return cls(lbx, ubx, lbg, ubg)
 
 
 @dataclass(frozen=True)
@@ -79,11 +104,11 @@ def _ipopt_options(opts: SolverOptions) -> dict:
     }
 
 
-def solve_ipopt(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+def solve_ipopt(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """IPOPT on the program's NLP (the solver object is cached on the program)."""
     solver = prog.nlpsol(_ipopt_options(opts))
     try:
-        sol = solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        sol = solver(x0=x0, p=p, lbx=bounds.lbx, ubx=bounds.ubx, lbg=bounds.lbg, ubg=bounds.ubg)
     except RuntimeError as exc:  # evaluation errors (NaN/inf) surface as RuntimeError in CasADi
         return SolveOutcome(np.asarray(x0, dtype=float), FitStatus.NUMERICAL_FAILURE, f"ipopt: {exc}", 0)
     stats = solver.stats()
@@ -95,7 +120,7 @@ def solve_ipopt(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solv
     return SolveOutcome(x, status, f"ipopt: {text}", int(stats.get("iter_count", 0)))
 
 
-def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+def solve_lsq(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """scipy ``least_squares`` on the program's residuals and exact Jacobian."""
     from scipy.optimize import least_squares
 
@@ -103,8 +128,8 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         raise ValueError(
             f"solver: 'lsq' cannot handle the {prog.num_constraints} constraints of terms {prog.key.terms}; use 'ipopt'"
         )
-    lbx = np.asarray(lbx, dtype=float)
-    ubx = np.asarray(ubx, dtype=float)
+    lbx = np.asarray(bounds.lbx, dtype=float)
+    ubx = np.asarray(bounds.ubx, dtype=float)
     x0 = np.asarray(x0, dtype=float)
     bounded = bool(np.any(np.isfinite(lbx)) or np.any(np.isfinite(ubx)))
 
@@ -140,7 +165,7 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
     return SolveOutcome(np.asarray(res.x), status, f"least_squares: {res.message}", int(res.njev))
 
 
-def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """Projected Levenberg-Marquardt on the program's residuals and exact Jacobian.
 
     For programs without constraints; bounds on ``x`` are kept by projection, with the
@@ -154,8 +179,8 @@ def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverO
         raise ValueError(
             f"solver: 'lm' cannot handle the {prog.num_constraints} constraints of terms {prog.key.terms}; use 'ipopt'"
         )
-    lbx = np.asarray(lbx, dtype=float)
-    ubx = np.asarray(ubx, dtype=float)
+    lbx = np.asarray(bounds.lbx, dtype=float)
+    ubx = np.asarray(bounds.ubx, dtype=float)
     x = np.clip(np.asarray(x0, dtype=float), lbx, ubx)
     tol = max(float(opts.tol), np.finfo(float).eps)
 
@@ -211,10 +236,10 @@ def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverO
 BACKENDS = {"ipopt": solve_ipopt, "lsq": solve_lsq, "lm": solve_lm}
 
 
-def solve(backend: str, prog: Program, p, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
-    """Dispatch to :data:`BACKENDS` ``[backend]``."""
+def solve(backend: str, prog: Program, p, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
+    """Solve ``prog`` with parameters ``p`` from ``x0`` within ``bounds`` by :data:`BACKENDS` ``[backend]``."""
     try:
         fn = BACKENDS[backend]
     except KeyError:
         raise ValueError(f"solver: expected one of {sorted(BACKENDS)}, got {backend!r}") from None
-    return fn(prog, p, x0, lbx, ubx, lbg, ubg, opts)
+    return fn(prog, p, x0, bounds, opts)

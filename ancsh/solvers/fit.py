@@ -305,10 +305,7 @@ class _SolveRun:
     program: object
     start: ProgramStart
     x: np.ndarray
-    lbx: np.ndarray
-    ubx: np.ndarray
-    lbg: np.ndarray
-    ubg: np.ndarray
+    bounds: object  # backends.Bounds
     p: np.ndarray | None = None
     outcome: object = None
     iterations: int = 0
@@ -420,6 +417,7 @@ class _Fit:
     def _start_solve(self, poses: list, L: float) -> _SolveRun:
         """The formulation's program, its start (per-part poses moved onto the joints for
         ``exact_maximal``) and bounds."""
+        from .backends import Bounds
         from .program import ProgramKey, get_program
 
         cfg = self.config
@@ -431,9 +429,7 @@ class _Fit:
         limits = self._limits()
         if self.form.name == "exact_maximal" and self.K:
             poses = self._onto_joints(poses, L, limits)
-        x0, lbx, ubx = self._x_start(prog, poses, limits)
-        lbg, ubg = prog.constraint_bounds(limits)
-        return _SolveRun(prog, self._start(poses, L), x0, lbx, ubx, lbg, ubg)
+        return _SolveRun(prog, self._start(poses, L), self._x_start(prog, poses, limits), Bounds.of(prog, limits))
 
     def _solve_loop(self, run: _SolveRun, inliers: np.ndarray, L: float) -> np.ndarray:
         """Solve; optionally reweight (IRLS) and re-score the inliers and solve again.
@@ -451,7 +447,7 @@ class _Fit:
             for _ in range(rounds):
                 inputs = ProgramInputs(L, self.canonical, run.start, self._moments(inliers, weights, L), self.term_weights)
                 run.p = prog.pack(inputs)
-                run.outcome = solve(self.solver, prog, run.p, run.x, run.lbx, run.ubx, run.lbg, run.ubg, opts)
+                run.outcome = solve(self.solver, prog, run.p, run.x, run.bounds, opts)
                 run.iterations += run.outcome.iterations
                 if run.outcome.status != FitStatus.SUCCESS:
                     return inliers
@@ -493,7 +489,7 @@ class _Fit:
         from .program import ProgramKey, get_program
 
         prog = get_program(ProgramKey(self.structure, "reduced", False, ()))
-        x0, _, _ = self._x_start(prog, poses, limits)
+        x0 = self._x_start(prog, poses, limits)
         moved = prog.unpack(x0, prog.pack(ProgramInputs(L, self.canonical, self._start(poses, L)))).T_cam_npcs
         return [Sim3.unchecked(M.rotation, M.translation, T.scale) for M, T in zip(moved, poses)]
 
@@ -510,13 +506,13 @@ class _Fit:
         tau0 = T.translation - sigma_root * (T.rotation @ self.corr.npcs_translation[r])
         return ProgramStart(tuple(poses), Sim3.unchecked(T.rotation, tau0, L))
 
-    def _x_start(self, prog, poses, limits):
+    def _x_start(self, prog, poses, limits) -> np.ndarray:
+        """The start ``x``: joint states (reduced) read off the per-part poses, clipped to the limits."""
         states = None
         if prog.has_joint_states:
             _, _, states = _postprocess(self.structure, poses, self.canonical)
             states = np.clip(states, limits[:, 0], limits[:, 1])
-        lbx, ubx = prog.variable_bounds(limits)
-        return prog.initial_x(states), lbx, ubx
+        return prog.initial_x(states)
 
     def _moments(self, inliers: np.ndarray, weights: np.ndarray, L: float) -> tuple:
         from .terms import part_moments

@@ -54,7 +54,7 @@ from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
 from ..types import FitStatus, Observation
 from .result import CadFitResult, IcpIteration
-from .template import ArticulatedPose, ModelSurface, TemplateProvider
+from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProvider
 
 __all__ = ["ArticulatedIcpConfig", "articulated_icp", "auto_init", "reduced_step"]
 
@@ -173,6 +173,7 @@ class _Reduced:
     """The reduced-coordinate program of one model with its static inputs."""
 
     def __init__(self, provider: TemplateProvider, point_to_plane: bool, point_data: bool = True):
+        from ..backends import Bounds
         from ..program import ProgramKey, get_program
         from ..terms import CanonicalParameters, DataTerm, KinematicStructure, PointToPlaneTerm
 
@@ -184,7 +185,7 @@ class _Reduced:
         self.model, self.cs = model, cs
         self.diagonal = 1.0 / cs.T_naocs_base.scale  # metres per NAOCS unit
         self.canonical = CanonicalParameters.of(cs)
-        self.lbx, self.ubx = self.program.variable_bounds(corr.joint_limits)
+        self.bounds = Bounds.of(self.program, corr.joint_limits)
 
     def inputs(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool):
         """The program's inputs: the start at ``estimate`` and the moments of ``corr``."""
@@ -243,8 +244,7 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
     inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
     p = red.program.pack(inputs)
     x0 = red.x0(provider.estimate)
-    lo, hi = red.lbx, red.ubx
-    out = solve(solver, red.program, p, x0, lo, hi, np.zeros(0), np.zeros(0), SolverOptions(max_iterations, 1e-12))
+    out = solve(solver, red.program, p, x0, red.bounds, SolverOptions(max_iterations, 1e-12))
     if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or not np.all(np.isfinite(out.x)):
         return provider.estimate, out
     return red.estimate(out.x, p), out
@@ -254,12 +254,12 @@ _REDUCED_CACHE: dict = {}
 
 
 def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: bool = True) -> _Reduced:
-    key = (id(provider.surface), point_to_plane, point_data)
+    key = (id(provider.template), point_to_plane, point_data)
     hit = _REDUCED_CACHE.get(key)
-    if hit is None or hit[0] is not provider.surface:
+    if hit is None or hit[0] is not provider.template:
         if len(_REDUCED_CACHE) > 64:
             _REDUCED_CACHE.clear()
-        hit = (provider.surface, _Reduced(provider, point_to_plane, point_data))
+        hit = (provider.template, _Reduced(provider, point_to_plane, point_data))
         _REDUCED_CACHE[key] = hit
     return hit[1]
 
@@ -350,8 +350,33 @@ class _Run:
         return float(np.mean(np.minimum(d / gate, 1.0) ** 2)) + back, float(inl.mean()), rmse
 
 
-def _search(run: _Run, model, config, starts):
-    """Stages 1-3 (see the module docstring) from ``starts``: ``(final or None, iterations)``."""
+@dataclass(frozen=True)
+class _Candidate:
+    """A start after stage 1: its score, its rank among the starts, the estimate reached, the
+    iterations so far and their history."""
+
+    score: float
+    order: int
+    estimate: ArticulatedPose
+    history: list
+    iterations: int
+
+
+@dataclass(frozen=True)
+class _Finished:
+    """A candidate after stages 2-3: score, inlier ratio and RMSE (see :meth:`_Run.score`),
+    final estimate, status and history."""
+
+    score: float
+    inlier_ratio: float
+    rmse: float
+    estimate: ArticulatedPose
+    status: FitStatus
+    history: list
+
+
+def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
+    """Stages 1-3 (see the module docstring) from ``starts``: ``(best finished or None, iterations)``."""
     iterations = 0
     candidates = []
     for s in starts:
@@ -359,25 +384,25 @@ def _search(run: _Run, model, config, starts):
         est, status, n, _ = run.iterate(s, 0, config.start_iterations, hist)
         iterations += n
         if status != FitStatus.TOO_FEW_POINTS:
-            candidates.append((run.score(est)[0], len(candidates), est, hist, n))
+            candidates.append(_Candidate(run.score(est)[0], len(candidates), est, hist, n))
     if not candidates:
         return None, 0
-    candidates.sort(key=lambda c: (c[0], c[1]))
+    candidates.sort(key=lambda c: (c.score, c.order))
     final = None
     tried: list = []
-    for _, _, est, hist, n in candidates:
+    for cand in candidates:
         if len(tried) >= config.candidates:
             break
-        if any(_same_basin(est, other, run.diagonal) for other in tried):
+        if any(_same_basin(cand.estimate, other, run.diagonal) for other in tried):
             continue  # finishing a start that sits where a tried one sat would end where it ended
-        tried.append(est)
-        out, used = _finish_candidate(run, model, config, est, hist, n)
+        tried.append(cand.estimate)
+        out, used = _finish_candidate(run, model, config, cand)
         iterations += used
-        if out is not None and (final is None or out[0][0] < final[0][0]):
+        if out is not None and (final is None or out.score < final.score):
             final = out
-        if final is not None and final[0][1] >= config.accept_inliers:
+        if final is not None and final.inlier_ratio >= config.accept_inliers:
             break
-    return (None if final is None else (final[0], final[1], final[2], final[3])), max(iterations, 1)
+    return final, max(iterations, 1)
 
 
 def _same_basin(a: ArticulatedPose, b: ArticulatedPose, diagonal: float) -> bool:
@@ -389,12 +414,13 @@ def _same_basin(a: ArticulatedPose, b: ArticulatedPose, diagonal: float) -> bool
     )
 
 
-def _finish_candidate(run: _Run, model, config, est, hist, n):
+def _finish_candidate(run: _Run, model, config, cand: _Candidate) -> tuple[_Finished | None, int]:
     """Refine a start, restart its joints (stage 2), iterate to convergence.
 
-    Returns ``((score, inlier ratio, rmse), estimate, status, history)`` (``None`` when every
-    correspondence was lost) and the number of iterations used.
+    Returns the finished candidate (``None`` when every correspondence was lost) and the
+    number of iterations used.
     """
+    est, hist, n = cand.estimate, cand.history, cand.iterations
     used = 0
     if config.joint_restarts and model.num_joints:
         # Stage 2: with the object pose settled, restart each joint over its range (the
@@ -420,7 +446,8 @@ def _finish_candidate(run: _Run, model, config, est, hist, n):
     used += n2 - n
     if status == FitStatus.TOO_FEW_POINTS:
         return None, used
-    return (run.score(est), est, status, hist), used
+    score, ratio, rmse = run.score(est)
+    return _Finished(score, ratio, rmse, est, status, hist), used
 
 
 def _joint_grid(model: ArticulatedModel, q, count: int) -> list:
@@ -525,7 +552,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     config = ArticulatedIcpConfig() if config is None else config
     if not isinstance(config, ArticulatedIcpConfig):
         raise ValueError(f"config: expected an ArticulatedIcpConfig, got {type(config).__name__}")
-    provider = TemplateProvider(model, _surface=surface)  # validates the model (movable joints, meshes)
+    template = ModelTemplate(model, surface)  # validates the model (movable joints, meshes)
     points = observation.points_cam if isinstance(observation, Observation) else Observation(observation).points_cam
     if points.shape[0] and np.any(points[:, 2] <= 0):
         raise ValueError("observation: every point must be in front of the camera (z > 0); points are camera-frame")
@@ -545,10 +572,9 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
 
     if points.shape[0] < 6:
         return failed(FitStatus.TOO_FEW_POINTS, f"need at least 6 observed points, got {points.shape[0]}")
-    diagonal = provider.T_cam_naocs_scale
-    provider = TemplateProvider(model, max_distance=1.0, loss=config.loss,
-                                loss_scale=max(config.loss_scale * diagonal, config.gate_floor / 3),
-                                _surface=provider.surface, _canonical=provider.canonical)
+    diagonal = template.T_cam_naocs_scale
+    provider = TemplateProvider(template, max_distance=1.0, loss=config.loss,
+                                loss_scale=max(config.loss_scale * diagonal, config.gate_floor / 3))
     rest = model.forward_kinematics(model.rest_states)
     radii = [float(np.max(np.linalg.norm(p.vertices, axis=1))) for p in model.parts]
     run = _Run(model, points, config, provider, diagonal, radii, rng)
@@ -560,10 +586,10 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         return failed(FitStatus.TOO_FEW_POINTS,
                       f"no observed point within {run.gate(0):.3g} (model units) of the model at any start "
                       "(observation far from the estimate?)")
-    if config.rescue_angle > 0 and (final is None or final[0][1] < config.accept_inliers):
+    if config.rescue_angle > 0 and (final is None or final.inlier_ratio < config.accept_inliers):
         # Rescue: no start explained the data; try the initial and the best estimates turned
         # by rescue_angle about each camera axis (both signs), with the joint-state starts.
-        bases = [inits[0]] + ([final[1]] if final is not None else [])
+        bases = [inits[0]] + ([final.estimate] if final is not None else [])
         rescue = []
         for b in bases:
             c = b.T_cam_base.apply(center_base)
@@ -574,14 +600,14 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         second, used = _search(run, model, config, rescue)
         iterations += used
         starts = starts + rescue
-        if second is not None and (final is None or second[0][0] < final[0][0]):
+        if second is not None and (final is None or second.score < final.score):
             final = second
     if final is None:
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
-    (sc, ratio, rmse), est, status, hist = final
-    msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    est = final.estimate
+    msg = "converged" if final.status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
     return CadFitResult(
         method="articulated_icp", T_cam_parts=tuple(est.part_poses(model)), q=est.q.copy(), T_cam_base=est.T_cam_base,
-        status=status, message=msg, inlier_ratio=ratio, rmse=rmse, iterations=iterations,
-        time_s=time.perf_counter() - t0, history=tuple(hist), starts=len(starts),
+        status=final.status, message=msg, inlier_ratio=final.inlier_ratio, rmse=final.rmse, iterations=iterations,
+        time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts),
     )
