@@ -395,7 +395,7 @@ def evaluate_category(
         }
         for key in methods:
             r = fit_method(key, obs, corr, naocs=naocs, rng=seed + i)
-            ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names)
+            ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
             ev["fit_ms"] = 1e3 * r.time_s
             rec["methods"][key] = ev
         if voter is not None:
@@ -431,13 +431,15 @@ def evaluate_category(
 # statistics
 # --------------------------------------------------------------------------------------------
 def _stats(values: np.ndarray) -> dict:
-    """Mean / median over frames (NaN entries left out) per column."""
-    v = np.asarray(values, dtype=float)
+    """Mean / median over frames per column (:func:`ancsh.evaluation.aggregate`: NaN entries left
+    out; ``None`` where a column has no finite entry)."""
+    from ..evaluation import aggregate
+
     out = {"mean": [], "median": []}
-    for col in v.T:
-        col = col[np.isfinite(col)]
-        out["mean"].append(float(np.mean(col)) if col.size else None)
-        out["median"].append(float(np.median(col)) if col.size else None)
+    for col in np.asarray(values, dtype=float).T:
+        a = aggregate(col).to_dict()
+        out["mean"].append(a["mean"])
+        out["median"].append(a["median"])
     return out
 
 

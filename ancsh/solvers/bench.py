@@ -268,8 +268,9 @@ def available_methods(config: BenchConfig) -> list:
 # --------------------------------------------------------------------------------------
 # evaluation
 # --------------------------------------------------------------------------------------
-def evaluate_fit(result, frame: BenchFrame) -> dict:
-    """Per-part and per-joint errors of one fit on ``frame`` (:func:`ancsh.evaluation.evaluate_fit`)."""
+def evaluate_fit(result, frame: BenchFrame):
+    """Per-part and per-joint errors of one fit on ``frame``: a :class:`~ancsh.evaluation.FrameEvaluation`
+    (:func:`ancsh.evaluation.evaluate_fit`)."""
     from ..evaluation import evaluate_fit as evaluate
 
     return evaluate(result, frame.gt, frame.part_names, frame.joint_names)
@@ -330,7 +331,7 @@ def run_benchmark(config: BenchConfig, *, frames=None, methods=None, progress=No
                 try:
                     result = m.fit(obs, sample.correspondences, np.random.default_rng(seed + [7]), info)
                     elapsed = time.perf_counter() - t0  # the fit alone, not the evaluation below
-                    rec = evaluate_fit(result, frame)
+                    rec = evaluate_fit(result, frame).to_dict()
                 except Exception as exc:  # a crash is a benchmark result too, never hidden
                     elapsed = time.perf_counter() - t0
                     rec = {"status": f"exception: {type(exc).__name__}: {exc}", "ok": False, "parts": [], "joints": []}
@@ -352,8 +353,10 @@ def run_benchmark(config: BenchConfig, *, frames=None, methods=None, progress=No
 # summaries
 # --------------------------------------------------------------------------------------
 def _mean(values) -> float:
-    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=float)
-    return float(v.mean()) if v.size else float("nan")
+    """Mean of the finite values (NaN when none), by :func:`ancsh.evaluation.aggregate`."""
+    from ..evaluation import aggregate
+
+    return aggregate(values).mean
 
 
 def summarize(report: dict) -> list:

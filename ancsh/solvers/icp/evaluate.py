@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -92,9 +92,28 @@ class SequenceFrame:
     part_labels: np.ndarray
 
 
-@dataclass
+@dataclass(frozen=True)
 class FrameRecord:
-    """Scores of one method on one frame."""
+    """Scores of one method on one frame (see ``docs/REPORT_SCHEMAS.md``).
+
+    Attributes
+    ----------
+    object, method : str
+    noise : bool
+        Whether the frame has sensor noise.
+    frame : int
+    part_correct : list of bool
+        AD test per part.
+    chain_correct : bool
+        Every part correct.
+    joint_errors : list of float
+        Joint-state error per joint (degrees / hundredths of the model unit; NaN when unknown).
+    time_s : float
+    status : str
+        The fit's status value.
+    ad_over_diameter : list of float
+        AD error over the part diameter, per part.
+    """
 
     object: str
     noise: bool
@@ -106,6 +125,9 @@ class FrameRecord:
     time_s: float
     status: str
     ad_over_diameter: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
 
 
 # --------------------------------------------------------------------------------------
@@ -396,7 +418,7 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
     text = "\n".join(lines)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
-    payload = {"command": command, "meta": meta, "records": [_rounded(r.__dict__) for r in records]}
+    payload = {"command": command, "meta": meta, "records": [_rounded(r.to_dict()) for r in records]}
     path.with_suffix(".json").write_text(json.dumps(payload, separators=(",", ":")))
     return text
 
