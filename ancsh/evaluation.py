@@ -18,8 +18,15 @@ from .geometry.metrics import axis_angle_error_deg, box_iou, joint_state_error, 
 __all__ = ["Aggregate", "FrameEvaluation", "JointErrors", "PartErrors", "aggregate", "evaluate_fit"]
 
 
+class _Record:
+    """``to_dict()`` of a flat record dataclass (its fields, by name)."""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
 @dataclass(frozen=True)
-class PartErrors:
+class PartErrors(_Record):
     """Errors of one part's pose and box.
 
     Attributes
@@ -44,12 +51,10 @@ class PartErrors:
     iou: float
     iou_pose: float
 
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass(frozen=True)
-class JointErrors:
+class JointErrors(_Record):
     """Errors of one joint.
 
     Attributes
@@ -71,8 +76,6 @@ class JointErrors:
     axis_deg: float
     line_dist: float
 
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 @dataclass(frozen=True)
