@@ -46,13 +46,15 @@ def _fmt(x: float, spec: str) -> str:
     return "   -" if x != x else format(x, spec)
 
 
-def _part_cell(p: dict) -> str:
-    return f"{_fmt(p['rot_deg'], '8.2f')} {_fmt(p['trans'], '.4f')} {_fmt(100 * p['iou'], '6.1f')}      "
+def _part_cell(p) -> str:
+    """One :class:`~ancsh.evaluation.PartErrors` as a table cell."""
+    return f"{_fmt(p.rot_deg, '8.2f')} {_fmt(p.trans, '.4f')} {_fmt(100 * p.iou, '6.1f')}      "
 
 
-def _joint_cell(jr: dict) -> str:
-    unit = "deg" if jr["type"] == "revolute" else "obj"
-    return f"state {_fmt(jr['state_err'], '.3f')} {unit} axis {_fmt(jr['axis_deg'], '.2f')} line {_fmt(jr['line_dist'], '.3f')}"
+def _joint_cell(jr) -> str:
+    """One :class:`~ancsh.evaluation.JointErrors` as a table cell."""
+    unit = "deg" if jr.type == "revolute" else "obj"
+    return f"state {_fmt(jr.state_err, '.3f')} {unit} axis {_fmt(jr.axis_deg, '.2f')} line {_fmt(jr.line_dist, '.3f')}"
 
 
 def _row(label: str, per_method: list, index: int, cell) -> str:
@@ -96,9 +98,9 @@ def run(args) -> int:
         print(f"   {'part':14s}" + "".join(f" | {n:^28s}" for n, _ in methods))
         print(f"   {'':14s}" + " | rot(deg) trans   IoU(%)     " * len(methods))
         for j, part in enumerate(frame.part_names):
-            print(_row(f"{part:14s}", [records[n][1]["parts"] for n, _ in methods], j, _part_cell))
+            print(_row(f"{part:14s}", [records[n][1].parts for n, _ in methods], j, _part_cell))
         for k, jname in enumerate(frame.joint_names):
-            print(_row(f"joint {jname:8s}", [records[n][1]["joints"] for n, _ in methods], k, _joint_cell))
+            print(_row(f"joint {jname:8s}", [records[n][1].joints for n, _ in methods], k, _joint_cell))
         result = records["ANCSH exact"][0]
         if result.ok:
             fig = draw_fit(frame.points, result, frame.intrinsics, labels=corr.part_labels, gt=frame.gt,

@@ -1,9 +1,10 @@
-"""Fixtures shared by every test folder."""
+"""Helpers and fixtures shared by every test folder."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 _OPEN_AT_FILE_ZERO = 0.6  # the synthetic oven's door is open by this angle at the file's state 0
@@ -43,10 +44,29 @@ def _write_oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False,
     return folder / "model.urdf"
 
 
-
 @pytest.fixture
 def make_oven_urdf():
     """``make_oven_urdf(folder, **options) -> Path``: a synthetic URDF oven with known ground truth
     (its door is closed at file state ``-make_oven_urdf.open_at_file_zero``; see :func:`_write_oven_urdf`)."""
     _write_oven_urdf.open_at_file_zero = _OPEN_AT_FILE_ZERO
     return _write_oven_urdf
+
+
+def central_differences(f, x, h: float = 1e-6) -> np.ndarray:
+    """Central-difference derivative of ``f`` at ``x`` (float64).
+
+    ``f`` maps an ``(n,)`` vector to an array of shape ``S`` (a scalar: ``S = ()``); the result
+    has shape ``S + (n,)`` (the Jacobian ``(m, n)`` of a vector function, the gradient ``(n,)``
+    of a scalar one).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    cols = []
+    for e in np.eye(x.size):
+        cols.append((np.asarray(f(x + h * e), dtype=np.float64) - np.asarray(f(x - h * e), dtype=np.float64)) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+@pytest.fixture
+def numeric_derivative():
+    """:func:`central_differences` (the one finite-difference helper of the tests)."""
+    return central_differences

@@ -266,13 +266,16 @@ def run_bench(args) -> int:
     if args.out:
         from pathlib import Path
 
+        from .._machine import describe_machine
+
         command = "ancsh " + " ".join(sys.argv[1:]) if sys.argv and sys.argv[0].endswith("ancsh") else "ancsh bench render"
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(
             "# Rendering throughput\n\n"
             f"Generated {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} by `{command}`.\n"
-            "Target: >= 50 frames/s for 640x480 frames of each category on the 2-core machine.\n\n"
+            f"Measured on {describe_machine()}. Target: >= 50 frames/s for 640x480 frames of each category "
+            "on a 2-core CPU.\n\n"
             "```\n" + "\n".join(lines) + "\n```\n"
         )
         print(f"wrote {out}")

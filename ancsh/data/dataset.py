@@ -81,7 +81,8 @@ __all__ = [
 
 FORMAT_VERSION = 1
 
-# key -> (stored dtype, per-frame shape template); "N", "M", "K" are filled per shard.
+# key -> (stored dtype, per-frame shape template); "N", "M", "K" (points, parts, joints) are filled
+# per shard, and every frame's record is checked against the template before it is written.
 FIELDS = {
     "points": ("f4", ("N", 3)),
     "part_labels": ("i2", ("N",)),
@@ -236,6 +237,17 @@ def frame_record(frame: Frame) -> dict:
     return rec
 
 
+def _check_record_shapes(record: dict, dims: dict, name: str) -> None:
+    """Raise ``ValueError`` when a field of ``record`` does not have its :data:`FIELDS` shape."""
+    for key, (dtype, template) in FIELDS.items():
+        if dtype == "str":
+            continue
+        expected = tuple(dims[d] if isinstance(d, str) else d for d in template)
+        actual = np.shape(record[key])
+        if actual != expected:
+            raise ValueError(f"{name}.{key}: expected shape {expected}, got {actual}")
+
+
 def _shard_meta(frame: Frame) -> dict:
     gt = frame.gt
     return {
@@ -285,7 +297,9 @@ def write_shard(path, frames, *, split: str, source: str, config: str, frame_sta
             raise ValueError(f"frames[{i}]: expected a Frame, got {type(fr).__name__}")
         if _shard_meta(fr) != meta or len(fr.points) != len(frames[0].points):
             raise ValueError(f"frames[{i}]: category, part/joint structure or point count differs from frames[0]")
-        records.append(frame_record(fr))
+        record = frame_record(fr)
+        _check_record_shapes(record, {"N": len(fr.points), "M": fr.num_parts, "K": fr.num_joints}, f"frames[{i}]")
+        records.append(record)
     tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
     try:
         with h5py.File(tmp, "w") as f:

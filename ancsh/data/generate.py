@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geometry._checks import check_int, check_number
 from ..geometry.transforms import Sim3
 from .dataset import CorruptShardError, Frame, ShardReader, write_shard
 from .noise import DepthNoise, apply_noise
@@ -108,18 +109,13 @@ class GenerationConfig:
             if not Path(self.urdf).is_file():
                 raise FileNotFoundError(f"urdf: no such file {self.urdf}")
         for name, lo in (("seed", 0), ("shard_size", 1), ("num_points", 1), ("min_part_pixels", 0), ("max_attempts", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise ValueError(f"{name}: expected an int >= {lo}, got {v!r}")
-            object.__setattr__(self, name, int(v))
+            object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=lo))
         if self.real is not None and self.urdf is not None:
             raise ValueError("real: real catalog objects mix with a procedural category, not with a URDF")
         if self.real is None and self.real_fraction != 0.0:
             raise ValueError("real_fraction: needs a real catalog (real=...)")
         for name in ("min_part_fraction", "min_visibility", "real_fraction"):
-            v = float(getattr(self, name))
-            if not 0.0 <= v <= 1.0:
-                raise ValueError(f"{name}: expected a fraction in [0, 1], got {v}")
+            v = check_number(getattr(self, name), name, minimum=0.0, maximum=1.0)
             object.__setattr__(self, name, v)
         if not isinstance(self.intrinsics, Intrinsics):
             raise ValueError(f"intrinsics: expected Intrinsics, got {type(self.intrinsics).__name__}")

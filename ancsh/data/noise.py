@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..geometry._checks import check_generator
+from ..geometry._checks import check_bool, check_generator, check_number, check_positive
 
 __all__ = ["DepthNoise", "apply_noise", "depth_edges"]
 
@@ -58,20 +58,13 @@ class DepthNoise:
 
     def __post_init__(self):
         for name in ("sigma_a", "sigma_b", "sigma_z0", "edge_threshold", "edge_dropout", "random_dropout"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) or not np.isfinite(value):
-                raise ValueError(f"{name}: expected a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, check_number(getattr(self, name), name))
         for name in ("sigma_a", "sigma_b"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name}: must be >= 0, got {getattr(self, name)}")
-        if self.edge_threshold <= 0:
-            raise ValueError(f"edge_threshold: must be > 0, got {self.edge_threshold}")
+            check_number(getattr(self, name), name, minimum=0.0)
+        check_positive(self.edge_threshold, "edge_threshold")
         for name in ("edge_dropout", "random_dropout"):
-            if not 0.0 <= getattr(self, name) <= 1.0:
-                raise ValueError(f"{name}: a probability in [0, 1], got {getattr(self, name)}")
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"enabled: expected a bool, got {self.enabled!r}")
+            check_number(getattr(self, name), name, minimum=0.0, maximum=1.0)
+        check_bool(self.enabled, "enabled")
 
     @classmethod
     def off(cls) -> "DepthNoise":

@@ -1,4 +1,8 @@
-"""Input checks shared by the whole package: one place that raises clear errors."""
+"""Input checks shared by the whole package: arrays, rotations, generators and configuration scalars.
+
+Every check raises ``ValueError`` naming the argument and what was expected (``check_generator``
+raises ``TypeError``, as for any wrong-typed argument; see ``docs/ARCHITECTURE.md``).
+"""
 
 from __future__ import annotations
 
@@ -72,6 +76,59 @@ def check_generator(rng, name: str = "rng") -> np.random.Generator:
     if isinstance(rng, (int, np.integer)) and not isinstance(rng, bool):
         return np.random.default_rng(int(rng))
     raise TypeError(f"{name}: expected numpy.random.Generator or int seed, got {type(rng).__name__}")
+
+
+def check_bool(value, name: str) -> bool:
+    """Check ``value`` is a bool (``numpy.bool_`` too; not ``0``/``1``)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name}: expected a bool, got {value!r}")
+    return bool(value)
+
+
+def check_int(value, name: str, *, minimum: int | None = None) -> int:
+    """Check ``value`` is an integer (not a bool, not a float such as ``2.7`` or ``3.0``) ``>= minimum``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name}: expected an integer{'' if minimum is None else f' >= {minimum}'}, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def check_number(value, name: str, *, minimum: float | None = None, maximum: float | None = None,
+                 lower_open: bool = False) -> float:
+    """Check ``value`` is a finite real number (not a bool) in ``[minimum, maximum]``.
+
+    Parameters
+    ----------
+    lower_open : bool
+        Exclude ``minimum`` itself (``(minimum, maximum]``).
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value):
+        raise ValueError(f"{name}: expected a finite number, got {value!r}")
+    if minimum is not None and (value < minimum or (lower_open and value == minimum)):
+        if maximum is not None:
+            interval = f"{'(' if lower_open else '['}{minimum}, {maximum}]"
+            raise ValueError(f"{name}: expected a number in {interval}, got {value!r}")
+        if minimum == 0:
+            raise ValueError(f"{name}: expected a {'positive' if lower_open else 'non-negative'} number, got {value!r}")
+        raise ValueError(f"{name}: expected a number {'>' if lower_open else '>='} {minimum}, got {value!r}")
+    if maximum is not None and value > maximum:
+        lo = "" if minimum is None else f"{'(' if lower_open else '['}{minimum}, "
+        raise ValueError(f"{name}: expected a number {'in ' + lo if lo else '<= '}{maximum}{']' if lo else ''}, got {value!r}")
+    return float(value)
+
+
+def check_positive(value, name: str) -> float:
+    """Check ``value`` is a positive finite number."""
+    return check_number(value, name, minimum=0.0, lower_open=True)
+
+
+def check_choice(value, name: str, choices: tuple):
+    """Check ``value`` is one of ``choices``."""
+    if value not in choices:
+        raise ValueError(f"{name}: expected one of {tuple(choices)}, got {value!r}")
+    return value
 
 
 def _fmt(shape: tuple) -> str:

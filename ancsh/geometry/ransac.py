@@ -23,7 +23,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ._checks import as_points, check_generator
+from ._checks import as_points, check_generator, check_int
 from .transforms import Sim3
 from .umeyama import DegeneratePointsError, umeyama
 
@@ -321,9 +321,7 @@ def _labels(groups, name: str) -> np.ndarray:
 
 
 def _check_int(value, name: str, minimum: int) -> int:
-    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < minimum:
-        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
-    return int(value)
+    return check_int(value, name, minimum=minimum)
 
 
 def _failure(n: int, iterations: int, valid: int, status: RansacStatus, message: str) -> RansacResult:

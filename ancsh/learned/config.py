@@ -11,21 +11,19 @@ import math
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
+from ..geometry._checks import check_int, check_positive
+
 __all__ = ["TrainConfig"]
 
 _KINDS = ("ancsh", "direct_voting")
 
 
 def _positive_int(value, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name}: expected a positive integer, got {value!r}")
-    return value
+    return check_int(value, name, minimum=1)
 
 
 def _positive(value, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name}: expected a positive number, got {value!r}")
-    return float(value)
+    return check_positive(value, name)
 
 
 @dataclass(frozen=True)

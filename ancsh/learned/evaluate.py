@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._machine import describe_machine, machine_facts
 from ..solvers.types import Correspondences, FitResult, Observation
 from .weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 
@@ -392,18 +393,19 @@ def evaluate_category(
         provider.check_structure(fr.part_names, fr.gt.joint_types, where=f"test instance {fr.instance!r}")
         obs = Observation(fr.points)
         t0 = time.perf_counter()
-        corr = provider.correspond(obs)
+        inference = provider.infer(obs)
+        corr = inference.correspondences
         t_net = time.perf_counter() - t0
-        naocs = per_point_naocs(provider.last_prediction, corr)
+        naocs = per_point_naocs(inference.prediction, corr)
         rec = {
             "frame": i, "instance": fr.instance, "visibility": fr.visibility.tolist(),
             "generate_ms": 1e3 * t_gen, "network_ms": 1e3 * t_net, "methods": {},
             "naocs_joints": _naocs_joint_errors(corr, fr.gt),
-            "budget": npcs_error_budget(provider.last_prediction, fr.gt),
+            "budget": npcs_error_budget(inference.prediction, fr.gt),
         }
         for key in methods:
             r = fit_method(key, obs, corr, naocs=naocs, rng=seed + i)
-            ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names)
+            ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
             ev["fit_ms"] = 1e3 * r.time_s
             rec["methods"][key] = ev
         if voter is not None:
@@ -425,7 +427,7 @@ def evaluate_category(
             "weights": provider.network.source, "weights_step": provider.network.step,
             "weights_sha256": weights_sha,
             "direct_weights": None if voter is None else voter.network.source,
-            "available_weights": available_weights(), "num_threads": int(num_threads),
+            "available_weights": available_weights(), "num_threads": int(num_threads), "machine": machine_facts(),
             "test_instances": len(gen.real_instances) if real is not None else gen.num_instances,
             "split": "procedural" if real is None else "real", "real_catalog": real,
             "real_instances": [o.name for o in gen.real_instances] if real is not None else [],
@@ -442,13 +444,15 @@ def evaluate_category(
 # statistics
 # --------------------------------------------------------------------------------------------
 def _stats(values: np.ndarray) -> dict:
-    """Mean / median over frames (NaN entries left out) per column."""
-    v = np.asarray(values, dtype=float)
+    """Mean / median over frames per column (:func:`ancsh.evaluation.aggregate`: NaN entries left
+    out; ``None`` where a column has no finite entry)."""
+    from ..evaluation import aggregate
+
     out = {"mean": [], "median": []}
-    for col in v.T:
-        col = col[np.isfinite(col)]
-        out["mean"].append(float(np.mean(col)) if col.size else None)
-        out["median"].append(float(np.median(col)) if col.size else None)
+    for col in np.asarray(values, dtype=float).T:
+        a = aggregate(col).to_dict()
+        out["mean"].append(a["mean"])
+        out["median"].append(a["median"])
     return out
 
 
@@ -847,7 +851,7 @@ def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
         f"![error vs visible-area ratio]({paths['png'].name})",
         "",
         *_occlusion_table(summary["occlusion"], s["methods"]),
-        "## Timings (this 2-core machine, shared with other jobs)",
+        f"## Timings ({describe_machine(s.get('machine'))})",
         "",
         f"- network forward (all points, {s['num_threads']} torch thread(s)), per frame: "
         f"mean {t['network_ms']['mean']:.1f} ms, median {t['network_ms']['median']:.1f} ms",

@@ -28,7 +28,7 @@ from ..model.articulated import JointType
 from ..solvers.types import Correspondences, Observation
 from .voting import JointVote, vote_joints
 
-__all__ = ["LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
+__all__ = ["Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
 
 
 @dataclass(frozen=True)
@@ -118,6 +118,25 @@ def _joint_sets(assoc_prob: np.ndarray, K: int, min_votes: int) -> np.ndarray:
     return assoc
 
 
+@dataclass(frozen=True)
+class Inference:
+    """One pass of :class:`LearnedProvider` over an observation.
+
+    Attributes
+    ----------
+    correspondences : Correspondences
+        What the solvers use.
+    prediction : Prediction
+        The network's raw per-point output behind them.
+    votes : tuple of JointVote
+        The NAOCS joint votes (one per joint).
+    """
+
+    correspondences: Correspondences
+    prediction: Prediction
+    votes: tuple
+
+
 class LearnedProvider:
     """Correspondences from the ANCSH network.
 
@@ -146,8 +165,6 @@ class LearnedProvider:
         self.seed = int(seed)
         self.min_votes = int(min_votes)
         self.joint_types = tuple(JointType.REVOLUTE if r else JointType.PRISMATIC for r in self.network.revolute)
-        self.last_prediction: Prediction | None = None
-        self.last_votes: tuple[JointVote, ...] = ()
 
     @property
     def num_parts(self) -> int:
@@ -190,6 +207,10 @@ class LearnedProvider:
 
     def correspond(self, observation: Observation) -> Correspondences:
         """Per-point part labels, NPCS, per-part ``G_s, G_t`` and voted NAOCS joints for ``observation``."""
+        return self.infer(observation).correspondences
+
+    def infer(self, observation: Observation) -> "Inference":
+        """:meth:`correspond`'s correspondences with the raw prediction and the joint votes behind them."""
         if not isinstance(observation, Observation):
             raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
         if observation.num_points == 0:
@@ -209,8 +230,7 @@ class LearnedProvider:
         naocs = scale[labels, None] * npcs + trans[labels]
         assoc = _joint_sets(pred.assoc_prob, K, min(self.min_votes, N))
         votes = vote_joints(naocs, assoc, pred.joint, self.network.revolute, min_votes=1)
-        self.last_prediction, self.last_votes = pred, votes
-        return Correspondences(
+        corr = Correspondences(
             part_labels=labels,
             npcs=npcs,
             npcs_scale=scale,
@@ -222,6 +242,7 @@ class LearnedProvider:
             joint_pivots_naocs=np.array([v.pivot for v in votes]).reshape(K, 3),
             weights=pred.seg_prob[rows, labels],
         )
+        return Inference(corr, pred, tuple(votes))
 
 
 class DirectVotingPredictor:

@@ -34,6 +34,24 @@ class JointType(str, Enum):
     PRISMATIC = "prismatic"
 
 
+def joint_tree_root(num_parts: int, joint_children) -> int:
+    """The part that is no joint's child (the base) of a joint tree given by index arrays."""
+    kids = {int(c) for c in joint_children}
+    return next(j for j in range(num_parts) if j not in kids)
+
+
+def joint_tree_order(num_parts: int, joint_parents, joint_children) -> tuple[int, ...]:
+    """Joint indices ordered so that every joint's parent part is placed before it (from the root)."""
+    parents, children = [int(p) for p in joint_parents], [int(c) for c in joint_children]
+    placed, order = {joint_tree_root(num_parts, children)}, []
+    while len(order) < len(parents):
+        for k in range(len(parents)):
+            if k not in order and parents[k] in placed:
+                order.append(k)
+                placed.add(children[k])
+    return tuple(order)
+
+
 @dataclass(frozen=True, eq=False)
 class Part:
     """A rigid part.

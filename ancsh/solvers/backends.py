@@ -12,14 +12,39 @@ A failed solve is reported in :class:`SolveOutcome`, never raised.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .program import Program
 from .types import FitStatus
 
-__all__ = ["BACKENDS", "SolveOutcome", "SolverOptions", "solve"]
+__all__ = ["BACKENDS", "Bounds", "SolveOutcome", "SolverOptions", "solve"]
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Bounds of one solve: ``lbx <= x <= ubx`` and ``lbg <= g(x) <= ubg``.
+
+    Attributes
+    ----------
+    lbx, ubx : (n,) float64
+        Variable bounds (``-inf`` / ``inf`` where free).
+    lbg, ubg : (m,) float64
+        Constraint bounds of the program's equalities then inequalities (empty without constraints).
+    """
+
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ubg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def of(cls, program: Program, joint_limits=None) -> "Bounds":
+        """The bounds of ``program`` given the joint limits ``(K, 2)`` (relative to rest; default none)."""
+        lbx, ubx = program.variable_bounds(joint_limits)
+        lbg, ubg = program.constraint_bounds(joint_limits)
+        return cls(lbx, ubx, lbg, ubg)
 
 
 @dataclass(frozen=True)
@@ -42,6 +67,8 @@ class SolveOutcome:
     message : str
         The backend's own status text.
     iterations : int
+        Iterations of the backend (IPOPT's ``iter_count``; ``least_squares``' Jacobian
+        evaluations, one per iteration; the projected LM's outer iterations).
     """
 
     x: np.ndarray
@@ -77,11 +104,11 @@ def _ipopt_options(opts: SolverOptions) -> dict:
     }
 
 
-def solve_ipopt(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+def solve_ipopt(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """IPOPT on the program's NLP (the solver object is cached on the program)."""
     solver = prog.nlpsol(_ipopt_options(opts))
     try:
-        sol = solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        sol = solver(x0=x0, p=p, lbx=bounds.lbx, ubx=bounds.ubx, lbg=bounds.lbg, ubg=bounds.ubg)
     except RuntimeError as exc:  # evaluation errors (NaN/inf) surface as RuntimeError in CasADi
         return SolveOutcome(np.asarray(x0, dtype=float), FitStatus.NUMERICAL_FAILURE, f"ipopt: {exc}", 0)
     stats = solver.stats()
@@ -93,7 +120,7 @@ def solve_ipopt(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solv
     return SolveOutcome(x, status, f"ipopt: {text}", int(stats.get("iter_count", 0)))
 
 
-def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+def solve_lsq(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """scipy ``least_squares`` on the program's residuals and exact Jacobian."""
     from scipy.optimize import least_squares
 
@@ -101,8 +128,8 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         raise ValueError(
             f"solver: 'lsq' cannot handle the {prog.num_constraints} constraints of terms {prog.key.terms}; use 'ipopt'"
         )
-    lbx = np.asarray(lbx, dtype=float)
-    ubx = np.asarray(ubx, dtype=float)
+    lbx = np.asarray(bounds.lbx, dtype=float)
+    ubx = np.asarray(bounds.ubx, dtype=float)
     x0 = np.asarray(x0, dtype=float)
     bounded = bool(np.any(np.isfinite(lbx)) or np.any(np.isfinite(ubx)))
 
@@ -113,7 +140,8 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         return np.asarray(prog.jacobian(x, p))
 
     tol = max(float(opts.tol), np.finfo(float).eps)
-    # With an exact Jacobian, one residual evaluation per iteration: max_nfev bounds the iterations.
+    # scipy bounds function evaluations, not iterations: with an exact Jacobian an iteration takes
+    # at least one, so max_nfev = max_iterations also caps the iterations (reported: njev).
     kwargs = dict(jac=jac, xtol=tol, ftol=tol, gtol=tol, max_nfev=int(opts.max_iterations))
     if bounded:
         # trf needs a strictly feasible start.
@@ -134,23 +162,25 @@ def solve_lsq(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: Solver
         status = FitStatus.MAX_ITER
     else:
         status = FitStatus.NUMERICAL_FAILURE
-    return SolveOutcome(np.asarray(res.x), status, f"least_squares: {res.message}", int(res.nfev))
+    return SolveOutcome(np.asarray(res.x), status, f"least_squares: {res.message}", int(res.njev))
 
 
-def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
+def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """Projected Levenberg-Marquardt on the program's residuals and exact Jacobian.
 
     For programs without constraints; bounds on ``x`` are kept by projection, with the
     variables held at a bound (the gradient pushing outwards) removed from the step.
-    Converges when the projected gradient, the step or the relative cost decrease falls
-    below ``opts.tol`` (relative to the problem's scale).
+    Converges (``SUCCESS``) when the projected gradient, the step or the relative cost decrease
+    falls below ``opts.tol`` (relative to the problem's scale). A stall -- no decrease even with
+    the damping grown past ``1e12`` while none of these tests holds -- is ``NUMERICAL_FAILURE``,
+    with the last iterate.
     """
     if prog.num_constraints:
         raise ValueError(
             f"solver: 'lm' cannot handle the {prog.num_constraints} constraints of terms {prog.key.terms}; use 'ipopt'"
         )
-    lbx = np.asarray(lbx, dtype=float)
-    ubx = np.asarray(ubx, dtype=float)
+    lbx = np.asarray(bounds.lbx, dtype=float)
+    ubx = np.asarray(bounds.ubx, dtype=float)
     x = np.clip(np.asarray(x0, dtype=float), lbx, ubx)
     tol = max(float(opts.tol), np.finfo(float).eps)
 
@@ -190,7 +220,11 @@ def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverO
             lam *= nu
             nu *= 2.0
             if lam > 1e12:
-                return SolveOutcome(x, FitStatus.SUCCESS, f"lm: no further decrease after {it} iterations", it)
+                gmax = float(np.max(np.abs(g[free]), initial=0.0))
+                return SolveOutcome(
+                    x, FitStatus.NUMERICAL_FAILURE,
+                    f"lm: stalled after {it} iterations (no decrease; projected gradient {gmax:.3g} above the tolerance)", it,
+                )
         small_step = np.linalg.norm(h) <= tol * (tol + np.linalg.norm(x))
         small_decrease = cost - cost_new <= tol * cost
         x, r, J, cost = x_new, r_new, J_new, cost_new
@@ -202,10 +236,10 @@ def solve_lm(prog: Program, p: np.ndarray, x0, lbx, ubx, lbg, ubg, opts: SolverO
 BACKENDS = {"ipopt": solve_ipopt, "lsq": solve_lsq, "lm": solve_lm}
 
 
-def solve(backend: str, prog: Program, p, x0, lbx, ubx, lbg, ubg, opts: SolverOptions) -> SolveOutcome:
-    """Dispatch to :data:`BACKENDS` ``[backend]``."""
+def solve(backend: str, prog: Program, p, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
+    """Solve ``prog`` with parameters ``p`` from ``x0`` within ``bounds`` by :data:`BACKENDS` ``[backend]``."""
     try:
         fn = BACKENDS[backend]
     except KeyError:
         raise ValueError(f"solver: expected one of {sorted(BACKENDS)}, got {backend!r}") from None
-    return fn(prog, p, x0, lbx, ubx, lbg, ubg, opts)
+    return fn(prog, p, x0, bounds, opts)

@@ -41,6 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geometry._checks import check_bool, check_int
+
 __all__ = [
     "BenchConfig",
     "BenchFrame",
@@ -105,11 +107,9 @@ class BenchConfig:
         from .providers.oracle import CORRUPTION_PRESETS
 
         for name in ("frames_per_category", "num_points", "official_hypotheses"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
-        if not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
-            raise ValueError(f"seed: expected an integer >= 0, got {self.seed!r}")
+            check_int(getattr(self, name), name, minimum=1)
+        check_int(self.seed, "seed", minimum=0)
+        check_bool(self.rendered, "rendered")
         bad = [lv for lv in self.levels if lv not in CORRUPTION_PRESETS]
         if bad or not self.levels:
             raise ValueError(f"levels: expected names from {list(CORRUPTION_PRESETS)}, got {list(self.levels)}")
@@ -269,8 +269,9 @@ def available_methods(config: BenchConfig) -> list:
 # --------------------------------------------------------------------------------------
 # evaluation
 # --------------------------------------------------------------------------------------
-def evaluate_fit(result, frame: BenchFrame) -> dict:
-    """Per-part and per-joint errors of one fit on ``frame`` (:func:`ancsh.evaluation.evaluate_fit`)."""
+def evaluate_fit(result, frame: BenchFrame):
+    """Per-part and per-joint errors of one fit on ``frame``: a :class:`~ancsh.evaluation.FrameEvaluation`
+    (:func:`ancsh.evaluation.evaluate_fit`)."""
     from ..evaluation import evaluate_fit as evaluate
 
     return evaluate(result, frame.gt, frame.part_names, frame.joint_names)
@@ -331,7 +332,7 @@ def run_benchmark(config: BenchConfig, *, frames=None, methods=None, progress=No
                 try:
                     result = m.fit(obs, sample.correspondences, np.random.default_rng(seed + [7]), info)
                     elapsed = time.perf_counter() - t0  # the fit alone, not the evaluation below
-                    rec = evaluate_fit(result, frame)
+                    rec = evaluate_fit(result, frame).to_dict()
                 except Exception as exc:  # a crash is a benchmark result too, never hidden
                     elapsed = time.perf_counter() - t0
                     rec = {"status": f"exception: {type(exc).__name__}: {exc}", "ok": False, "parts": [], "joints": []}
@@ -353,8 +354,10 @@ def run_benchmark(config: BenchConfig, *, frames=None, methods=None, progress=No
 # summaries
 # --------------------------------------------------------------------------------------
 def _mean(values) -> float:
-    v = np.asarray([x for x in values if x is not None and np.isfinite(x)], dtype=float)
-    return float(v.mean()) if v.size else float("nan")
+    """Mean of the finite values (NaN when none), by :func:`ancsh.evaluation.aggregate`."""
+    from ..evaluation import aggregate
+
+    return aggregate(values).mean
 
 
 def summarize(report: dict) -> list:

@@ -32,16 +32,24 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..geometry._checks import check_generator
+from ..geometry._checks import check_bool, check_choice, check_generator, check_int, check_number
+from ..geometry.robust import robust_loss, robust_weights
 from ..geometry.boxes import OrientedBox
 from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
+from .terms import (
+    CanonicalParameters, CanonicalPriorTerm, CommonScaleTerm, DataTerm, ExactCommonScaleTerm, ExactJointTerm,
+    JointLimitTerm, ProgramInputs, ProgramStart, SoftJointTerm, TermWeights,
+)
 from .types import Correspondences, FitResult, FitStatus, Observation
 
-__all__ = ["FORMULATIONS", "FitConfig", "Formulation", "canonical_values", "fit"]
+__all__ = ["FORMULATIONS", "FitConfig", "Formulation", "fit"]
 
 _MIN_POINTS = 3
 SCALE_ESTIMATORS = ("umeyama", "symmetric")
+FIT_ROBUST_KERNELS = ("huber", "cauchy")
+"""The kernels of :data:`ancsh.geometry.robust.ROBUST_LOSSES` that ``FitConfig.robust`` accepts
+(Tukey's zero weights could leave a part without points)."""
 
 
 @dataclass(frozen=True)
@@ -79,9 +87,9 @@ class FitConfig:
         Weight of the soft common-object-scale term (``soft`` with ``optimize_scale``); 0 = off.
         (``exact_maximal`` with ``optimize_scale`` holds one object scale exactly.)
     naocs_prior_weight : float
-        0 (default): the provider's canonical parameters (NPCS -> NAOCS translations ``G_t``,
-        revolute pivots) are taken as exact. ``> 0``: they get offset variables with this prior
-        weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
+        0: the provider's canonical parameters (NPCS -> NAOCS translations ``G_t``, revolute
+        pivots) are taken as exact (as in the paper, :meth:`paper`). ``> 0`` (default 0.1): they
+        get offset variables with this prior weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
         hold exactly for adjusted parameters that the data may move -- useful when the
         provider's NAOCS parameters are noisy; the reported pivots use the adjusted values.
     robust : str or None
@@ -119,27 +127,18 @@ class FitConfig:
 
     def __post_init__(self):
         for name in ("ransac", "optimize_scale", "enforce_limits"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+            check_bool(getattr(self, name), name)
         for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
+            check_int(getattr(self, name), name, minimum=lo)
         for name, positive in (
-            ("ransac_confidence", True), ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
+            ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
             ("common_scale_weight", False), ("naocs_prior_weight", False), ("robust_scale", True), ("tol", True),
         ):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not np.isfinite(v):
-                raise ValueError(f"{name}: expected a finite number, got {v!r}")
-            if v < 0 or (positive and v == 0):
-                raise ValueError(f"{name}: expected a {'positive' if positive else 'non-negative'} number, got {v!r}")
-        if not 0 < self.ransac_confidence <= 1:
-            raise ValueError(f"ransac_confidence: expected a number in (0, 1], got {self.ransac_confidence}")
-        if self.scale_estimator not in SCALE_ESTIMATORS:
-            raise ValueError(f"scale_estimator: expected one of {SCALE_ESTIMATORS}, got {self.scale_estimator!r}")
-        if self.robust is not None and self.robust not in _robust_kernel_names():
-            raise ValueError(f"robust: expected None or one of {_robust_kernel_names()}, got {self.robust!r}")
+            check_number(getattr(self, name), name, minimum=0.0, lower_open=positive)
+        check_number(self.ransac_confidence, "ransac_confidence", minimum=0.0, maximum=1.0, lower_open=True)
+        check_choice(self.scale_estimator, "scale_estimator", SCALE_ESTIMATORS)
+        if self.robust is not None and self.robust not in FIT_ROBUST_KERNELS:
+            raise ValueError(f"robust: expected None or one of {FIT_ROBUST_KERNELS}, got {self.robust!r}")
 
     @classmethod
     def paper(cls, **overrides) -> "FitConfig":
@@ -168,8 +167,19 @@ class FitConfig:
         return cls(**values)
 
 
-def _robust_kernel_names() -> tuple:
-    return ("huber", "cauchy")
+def _has_limits(config: FitConfig, corr: Correspondences) -> bool:
+    return config.enforce_limits and corr.joint_limits is not None and bool(np.any(np.isfinite(corr.joint_limits)))
+
+
+_TERM_ENABLED = {
+    # A formulation's term is in its program unless this says otherwise for the config / data.
+    CommonScaleTerm: lambda config, corr: config.optimize_scale and config.common_scale_weight > 0,
+    # Optimised scales: one object scale, exactly (as in the reduced parameterisation).
+    ExactCommonScaleTerm: lambda config, corr: config.optimize_scale,
+    JointLimitTerm: _has_limits,
+    CanonicalPriorTerm: lambda config, corr: config.naocs_prior_weight > 0,
+}
+"""Conditions of the optional terms (a term not listed is always used)."""
 
 
 @dataclass(frozen=True)
@@ -184,38 +194,38 @@ class Formulation:
         Supported backends, the first being the default.
     parameterisation : str or None
         ``"maximal"``, ``"reduced"`` or ``None`` (closed form, no program).
+    term_classes : tuple of EnergyTerm subclasses
+        The program's terms in residual order; the optional ones (see ``_TERM_ENABLED``)
+        are kept or dropped by :meth:`terms`.
     """
 
     name: str
     description: str
     solvers: tuple
     parameterisation: str | None
+    term_classes: tuple = ()
 
     def terms(self, config: FitConfig, corr: Correspondences) -> tuple:
-        """Names of the terms of this formulation's program."""
-        has_limits = (
-            config.enforce_limits and corr.joint_limits is not None and bool(np.any(np.isfinite(corr.joint_limits)))
-        )
-        scale_term = ("common_scale",) if config.optimize_scale and config.common_scale_weight > 0 else ()
-        prior = ("naocs_prior",) if config.naocs_prior_weight > 0 else ()
-        if self.name == "soft":
-            return ("data", "soft_joint") + scale_term + prior
-        if self.name == "exact_maximal":
-            # Optimised scales: one object scale, exactly (as in the reduced parameterisation).
-            exact_scale = ("exact_common_scale",) if config.optimize_scale else ()
-            return ("data", "exact_joint") + exact_scale + (("joint_limits",) if has_limits else ()) + prior
-        if self.name == "exact_reduced":
-            return ("data",) + prior
-        return ()
+        """The term classes of this formulation's program for ``config`` and ``corr``."""
+        return tuple(t for t in self.term_classes if _TERM_ENABLED.get(t, lambda *_: True)(config, corr))
 
 
 FORMULATIONS: dict[str, Formulation] = {
     f.name: f
     for f in (
         Formulation("per_part", "per-part Umeyama + RANSAC (the paper's NPCS baseline)", ("umeyama",), None),
-        Formulation("soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt", "lm"), "maximal"),
-        Formulation("exact_maximal", "every part SE(3)+scale, exact joint equalities, limit inequalities", ("ipopt",), "maximal"),
-        Formulation("exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced"),
+        Formulation(
+            "soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt", "lm"), "maximal",
+            (DataTerm, SoftJointTerm, CommonScaleTerm, CanonicalPriorTerm),
+        ),
+        Formulation(
+            "exact_maximal", "every part SE(3)+scale, exact joint equalities, limit inequalities", ("ipopt",), "maximal",
+            (DataTerm, ExactJointTerm, ExactCommonScaleTerm, JointLimitTerm, CanonicalPriorTerm),
+        ),
+        Formulation(
+            "exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced",
+            (DataTerm, CanonicalPriorTerm),
+        ),
     )
 }
 """Formulations by name; loop over it to compare them."""
@@ -279,12 +289,33 @@ def fit(
     return _Fit(observation, correspondences, form, solver, config, rng, start).run()
 
 
+class _FitFailure(Exception):
+    """Raised inside :class:`_Fit` when the data cannot be fitted; :meth:`_Fit.run` turns it into
+    a failed :class:`FitResult` (the one failure path)."""
+
+    def __init__(self, status: FitStatus, message: str):
+        super().__init__(message)
+        self.status, self.message = status, message
+
+
+@dataclass
+class _SolveRun:
+    """The state of one program solve: the program, its fixed inputs, the current iterate."""
+
+    program: object
+    start: ProgramStart
+    x: np.ndarray
+    bounds: object  # backends.Bounds
+    p: np.ndarray | None = None
+    outcome: object = None
+    iterations: int = 0
+
+
 class _Fit:
     """One call of :func:`fit` (keeps the per-frame arrays together)."""
 
     def __init__(self, obs, corr, form, solver, config, rng, start):
         self.corr, self.form, self.solver, self.config, self.rng, self.start = corr, form, solver, config, rng, start
-        self._static = None  # parameter values that do not change during the fit
         self.points = obs.points_cam
         self.npcs = corr.npcs
         self.labels = corr.part_labels
@@ -293,38 +324,48 @@ class _Fit:
         from .terms import KinematicStructure
 
         self.structure = KinematicStructure.from_correspondences(corr)
-
-    # -- results ---------------------------------------------------------------------------
-    def _failure(self, status: FitStatus, message: str) -> FitResult:
-        return FitResult.failure(
-            status, message, formulation=self.form.name, solver=self.solver, num_joints=self.K,
-            num_points=self.N, time_s=time.perf_counter() - self.start,
+        self.canonical = CanonicalParameters.of(corr, self._limits())
+        self.term_weights = TermWeights(
+            config.soft_weight, config.soft_mu, config.common_scale_weight, config.naocs_prior_weight,
         )
 
+    # -- results ---------------------------------------------------------------------------
     def run(self) -> FitResult:
+        """The fit's result; every failure raised below (:class:`_FitFailure`) becomes a status here."""
+        try:
+            return self._run()
+        except _FitFailure as failure:
+            return FitResult.failure(
+                failure.status, failure.message, formulation=self.form.name, solver=self.solver, num_joints=self.K,
+                num_points=self.N, time_s=time.perf_counter() - self.start,
+            )
+
+    def _run(self) -> FitResult:
         active = self.weights > 0
         counts = np.bincount(self.labels[active], minlength=self.M)
         if self.N == 0:
-            return self._failure(FitStatus.TOO_FEW_POINTS, "the observation has no points")
+            raise _FitFailure(FitStatus.TOO_FEW_POINTS, "the observation has no points")
         short = np.flatnonzero(counts < _MIN_POINTS)
         if short.size:
-            return self._failure(
+            raise _FitFailure(
                 FitStatus.TOO_FEW_POINTS,
                 f"part(s) {short.tolist()} have fewer than {_MIN_POINTS} points (counts {counts[short].tolist()})",
             )
-        init = self._initial_poses(active)
-        if isinstance(init, FitResult):
-            return init
-        poses, inliers = init
+        poses, inliers = self._initial_poses(active)
         if self.config.scale_estimator == "symmetric":
             poses = [self._symmetric_scale(j, T, inliers) for j, T in enumerate(poses)]
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         if self.form.parameterisation is None:
-            return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, None)
-        return self._solve(poses, inliers, L)
+            costs = self._data_costs(poses, L, inliers)
+            return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, costs,
+                                self.canonical)
+        run = self._start_solve(poses, L)
+        inliers = self._solve_loop(run, inliers, L)
+        return self._extract(run, inliers, L)
 
     # -- RANSAC + per-part Umeyama ------------------------------------------------------------
-    def _initial_poses(self, active: np.ndarray):
+    def _initial_poses(self, active: np.ndarray) -> tuple[list, np.ndarray]:
+        """Per-part poses (RANSAC + Umeyama, or Umeyama on all points) and the inlier mask ``(N,)``."""
         from .hypotheses import articulated_ransac
 
         idx_active = np.flatnonzero(active)
@@ -338,11 +379,11 @@ class _Fit:
                 max_hypotheses=cfg.ransac_iterations, confidence=cfg.ransac_confidence,
             )
             if not res.success:
-                return self._failure(FitStatus.DEGENERATE, f"RANSAC: {res.message}")
+                raise _FitFailure(FitStatus.DEGENERATE, f"RANSAC: {res.message}")
             model, inl = res.poses, res.inliers
             counts = np.bincount(lab[inl], minlength=self.M)
             if np.any(counts < _MIN_POINTS):
-                return self._failure(
+                raise _FitFailure(
                     FitStatus.TOO_FEW_POINTS,
                     f"RANSAC left part(s) {np.flatnonzero(counts < _MIN_POINTS).tolist()} with < {_MIN_POINTS} inliers",
                 )
@@ -353,7 +394,7 @@ class _Fit:
                 try:
                     model.append(umeyama(c[sel], pts[sel], weights=None if w is None else w[sel]))
                 except ValueError as exc:
-                    return self._failure(FitStatus.DEGENERATE, f"part {j}: {exc}")
+                    raise _FitFailure(FitStatus.DEGENERATE, f"part {j}: {exc}") from exc
             inl = np.ones(len(pts), dtype=bool)
         inliers = np.zeros(self.N, dtype=bool)
         inliers[idx_active[inl]] = True
@@ -373,8 +414,10 @@ class _Fit:
         return Sim3.unchecked(T.rotation, pbar - s * (T.rotation @ cbar), s)
 
     # -- program solve --------------------------------------------------------------------------
-    def _solve(self, poses: list, inliers: np.ndarray, L: float) -> FitResult:
-        from .backends import SolverOptions, solve
+    def _start_solve(self, poses: list, L: float) -> _SolveRun:
+        """The formulation's program, its start (per-part poses moved onto the joints for
+        ``exact_maximal``) and bounds."""
+        from .backends import Bounds
         from .program import ProgramKey, get_program
 
         cfg = self.config
@@ -384,50 +427,56 @@ class _Fit:
         )
         prog = get_program(key)
         limits = self._limits()
-        values = self._static_values(L)
         if self.form.name == "exact_maximal" and self.K:
             poses = self._onto_joints(poses, L, limits)
-        values.update(self._init_values(poses, L))
-        x0, lbx, ubx = self._x_start(prog, poses, values, limits)
+        return _SolveRun(prog, self._start(poses, L), self._x_start(prog, poses, limits), Bounds.of(prog, limits))
+
+    def _solve_loop(self, run: _SolveRun, inliers: np.ndarray, L: float) -> np.ndarray:
+        """Solve; optionally reweight (IRLS) and re-score the inliers and solve again.
+
+        Leaves the last outcome (and its parameters) in ``run``; returns the final inliers.
+        """
+        from .backends import SolverOptions, solve
+
+        cfg = self.config
+        prog = run.program
         opts = SolverOptions(cfg.max_iterations, cfg.tol)
         weights = self.weights.copy()
-        total_iter = 0
-        outcome = None
         rounds = cfg.irls_iterations if cfg.robust else 1
         for rescore in range(cfg.rescore_rounds + 1):
             for _ in range(rounds):
-                values.update(self._moment_values(inliers, weights, L))
-                p = prog.pack(values)
-                lbg, ubg = prog.constraint_bounds({"joint_limits": limits})
-                outcome = solve(self.solver, prog, p, x0, lbx, ubx, lbg, ubg, opts)
-                total_iter += outcome.iterations
-                if outcome.status != FitStatus.SUCCESS:
-                    break
-                x0 = outcome.x
+                inputs = ProgramInputs(L, self.canonical, run.start, self._moments(inliers, weights, L), self.term_weights)
+                run.p = prog.pack(inputs)
+                run.outcome = solve(self.solver, prog, run.p, run.x, run.bounds, opts)
+                run.iterations += run.outcome.iterations
+                if run.outcome.status != FitStatus.SUCCESS:
+                    return inliers
+                run.x = run.outcome.x
                 if cfg.robust:
-                    weights = self._irls_weights(prog.unpack_poses(outcome.x, p), L)
-            if outcome.status != FitStatus.SUCCESS or rescore == cfg.rescore_rounds:
-                break
-            new_inliers = self._rescore(prog.unpack_poses(outcome.x, p), L, inliers)
+                    weights = self._irls_weights(prog.unpack(run.x, run.p).T_cam_npcs, L)
+            if rescore == cfg.rescore_rounds:
+                return inliers
+            new_inliers = self._rescore(prog.unpack(run.x, run.p).T_cam_npcs, L, inliers)
             if np.array_equal(new_inliers, inliers):
-                break
+                return inliers
             inliers = new_inliers
-        raw = prog.unpack_poses(outcome.x, p)
-        if not all(np.all(np.isfinite(R)) and np.all(np.isfinite(t)) and np.isfinite(s) and s > 0 for R, t, s in raw):
-            return self._failure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
-        solved = [Sim3.unchecked(R, t, s) for R, t, s in raw]
-        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, p)).ravel().tolist()))
-        if cfg.robust:
-            costs["robust_data"] = self._robust_energy(raw, inliers, L)
-        canonical = None
-        if "canonical" in prog.layout:  # report joints with the adjusted canonical parameters
-            canonical = self._static_values(L)
-            off = outcome.x[prog.layout["canonical"]]
-            for j in range(self.M):
-                canonical[f"Gt{j}"] = canonical[f"Gt{j}"] + off[3 * j : 3 * j + 3]
-            for i, k in enumerate(sorted(prog.canonical.dq)):
-                canonical[f"q{k}"] = canonical[f"q{k}"] + off[3 * (self.M + i) : 3 * (self.M + i) + 3]
-        return self._finish(solved, inliers, L, outcome.status, outcome.message, total_iter, costs, canonical)
+        return inliers
+
+    def _extract(self, run: _SolveRun, inliers: np.ndarray, L: float) -> FitResult:
+        """The result of the last solve: poses, costs, joints (with adjusted canonical parameters)."""
+        prog, outcome = run.program, run.outcome
+        solution = prog.unpack(outcome.x, run.p)
+        solved = list(solution.T_cam_npcs)
+        if not all(np.all(np.isfinite(T.rotation)) and np.all(np.isfinite(T.translation)) and np.isfinite(T.scale) and T.scale > 0
+                   for T in solved):
+            raise _FitFailure(FitStatus.NUMERICAL_FAILURE, f"non-finite or non-positive pose after solve ({outcome.message})")
+        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(outcome.x, run.p)).ravel().tolist()))
+        if self.config.robust:
+            costs["robust_data"] = self._robust_energy(solved, inliers, L)
+        canonical = self.canonical
+        if solution.canonical_offsets is not None:  # report joints with the adjusted canonical parameters
+            canonical = canonical.with_offsets(solution.canonical_offsets)
+        return self._finish(solved, inliers, L, outcome.status, outcome.message, run.iterations, costs, canonical)
 
     def _onto_joints(self, poses: list, L: float, limits: np.ndarray) -> list:
         """The per-part poses moved onto the joints: the root part's pose and each joint's state
@@ -440,89 +489,59 @@ class _Fit:
         from .program import ProgramKey, get_program
 
         prog = get_program(ProgramKey(self.structure, "reduced", False, ()))
-        values = self._static_values(L)
-        values.update(self._init_values(poses, L))
-        x0, _, _ = self._x_start(prog, poses, values, limits)
-        moved = prog.unpack_poses(x0, prog.pack(values))
-        return [Sim3.unchecked(R, t, T.scale) for (R, t, _), T in zip(moved, poses)]
+        x0 = self._x_start(prog, poses, limits)
+        moved = prog.unpack(x0, prog.pack(ProgramInputs(L, self.canonical, self._start(poses, L)))).T_cam_npcs
+        return [Sim3.unchecked(M.rotation, M.translation, T.scale) for M, T in zip(moved, poses)]
 
     def _limits(self) -> np.ndarray:
         if self.config.enforce_limits and self.corr.joint_limits is not None:
             return np.asarray(self.corr.joint_limits, dtype=float)
         return np.tile([-np.inf, np.inf], (self.K, 1))
 
-    def _static_values(self, L: float) -> dict:
-        if self._static is not None and self._static["L"] == L:
-            return dict(self._static)
-        cfg, corr = self.config, self.corr
-        v = {
-            "L": L, "soft_weight": cfg.soft_weight, "soft_mu": cfg.soft_mu,
-            "common_scale_weight": cfg.common_scale_weight, "naocs_prior_weight": cfg.naocs_prior_weight,
-        }
-        v.update(canonical_values(corr, self._limits()))
-        self._static = dict(v)
-        return v
-
-    def _init_values(self, poses: list, L: float) -> dict:
-        v = {}
-        for j, T in enumerate(poses):
-            v[f"R0_{j}"], v[f"t0_{j}"], v[f"s0_{j}"] = T.rotation, T.translation, T.scale
+    def _start(self, poses: list, L: float) -> ProgramStart:
+        """Both parameterisations' start from the per-part poses (the object pose through the root part)."""
         r = self.structure.root
         T = poses[r]
         sigma_root = T.scale / self.corr.npcs_scale[r]
-        v["R0_obj"] = T.rotation
-        v["tau0_obj"] = T.translation - sigma_root * (T.rotation @ self.corr.npcs_translation[r])
-        v["sigma0"] = L
-        return v
+        tau0 = T.translation - sigma_root * (T.rotation @ self.corr.npcs_translation[r])
+        return ProgramStart(tuple(poses), Sim3.unchecked(T.rotation, tau0, L))
 
-    def _x_start(self, prog, poses, values, limits):
-        x0 = np.zeros(prog.num_x)
-        lbx = np.full(prog.num_x, -np.inf)
-        ubx = np.full(prog.num_x, np.inf)
-        if "theta" in prog.layout:
-            sl = prog.layout["theta"]
-            _, _, states = _postprocess(self.structure, poses, values)
-            lo, hi = limits[:, 0], limits[:, 1]
-            x0[sl] = np.clip(states, lo, hi)
-            lbx[sl], ubx[sl] = lo, hi
-        return x0, lbx, ubx
+    def _x_start(self, prog, poses, limits) -> np.ndarray:
+        """The start ``x``: joint states (reduced) read off the per-part poses, clipped to the limits."""
+        states = None
+        if prog.has_joint_states:
+            _, _, states = _postprocess(self.structure, poses, self.canonical)
+            states = np.clip(states, limits[:, 0], limits[:, 1])
+        return prog.initial_x(states)
 
-    def _moment_values(self, inliers: np.ndarray, weights: np.ndarray, L: float) -> dict:
+    def _moments(self, inliers: np.ndarray, weights: np.ndarray, L: float) -> tuple:
         from .terms import part_moments
 
-        v = {}
+        out = []
         for j in range(self.M):
             sel = inliers & (self.labels == j) & (weights > 0)
-            for name, val in part_moments(self.points[sel], self.npcs[sel], weights[sel], L).items():
-                v[f"{name}{j}"] = val
-        return v
+            out.append(part_moments(self.points[sel], self.npcs[sel], weights[sel], L))
+        return tuple(out)
 
-    def _point_distances(self, raw: list) -> np.ndarray:
+    def _point_distances(self, poses: list) -> np.ndarray:
         d = np.empty(self.N)
-        for j, (R, t, s) in enumerate(raw):
+        for j, T in enumerate(poses):
             sel = self.labels == j
-            d[sel] = np.linalg.norm(self.points[sel] - (s * self.npcs[sel] @ R.T + t), axis=1)
+            d[sel] = np.linalg.norm(self.points[sel] - (T.scale * self.npcs[sel] @ T.rotation.T + T.translation), axis=1)
         return d
 
-    def _rescore(self, raw: list, L: float, current: np.ndarray) -> np.ndarray:
+    def _rescore(self, poses: list, L: float, current: np.ndarray) -> np.ndarray:
         """Inliers of the solved poses (``current`` if some part would keep < 3)."""
-        inl = (self._point_distances(raw) <= self.config.inlier_threshold * L) & (self.weights > 0)
+        inl = (self._point_distances(poses) <= self.config.inlier_threshold * L) & (self.weights > 0)
         counts = np.bincount(self.labels[inl], minlength=self.M)
         return current if np.any(counts < _MIN_POINTS) else inl
 
-    def _irls_weights(self, raw: list, L: float) -> np.ndarray:
-        from .terms import ROBUST_KERNELS
+    def _irls_weights(self, poses: list, L: float) -> np.ndarray:
+        r = self._point_distances(poses) / L
+        return self.weights * robust_weights(r, self.config.robust, self.config.robust_scale)
 
-        r2 = (self._point_distances(raw) / L) ** 2
-        _, w = ROBUST_KERNELS[self.config.robust](r2[None, :], self.config.robust_scale)
-        return self.weights * np.asarray(w).ravel()
-
-    def _robust_energy(self, raw: list, inliers: np.ndarray, L: float) -> float:
-        from .terms import ROBUST_KERNELS
-
-        r2 = (self._point_distances(raw) / L) ** 2
-        rho, _ = ROBUST_KERNELS[self.config.robust](r2[None, :], self.config.robust_scale)
-        rho = np.asarray(rho).ravel()
+    def _robust_energy(self, poses: list, inliers: np.ndarray, L: float) -> float:
+        rho = robust_loss(self._point_distances(poses) / L, self.config.robust, self.config.robust_scale)
         total = 0.0
         for j in range(self.M):
             sel = inliers & (self.labels == j)
@@ -531,11 +550,9 @@ class _Fit:
         return total
 
     # -- post-processing ------------------------------------------------------------------------
-    def _finish(self, poses, inliers, L, status, message, iterations, costs, values=None) -> FitResult:
-        values = self._static_values(L) if values is None else values
-        axes, pivots, states = _postprocess(self.structure, poses, values)
-        violation, eval_costs = self._check(poses, values, inliers if costs is None else None)
-        costs = eval_costs if costs is None else costs
+    def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical) -> FitResult:
+        axes, pivots, states = _postprocess(self.structure, poses, canonical)
+        violation = self._violation(poses, canonical, L)
         boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
         return FitResult(
             formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
@@ -544,25 +561,24 @@ class _Fit:
             time_s=time.perf_counter() - self.start,
         )
 
-    def _check(self, poses, values, inliers) -> tuple[float, dict]:
-        """Exact-joint and limit violation at the given poses (and the data energy of ``inliers``)."""
+    def _violation(self, poses, canonical, L) -> float:
+        """Largest exact-joint or limit violation at the given poses."""
         from .program import ProgramKey, get_program
 
-        terms = (("data",) if inliers is not None else ()) + ("exact_joint",) + (("joint_limits",) if self.K else ())
-        prog = get_program(ProgramKey(self.structure, "maximal", False, terms))
-        v = dict(values)
-        v.update(self._init_values(poses, values["L"]))
-        if inliers is not None:
-            v.update(self._moment_values(inliers, self.weights, values["L"]))
-        p = prog.pack(v)
-        x = np.zeros(prog.num_x)
-        g = np.asarray(prog.constraints(x, p)).ravel()
-        lo, hi = prog.constraint_bounds({"joint_limits": self._limits()})
-        viol = float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
-        if inliers is None:  # the caller has the costs of its own program
-            return viol, {}
-        costs = dict(zip(prog.cost_names, np.asarray(prog.term_costs(x, p)).ravel().tolist()))
-        return viol, costs
+        prog = get_program(ProgramKey(self.structure, "maximal", False, (ExactJointTerm,) + ((JointLimitTerm,) if self.K else ())))
+        p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_npcs=tuple(poses))))
+        g = np.asarray(prog.constraints(prog.initial_x(), p)).ravel()
+        lo, hi = prog.constraint_bounds(self._limits())
+        return float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
+
+    def _data_costs(self, poses, L, inliers) -> dict:
+        """``{"data": e}``: the data energy of ``inliers`` at the given poses (closed-form fits)."""
+        from .program import ProgramKey, get_program
+
+        prog = get_program(ProgramKey(self.structure, "maximal", False, (DataTerm,)))
+        inputs = ProgramInputs(L, self.canonical, ProgramStart(T_cam_npcs=tuple(poses)), self._moments(inliers, self.weights, L))
+        p = prog.pack(inputs)
+        return dict(zip(prog.cost_names, np.asarray(prog.term_costs(prog.initial_x(), p)).ravel().tolist()))
 
     def _box(self, j: int, T: Sim3, inliers: np.ndarray) -> OrientedBox:
         """Amodal box: the NPCS box (centred at the NPCS origin) mapped by the part pose."""
@@ -574,57 +590,7 @@ class _Fit:
         return OrientedBox(T.translation, T.rotation, T.scale * extents)
 
 
-def canonical_values(corr: Correspondences, limits=None) -> dict:
-    """Parameter values of a correspondence set's canonical quantities, by program parameter name.
-
-    ``Gs{j}``, ``Gt{j}`` per part; ``u{k}``, ``q{k}``, the perpendiculars ``a{k}``, ``b{k}`` and
-    the revolute state window centre ``state_ref{k}`` per joint (from ``limits`` ``(K, 2)``
-    relative to rest, default the correspondences' limits). Use with
-    :func:`ancsh.solvers.program.postprocess_function` and the programs of :mod:`.program`.
-    """
-    if limits is None:
-        limits = corr.joint_limits if corr.joint_limits is not None else np.tile([-np.inf, np.inf], (corr.num_joints, 1))
-    v = {}
-    for j in range(corr.num_parts):
-        v[f"Gs{j}"] = corr.npcs_scale[j]
-        v[f"Gt{j}"] = corr.npcs_translation[j]
-    for k in range(corr.num_joints):
-        u = corr.joint_axes_naocs[k]
-        a, b = _perpendiculars(u)
-        v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, corr.joint_pivots_naocs[k], a, b
-        v[f"state_ref{k}"] = _state_reference(*limits[k])
-    return v
-
-
-def _postprocess(structure, poses: list, values: dict):
+def _postprocess(structure, poses: list, canonical: CanonicalParameters):
     from .program import postprocess_function
 
-    post = postprocess_function(structure)
-    vec = np.concatenate([np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in poses])
-    return post(vec, values)
-
-
-def _state_reference(lower: float, upper: float) -> float:
-    """Centre of the window in which revolute states are reported: the middle of the limits."""
-    if np.isfinite(lower) and np.isfinite(upper):
-        return 0.5 * (lower + upper)
-    if np.isfinite(lower):
-        return max(lower + np.pi, 0.0)
-    if np.isfinite(upper):
-        return min(upper - np.pi, 0.0)
-    return 0.0
-
-
-def _perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors completing the unit ``u`` to a right-handed orthonormal basis."""
-    x, y, z = u
-    if abs(x) <= abs(y) and abs(x) <= abs(z):
-        a = np.array([0.0, z, -y])  # u x e_x
-    elif abs(y) <= abs(z):
-        a = np.array([-z, 0.0, x])  # u x e_y
-    else:
-        a = np.array([y, -x, 0.0])  # u x e_z
-    a /= np.sqrt(a @ a)
-    b = np.array([y * a[2] - z * a[1], z * a[0] - x * a[2], x * a[1] - y * a[0]])  # u x a
-    return a, b
-
+    return postprocess_function(structure)(poses, canonical)

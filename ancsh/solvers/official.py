@@ -16,7 +16,10 @@ the paper) together with the child part, independently of the other pairs:
    - revolute: ``[y0 - R0 x0; y1 - R1 x1; R0 u - R1 u]``, the axis row ``u`` (NAOCS
      axis, which is also the NPCS direction) repeated ``min(n0, n1)`` times;
    - prismatic: ``[y0 - R0 x0; y1 - R1 x1; r0 - r1]`` (the difference of the two rotation
-     vectors, as the official code does);
+     vectors). **Here this differs from the original code**: its fitting script calls the
+     estimator without the joint type, so there every joint -- prismatic ones too -- uses the
+     revolute residual; this baseline uses the rotation-vector residual the estimator defines
+     for prismatic joints;
 
    where ``x`` are the centred NPCS and ``y`` the centred, rescaled camera points.
 4. The translation is ``mean(y - s R x)`` over the (uncentred) sample.
@@ -34,6 +37,13 @@ clouds, which are object-normalised. Here camera points are metres, so the thres
 ``inlier_threshold * object_scale`` where ``object_scale`` is the object's size in metres
 per NAOCS unit: given, or estimated from the correspondences as the median over parts of
 the ratio of RMS spreads (camera over NPCS) divided by the part's NPCS -> NAOCS scale.
+
+Beyond the original code, like every other method: zero-weight correspondences are left out
+(they carry no match) and other non-uniform weights are refused (``ValueError``: the scheme has no
+weights); parts whose NPCS or camera points are coincident or collinear fail as ``DEGENERATE``;
+mismatched point counts raise ``ValueError``; above 4096 points the pairwise-distance scale is
+computed on an evenly spaced subset of 4096 of them (the original builds ``N x N`` matrices: 126 GiB
+for a 200k-point refit set).
 
 This module is deliberately plain numpy/scipy, so that the baseline is what the official
 code computes, residual for residual. It is slow on purpose only in the ways the official
@@ -123,15 +133,32 @@ class PairFit:
 
 
 # --- the official estimator, verifier and RANSAC loop ---------------------------------
+_PDIST_MAX_POINTS = 4096  # above this many points the pairwise sums use an evenly spaced subset of this size
+
+
+def _pairwise_sums(src: np.ndarray, dst: np.ndarray) -> tuple[float, float, float]:
+    """``(a . b, a . a, b . b)`` over all point pairs, ``a`` / ``b`` the pairwise distances of ``src`` / ``dst``.
+
+    The official code builds the full ``N x N`` matrices (126 GiB at ``N = 200k``); above
+    ``_PDIST_MAX_POINTS`` points the sums run over an evenly spaced subset of that many points
+    (their ratios, the scales, estimate the full ones; time and memory stay bounded).
+    """
+    n = len(src)
+    if n > _PDIST_MAX_POINTS:
+        keep = np.linspace(0, n - 1, _PDIST_MAX_POINTS).round().astype(np.int64)
+        src, dst = src[keep], dst[keep]
+    a, b = pdist(src), pdist(dst)
+    return float(a @ b), float(a @ a), float(b @ b)
+
+
 def _pairwise_scale(src: np.ndarray, dst: np.ndarray) -> float:
     """Least-squares ratio ``b ~= s a`` of all pairwise distances (dst over src).
 
     The official code sums over the full ``N x N`` distance matrix with a ``1e-6``
     regulariser in the denominator; the condensed (half) matrix with ``5e-7`` is the same.
     """
-    a = pdist(src)
-    b = pdist(dst)
-    return float(a @ b / (a @ a + 5e-7))
+    ab, aa, _ = _pairwise_sums(src, dst)
+    return ab / (aa + 5e-7)
 
 
 def _kabsch(src_c: np.ndarray, dst_c: np.ndarray) -> np.ndarray:
@@ -181,8 +208,9 @@ def _residual_prismatic(params, x0, y0, x1, y1):
 
 def _estimate(x0, y0, x1, y1, axis, revolute: bool, ftol: float):
     """The official joint transformation estimator on one sample (or the inlier set)."""
-    s0, s1 = _pairwise_scale(x0, y0), _pairwise_scale(x1, y1)
-    s0_inv, s1_inv = _pairwise_scale(y0, x0), _pairwise_scale(y1, x1)
+    (ab0, aa0, bb0), (ab1, aa1, bb1) = _pairwise_sums(x0, y0), _pairwise_sums(x1, y1)
+    s0, s1 = ab0 / (aa0 + 5e-7), ab1 / (aa1 + 5e-7)  # as _pairwise_scale, both directions from one pass
+    s0_inv, s1_inv = ab0 / (bb0 + 5e-7), ab1 / (bb1 + 5e-7)
     y0c = s0_inv * y0
     y0c = y0c - y0c.mean(axis=0)
     y1c = s1_inv * y1
@@ -389,8 +417,14 @@ def fit_official(observation, correspondences, *, settings: OfficialSettings = O
     -------
     FitResult
         ``formulation="official"``, ``solver="scipy-lm"``; camera-space joints and amodal
-        boxes from the part poses (paper Sec. 4.4). A failure is a status, never an
-        exception (except for arguments of the wrong type).
+        boxes from the part poses (paper Sec. 4.4). A failure to fit is a status
+        (``TOO_FEW_POINTS``, ``DEGENERATE`` for coincident or collinear part points).
+
+    Raises
+    ------
+    ValueError
+        For bad arguments, as every method: wrong types, mismatched point counts, non-uniform
+        positive weights.
     """
     from .types import Correspondences, FitResult, FitStatus, Observation
 
@@ -403,13 +437,28 @@ def fit_official(observation, correspondences, *, settings: OfficialSettings = O
     n, K = observation.num_points, c.num_joints
     name = dict(formulation="official", solver="scipy-lm", num_joints=K, num_points=n)
     if c.num_points != n:
-        return FitResult.failure(FitStatus.INVALID_INPUT, f"correspondences: {c.num_points} points for an observation of {n}",
-                                 **name, time_s=time.perf_counter() - t_start)
-    counts = np.bincount(c.part_labels, minlength=c.num_parts)
+        raise ValueError(f"correspondences: {c.num_points} points do not match the observation's {n}")
+    keep = np.ones(n, dtype=bool)
+    if c.weights is not None:
+        w = np.asarray(c.weights, dtype=np.float64)
+        keep = w > 0
+        if keep.any() and np.ptp(w[keep]) > 1e-12 * np.max(w[keep]):
+            raise ValueError("correspondences.weights: the official scheme has no point weights; pass equal weights "
+                             "(zero-weight points are left out) or none")
+    points, labels, npcs = observation.points_cam[keep], c.part_labels[keep], c.npcs[keep]
+    counts = np.bincount(labels, minlength=c.num_parts)
     if np.any(counts < 3):
         return FitResult.failure(FitStatus.TOO_FEW_POINTS, f"parts {np.nonzero(counts < 3)[0].tolist()} have fewer than 3 points",
                                  **name, time_s=time.perf_counter() - t_start)
-    res = fit_official_arrays(observation.points_cam, c.npcs, c.part_labels, c.npcs_scale, c.joint_types,
+    from ..geometry.umeyama import DegeneratePointsError, umeyama
+
+    for j in range(c.num_parts):
+        sel = labels == j
+        try:
+            umeyama(npcs[sel], points[sel])  # the same coincident / collinear test as every other method
+        except DegeneratePointsError as exc:
+            return FitResult.failure(FitStatus.DEGENERATE, f"part {j}: {exc}", **name, time_s=time.perf_counter() - t_start)
+    res = fit_official_arrays(points, npcs, labels, c.npcs_scale, c.joint_types,
                               c.joint_parents, c.joint_children, c.joint_axes_naocs, settings=settings, rng=rng)
     if not res.ok:
         return FitResult.failure(FitStatus.DEGENERATE, res.message, **name, time_s=time.perf_counter() - t_start)
@@ -417,11 +466,13 @@ def fit_official(observation, correspondences, *, settings: OfficialSettings = O
 
     poses = tuple(Sim3(res.rotations[j], res.translations[j], float(res.scales[j])) for j in range(c.num_parts))
     axes, pivots, states = camera_joints(poses, c)
-    boxes = amodal_boxes(poses, c, res.inliers)
+    inliers = np.zeros(n, dtype=bool)
+    inliers[keep] = res.inliers
+    boxes = amodal_boxes(poses, c, inliers)
     return FitResult(
         formulation="official", solver="scipy-lm", T_cam_npcs=poses, joint_axes_cam=axes, joint_pivots_cam=pivots,
         joint_states=states, boxes_cam=boxes, status=FitStatus.SUCCESS, message=res.message,
-        inliers=res.inliers, time_s=time.perf_counter() - t_start,
+        inliers=inliers, time_s=time.perf_counter() - t_start,
     )
 
 
@@ -436,17 +487,11 @@ def camera_joints(poses, correspondences):
     axes : (K, 3), pivots : (K, 3) metres, states : (K,) radians / metres
     """
     from .program import postprocess_function
-    from .terms import KinematicStructure
+    from .terms import CanonicalParameters, KinematicStructure
 
     c = correspondences
     post = postprocess_function(KinematicStructure.from_correspondences(c))
-    values = {}
-    for j in range(c.num_parts):
-        values[f"Gs{j}"], values[f"Gt{j}"] = c.npcs_scale[j], c.npcs_translation[j]
-    for k in range(c.num_joints):
-        values[f"u{k}"], values[f"q{k}"] = c.joint_axes_naocs[k], c.joint_pivots_naocs[k]
-    vec = np.concatenate([np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in poses])
-    return post(vec, values)
+    return post(poses, CanonicalParameters.of(c))
 
 
 def amodal_boxes(poses, correspondences, inliers):

@@ -24,6 +24,15 @@ a prismatic child ``X_c(g) = X_p(g) + theta R_p u``; then ``s_j = sigma Gs_j`` a
 With ``free_canonical`` the canonical parameters ``Gt_j`` and revolute pivots ``q_k`` get
 offset variables appended to ``x`` (see :class:`~ancsh.solvers.terms.Canonical`); the
 ``naocs_prior`` term must then be among the terms.
+
+Seams
+-----
+A program is keyed by term classes (:class:`ProgramKey`; names are accepted and looked up in
+:data:`~ancsh.solvers.terms.TERMS`, for configuration and the command line). Callers fill its
+parameters from typed :class:`~ancsh.solvers.terms.ProgramInputs` with :meth:`Program.pack`
+(each term fills its own parameters), start from :meth:`Program.initial_x` within
+:meth:`Program.variable_bounds`, and read a solution with :meth:`Program.unpack` (part poses,
+object pose, joint states, canonical offsets): the layout of ``x`` never leaves this module.
 """
 
 from __future__ import annotations
@@ -34,16 +43,36 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .terms import TERMS, Canonical, Context, KinematicStructure, Params, PoseExpr, axis_angle_sx, exp_so3_sx, joint_state_expr
+from ..geometry.rotations import exp_so3
+from ..geometry.transforms import Sim3
+from .terms import (
+    TERMS, Canonical, CanonicalOffsets, CanonicalParameters, CanonicalPriorTerm, Context, EnergyTerm, KinematicStructure,
+    Params, PoseExpr, ProgramInputs, ProgramStart, axis_angle_sx, canonical_parameter_values, exp_so3_sx, joint_state_expr,
+)
 
-__all__ = ["PARAMETERISATIONS", "Program", "ProgramKey", "PostProcess", "get_program", "postprocess_function", "program_build_count"]
+__all__ = [
+    "PARAMETERISATIONS", "Program", "ProgramKey", "PostProcess", "Solution", "get_program", "postprocess_function",
+    "program_build_count",
+]
 
 PARAMETERISATIONS = ("maximal", "reduced")
 
 
 @dataclass(frozen=True)
 class ProgramKey:
-    """What a program depends on (never the frame's numbers)."""
+    """What a program depends on (never the frame's numbers).
+
+    Attributes
+    ----------
+    structure : KinematicStructure
+    parameterisation : str
+        One of :data:`PARAMETERISATIONS`.
+    optimize_scale : bool
+    terms : tuple of EnergyTerm subclasses
+        In residual order. Registered names (:data:`~ancsh.solvers.terms.TERMS`) are accepted
+        and replaced by their classes.
+    free_canonical : bool
+    """
 
     structure: KinematicStructure
     parameterisation: str
@@ -51,8 +80,42 @@ class ProgramKey:
     terms: tuple
     free_canonical: bool = False
 
+    def __post_init__(self):
+        classes = []
+        for t in self.terms:
+            if isinstance(t, type) and issubclass(t, EnergyTerm):
+                classes.append(t)
+            elif isinstance(t, str) and t in TERMS:
+                classes.append(TERMS[t])
+            else:
+                raise ValueError(f"terms: unknown term {t!r}; registered: {sorted(TERMS)}")
+        object.__setattr__(self, "terms", tuple(classes))
 
-def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool, canonical: Canonical):
+
+@dataclass(frozen=True)
+class Solution:
+    """A program's decision vector, unpacked (see :meth:`Program.unpack`).
+
+    Attributes
+    ----------
+    T_cam_npcs : tuple of Sim3
+        Per-part poses (NPCS -> camera, metres); not validated (check finiteness).
+    T_cam_naocs : Sim3 or None
+        ``reduced``: the object pose, NAOCS -> camera of the root part, scale the object's size
+        in metres; ``None`` for ``maximal``.
+    joint_states : (K,) float64 or None
+        ``reduced``: joint states relative to rest (radians / metres); ``None`` for ``maximal``.
+    canonical_offsets : CanonicalOffsets or None
+        With free canonical parameters, their solved offsets; else ``None``.
+    """
+
+    T_cam_npcs: tuple
+    T_cam_naocs: Sim3 | None
+    joint_states: np.ndarray | None
+    canonical_offsets: CanonicalOffsets | None
+
+
+def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool):
     xs, poses, layout = [], [], {}
     for j in range(st.num_parts):
         w = ca.SX.sym(f"w{j}", 3)
@@ -67,6 +130,15 @@ def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: b
             xs.append(rho)
         poses.append(PoseExpr(R, t, s))
     return ca.vertcat(*xs), poses, layout
+
+
+def _maximal_values(st: KinematicStructure, start: ProgramStart) -> dict:
+    if start.T_cam_npcs is None:
+        raise ValueError("inputs.start.T_cam_npcs: required by the 'maximal' parameterisation, got None")
+    v = {}
+    for j, T in enumerate(start.T_cam_npcs):
+        v[f"R0_{j}"], v[f"t0_{j}"], v[f"s0_{j}"] = T.rotation, T.translation, T.scale
+    return v
 
 
 def _reduced_variables(st: KinematicStructure, params: Params, optimize_scale: bool, canonical: Canonical):
@@ -102,11 +174,24 @@ def _reduced_variables(st: KinematicStructure, params: Params, optimize_scale: b
         Gs, Gt = params.get(f"Gs{j}"), canonical.Gt(j)
         poses.append(PoseExpr(R[j], sigma * (R[j] @ Gt) + tau[j], sigma * Gs))
     start = 6 + (1 if optimize_scale else 0)
-    layout = {"theta": slice(start, start + st.num_joints)}
+    layout = {"w": slice(0, 3), "dt": slice(3, 6), "theta": slice(start, start + st.num_joints)}
+    if optimize_scale:
+        layout["rho"] = 6
     return ca.vertcat(*xs), poses, layout
 
 
-_VARIABLES = {"maximal": _maximal_variables, "reduced": _reduced_variables}
+def _reduced_values(st: KinematicStructure, start: ProgramStart) -> dict:
+    T = start.T_cam_naocs
+    if T is None:
+        raise ValueError("inputs.start.T_cam_naocs: required by the 'reduced' parameterisation, got None")
+    return {"R0_obj": T.rotation, "tau0_obj": T.translation, "sigma0": T.scale}
+
+
+_VARIABLES = {
+    # (variables(structure, params, optimize_scale, canonical) -> (x, poses, layout), start values)
+    "maximal": (lambda st, params, optimize_scale, canonical: _maximal_variables(st, params, optimize_scale), _maximal_values),
+    "reduced": (_reduced_variables, _reduced_values),
+}
 
 
 class Program:
@@ -115,26 +200,24 @@ class Program:
     def __init__(self, key: ProgramKey):
         if key.parameterisation not in _VARIABLES:
             raise ValueError(f"parameterisation: expected one of {PARAMETERISATIONS}, got {key.parameterisation!r}")
-        unknown = [t for t in key.terms if t not in TERMS]
-        if unknown:
-            raise ValueError(f"terms: unknown term(s) {unknown}; registered: {sorted(TERMS)}")
         self.key = key
         st = key.structure
         self.params = Params()
         self.params.get("L")
         canonical = Canonical(st, self.params, free=key.free_canonical)
-        x, poses, layout = _VARIABLES[key.parameterisation](st, self.params, key.optimize_scale, canonical)
+        variables, self._start_values = _VARIABLES[key.parameterisation]
+        x, poses, layout = variables(st, self.params, key.optimize_scale, canonical)
         offsets = canonical.offsets()
         if key.free_canonical:
-            if "naocs_prior" not in key.terms:
-                raise ValueError("terms: free canonical parameters need the 'naocs_prior' term")
+            if CanonicalPriorTerm not in key.terms:
+                raise ValueError(f"terms: free canonical parameters need the {CanonicalPriorTerm.name!r} term")
             layout["canonical"] = slice(int(x.numel()), int(x.numel() + offsets.numel()))
             x = ca.vertcat(x, offsets)
         self.x = x
-        self.layout = layout
+        self._layout = layout
         self.canonical = canonical
         ctx = Context(st, self.params, poses, canonical)
-        self.terms = [TERMS[name]() for name in key.terms]
+        self.terms = [cls() for cls in key.terms]
         costs, eqs, ineqs = [], [], []
         self.cost_names, self.inequality_terms = [], []
         for term in self.terms:
@@ -173,8 +256,73 @@ class Program:
         self._nlpsols: dict = {}
         self._nlp_lock = threading.Lock()
 
-    def pack(self, values: dict) -> np.ndarray:
+    def pack(self, inputs: ProgramInputs) -> np.ndarray:
+        """The parameter vector ``p`` for ``inputs``: the context's, the parameterisation's and
+        each term's parameters, each filled by its owner.
+
+        Raises
+        ------
+        ValueError
+            When ``inputs`` lacks something a term or the parameterisation needs (naming it).
+        """
+        if not isinstance(inputs, ProgramInputs):
+            raise ValueError(f"inputs: expected ProgramInputs, got {type(inputs).__name__}")
+        st = self.key.structure
+        values = Context.fill(inputs)
+        values.update(self._start_values(st, inputs.start))
+        for term in self.terms:
+            values.update(term.fill(st, inputs))
         return self.params.pack(values)
+
+    @property
+    def has_joint_states(self) -> bool:
+        """Whether joint states are decision variables (``reduced``)."""
+        return "theta" in self._layout
+
+    def initial_x(self, joint_states=None) -> np.ndarray:
+        """The start ``x``: zero (the :class:`~ancsh.solvers.terms.ProgramStart` itself) with the
+        joint states ``(K,)`` (relative to rest; ``reduced`` only) when given."""
+        x0 = np.zeros(self.num_x)
+        if joint_states is not None:
+            if not self.has_joint_states:
+                raise ValueError("joint_states: this program has no joint-state variables (maximal parameterisation)")
+            x0[self._layout["theta"]] = joint_states
+        return x0
+
+    def variable_bounds(self, joint_limits=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(lbx, ubx)``: the joint limits ``(K, 2)`` (relative to rest) on the joint states of a
+        ``reduced`` program; unbounded otherwise."""
+        lbx = np.full(self.num_x, -np.inf)
+        ubx = np.full(self.num_x, np.inf)
+        if joint_limits is not None and self.has_joint_states:
+            sl = self._layout["theta"]
+            lbx[sl], ubx[sl] = joint_limits[:, 0], joint_limits[:, 1]
+        return lbx, ubx
+
+    def unpack(self, x, p) -> Solution:
+        """The solution at ``x`` for the parameter vector ``p`` (from :meth:`pack`)."""
+        x = np.asarray(x, dtype=np.float64).ravel()
+        st = self.key.structure
+        parts = tuple(Sim3.unchecked(R, t, s) for R, t, s in self.unpack_poses(x, p))
+        T_cam_naocs = states = offsets = None
+        lay = self._layout
+        if self.has_joint_states:
+            pv = np.asarray(p, dtype=np.float64).ravel()
+            R = self.params.value(pv, "R0_obj") @ exp_so3(x[lay["w"]])
+            tau = self.params.value(pv, "tau0_obj") + float(self.params.value(pv, "L")) * x[lay["dt"]]
+            sigma = float(self.params.value(pv, "sigma0"))
+            if "rho" in lay:
+                sigma = sigma * float(np.exp(x[lay["rho"]]))
+            T_cam_naocs = Sim3.unchecked(R, tau, sigma)
+            states = x[lay["theta"]].copy()
+        if "canonical" in lay:
+            off = x[lay["canonical"]]
+            M = st.num_parts
+            dq = np.zeros((st.num_joints, 3))
+            for i, k in enumerate(sorted(self.canonical.dq)):
+                dq[k] = off[3 * (M + i) : 3 * (M + i) + 3]
+            offsets = CanonicalOffsets(off[: 3 * M].reshape(M, 3).copy(), dq)
+        return Solution(parts, T_cam_naocs, states, offsets)
 
     def nlpsol(self, options: dict):
         """The IPOPT solver of this program for these ``options`` (built once per option set)."""
@@ -188,11 +336,13 @@ class Program:
                 _count_build("nlpsol")
             return solver
 
-    def constraint_bounds(self, frame: dict) -> tuple[np.ndarray, np.ndarray]:
+    def constraint_bounds(self, joint_limits) -> tuple[np.ndarray, np.ndarray]:
+        """``(lbg, ubg)`` of the constraints: zero for equalities, the inequality terms' bounds
+        given the joint limits ``(K, 2)`` (relative to rest)."""
         lo = [np.zeros(self.num_equalities)]
         hi = [np.zeros(self.num_equalities)]
         for term in self.inequality_terms:
-            a, b = term.bounds(frame)
+            a, b = term.bounds(joint_limits)
             lo.append(a)
             hi.append(b)
         return np.concatenate(lo), np.concatenate(hi)
@@ -242,14 +392,20 @@ class PostProcess:
     function: ca.Function
     params: Params
 
-    def __call__(self, pose_vector: np.ndarray, values: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(axes (K, 3), pivots (K, 3), states (K,))`` for poses packed as in :meth:`Program.poses`.
+    def __call__(self, T_cam_npcs, canonical: CanonicalParameters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(axes (K, 3), pivots (K, 3) metres, states (K,))`` in the camera frame.
 
-        ``values`` holds ``Gs{j}``, ``Gt{j}``, ``u{k}``, ``q{k}`` and optionally ``state_ref{k}``
-        (centre of the revolute state window, default 0: states in ``(-pi, pi]``).
+        Parameters
+        ----------
+        T_cam_npcs : sequence of Sim3
+            Part poses.
+        canonical : CanonicalParameters
+            Its ``state_reference`` centres the revolute state windows.
         """
-        values = {**{n: 0.0 for n in self.params.names if n.startswith("state_ref")}, **values}
-        axes, pivots, states = self.function(pose_vector, self.params.pack(values))
+        pose_vector = np.concatenate(
+            [np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in T_cam_npcs]
+        )
+        axes, pivots, states = self.function(pose_vector, self.params.pack(canonical_parameter_values(canonical)))
         k = int(np.asarray(states).size)
         return (
             np.asarray(axes).reshape(k, 3),

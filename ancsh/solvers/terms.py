@@ -6,6 +6,11 @@ or an inequality ``lower <= g <= upper``. The IPOPT backend puts the same expres
 an NLP; the scipy backend evaluates CasADi Functions built from them (residuals and exact
 Jacobians). Adding a term = one subclass registered with :func:`register_term`.
 
+A term declares the named parameters it uses (``ctx.params.get(name)`` in :meth:`EnergyTerm.expression`)
+and fills them, in :meth:`EnergyTerm.fill`, from the typed :class:`ProgramInputs` of one frame
+(:class:`CanonicalParameters`, :class:`ProgramStart`, :class:`PartMoments`, :class:`TermWeights`).
+Parameter names never leave this module and :mod:`ancsh.solvers.program`.
+
 Symbols (all CasADi ``SX``), part ``j``, joint ``k`` (parent ``p``, child ``c``):
 
 - part pose ``p_cam = s_j R_j c + t_j`` (NPCS ``c`` -> camera, metres);
@@ -19,16 +24,19 @@ Symbols (all CasADi ``SX``), part ``j``, joint ``k`` (parent ``p``, child ``c``)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
-from ..model.articulated import JointType
+from ..geometry.transforms import Sim3
+from ..model.articulated import JointType, joint_tree_order, joint_tree_root
 
 __all__ = [
     "TERMS",
     "Canonical",
+    "CanonicalOffsets",
+    "CanonicalParameters",
     "CanonicalPriorTerm",
     "CommonScaleTerm",
     "Context",
@@ -38,10 +46,16 @@ __all__ = [
     "ExactJointTerm",
     "JointLimitTerm",
     "KinematicStructure",
-    "ROBUST_KERNELS",
+    "PartMoments",
+    "PointToPlaneTerm",
+    "ProgramInputs",
+    "ProgramStart",
     "SoftJointTerm",
+    "TermWeights",
     "exp_so3_sx",
     "joint_state_expr",
+    "part_moments",
+    "plane_moments",
     "register_term",
 ]
 
@@ -78,21 +92,216 @@ class KinematicStructure:
 
     @property
     def root(self) -> int:
-        kids = set(self.joint_children)
-        return next(j for j in range(self.num_parts) if j not in kids)
+        """The part that is no joint's child (the base)."""
+        return joint_tree_root(self.num_parts, self.joint_children)
 
     def topological_joints(self) -> tuple[int, ...]:
         """Joints ordered so that each joint's parent part is reached before it."""
-        placed, order = {self.root}, []
-        while len(order) < self.num_joints:
-            for k in range(self.num_joints):
-                if k not in order and self.joint_parents[k] in placed:
-                    order.append(k)
-                    placed.add(self.joint_children[k])
-        return tuple(order)
+        return joint_tree_order(self.num_parts, self.joint_parents, self.joint_children)
 
     def is_revolute(self, k: int) -> bool:
         return self.joint_types[k] == JointType.REVOLUTE.value
+
+
+# --------------------------------------------------------------------------------------------
+# Typed inputs of one frame (what the terms' parameters are filled from)
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CanonicalParameters:
+    """The canonical (NAOCS) quantities of one object, as the programs see them.
+
+    Attributes
+    ----------
+    npcs_scale : (M,) float64
+        ``Gs_j`` of the NPCS -> NAOCS map ``g = Gs_j c + Gt_j``.
+    npcs_translation : (M, 3) float64
+        ``Gt_j`` (NAOCS units).
+    joint_axes_naocs : (K, 3) float64
+        Unit joint axes ``u_k`` in NAOCS.
+    joint_pivots_naocs : (K, 3) float64
+        Joint pivots ``q_k`` in NAOCS (rest state).
+    state_reference : (K,) float64
+        Centre of the window in which revolute states are reported (radians; see
+        :func:`joint_state_expr`); zeros: states in ``(-pi, pi]``.
+    """
+
+    npcs_scale: np.ndarray
+    npcs_translation: np.ndarray
+    joint_axes_naocs: np.ndarray
+    joint_pivots_naocs: np.ndarray
+    state_reference: np.ndarray
+
+    @classmethod
+    def of(cls, source, joint_limits=None) -> "CanonicalParameters":
+        """From anything holding ``npcs_scale``, ``npcs_translation``, ``joint_axes_naocs`` and
+        ``joint_pivots_naocs`` (:class:`~ancsh.solvers.types.Correspondences`,
+        :class:`~ancsh.model.canonical.CanonicalSpace`).
+
+        Parameters
+        ----------
+        joint_limits : (K, 2) float64, optional
+            Joint limits relative to rest; the revolute state windows are centred on them
+            (default: every window centred on 0).
+        """
+        axes = np.asarray(source.joint_axes_naocs, dtype=np.float64).reshape(-1, 3)
+        if joint_limits is None:
+            ref = np.zeros(len(axes))
+        else:
+            ref = np.array([state_reference(lo, hi) for lo, hi in np.asarray(joint_limits, dtype=np.float64)])
+        return cls(
+            np.asarray(source.npcs_scale, dtype=np.float64), np.asarray(source.npcs_translation, dtype=np.float64),
+            axes, np.asarray(source.joint_pivots_naocs, dtype=np.float64).reshape(-1, 3), ref,
+        )
+
+    def with_offsets(self, offsets: "CanonicalOffsets") -> "CanonicalParameters":
+        """These parameters moved by a solution's canonical offsets."""
+        return CanonicalParameters(
+            self.npcs_scale, self.npcs_translation + offsets.npcs_translation, self.joint_axes_naocs,
+            self.joint_pivots_naocs + offsets.joint_pivots_naocs, self.state_reference,
+        )
+
+
+@dataclass(frozen=True)
+class CanonicalOffsets:
+    """Solved offsets of the free canonical parameters (NAOCS units).
+
+    Attributes
+    ----------
+    npcs_translation : (M, 3) float64
+        ``dGt_j``.
+    joint_pivots_naocs : (K, 3) float64
+        ``dq_k``; zero rows for prismatic joints (their pivot is not free).
+    """
+
+    npcs_translation: np.ndarray
+    joint_pivots_naocs: np.ndarray
+
+
+@dataclass(frozen=True)
+class ProgramStart:
+    """Where a program's decision variables are zero (the linearisation point of one solve).
+
+    Attributes
+    ----------
+    T_cam_npcs : tuple of Sim3, optional
+        Per-part start poses (``maximal`` parameterisation).
+    T_cam_naocs : Sim3, optional
+        Start object pose, NAOCS -> camera of the root part, its scale the object's size in
+        metres (``reduced`` parameterisation).
+    """
+
+    T_cam_npcs: tuple | None = None
+    T_cam_naocs: Sim3 | None = None
+
+
+@dataclass(frozen=True)
+class PartMoments:
+    """Moments of one part's weighted correspondences (see :func:`part_moments`, :func:`plane_moments`).
+
+    Attributes
+    ----------
+    Lm : (4, 4) float64
+    B : (3, 4) float64
+    sqrt_c0 : float
+    cbar : (3,) float64
+        Weighted mean NPCS coordinate.
+    pbar : (3,) float64
+        Weighted mean camera point (metres).
+    Lp : (13, 13) float64, optional
+        Point-to-plane moments (:class:`PointToPlaneTerm`).
+    """
+
+    Lm: np.ndarray
+    B: np.ndarray
+    sqrt_c0: float
+    cbar: np.ndarray
+    pbar: np.ndarray
+    Lp: np.ndarray | None = None
+
+    @classmethod
+    def zeros(cls) -> "PartMoments":
+        """Moments of a part without correspondences (its terms vanish)."""
+        return cls(np.zeros((4, 4)), np.zeros((3, 4)), 0.0, np.zeros(3), np.zeros(3), np.zeros((13, 13)))
+
+
+@dataclass(frozen=True)
+class TermWeights:
+    """Weights of the weighted terms (see :class:`~ancsh.solvers.fit.FitConfig`)."""
+
+    soft_weight: float
+    soft_mu: float
+    common_scale_weight: float
+    naocs_prior_weight: float
+
+
+@dataclass(frozen=True)
+class ProgramInputs:
+    """Everything a program's parameters are filled from, for one solve.
+
+    Attributes
+    ----------
+    scale : float
+        ``L``: the object's size in metres per NAOCS unit.
+    canonical : CanonicalParameters
+    start : ProgramStart
+    moments : tuple of PartMoments, optional
+        One per part (data terms).
+    weights : TermWeights, optional
+        (weighted terms).
+    """
+
+    scale: float
+    canonical: CanonicalParameters
+    start: ProgramStart = field(default_factory=ProgramStart)
+    moments: tuple | None = None
+    weights: TermWeights | None = None
+
+    def require(self, what: str, term: str):
+        """``getattr(self, what)``, or a ``ValueError`` naming the term that needs it."""
+        value = getattr(self, what)
+        if value is None:
+            raise ValueError(f"inputs.{what}: required by the {term!r} term, got None")
+        return value
+
+
+def state_reference(lower: float, upper: float) -> float:
+    """Centre of the window in which revolute states are reported: the middle of the limits."""
+    if np.isfinite(lower) and np.isfinite(upper):
+        return 0.5 * (lower + upper)
+    if np.isfinite(lower):
+        return max(lower + np.pi, 0.0)
+    if np.isfinite(upper):
+        return min(upper - np.pi, 0.0)
+    return 0.0
+
+
+def perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing the unit ``u`` to a right-handed orthonormal basis."""
+    x, y, z = u
+    if abs(x) <= abs(y) and abs(x) <= abs(z):
+        a = np.array([0.0, z, -y])  # u x e_x
+    elif abs(y) <= abs(z):
+        a = np.array([-z, 0.0, x])  # u x e_y
+    else:
+        a = np.array([y, -x, 0.0])  # u x e_z
+    a /= np.sqrt(a @ a)
+    b = np.array([y * a[2] - z * a[1], z * a[0] - x * a[2], x * a[1] - y * a[0]])  # u x a
+    return a, b
+
+
+def canonical_parameter_values(canonical: CanonicalParameters) -> dict:
+    """Named values of the canonical parameters used by :class:`Context` (``Gs``, ``Gt``, ``u``, ``q``,
+    ``a``, ``b``, ``state_ref``)."""
+    v = {}
+    for j in range(len(canonical.npcs_scale)):
+        v[f"Gs{j}"] = canonical.npcs_scale[j]
+        v[f"Gt{j}"] = canonical.npcs_translation[j]
+    for k in range(len(canonical.joint_axes_naocs)):
+        u = canonical.joint_axes_naocs[k]
+        a, b = perpendiculars(u)
+        v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, canonical.joint_pivots_naocs[k], a, b
+        v[f"state_ref{k}"] = canonical.state_reference[k]
+    return v
 
 
 class Params:
@@ -119,6 +328,19 @@ class Params:
 
     def vector(self) -> ca.SX:
         return ca.vertcat(*[ca.vec(s) for s in self._syms.values()]) if self._syms else ca.SX(0, 1)
+
+    def value(self, p: np.ndarray, name: str) -> np.ndarray:
+        """The value of parameter ``name`` in the packed vector ``p`` (row-major ``(rows, cols)``
+        array, ``(rows,)`` for a column, a 0-d array for a scalar)."""
+        start = 0
+        for n, (rows, cols) in self._shapes.items():
+            if n == name:
+                v = np.asarray(p, dtype=np.float64)[start : start + rows * cols]
+                if cols > 1:
+                    return v.reshape((rows, cols), order="F")
+                return v.copy() if rows > 1 else v.reshape(())
+            start += rows * cols
+        raise KeyError(f"no parameter {name!r}")
 
     def pack(self, values: dict) -> np.ndarray:
         """Flatten ``values[name]`` for every parameter (column-major, as CasADi) into ``p``."""
@@ -172,6 +394,11 @@ class Canonical:
 
 class Context:
     """Symbolic part poses and the named parameters terms may use."""
+
+    @staticmethod
+    def fill(inputs: ProgramInputs) -> dict:
+        """Values of the context's own parameters (``L`` and the canonical parameters)."""
+        return {"L": inputs.scale, **canonical_parameter_values(inputs.canonical)}
 
     def __init__(self, structure: KinematicStructure, params: Params, poses: list, canonical: Canonical | None = None):
         self.structure = structure
@@ -279,7 +506,10 @@ def joint_state_expr(ctx: Context, k: int) -> ca.SX:
 class EnergyTerm:
     """Base class. ``kind`` is ``"cost"`` (residual), ``"equality"`` or ``"inequality"``.
 
-    Subclasses implement :meth:`expression`; inequalities also :meth:`bounds`.
+    Subclasses implement :meth:`expression` (declaring the parameters they use with
+    ``ctx.params.get``) and :meth:`fill` (their values from typed inputs); inequalities also
+    :meth:`bounds`. ``name`` is for configuration, reports and the command line only; programs
+    are keyed by term classes.
     """
 
     name: str = ""
@@ -288,8 +518,12 @@ class EnergyTerm:
     def expression(self, ctx: Context) -> ca.SX:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def bounds(self, frame: dict) -> tuple[np.ndarray, np.ndarray]:
-        """Numeric ``(lower, upper)`` of an inequality for one frame."""
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        """Values of the parameters this term declared beyond the :class:`Context`'s (none by default)."""
+        return {}
+
+    def bounds(self, joint_limits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Numeric ``(lower, upper)`` of an inequality, given the joint limits ``(K, 2)``."""
         raise NotImplementedError(f"{type(self).__name__} is not an inequality")
 
     def __repr__(self) -> str:
@@ -334,9 +568,15 @@ class DataTerm(EnergyTerm):
             out.append(sqrt_c0)
         return ca.vertcat(*out)
 
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        v = {}
+        for j, m in enumerate(inputs.require("moments", self.name)):
+            v[f"Lm{j}"], v[f"B{j}"], v[f"sqrt_c0_{j}"], v[f"cbar{j}"], v[f"pbar{j}"] = m.Lm, m.B, m.sqrt_c0, m.cbar, m.pbar
+        return v
 
-def part_moments(points_cam, npcs, weights, L: float) -> dict:
-    """Numeric moments of one part for :class:`DataTerm` (keys without the part index).
+
+def part_moments(points_cam, npcs, weights, L: float) -> PartMoments:
+    """Numeric moments of one part for :class:`DataTerm` (``Lp`` left ``None``).
 
     Parameters
     ----------
@@ -367,7 +607,7 @@ def part_moments(points_cam, npcs, weights, L: float) -> dict:
     Lm = V * root
     B = (C.T @ V) * inv_root
     c0 = max(P - float(np.sum(B * B)), 0.0) / L**2
-    return {"Lm": Lm, "B": B, "sqrt_c0_": np.sqrt(c0), "cbar": cbar, "pbar": pbar}
+    return PartMoments(Lm, B, np.sqrt(c0), cbar, pbar)
 
 
 @register_term
@@ -401,6 +641,10 @@ class SoftJointTerm(EnergyTerm):
                 out.append(ca.sqrt(lam) * ca.cross(Rp @ u, delta))
                 out.append(ca.sqrt(lam) * ca.cross(Rc @ u, delta))
         return ca.vertcat(*out) if out else ca.SX(0, 1)
+
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        w = inputs.require("weights", self.name)
+        return {"soft_weight": w.soft_weight, "soft_mu": w.soft_mu}
 
 
 @register_term
@@ -445,8 +689,8 @@ class JointLimitTerm(EnergyTerm):
         states = [joint_state_expr(ctx, k) for k in range(ctx.structure.num_joints)]
         return ca.vertcat(*states) if states else ca.SX(0, 1)
 
-    def bounds(self, frame: dict) -> tuple[np.ndarray, np.ndarray]:
-        lim = frame["joint_limits"]
+    def bounds(self, joint_limits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        lim = np.asarray(joint_limits, dtype=np.float64)
         return lim[:, 0].copy(), lim[:, 1].copy()
 
 
@@ -458,6 +702,9 @@ class CommonScaleTerm(EnergyTerm):
 
     def expression(self, ctx: Context) -> ca.SX:
         return ca.sqrt(ctx.params.get("common_scale_weight")) * _object_scale_differences(ctx)
+
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        return {"common_scale_weight": inputs.require("weights", self.name).common_scale_weight}
 
 
 @register_term
@@ -486,31 +733,80 @@ class CanonicalPriorTerm(EnergyTerm):
             raise ValueError("naocs_prior: the program's canonical parameters are fixed (free_canonical=False)")
         return ca.sqrt(ctx.params.get("naocs_prior_weight")) * ctx.canonical.offsets()
 
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        return {"naocs_prior_weight": inputs.require("weights", self.name).naocs_prior_weight}
+
+
+@register_term
+class PointToPlaneTerm(EnergyTerm):
+    """Point-to-plane data term on per-part moments (parameters ``Lp{j}`` (13, 13), ``pbar{j}``).
+
+    The point-to-plane ICP error of every part, ``sum_i w_i (n_i . (p_i - (s_j R_j c_i + t_j)))^2 / L^2`` with ``n_i = R_j m_i`` the model
+    normal ``m_i`` (NPCS) rotated into the camera. Like the point-to-point
+    :class:`~ancsh.solvers.terms.DataTerm` it depends on the points only through moments, so
+    its cost does not grow with the number of points: with
+    ``phi_i = [vec((p_i - pbar) m_i^T); m_i; m_i . c_i]`` (13) and
+    ``beta = [vec(R); -R^T (t - pbar); -s]`` the residual of point ``i`` is ``beta . phi_i``, hence
+    ``sum_i w_i r_i^2 = |Lp^T beta|^2`` with ``Lp Lp^T = sum_i w_i phi_i phi_i^T``.
+    """
+
+    name = "point_to_plane"
+
+    def expression(self, ctx: Context) -> ca.SX:
+        out = []
+        for j, P in enumerate(ctx.poses):
+            Lp = ctx.params.get(f"Lp{j}", 13, 13)
+            pbar = ctx.params.get(f"pbar{j}", 3)
+            beta = ca.vertcat(ca.vec(P.R), -(P.R.T @ (P.t - pbar)), -P.s)
+            out.append((Lp.T @ beta) / ctx.L)
+        return ca.vertcat(*out)
+
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        v = {}
+        for j, m in enumerate(inputs.require("moments", self.name)):
+            if m.Lp is None:
+                raise ValueError(f"inputs.moments[{j}].Lp: required by the {self.name!r} term, got None")
+            v[f"Lp{j}"], v[f"pbar{j}"] = m.Lp, m.pbar
+        return v
+
+
+
+def plane_moments(points_cam, npcs, normals_npcs, weights, pbar) -> np.ndarray:
+    """``Lp`` ``(13, 13)`` of one part for :class:`PointToPlaneTerm`.
+
+    Parameters
+    ----------
+    points_cam : (n, 3) float64
+        Observed points (metres, camera frame).
+    npcs : (n, 3) float64
+        Their matches in the part's NPCS.
+    normals_npcs : (n, 3) float64
+        Unit model normals at the matches, in NPCS.
+    weights : (n,) float64
+        Non-negative weights; the moments use ``weights / sum(weights)`` like the
+        point-to-point term (a per-part weighted mean).
+    pbar : (3,) float64
+        The centring point (the same ``pbar`` as the point-to-point term of this part).
+    """
+    w = np.asarray(weights, dtype=np.float64)
+    total = w.sum()
+    if total <= 0:
+        return np.zeros((13, 13))
+    w = w / total
+    pc = np.asarray(points_cam) - pbar
+    m = np.asarray(normals_npcs)
+    # vec() is column-major in CasADi: vec(A)[3 * col + row] = A[row, col]; (p m^T)[r, c] = p_r m_c.
+    phi = np.empty((len(w), 13))
+    phi[:, :9] = (m[:, :, None] * pc[:, None, :]).reshape(-1, 9)
+    phi[:, 9:12] = m
+    phi[:, 12] = np.einsum("ij,ij->i", m, np.asarray(npcs))
+    M = (phi * w[:, None]).T @ phi
+    lam, V = np.linalg.eigh(M)
+    return V * np.sqrt(np.clip(lam, 0.0, None))
+
 
 def _object_scale_differences(ctx: Context) -> ca.SX:
     """``(s_j / Gs_j - s_root / Gs_root) / L`` for every part ``j != root``."""
     r = ctx.structure.root
     out = [(ctx.object_scale(j) - ctx.object_scale(r)) / ctx.L for j in range(ctx.structure.num_parts) if j != r]
     return ca.vertcat(*out) if out else ca.SX(0, 1)
-
-
-# --------------------------------------------------------------------------------------------
-# Robust kernels for the IRLS data term (defined once, symbolically)
-# --------------------------------------------------------------------------------------------
-def _kernel_functions() -> dict:
-    r2 = ca.SX.sym("r2")  # squared normalised residual
-    c = ca.SX.sym("c")  # kernel scale
-    r = ca.sqrt(r2 + 1e-300)
-    huber_rho = ca.if_else(r <= c, r2, 2.0 * c * r - c * c)
-    cauchy_rho = c * c * ca.log1p(r2 / (c * c))
-    out = {}
-    for name, rho in (("huber", huber_rho), ("cauchy", cauchy_rho)):
-        # IRLS weight: rho'(r2) * 2 / 2 -> weight multiplying r^2 so that grad matches (d rho / d r2).
-        weight = ca.jacobian(rho, r2)
-        out[name] = ca.Function(f"{name}_kernel", [r2, c], [rho, weight], ["r2", "c"], ["rho", "weight"])
-    return out
-
-
-ROBUST_KERNELS: dict = _kernel_functions()
-"""``name -> casadi.Function(r2, c) -> (rho, weight)``: ``rho(r^2)`` and the IRLS weight
-``d rho / d(r^2)`` (1 for an inlier under Huber). Evaluate on rows of many points at once."""

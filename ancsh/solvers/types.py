@@ -20,7 +20,7 @@ import numpy as np
 from ..geometry._checks import as_array, as_points
 from ..geometry.boxes import OrientedBox
 from ..geometry.transforms import Sim3
-from ..model.articulated import JointType
+from ..model.articulated import JointType, joint_tree_order, joint_tree_root
 
 __all__ = [
     "Correspondences",
@@ -212,19 +212,12 @@ class Correspondences:
     @property
     def root_part(self) -> int:
         """The part that is no joint's child (the base)."""
-        kids = set(self.joint_children.tolist())
-        return next(j for j in range(self.num_parts) if j not in kids)
+        return joint_tree_root(self.num_parts, self.joint_children)
 
     @property
     def topological_joints(self) -> tuple[int, ...]:
         """Joint indices ordered so that every joint's parent part is placed before it."""
-        placed, order = {self.root_part}, []
-        while len(order) < self.num_joints:
-            for k in range(self.num_joints):
-                if k not in order and int(self.joint_parents[k]) in placed:
-                    order.append(k)
-                    placed.add(int(self.joint_children[k]))
-        return tuple(order)
+        return joint_tree_order(self.num_parts, self.joint_parents, self.joint_children)
 
     def structure_key(self) -> tuple:
         """Hashable kinematic structure: part count, joint types and topology."""

@@ -25,10 +25,10 @@ def test_naocs_baseline_recovers_ground_truth_from_ground_truth_naocs(category):
         r = ev.fit_naocs(obs, corr, naocs=naocs, rng=0)
         assert r.ok and r.formulation == "naocs" and r.boxes_cam == ()
         rec = evaluate_fit(r, gt, frame.part_names, frame.joint_names)
-        for p in rec["parts"]:
-            assert p["rot_deg"] < 1e-5 and p["trans"] < 1e-8 and p["scale_rel"] < 1e-8 and np.isnan(p["iou"])
-        for j in rec["joints"]:
-            assert j["state_err"] < 1e-5 and j["axis_deg"] < 1e-5 and not j["line_dist"] > 1e-8
+        for p in rec.parts:
+            assert p.rot_deg < 1e-5 and p.trans < 1e-8 and p.scale_rel < 1e-8 and np.isnan(p.iou)
+        for j in rec.joints:
+            assert j.state_err < 1e-5 and j.axis_deg < 1e-5 and not j.line_dist > 1e-8
     # the baseline's input: NAOCS coordinates with identity NPCS -> NAOCS maps
     nc = ev.naocs_correspondences(corr)
     np.testing.assert_allclose(nc.npcs, gt.naocs, atol=1e-12)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ancsh.solvers import FitConfig, FitStatus, fit
-from ancsh.solvers.backends import SolverOptions, solve
+from ancsh.solvers.backends import Bounds, SolverOptions, solve
 from ancsh.solvers.program import ProgramKey, get_program
 from ancsh.solvers.terms import KinematicStructure
 
@@ -39,6 +39,36 @@ def test_lm_and_lsq_refuse_programs_with_constraints():
     p = np.zeros(prog.params.vector().numel())
     for backend in ("lm", "lsq"):
         with pytest.raises(ValueError, match=f"'{backend}' cannot handle"):
-            solve(backend, prog, p, x0, x0 - np.inf, x0 + np.inf, None, None, SolverOptions())
+            solve(backend, prog, p, x0, Bounds(x0 - np.inf, x0 + np.inf), SolverOptions())
     with pytest.raises(ValueError, match="solver: expected one of"):
-        solve("newton", prog, p, x0, x0, x0, None, None, SolverOptions())
+        solve("newton", prog, p, x0, Bounds(x0, x0), SolverOptions())
+
+
+def test_lm_stall_is_a_numerical_failure_not_a_success():
+    """A Jacobian pointing uphill: no step decreases the cost, the damping runs away -> a stall."""
+    from types import SimpleNamespace
+
+    from ancsh.solvers.backends import solve_lm
+    from ancsh.solvers.types import FitStatus
+
+    prog = SimpleNamespace(num_constraints=0, residual_jacobian=lambda x, p: (x.copy(), -np.eye(1)))
+    out = solve_lm(prog, None, np.array([1.0]), Bounds(np.array([-np.inf]), np.array([np.inf])), SolverOptions())
+    assert out.status == FitStatus.NUMERICAL_FAILURE and "stalled" in out.message
+
+
+def test_lsq_iterations_count_iterations_not_function_evaluations():
+    from types import SimpleNamespace
+
+    from scipy.optimize import least_squares
+
+    from ancsh.solvers.backends import solve_lsq
+
+    A = np.array([[1.0, 2.0], [0.5, -1.0], [3.0, 0.1]])
+    b = np.array([1.0, 2.0, -1.0])
+    fun = lambda x: np.exp(A @ x) - b - 2.0  # noqa: E731
+    jac = lambda x: np.exp(A @ x)[:, None] * A  # noqa: E731
+    prog = SimpleNamespace(num_constraints=0, num_residuals=3, num_x=2, residual=lambda x, p: fun(x),
+                           jacobian=lambda x, p: jac(x))
+    out = solve_lsq(prog, None, np.zeros(2), Bounds(np.full(2, -np.inf), np.full(2, np.inf)), SolverOptions(100, 1e-12))
+    ref = least_squares(fun, np.zeros(2), jac=jac, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=100)
+    assert out.iterations == ref.njev and ref.njev <= ref.nfev

@@ -91,8 +91,8 @@ def test_failures_are_status():
                           corr.joint_parents, corr.joint_children, corr.joint_axes_naocs, corr.joint_pivots_naocs)
     res = fit_official(obs, few, settings=FAST, rng=0)
     assert res.status == FitStatus.TOO_FEW_POINTS and "fewer than 3" in res.message
-    res = fit_official(Observation(obs.points_cam[:10]), corr, settings=FAST, rng=0)
-    assert res.status == FitStatus.INVALID_INPUT
+    with pytest.raises(ValueError, match="correspondences: .* points do not match"):
+        fit_official(Observation(obs.points_cam[:10]), corr, settings=FAST, rng=0)
     pair = fit_pair(np.zeros((2, 3)), np.zeros((2, 3)), np.eye(3), np.eye(3), np.array([0, 0, 1.0]), True, 0.1, FAST, 0)
     assert not pair.ok and "fewer than 3 points" in pair.message
 
@@ -140,3 +140,46 @@ def test_revolute_residual_rows_and_zero_at_truth():
     np.testing.assert_allclose(res, 0.0, atol=1e-12)
     bent = _residual_revolute(np.concatenate([r0, r1 + 0.1]), x0, x0 @ R0.T, x1, x1 @ R1.T, rows)
     assert np.abs(bent[-12:]).max() > 1e-3
+
+
+def test_collinear_part_is_degenerate_like_every_other_method():
+    gt, obs = _frame(6, [0], "revolute")
+    corr = Correspondences.from_ground_truth(gt)
+    npcs = corr.npcs.copy()
+    sel = corr.part_labels == 1
+    npcs[sel] = np.linspace(0.0, 1.0, sel.sum())[:, None] * np.array([0.3, -0.2, 0.1])
+    line = Correspondences(corr.part_labels, npcs, corr.npcs_scale, corr.npcs_translation, corr.joint_types,
+                           corr.joint_parents, corr.joint_children, corr.joint_axes_naocs, corr.joint_pivots_naocs)
+    res = fit_official(obs, line, settings=FAST, rng=0)
+    assert res.status == FitStatus.DEGENERATE and "collinear" in res.message
+
+
+def test_weights_zero_weight_points_left_out_other_weights_refused():
+    from dataclasses import replace
+
+    gt, obs = _frame(6, [0], "revolute")
+    corr = Correspondences.from_ground_truth(gt)
+    w = np.ones(corr.num_points)
+    w[::7] = 0.0
+    a = fit_official(obs, replace(corr, weights=w), settings=FAST, rng=3)
+    assert a.ok and not a.inliers[::7].any() and a.inliers.shape == (corr.num_points,)
+    w[1] = 0.5
+    with pytest.raises(ValueError, match="correspondences.weights"):
+        fit_official(obs, replace(corr, weights=w), settings=FAST, rng=3)
+
+
+def test_pairwise_scale_of_many_points_stays_bounded():
+    """200k points: no N x N matrix (the original's 126 GiB); the subset ratio estimates the full one."""
+    import time
+    import tracemalloc
+
+    rng = np.random.default_rng(0)
+    src = rng.normal(size=(200_000, 3))
+    dst = 1.7 * src + rng.normal(scale=0.01, size=src.shape)
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    scale = _pairwise_scale(src, dst)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert scale == pytest.approx(1.7, rel=1e-3)
+    assert peak < 2**30 and time.perf_counter() - t0 < 30

@@ -14,7 +14,7 @@ Importing this package does not import open3d or CasADi; the first fit does.
 from .articulated import ArticulatedIcpConfig, articulated_icp, auto_init
 from .result import CadFitResult, IcpIteration, joint_states_from_part_poses
 from .rigid import RigidIcpConfig, per_part_icp, whole_object_icp
-from .template import ArticulatedPose, ModelSurface, TemplateCorrespondences, TemplateProvider, robust_weights
+from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateCorrespondences, TemplateProvider, robust_weights
 
 __all__ = [
     "ArticulatedIcpConfig",
@@ -22,6 +22,7 @@ __all__ = [
     "CadFitResult",
     "IcpIteration",
     "ModelSurface",
+    "ModelTemplate",
     "RigidIcpConfig",
     "TemplateCorrespondences",
     "TemplateProvider",

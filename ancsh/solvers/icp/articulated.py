@@ -47,13 +47,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...geometry._checks import as_array, check_generator
+from ...geometry._checks import as_array, check_bool, check_choice, check_generator, check_int, check_number, check_positive
+from ...geometry.robust import ROBUST_LOSSES
 from ...geometry.rotations import exp_so3, geodesic_angle
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
 from ..types import FitStatus, Observation
 from .result import CadFitResult, IcpIteration
-from .template import ArticulatedPose, ModelSurface, TemplateProvider
+from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProvider
 
 __all__ = ["ArticulatedIcpConfig", "articulated_icp", "auto_init", "reduced_step"]
 
@@ -141,31 +142,24 @@ class ArticulatedIcpConfig:
 
     def __post_init__(self):
         for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations", "candidates"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
-        if isinstance(self.joint_starts, bool) or not isinstance(self.joint_starts, (int, np.integer)) or self.joint_starts < 0:
-            raise ValueError(f"joint_starts: expected an integer >= 0, got {self.joint_starts!r}")
+            check_int(getattr(self, name), name, minimum=1)
+        check_int(self.joint_starts, "joint_starts", minimum=0)
         for name in ("gate_start", "gate_end", "gate_floor", "loss_scale", "tolerance"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float, np.floating)) and np.isfinite(v) and v > 0):
-                raise ValueError(f"{name}: expected a positive number, got {v!r}")
+            check_positive(getattr(self, name), name)
         if self.gate_end > self.gate_start:
             raise ValueError(f"gate_end: {self.gate_end} exceeds gate_start {self.gate_start}")
-        if not (np.isfinite(self.rescue_angle) and self.rescue_angle >= 0):
-            raise ValueError(f"rescue_angle: expected a non-negative angle, got {self.rescue_angle}")
-        if not 0 < self.accept_inliers <= 1:
-            raise ValueError(f"accept_inliers: expected a number in (0, 1], got {self.accept_inliers}")
-        if not 0 < self.gate_decay <= 1:
-            raise ValueError(f"gate_decay: expected a number in (0, 1], got {self.gate_decay}")
-        if not (np.isfinite(self.point_weight) and self.point_weight >= 0):
-            raise ValueError(f"point_weight: expected a non-negative number, got {self.point_weight}")
+        check_number(self.rescue_angle, "rescue_angle", minimum=0.0)
+        check_number(self.accept_inliers, "accept_inliers", minimum=0.0, maximum=1.0, lower_open=True)
+        check_number(self.gate_decay, "gate_decay", minimum=0.0, maximum=1.0, lower_open=True)
+        check_number(self.point_weight, "point_weight", minimum=0.0)
+        for name in ("point_to_plane", "joint_restarts"):
+            check_bool(getattr(self, name), name)
         if not self.point_to_plane and self.point_weight == 0:
             raise ValueError("point_weight: must be positive without the point-to-plane term")
-        if self.num_points is not None and (isinstance(self.num_points, bool) or int(self.num_points) < 3):
-            raise ValueError(f"num_points: expected None or an integer >= 3, got {self.num_points!r}")
-        if self.solver not in ("lsq", "ipopt"):
-            raise ValueError(f"solver: expected 'lsq' or 'ipopt', got {self.solver!r}")
+        if self.num_points is not None:
+            check_int(self.num_points, "num_points", minimum=3)
+        check_choice(self.solver, "solver", ("lsq", "ipopt"))
+        check_choice(self.loss, "loss", ROBUST_LOSSES)
         rots = []
         for i, r in enumerate(self.orientations):
             rots.append(as_array(r, f"orientations[{i}]", (3,)))
@@ -176,70 +170,54 @@ class ArticulatedIcpConfig:
 # one reduced-coordinate solve
 # ---------------------------------------------------------------------------------------------
 class _Reduced:
-    """The reduced-coordinate program of one model with its static parameter values."""
+    """The reduced-coordinate program of one model with its static inputs."""
 
     def __init__(self, provider: TemplateProvider, point_to_plane: bool, point_data: bool = True):
+        from ..backends import Bounds
         from ..program import ProgramKey, get_program
-        from ..terms import KinematicStructure
-        from . import terms as _icp_terms  # noqa: F401  (registers "point_to_plane")
+        from ..terms import CanonicalParameters, DataTerm, KinematicStructure, PointToPlaneTerm
 
         model, cs = provider.model, provider.canonical
         corr = provider.empty_correspondences()
         self.structure = KinematicStructure.from_correspondences(corr)
-        names = (("data",) if point_data else ()) + (("point_to_plane",) if point_to_plane else ())
-        self.program = get_program(ProgramKey(self.structure, "reduced", False, names))
+        terms = ((DataTerm,) if point_data else ()) + ((PointToPlaneTerm,) if point_to_plane else ())
+        self.program = get_program(ProgramKey(self.structure, "reduced", False, terms))
         self.model, self.cs = model, cs
         self.diagonal = 1.0 / cs.T_naocs_base.scale  # metres per NAOCS unit
-        v = {"L": self.diagonal, "sigma0": self.diagonal}
-        for j in range(model.num_parts):
-            v[f"Gs{j}"], v[f"Gt{j}"] = cs.npcs_scale[j], cs.npcs_translation[j]
-        for k in range(model.num_joints):
-            v[f"u{k}"], v[f"q{k}"] = cs.joint_axes_naocs[k], cs.joint_pivots_naocs[k]
-        self.static = v
-        limits = corr.joint_limits
-        self.theta = self.program.layout["theta"]
-        self.lbx = np.full(self.program.num_x, -np.inf)
-        self.ubx = np.full(self.program.num_x, np.inf)
-        self.lbx[self.theta], self.ubx[self.theta] = limits[:, 0], limits[:, 1]
+        self.canonical = CanonicalParameters.of(cs)
+        self.bounds = Bounds.of(self.program, corr.joint_limits)
 
-    def values(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool) -> dict:
-        from ..terms import part_moments
-        from .terms import plane_moments
+    def inputs(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool):
+        """The program's inputs: the start at ``estimate`` and the moments of ``corr``."""
+        from ..terms import PartMoments, ProgramInputs, ProgramStart, part_moments, plane_moments
 
         T_cam_naocs = estimate.T_cam_base @ self.cs.T_naocs_base.inverse()
-        v = dict(self.static)
-        v["R0_obj"], v["tau0_obj"] = T_cam_naocs.rotation, T_cam_naocs.translation
+        start = ProgramStart(T_cam_naocs=Sim3.unchecked(T_cam_naocs.rotation, T_cam_naocs.translation, self.diagonal))
         w = np.asarray(corr.weights)
         total = w.sum()
+        moments = []
         for j in range(self.model.num_parts):
             sel = (corr.part_labels == j) & (w > 0)
             share = w[sel].sum() / total if total > 0 else 0.0
             if share <= 0 or sel.sum() < 1:
-                v.update({f"Lm{j}": np.zeros((4, 4)), f"B{j}": np.zeros((3, 4)), f"sqrt_c0_{j}": 0.0,
-                          f"cbar{j}": np.zeros(3), f"pbar{j}": np.zeros(3), f"Lp{j}": np.zeros((13, 13))})
+                moments.append(PartMoments.zeros())
                 continue
             mom = part_moments(points[sel], corr.npcs[sel], w[sel], self.diagonal)
             a = np.sqrt(share * point_weight)
-            v[f"Lm{j}"], v[f"B{j}"], v[f"sqrt_c0_{j}"] = a * mom["Lm"], a * mom["B"], a * mom["sqrt_c0_"]
-            v[f"cbar{j}"], v[f"pbar{j}"] = mom["cbar"], mom["pbar"]
+            Lp = None
             if plane:
-                v[f"Lp{j}"] = np.sqrt(share) * plane_moments(points[sel], corr.npcs[sel], corr.normals_npcs[sel], w[sel], mom["pbar"])
-        return v
+                Lp = np.sqrt(share) * plane_moments(points[sel], corr.npcs[sel], corr.normals_npcs[sel], w[sel], mom.pbar)
+            moments.append(PartMoments(a * mom.Lm, a * mom.B, a * mom.sqrt_c0, mom.cbar, mom.pbar, Lp))
+        return ProgramInputs(self.diagonal, self.canonical, start, tuple(moments))
 
     def x0(self, estimate: ArticulatedPose) -> np.ndarray:
-        x = np.zeros(self.program.num_x)
-        x[self.theta] = estimate.q - self.model.rest_states
-        return x
+        return self.program.initial_x(estimate.q - self.model.rest_states)
 
-    def estimate(self, x, values) -> ArticulatedPose:
-        """The base pose and absolute joint states at the solution ``x``."""
-        x = np.asarray(x, dtype=float)
-        w, dt = x[:3], x[3:6]
-        R = values["R0_obj"] @ exp_so3(w)
-        tau = values["tau0_obj"] + values["L"] * dt
-        T_cam_naocs = Sim3(R, tau, values["sigma0"])
-        T = T_cam_naocs @ self.cs.T_naocs_base
-        return ArticulatedPose(Sim3(T.rotation, T.translation), x[self.theta] + self.model.rest_states)
+    def estimate(self, x, p) -> ArticulatedPose:
+        """The base pose and absolute joint states at the solution ``x`` (parameters ``p``)."""
+        sol = self.program.unpack(x, p)
+        T = sol.T_cam_naocs @ self.cs.T_naocs_base
+        return ArticulatedPose(Sim3(T.rotation, T.translation), sol.joint_states + self.model.rest_states)
 
 
 def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True, point_weight: float = 0.05,
@@ -263,26 +241,25 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
     from ..backends import SolverOptions, solve
 
     red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane)
-    v = red.values(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
-    p = red.program.pack(v)
+    inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
+    p = red.program.pack(inputs)
     x0 = red.x0(provider.estimate)
-    lo, hi = red.lbx, red.ubx
-    out = solve(solver, red.program, p, x0, lo, hi, np.zeros(0), np.zeros(0), SolverOptions(max_iterations, 1e-12))
+    out = solve(solver, red.program, p, x0, red.bounds, SolverOptions(max_iterations, 1e-12))
     if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or not np.all(np.isfinite(out.x)):
         return provider.estimate, out
-    return red.estimate(out.x, v), out
+    return red.estimate(out.x, p), out
 
 
 _REDUCED_CACHE: dict = {}
 
 
 def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: bool = True) -> _Reduced:
-    key = (id(provider.surface), point_to_plane, point_data)
+    key = (id(provider.template), point_to_plane, point_data)
     hit = _REDUCED_CACHE.get(key)
-    if hit is None or hit[0] is not provider.surface:
+    if hit is None or hit[0] is not provider.template:
         if len(_REDUCED_CACHE) > 64:
             _REDUCED_CACHE.clear()
-        hit = (provider.surface, _Reduced(provider, point_to_plane, point_data))
+        hit = (provider.template, _Reduced(provider, point_to_plane, point_data))
         _REDUCED_CACHE[key] = hit
     return hit[1]
 
@@ -290,7 +267,7 @@ def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: b
 # ---------------------------------------------------------------------------------------------
 # the ICP loop
 # ---------------------------------------------------------------------------------------------
-def _pose_change(model, parts_a, parts_b, radii) -> float:
+def _pose_change(parts_a, parts_b, radii) -> float:
     """Largest displacement of any part's farthest point between two pose sets (metres)."""
     worst = 0.0
     for A, B, r in zip(parts_a, parts_b, radii):
@@ -330,7 +307,7 @@ class _Run:
             if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
                 return estimate, out.status, it, corr
             new_parts = new.part_poses(self.model)
-            move = _pose_change(self.model, prov_parts, new_parts, self.radii)
+            move = _pose_change(prov_parts, new_parts, self.radii)
             estimate = new
             inl = corr.weights > 0
             history.append(IcpIteration(tuple(new_parts), new.q.copy(), float(inl.mean()),
@@ -373,8 +350,33 @@ class _Run:
         return float(np.mean(np.minimum(d / gate, 1.0) ** 2)) + back, float(inl.mean()), rmse
 
 
-def _search(run: _Run, model, config, starts):
-    """Stages 1-3 (see the module docstring) from ``starts``: ``(final or None, iterations)``."""
+@dataclass(frozen=True)
+class _Candidate:
+    """A start after stage 1: its score, its rank among the starts, the estimate reached, the
+    iterations so far and their history."""
+
+    score: float
+    order: int
+    estimate: ArticulatedPose
+    history: list
+    iterations: int
+
+
+@dataclass(frozen=True)
+class _Finished:
+    """A candidate after stages 2-3: score, inlier ratio and RMSE (see :meth:`_Run.score`),
+    final estimate, status and history."""
+
+    score: float
+    inlier_ratio: float
+    rmse: float
+    estimate: ArticulatedPose
+    status: FitStatus
+    history: list
+
+
+def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
+    """Stages 1-3 (see the module docstring) from ``starts``: ``(best finished or None, iterations)``."""
     iterations = 0
     candidates = []
     for s in starts:
@@ -382,25 +384,25 @@ def _search(run: _Run, model, config, starts):
         est, status, n, _ = run.iterate(s, 0, config.start_iterations, hist)
         iterations += n
         if status != FitStatus.TOO_FEW_POINTS:
-            candidates.append((run.score(est)[0], len(candidates), est, hist, n))
+            candidates.append(_Candidate(run.score(est)[0], len(candidates), est, hist, n))
     if not candidates:
         return None, 0
-    candidates.sort(key=lambda c: (c[0], c[1]))
+    candidates.sort(key=lambda c: (c.score, c.order))
     final = None
     tried: list = []
-    for _, _, est, hist, n in candidates:
+    for cand in candidates:
         if len(tried) >= config.candidates:
             break
-        if any(_same_basin(est, other, run.diagonal) for other in tried):
+        if any(_same_basin(cand.estimate, other, run.diagonal) for other in tried):
             continue  # finishing a start that sits where a tried one sat would end where it ended
-        tried.append(est)
-        out, used = _finish_candidate(run, model, config, est, hist, n)
+        tried.append(cand.estimate)
+        out, used = _finish_candidate(run, model, config, cand)
         iterations += used
-        if out is not None and (final is None or out[0][0] < final[0][0]):
+        if out is not None and (final is None or out.score < final.score):
             final = out
-        if final is not None and final[0][1] >= config.accept_inliers:
+        if final is not None and final.inlier_ratio >= config.accept_inliers:
             break
-    return (None if final is None else (final[0], final[1], final[2], final[3])), max(iterations, 1)
+    return final, max(iterations, 1)
 
 
 def _same_basin(a: ArticulatedPose, b: ArticulatedPose, diagonal: float) -> bool:
@@ -412,12 +414,13 @@ def _same_basin(a: ArticulatedPose, b: ArticulatedPose, diagonal: float) -> bool
     )
 
 
-def _finish_candidate(run: _Run, model, config, est, hist, n):
+def _finish_candidate(run: _Run, model, config, cand: _Candidate) -> tuple[_Finished | None, int]:
     """Refine a start, restart its joints (stage 2), iterate to convergence.
 
-    Returns ``((score, inlier ratio, rmse), estimate, status, history)`` (``None`` when every
-    correspondence was lost) and the number of iterations used.
+    Returns the finished candidate (``None`` when every correspondence was lost) and the
+    number of iterations used.
     """
+    est, hist, n = cand.estimate, cand.history, cand.iterations
     used = 0
     if config.joint_restarts and model.num_joints:
         # Stage 2: with the object pose settled, restart each joint over its range (the
@@ -443,7 +446,8 @@ def _finish_candidate(run: _Run, model, config, est, hist, n):
     used += n2 - n
     if status == FitStatus.TOO_FEW_POINTS:
         return None, used
-    return (run.score(est), est, status, hist), used
+    score, ratio, rmse = run.score(est)
+    return _Finished(score, ratio, rmse, est, status, hist), used
 
 
 def _joint_grid(model: ArticulatedModel, q, count: int) -> list:
@@ -548,7 +552,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     config = ArticulatedIcpConfig() if config is None else config
     if not isinstance(config, ArticulatedIcpConfig):
         raise ValueError(f"config: expected an ArticulatedIcpConfig, got {type(config).__name__}")
-    provider = TemplateProvider(model, _surface=surface)  # validates the model (movable joints, meshes)
+    template = ModelTemplate(model, surface)  # validates the model (movable joints, meshes)
     points = observation.points_cam if isinstance(observation, Observation) else Observation(observation).points_cam
     if points.shape[0] and np.any(points[:, 2] <= 0):
         raise ValueError("observation: every point must be in front of the camera (z > 0); points are camera-frame")
@@ -568,10 +572,9 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
 
     if points.shape[0] < 6:
         return failed(FitStatus.TOO_FEW_POINTS, f"need at least 6 observed points, got {points.shape[0]}")
-    diagonal = provider.T_cam_naocs_scale
-    provider = TemplateProvider(model, max_distance=1.0, loss=config.loss,
-                                loss_scale=max(config.loss_scale * diagonal, config.gate_floor / 3),
-                                _surface=provider.surface, _canonical=provider.canonical)
+    diagonal = template.T_cam_naocs_scale
+    provider = TemplateProvider(template, max_distance=1.0, loss=config.loss,
+                                loss_scale=max(config.loss_scale * diagonal, config.gate_floor / 3))
     rest = model.forward_kinematics(model.rest_states)
     radii = [float(np.max(np.linalg.norm(p.vertices, axis=1))) for p in model.parts]
     run = _Run(model, points, config, provider, diagonal, radii, rng)
@@ -583,10 +586,10 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         return failed(FitStatus.TOO_FEW_POINTS,
                       f"no observed point within {run.gate(0):.3g} (model units) of the model at any start "
                       "(observation far from the estimate?)")
-    if config.rescue_angle > 0 and (final is None or final[0][1] < config.accept_inliers):
+    if config.rescue_angle > 0 and (final is None or final.inlier_ratio < config.accept_inliers):
         # Rescue: no start explained the data; try the initial and the best estimates turned
         # by rescue_angle about each camera axis (both signs), with the joint-state starts.
-        bases = [inits[0]] + ([final[1]] if final is not None else [])
+        bases = [inits[0]] + ([final.estimate] if final is not None else [])
         rescue = []
         for b in bases:
             c = b.T_cam_base.apply(center_base)
@@ -597,14 +600,14 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         second, used = _search(run, model, config, rescue)
         iterations += used
         starts = starts + rescue
-        if second is not None and (final is None or second[0][0] < final[0][0]):
+        if second is not None and (final is None or second.score < final.score):
             final = second
     if final is None:
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
-    (sc, ratio, rmse), est, status, hist = final
-    msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    est = final.estimate
+    msg = "converged" if final.status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
     return CadFitResult(
         method="articulated_icp", T_cam_parts=tuple(est.part_poses(model)), q=est.q.copy(), T_cam_base=est.T_cam_base,
-        status=status, message=msg, inlier_ratio=ratio, rmse=rmse, iterations=iterations,
-        time_s=time.perf_counter() - t0, history=tuple(hist), starts=len(starts),
+        status=final.status, message=msg, inlier_ratio=final.inlier_ratio, rmse=final.rmse, iterations=iterations,
+        time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts),
     )

@@ -142,7 +142,7 @@ def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None =
     import numpy as np
 
     from ...data.render import project
-    from .rigid import sample_with_normals
+    from ...model.articulated import sample_surface_with_normals
 
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     points_cam = np.asarray(points_cam)
@@ -152,7 +152,7 @@ def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None =
     for j, (part, T) in enumerate(zip(model.parts, result.T_cam_parts)):
         if part.mesh is None:
             continue
-        p, _ = sample_with_normals(part.mesh, 1500, rng)
+        p, _ = sample_surface_with_normals(part.mesh, 1500, rng)
         pc = T.apply(p)
         uvp, _ = project(pc[pc[:, 2] > 0], intrinsics)
         ax.scatter(uvp[:, 0], uvp[:, 1], s=1, color=f"C{j}", label=part.name)

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..._machine import describe_machine, machine_facts
 from ...geometry.metrics import ad_error, joint_state_error
 from ...geometry.rotations import exp_so3
 from ...geometry.transforms import Sim3
@@ -91,9 +92,28 @@ class SequenceFrame:
     part_labels: np.ndarray
 
 
-@dataclass
+@dataclass(frozen=True)
 class FrameRecord:
-    """Scores of one method on one frame."""
+    """Scores of one method on one frame (see ``docs/REPORT_SCHEMAS.md``).
+
+    Attributes
+    ----------
+    object, method : str
+    noise : bool
+        Whether the frame has sensor noise.
+    frame : int
+    part_correct : list of bool
+        AD test per part.
+    chain_correct : bool
+        Every part correct.
+    joint_errors : list of float
+        Joint-state error per joint (degrees / hundredths of the model unit; NaN when unknown).
+    time_s : float
+    status : str
+        The fit's status value.
+    ad_over_diameter : list of float
+        AD error over the part diameter, per part.
+    """
 
     object: str
     noise: bool
@@ -105,6 +125,9 @@ class FrameRecord:
     time_s: float
     status: str
     ad_over_diameter: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
 
 
 # --------------------------------------------------------------------------------------
@@ -315,6 +338,7 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
             if progress is not None:
                 progress(name, noise, [r for r in records if r.object == name and r.noise == noise])
     meta = {
+        "machine": machine_facts(),
         "objects": [
             {"name": n, "parts": m.part_names, "joints": [(j.name, j.type.value) for j in m.joints]} for n, m in objects
         ],
@@ -359,7 +383,7 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
               "Chain AD accuracy / per-part AD accuracy (part order as listed) / median joint-state error "
               "(degrees for revolute; for prismatic joints hundredths of the model unit, i.e. cm for metric "
               "models -- PartNet-Mobility objects are roughly unit-sized, not metric) / median ms per frame "
-              "(wall time on a shared 2-core CPU).", ""]
+              f"(wall time on {describe_machine(meta.get('machine'))}).", ""]
     objects = [o["name"] for o in meta["objects"]]
     for noise in (False, True):
         lines += [f"### {'With' if noise else 'Without'} sensor noise", "",
@@ -394,7 +418,7 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
     text = "\n".join(lines)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
-    payload = {"command": command, "meta": meta, "records": [_rounded(r.__dict__) for r in records]}
+    payload = {"command": command, "meta": meta, "records": [_rounded(r.to_dict()) for r in records]}
     path.with_suffix(".json").write_text(json.dumps(payload, separators=(",", ":")))
     return text
 

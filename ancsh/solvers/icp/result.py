@@ -55,14 +55,17 @@ class CadFitResult:
     T_cam_base : Sim3
         Estimated base pose.
     status : FitStatus
-        ``SUCCESS`` (converged), ``MAX_ITER``, or a failure (``TOO_FEW_POINTS`` when no
-        observed point lies near the model, ``INVALID_INPUT``, ``NUMERICAL_FAILURE``).
+        ``SUCCESS`` (converged), ``MAX_ITER`` (the iteration limit stopped the loop; for the rigid
+        baselines: one more ICP iteration would still change the fitness or RMSE by ``1e-8`` or
+        more, for some part), or a failure (``TOO_FEW_POINTS`` when no observed point lies near
+        the model, ``INVALID_INPUT``, ``NUMERICAL_FAILURE``).
     message : str
     inlier_ratio : float
         Fraction of observed points within the final gating distance of the fitted model.
     rmse : float
         RMS distance of those inliers to the fitted model surface (metres).
     iterations : int
+        ICP iterations run; ``-1`` for the rigid baselines (open3d does not report the count).
     time_s : float
         Wall time of the fit (seconds).
     history : tuple of IcpIteration

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry._checks import as_points, check_generator
+from ...geometry._checks import as_points, check_bool, check_generator, check_int, check_positive
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel, sample_surface_with_normals
 from ..types import FitStatus
@@ -53,14 +53,11 @@ class RigidIcpConfig:
     min_points: int = 10
 
     def __post_init__(self):
-        if not (np.isfinite(self.max_distance) and self.max_distance > 0):
-            raise ValueError(f"max_distance: expected a positive number, got {self.max_distance}")
-        if int(self.max_iterations) < 1:
-            raise ValueError(f"max_iterations: expected >= 1, got {self.max_iterations}")
-        if int(self.samples_per_part) < 10:
-            raise ValueError(f"samples_per_part: expected >= 10, got {self.samples_per_part}")
-        if int(self.min_points) < 3:
-            raise ValueError(f"min_points: expected >= 3, got {self.min_points}")
+        check_positive(self.max_distance, "max_distance")
+        check_bool(self.point_to_plane, "point_to_plane")
+        check_int(self.max_iterations, "max_iterations", minimum=1)
+        check_int(self.samples_per_part, "samples_per_part", minimum=10)
+        check_int(self.min_points, "min_points", minimum=3)
 
 
 # Surface samples with face normals (one definition, in the model package).
@@ -76,19 +73,33 @@ def _cloud(points, normals=None):
     return pc
 
 
+_RELATIVE_CHANGE = 1e-8  # open3d's convergence test: fitness and inlier RMSE change by less than this
+
+
 def _register(source_cam, target_pts, target_normals, T_cam_target_init: Sim3, config: RigidIcpConfig):
-    """ICP of observed points onto model samples; returns ``(T_cam_target, fitness, rmse)``."""
+    """ICP of observed points onto model samples.
+
+    Returns ``(T_cam_target, fitness, rmse, converged)``. open3d reports neither the iteration
+    count nor whether its convergence test stopped the loop, so ``converged`` is that test applied
+    to one more iteration from the result (whose pose is not used).
+    """
     import open3d as o3d
 
     reg = o3d.pipelines.registration
     method = reg.TransformationEstimationPointToPlane() if config.point_to_plane else reg.TransformationEstimationPointToPoint()
-    crit = reg.ICPConvergenceCriteria(relative_fitness=1e-8, relative_rmse=1e-8, max_iteration=int(config.max_iterations))
-    init = T_cam_target_init.inverse().matrix()
-    r = reg.registration_icp(
-        _cloud(source_cam), _cloud(target_pts, target_normals), float(config.max_distance), init, method, crit
+    crit = reg.ICPConvergenceCriteria(
+        relative_fitness=_RELATIVE_CHANGE, relative_rmse=_RELATIVE_CHANGE, max_iteration=int(config.max_iterations)
     )
+    init = T_cam_target_init.inverse().matrix()
+    source, target = _cloud(source_cam), _cloud(target_pts, target_normals)
+    r = reg.registration_icp(source, target, float(config.max_distance), init, method, crit)
+    again = reg.registration_icp(
+        source, target, float(config.max_distance), r.transformation, method, reg.ICPConvergenceCriteria(max_iteration=1)
+    )
+    converged = (abs(again.fitness - r.fitness) < _RELATIVE_CHANGE
+                 and abs(again.inlier_rmse - r.inlier_rmse) < _RELATIVE_CHANGE)
     T_target_cam = Sim3.from_matrix(np.asarray(r.transformation))
-    return Sim3(T_target_cam.rotation, T_target_cam.translation).inverse(), float(r.fitness), float(r.inlier_rmse)
+    return Sim3(T_target_cam.rotation, T_target_cam.translation).inverse(), float(r.fitness), float(r.inlier_rmse), converged
 
 
 def _check(model, points_cam, init):
@@ -127,13 +138,19 @@ def whole_object_icp(model: ArticulatedModel, points_cam, init: ArticulatedPose,
         p, n = sample_with_normals(part.mesh, config.samples_per_part, rng)
         samples.append(fk[j].apply(p))
         normals.append(fk[j].apply_direction(n))
-    T_cam_base, fitness, rmse = _register(pts, np.concatenate(samples), np.concatenate(normals), init.T_cam_base, config)
+    T_cam_base, fitness, rmse, converged = _register(
+        pts, np.concatenate(samples), np.concatenate(normals), init.T_cam_base, config
+    )
     parts = tuple(T_cam_base @ T for T in fk)
-    status = FitStatus.SUCCESS if fitness > 0 else FitStatus.TOO_FEW_POINTS
+    if fitness <= 0:
+        status, message = FitStatus.TOO_FEW_POINTS, "no observed point within max_distance of the model"
+    elif not converged:
+        status, message = FitStatus.MAX_ITER, f"not converged within {config.max_iterations} iterations"
+    else:
+        status, message = FitStatus.SUCCESS, "converged"
     return CadFitResult(
         method="whole_object_icp", T_cam_parts=parts, q=init.q.copy(), T_cam_base=T_cam_base, status=status,
-        message="" if fitness > 0 else "no observed point within max_distance of the model",
-        inlier_ratio=fitness, rmse=rmse, iterations=int(config.max_iterations), time_s=time.perf_counter() - t0,
+        message=message, inlier_ratio=fitness, rmse=rmse, iterations=_NOT_REPORTED, time_s=time.perf_counter() - t0,
     )
 
 
@@ -175,7 +192,7 @@ def per_part_icp(model: ArticulatedModel, points_cam, init: ArticulatedPose, *, 
         labels = np.asarray(labels)
         if labels.shape != (pts.shape[0],) or not np.issubdtype(labels.dtype, np.integer):
             raise ValueError(f"labels: expected ({pts.shape[0]},) integer part labels, got {labels.shape} {labels.dtype}")
-    poses, fits, rmses, weights, skipped = [], [], [], [], []
+    poses, fits, rmses, weights, skipped, unconverged = [], [], [], [], [], []
     for j, part in enumerate(model.parts):
         sel = labels == j
         if sel.sum() < config.min_points:
@@ -183,7 +200,9 @@ def per_part_icp(model: ArticulatedModel, points_cam, init: ArticulatedPose, *, 
             skipped.append(part.name)
             continue
         p, n = sample_with_normals(part.mesh, config.samples_per_part, rng)
-        T, fit, rmse = _register(pts[sel], p, n, T_init[j], config)
+        T, fit, rmse, converged = _register(pts[sel], p, n, T_init[j], config)
+        if not converged:
+            unconverged.append(part.name)
         poses.append(T)
         fits.append(fit)
         rmses.append(rmse)
@@ -192,13 +211,26 @@ def per_part_icp(model: ArticulatedModel, points_cam, init: ArticulatedPose, *, 
         return _failed("per_part_icp", model, init, "no part has enough observed points near the initial estimate", t0)
     w = np.asarray(weights, dtype=float)
     q = joint_states_from_part_poses(model, poses)
-    msg = f"parts left at the initial pose (too few points): {skipped}" if skipped else ""
+    notes = []
+    if skipped:
+        notes.append(f"parts left at the initial pose (too few points): {skipped}")
+    if unconverged:
+        notes.append(f"parts not converged within {config.max_iterations} iterations: {unconverged}")
+    if all(f == 0 for f in fits):
+        status = FitStatus.TOO_FEW_POINTS
+        notes.append("no observed point within max_distance of any registered part")
+    else:
+        status = FitStatus.MAX_ITER if unconverged else FitStatus.SUCCESS
     return CadFitResult(
         method="per_part_icp", T_cam_parts=tuple(poses), q=q, T_cam_base=poses[model.base_index],
-        status=FitStatus.SUCCESS, message=msg, inlier_ratio=float(np.sum(w * np.asarray(fits)) / pts.shape[0]),
-        rmse=float(np.sqrt(np.sum(w * np.asarray(rmses) ** 2) / w.sum())), iterations=int(config.max_iterations),
+        status=status, message="; ".join(notes) or "converged",
+        inlier_ratio=float(np.sum(w * np.asarray(fits)) / pts.shape[0]),
+        rmse=float(np.sqrt(np.sum(w * np.asarray(rmses) ** 2) / w.sum())), iterations=_NOT_REPORTED,
         time_s=time.perf_counter() - t0,
     )
+
+
+_NOT_REPORTED = -1  # CadFitResult.iterations of the rigid baselines: open3d does not report the count
 
 
 def _failed(method, model, init, message, t0, status=FitStatus.TOO_FEW_POINTS) -> CadFitResult:

@@ -19,20 +19,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry._checks import as_array, as_points, check_generator
+from ...geometry.robust import robust_weights  # noqa: F401  (re-exported)
 from ...geometry.transforms import Sim3
-from ...model.articulated import ArticulatedModel
+from ...model.articulated import ArticulatedModel, sample_surface_with_normals
 from ..types import Correspondences, Observation
 
 __all__ = [
     "ArticulatedPose",
     "ClosestPoints",
     "ModelSurface",
+    "ModelTemplate",
     "TemplateCorrespondences",
     "TemplateProvider",
     "robust_weights",
 ]
-
-ROBUST_LOSSES = ("none", "huber", "cauchy", "tukey")
 
 
 @dataclass(frozen=True)
@@ -235,12 +235,10 @@ class ModelSurface:
     def sample(self, count: int, rng, *, normals: bool = False):
         """``count`` surface samples per part in the part frames: ``(points (M*count, 3), labels)``,
         plus their unit face normals ``(M*count, 3)`` when ``normals``."""
-        from .rigid import sample_with_normals
-
         rng = check_generator(rng)
         pts, nrm, labels = [], [], []
         for j, part in enumerate(self.model.parts):
-            p, n = sample_with_normals(part.mesh, count, rng)
+            p, n = sample_surface_with_normals(part.mesh, count, rng)
             pts.append(p)
             nrm.append(n)
             labels.append(np.full(count, j, dtype=np.int64))
@@ -257,28 +255,6 @@ def _seen(scene, points_cam) -> np.ndarray:
     t = scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()
     depth = np.linalg.norm(points_cam, axis=1)
     return t * depth >= depth - np.maximum(1e-4, 1e-4 * depth)
-
-
-def robust_weights(residuals, loss: str, scale: float) -> np.ndarray:
-    """IRLS weights ``w(r)`` of a robust loss for non-negative residuals ``(N,)`` (metres).
-
-    ``none``: 1; ``huber``: ``min(1, c / r)``; ``cauchy``: ``1 / (1 + (r / c)^2)``;
-    ``tukey``: ``(1 - (r / c)^2)^2`` inside ``c``, 0 outside.
-    """
-    r = np.abs(as_array(residuals, "residuals", (None,)))
-    if loss not in ROBUST_LOSSES:
-        raise ValueError(f"loss: expected one of {ROBUST_LOSSES}, got {loss!r}")
-    scale = float(scale)
-    if not np.isfinite(scale) or scale <= 0:
-        raise ValueError(f"scale: expected a positive finite number, got {scale}")
-    if loss == "none":
-        return np.ones_like(r)
-    if loss == "huber":
-        return np.minimum(1.0, scale / np.maximum(r, 1e-300))
-    u = r / scale
-    if loss == "cauchy":
-        return 1.0 / (1.0 + u * u)
-    return np.where(u < 1.0, (1.0 - u * u) ** 2, 0.0)
 
 
 @dataclass(frozen=True)
@@ -298,6 +274,48 @@ class TemplateCorrespondences(Correspondences):
     distances: np.ndarray | None = None
 
 
+class ModelTemplate:
+    """What a known model offers every frame, built once per model: the closest-point surface,
+    the canonical space, each part's frame -> NPCS map, the joint tree and limits.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+        The instance (at least one movable joint; every part needs a mesh).
+    surface : ModelSurface, optional
+        A closest-point structure of ``model`` to reuse (built when omitted).
+
+    Raises
+    ------
+    ValueError
+        If the model has no movable joint or a part has no mesh.
+    """
+
+    def __init__(self, model: ArticulatedModel, surface: ModelSurface | None = None):
+        from ...model.canonical import canonical_space
+
+        if not isinstance(model, ArticulatedModel):
+            raise ValueError(f"model: expected an ArticulatedModel, got {type(model).__name__}")
+        if model.num_joints == 0:
+            raise ValueError(f"model: {model.name!r} has no movable joint; use rigid ICP (whole_object_icp) instead")
+        if surface is not None and (not isinstance(surface, ModelSurface) or surface.model is not model):
+            raise ValueError("surface: expected the ModelSurface of this model")
+        self.model = model
+        self.surface = surface if surface is not None else ModelSurface(model)
+        self.canonical = cs = canonical_space(model)
+        rest_poses = model.forward_kinematics(model.rest_states)
+        # Part frame -> its NPCS (a similarity: the NAOCS normalisation scale over s_j).
+        self.T_npcs_part = tuple(cs.T_naocs_npcs(j).inverse() @ cs.T_naocs_base @ rest_poses[j]
+                                 for j in range(model.num_parts))
+        self.joint_parts = np.array([model.joint_parts(k) for k in range(model.num_joints)], dtype=np.int64).reshape(-1, 2)
+        self.joint_limits = np.stack([model.lower_limits, model.upper_limits], axis=1) - model.rest_states[:, None]
+
+    @property
+    def T_cam_naocs_scale(self) -> float:
+        """Metres per NAOCS unit: the object scale of every part pose of this model."""
+        return 1.0 / self.canonical.T_naocs_base.scale
+
+
 class TemplateProvider:
     """Correspondences from a known model: closest points at the current estimate.
 
@@ -307,10 +325,14 @@ class TemplateProvider:
     ``max_distance`` (gated). Per-part NPCS -> NAOCS maps, joints, box extents and joint
     limits are the model's own (exact).
 
+    A provider is cheap (per frame and estimate); the expensive per-model part is its
+    :class:`ModelTemplate`, shared by every provider built from it (and by :meth:`at`).
+
     Parameters
     ----------
-    model : ArticulatedModel
-        The instance (every part needs a mesh), e.g. from :func:`ancsh.data.urdf.load_urdf`.
+    model : ArticulatedModel or ModelTemplate
+        The instance (every part needs a mesh), e.g. from :func:`ancsh.data.urdf.load_urdf`, or
+        its template.
     estimate : ArticulatedPose, optional
         Current pose; set or replace it with :meth:`at`. Required before :meth:`correspond`.
     max_distance : float
@@ -328,32 +350,19 @@ class TemplateProvider:
         If the model has no movable joint, a part has no mesh, or a setting is out of range.
     """
 
-    def __init__(self, model: ArticulatedModel, estimate: ArticulatedPose | None = None, *,
-                 max_distance: float = 0.05, loss: str = "huber", loss_scale: float = 0.01, visible: bool = True,
-                 _surface: ModelSurface | None = None, _canonical=None):
-        from ...model.canonical import canonical_space
-
-        if not isinstance(model, ArticulatedModel):
-            raise ValueError(f"model: expected an ArticulatedModel, got {type(model).__name__}")
-        if model.num_joints == 0:
-            raise ValueError(f"model: {model.name!r} has no movable joint; use rigid ICP (whole_object_icp) instead")
+    def __init__(self, model, estimate: ArticulatedPose | None = None, *,
+                 max_distance: float = 0.05, loss: str = "huber", loss_scale: float = 0.01, visible: bool = True):
+        template = model if isinstance(model, ModelTemplate) else ModelTemplate(model)
         max_distance = float(max_distance)
         if not (np.isfinite(max_distance) and max_distance > 0):
             raise ValueError(f"max_distance: expected a positive number, got {max_distance}")
         robust_weights(np.zeros(1), loss, loss_scale)  # validates loss and loss_scale
-        self.model = model
+        self.template = template
+        self.model = template.model
         self.max_distance = max_distance
         self.loss = loss
         self.loss_scale = float(loss_scale)
         self.visible = bool(visible)
-        self.surface = _surface if _surface is not None else ModelSurface(model)
-        self.canonical = _canonical if _canonical is not None else canonical_space(model)
-        cs = self.canonical
-        rest_poses = model.forward_kinematics(model.rest_states)
-        # Part frame -> its NPCS (a similarity: the NAOCS normalisation scale over s_j).
-        self.T_npcs_part = tuple(cs.T_naocs_npcs(j).inverse() @ cs.T_naocs_base @ rest_poses[j]
-                                 for j in range(model.num_parts))
-        self._joint_parts = np.array([model.joint_parts(k) for k in range(model.num_joints)], dtype=np.int64).reshape(-1, 2)
         self.estimate = None
         if estimate is not None:
             self.estimate = self._check_estimate(estimate)
@@ -367,14 +376,28 @@ class TemplateProvider:
     def at(self, estimate: ArticulatedPose, *, max_distance: float | None = None) -> "TemplateProvider":
         """The same provider at another estimate (and gating distance); shares the surface data."""
         return TemplateProvider(
-            self.model, estimate, max_distance=self.max_distance if max_distance is None else max_distance,
-            loss=self.loss, loss_scale=self.loss_scale, visible=self.visible, _surface=self.surface, _canonical=self.canonical,
+            self.template, estimate, max_distance=self.max_distance if max_distance is None else max_distance,
+            loss=self.loss, loss_scale=self.loss_scale, visible=self.visible,
         )
+
+    # The template's per-model data, read through the provider.
+    @property
+    def surface(self) -> ModelSurface:
+        return self.template.surface
+
+    @property
+    def canonical(self):
+        """The model's :class:`~ancsh.model.canonical.CanonicalSpace`."""
+        return self.template.canonical
+
+    @property
+    def T_npcs_part(self) -> tuple:
+        return self.template.T_npcs_part
 
     @property
     def T_cam_naocs_scale(self) -> float:
         """Metres per NAOCS unit: the object scale of every part pose of this model."""
-        return 1.0 / self.canonical.T_naocs_base.scale
+        return self.template.T_cam_naocs_scale
 
     def empty_correspondences(self, num_points: int = 0) -> "TemplateCorrespondences":
         """The model's canonical parameters with ``num_points`` zero-weight points (labels 0)."""
@@ -402,12 +425,12 @@ class TemplateProvider:
         return self._build(cp.labels, npcs, w, normals, cp.distances)
 
     def _build(self, labels, npcs, weights, normals, distances) -> "TemplateCorrespondences":
-        cs, model = self.canonical, self.model
-        limits = np.stack([model.lower_limits, model.upper_limits], axis=1) - model.rest_states[:, None]
+        t = self.template
+        cs = t.canonical
         return TemplateCorrespondences(
             part_labels=labels, npcs=npcs, npcs_scale=cs.npcs_scale, npcs_translation=cs.npcs_translation,
-            joint_types=tuple(cs.joint_types), joint_parents=self._joint_parts[:, 0],
-            joint_children=self._joint_parts[:, 1], joint_axes_naocs=cs.joint_axes_naocs,
+            joint_types=tuple(cs.joint_types), joint_parents=t.joint_parts[:, 0],
+            joint_children=t.joint_parts[:, 1], joint_axes_naocs=cs.joint_axes_naocs,
             joint_pivots_naocs=cs.joint_pivots_naocs, weights=weights, npcs_extents=cs.npcs_extents,
-            joint_limits=limits, normals_npcs=normals, distances=distances,
+            joint_limits=t.joint_limits, normals_npcs=normals, distances=distances,
         )

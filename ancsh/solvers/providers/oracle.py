@@ -58,7 +58,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ...geometry._checks import check_generator
+from ...geometry._checks import check_generator, check_number
 from ..types import Correspondences, Observation
 
 __all__ = ["CORRUPTION_PRESETS", "Corruption", "OracleProvider", "OracleSample", "corrupt_ground_truth"]
@@ -99,14 +99,8 @@ class Corruption:
 
     def __post_init__(self):
         for f in fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                raise ValueError(f"{f.name}: expected a number, got {type(v).__name__}")
-            v = float(v)
-            if not np.isfinite(v) or v < 0:
-                raise ValueError(f"{f.name}: expected a finite number >= 0, got {v}")
-            if f.name in ("outlier_fraction", "flip_fraction") and v > 1:
-                raise ValueError(f"{f.name}: expected a fraction in [0, 1], got {v}")
+            fraction = f.name in ("outlier_fraction", "flip_fraction")
+            v = check_number(getattr(self, f.name), f.name, minimum=0.0, maximum=1.0 if fraction else None)
             object.__setattr__(self, f.name, v)
 
     @classmethod

@@ -74,3 +74,27 @@ def test_samples_lie_on_the_mesh_with_unit_normals():
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0)
     # every sample lies on a face: one coordinate at the half extent, along the normal
     np.testing.assert_allclose(np.abs(np.sum(p * n, axis=1)), np.abs(n) @ np.array([0.1, 0.2, 0.3]), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [(dict(max_iterations=True), "max_iterations"), (dict(max_iterations=2.7), "max_iterations"),
+     (dict(samples_per_part=9), "samples_per_part"), (dict(point_to_plane=1), "point_to_plane"),
+     (dict(max_distance=float("inf")), "max_distance")],
+)
+def test_rigid_config_rejects_non_integer_and_out_of_range_values(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        RigidIcpConfig(**kwargs)
+
+
+def test_rigid_baselines_report_max_iter_when_the_iteration_limit_stops_them():
+    """One ICP iteration from a 0.1 rad / 3 cm offset does not converge: MAX_ITER, not SUCCESS;
+    the iteration count is not reported by open3d (-1)."""
+    model, q, T, pts, labels = _observation(2)
+    init = ArticulatedPose(Sim3(exp_so3([0.1, -0.05, 0.05]) @ T.rotation, T.translation + 0.03), q)
+    one = RigidIcpConfig(max_iterations=1)
+    for res in (whole_object_icp(model, pts, init, config=one), per_part_icp(model, pts, init, labels=labels, config=one)):
+        assert res.status == FitStatus.MAX_ITER and "not converged" in res.message
+        assert res.iterations == -1
+    converged = whole_object_icp(model, pts, init, config=RigidIcpConfig(max_iterations=200))
+    assert converged.status == FitStatus.SUCCESS and converged.message == "converged"

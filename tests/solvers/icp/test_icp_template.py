@@ -134,3 +134,21 @@ def test_solver_core_formulations_fit_template_correspondences(formulation):
         np.testing.assert_allclose(est.translation, true.translation, atol=1e-4)
         np.testing.assert_allclose(est.rotation, true.rotation, atol=1e-4)
     np.testing.assert_allclose(res.joint_states, q - model.rest_states, atol=1e-4)
+
+
+def test_template_is_built_once_per_model_and_does_not_import_the_rigid_baselines():
+    import ast
+    import inspect
+
+    import ancsh.solvers.icp.template as template_module
+    from ancsh.solvers.icp.template import ModelTemplate
+
+    imports = [n.module for n in ast.walk(ast.parse(inspect.getsource(template_module))) if isinstance(n, ast.ImportFrom)]
+    assert "rigid" not in imports  # rigid.py imports template.py, never the reverse
+    model = random_articulated_model(np.random.default_rng(0), 3)
+    template = ModelTemplate(model)
+    provider = TemplateProvider(template)
+    moved = provider.at(ArticulatedPose(Sim3(), model.rest_states))
+    assert moved.template is template and moved.surface is template.surface
+    with pytest.raises(ValueError, match="surface"):
+        ModelTemplate(model, surface=ModelTemplate(random_articulated_model(np.random.default_rng(1), 3)).surface)
