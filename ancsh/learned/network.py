@@ -28,7 +28,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .pointnet2 import PointNet2Backbone, shared_mlp
+from .pointnet2 import Neighbourhoods, PointNet2Backbone, shared_mlp
 
 __all__ = ["AncshNet", "DirectVotingNet", "build_network", "normalize_cloud", "denormalize_joint_votes"]
 
@@ -102,11 +102,22 @@ class AncshNet(nn.Module):
         self.assoc_head = _head(c, K + 1, c)
         self.joint_head = _head(c, 7, c)
 
-    def forward(self, points: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Predict every head for camera-frame points ``(B, N, 3)``; see the module table."""
+    def neighbourhoods(self, points: torch.Tensor) -> Neighbourhoods:
+        """Sampling, grouping and interpolation indices of camera-frame points ``(B, N, 3)`` (no gradient).
+
+        They depend only on the points, so a training loop can compute them once per frame and
+        pass them to :meth:`forward` (both backbones share them).
+        """
+        return self.backbone.neighbourhoods(normalize_cloud(points)[0])
+
+    def forward(self, points: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> dict[str, torch.Tensor]:
+        """Predict every head for camera-frame points ``(B, N, 3)``; see the module table.
+
+        ``neighbourhoods``: :meth:`neighbourhoods` of the same points (computed when omitted).
+        """
         xyz, _, _ = normalize_cloud(points)
-        f1 = self.backbone(xyz)
-        f2 = f1 if self.backbone2 is None else self.backbone2(xyz)
+        f1 = self.backbone(xyz, neighbourhoods)
+        f2 = f1 if self.backbone2 is None else self.backbone2(xyz, neighbourhoods)
         B, N = points.shape[:2]
         M = self.num_parts
         naocs = self.naocs_head(f2).transpose(1, 2)
@@ -143,11 +154,17 @@ class DirectVotingNet(nn.Module):
         self.assoc_head = _head(c, num_joints + 1, c)
         self.joint_head = _head(c, 7, c)
 
-    def forward(self, points: torch.Tensor) -> dict[str, torch.Tensor]:
+    def neighbourhoods(self, points: torch.Tensor) -> Neighbourhoods:
+        """As :meth:`AncshNet.neighbourhoods`."""
+        return self.backbone.neighbourhoods(normalize_cloud(points)[0])
+
+    def forward(self, points: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> dict[str, torch.Tensor]:
         """``(B, N, 3)`` camera points -> ``seg_logits``, ``assoc_logits``, ``joint`` (distance in metres),
-        ``cloud_scale`` ``(B, 1, 1)`` (metres per normalised unit, see :func:`normalize_cloud`)."""
+        ``cloud_scale`` ``(B, 1, 1)`` (metres per normalised unit, see :func:`normalize_cloud`).
+
+        ``neighbourhoods`` as in :meth:`AncshNet.forward`."""
         xyz, _, scale = normalize_cloud(points)
-        f = self.backbone(xyz)
+        f = self.backbone(xyz, neighbourhoods)
         joint = self.joint_head(f).transpose(1, 2)
         return {
             "seg_logits": self.seg_head(f).transpose(1, 2),
