@@ -11,14 +11,25 @@ followed by each fitting formulation on test frames: per-part rotation/translati
 joint-state error, and the time of the network and of each fit.
 
 Results go to stdout as a markdown table (and ``--json`` to a file).
+
+``ancsh bench learned-cost`` -- training frames per CPU-second of today's step (reference 1x1
+convolutions, sampling and grouping at every step) beside the new one (channel-last layers,
+per-frame cached neighbourhoods) and variants (batch, threads, bf16), measured in one process
+with interleaved repetitions, plus the single-frame forward time; a Markdown table that names
+its command, written to a fresh folder (or ``--out``).
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
+import datetime
 import json
 import os
+import platform
 import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -189,6 +200,210 @@ def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", 
         })
         print(json.dumps(rows[-1]), flush=True)
     return rows
+
+
+@dataclass(frozen=True)
+class StepVariant:
+    """One way to run a training step, for :func:`training_cost`.
+
+    Attributes
+    ----------
+    name, label : str
+    channels_last : bool
+        Channel-last layers (else the reference 1x1 convolutions).
+    cached : bool
+        Neighbourhoods from a per-frame cache (else sampled and grouped in the step).
+    batch : int
+    threads : int
+        torch intra-op threads.
+    bf16 : bool
+        ``torch.autocast("cpu", torch.bfloat16)`` around the forward pass and the loss.
+    """
+
+    name: str
+    label: str
+    channels_last: bool = True
+    cached: bool = True
+    batch: int = 16
+    threads: int = 1
+    bf16: bool = False
+
+
+STEP_VARIANTS = {
+    v.name: v
+    for v in (
+        StepVariant("today", "today's step: 1x1 convolutions, sampling and grouping every step", False, False),
+        StepVariant("channels_last", "channel-last layers, sampling and grouping every step", True, False),
+        StepVariant("new", "new step: channel-last layers + cached neighbourhoods", True, True),
+        StepVariant("new_b32", "new step, batch 32", True, True, batch=32),
+        StepVariant("new_2threads", "new step, 2 threads", True, True, threads=2),
+        StepVariant("new_bf16", "new step, bf16 autocast", True, True, bf16=True),
+    )
+}
+"""Step variants of ``ancsh bench learned-cost`` by name; ``today`` is the reference, ``new`` the default step."""
+
+
+def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_points: int = 1024, repeats: int = 6,
+                  seed: int = 0) -> dict:
+    """Training-step cost of each :class:`StepVariant`, measured in one process, repetitions interleaved.
+
+    Every variant starts from the same network and optimiser state and trains on the same
+    random clouds (``width``, 256/64 centres, 32/32 neighbours: the shipped networks' size). The
+    first repetition of each variant is a warm-up and is left out; the process CPU time of a
+    step is the cost measure (the machine is shared, so wall times vary with the load).
+
+    Returns
+    -------
+    dict
+        ``rows`` (one per variant: ``frames_per_cpu_s``, ``frames_per_wall_s``, medians of
+        ``step_cpu_s`` / ``step_wall_s``, ``first_loss``), ``cache_ms_per_frame`` (CPU time to compute
+        the neighbourhoods of one frame, once per frame), ``forward_ms`` (one frame, one thread, eval
+        mode, per layout: min CPU time) and the settings.
+    """
+    import torch
+
+    from .config import TrainConfig
+    from .losses import Targets, ancsh_loss
+    from .network import build_network
+    from .pointnet2 import Neighbourhoods
+
+    variants = [STEP_VARIANTS[v] if isinstance(v, str) else v for v in variants]
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 2:
+        raise ValueError(f"repeats: expected an integer >= 2, got {repeats!r}")
+    threads_before = torch.get_num_threads()
+    cfg = TrainConfig(width=width, num_points=num_points)
+    g = torch.Generator().manual_seed(seed)
+    F = max(v.batch for v in variants)
+    x = torch.randn(F, num_points, 3, generator=g) * torch.tensor([0.2, 0.1, 0.15]) + torch.tensor([0.0, 0.0, 1.5])
+    targets = Targets(
+        torch.randint(0, 2, (F, num_points), generator=g), torch.rand(F, num_points, 3, generator=g),
+        torch.rand(F, num_points, generator=g) + 0.5, torch.rand(F, num_points, 3, generator=g),
+        torch.randint(0, 2, (F, num_points), generator=g), torch.rand(F, num_points, 7, generator=g),
+        torch.ones(F, num_points, 7), torch.rand(F, num_points, 7, generator=g),
+    )
+    torch.manual_seed(seed)
+    base = build_network("ancsh", 2, 1, **cfg.network_kwargs())
+    torch.set_num_threads(1)
+    c0 = time.process_time()
+    cache = Neighbourhoods.from_numpy(base.neighbourhoods(x).numpy())
+    cache_ms = 1e3 * (time.process_time() - c0) / F
+    states = {}
+    for v in variants:
+        net = copy.deepcopy(base)
+        net.backbone.channels_last = v.channels_last
+        states[v.name] = (net, torch.optim.Adam(net.parameters(), lr=cfg.lr))
+    times: dict[str, list] = {v.name: [] for v in variants}
+    first_loss = {}
+    try:
+        for _ in range(repeats):
+            for v in variants:
+                net, opt = states[v.name]
+                torch.set_num_threads(v.threads)
+                idx = slice(0, v.batch)
+                nb = None
+                if v.cached:
+                    nb = Neighbourhoods(**{k: getattr(cache, k)[idx] for k in asdict(cache)})
+                t_wall, t_cpu = time.perf_counter(), time.process_time()
+                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=v.bf16):
+                    loss, _ = ancsh_loss(net(x[idx], nb), targets[idx])
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+                times[v.name].append((time.process_time() - t_cpu, time.perf_counter() - t_wall))
+                first_loss.setdefault(v.name, float(loss))
+        forward = {}
+        torch.set_num_threads(1)
+        for layout, channels_last in (("reference", False), ("channels_last", True)):
+            net = copy.deepcopy(base).eval()
+            net.backbone.channels_last = channels_last
+            cpu = []
+            with torch.no_grad():
+                for _ in range(repeats + 1):
+                    c = time.process_time()
+                    net(x[:1])
+                    cpu.append(time.process_time() - c)
+            forward[layout] = 1e3 * float(np.min(cpu[1:]))
+    finally:
+        torch.set_num_threads(threads_before)
+    rows = []
+    for v in variants:
+        cpu = float(np.median([t[0] for t in times[v.name][1:]]))
+        wall = float(np.median([t[1] for t in times[v.name][1:]]))
+        rows.append({**asdict(v), "step_cpu_s": cpu, "step_wall_s": wall, "frames_per_cpu_s": v.batch / cpu,
+                     "frames_per_wall_s": v.batch / wall, "first_loss": first_loss[v.name]})
+    ref = next((r for r in rows if r["name"] == "today"), rows[0])
+    for r in rows:
+        r["speedup_cpu"] = r["frames_per_cpu_s"] / ref["frames_per_cpu_s"]
+    return {
+        "rows": rows, "cache_ms_per_frame": cache_ms, "forward_ms": forward, "reference": ref["name"],
+        "settings": {"width": width, "num_points": num_points, "npoints": list(cfg.npoints), "nsamples": list(cfg.nsamples),
+                     "repeats": repeats, "seed": seed, "torch": torch.__version__, "cpus": os.cpu_count(),
+                     "machine": platform.machine(), "load_avg": os.getloadavg()[0]},
+    }
+
+
+def write_cost_report(result: dict, path, *, command: str) -> Path:
+    """Write :func:`training_cost` output as Markdown to ``path`` (and the numbers as JSON beside it)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    s = result["settings"]
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    lines = [
+        "# Training cost of the ANCSH network on a CPU",
+        "",
+        f"Command: `{command}`  ",
+        f"Date: {date}; torch {s['torch']}, {s['machine']}, {s['cpus']} CPUs, load average {s['load_avg']:.1f} at the end  ",
+        f"Network: width {s['width']}, {s['num_points']} points, {s['npoints'][0]}/{s['npoints'][1]} centres, "
+        f"{s['nsamples'][0]}/{s['nsamples'][1]} neighbours, one backbone (the shipped networks' size); one process, "
+        f"{s['repeats']} repetitions per variant interleaved (the first a warm-up), medians.",
+        "",
+        "Frames per CPU-second = batch / process CPU time of one step (forward, loss, backward, Adam); the machine "
+        "is shared, so only ratios measured side by side in one run mean something.",
+        "",
+        "| Step | batch | threads | step CPU (s) | step wall (s) | frames / CPU-s | frames / wall-s | vs today (CPU) | first loss |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        lines.append(f"| {r['label']} | {r['batch']} | {r['threads']} | {r['step_cpu_s']:.3f} | {r['step_wall_s']:.3f} "
+                     f"| {r['frames_per_cpu_s']:.1f} | {r['frames_per_wall_s']:.1f} | {r['speedup_cpu']:.2f}x | {r['first_loss']:.5f} |")
+    f = result["forward_ms"]
+    lines += [
+        "",
+        f"Neighbourhood cache: {result['cache_ms_per_frame']:.1f} ms CPU per frame, computed once per frame "
+        "(on first load; saved in the run directory), not at every step.",
+        "",
+        f"Forward pass of one frame ({s['num_points']} points, one thread, eval mode, min CPU time): "
+        f"{f['channels_last']:.1f} ms channel-last (sampling and grouping included), {f['reference']:.1f} ms with the reference layers.",
+        "",
+    ]
+    path.write_text("\n".join(lines))
+    path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    return path
+
+
+def register(sub) -> None:
+    """Add ``ancsh bench learned-cost`` to the ``bench`` sub-parsers."""
+    p = sub.add_parser("learned-cost", help="training frames per CPU-second: today's step vs the new one (one run)")
+    p.add_argument("--variants", nargs="+", default=list(STEP_VARIANTS), choices=list(STEP_VARIANTS))
+    p.add_argument("--repeats", type=int, default=6, help="steps per variant, the first a warm-up (default 6)")
+    p.add_argument("--width", type=float, default=0.5)
+    p.add_argument("--out", type=Path, help="Markdown file (e.g. docs/results/learned_cost.md); default: a fresh "
+                   "folder bench_out/learned_cost_<UTC time>/")
+    p.set_defaults(func=run_cost)
+
+
+def run_cost(args) -> int:
+    result = training_cost(args.variants, width=args.width, repeats=args.repeats)
+    out = args.out
+    if out is None:
+        stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
+        out = Path("bench_out") / f"learned_cost_{stamp}" / "learned_cost.md"
+    command = (f"ancsh bench learned-cost --repeats {args.repeats} --width {args.width} --variants {' '.join(args.variants)}"
+               + (f" --out {args.out}" if args.out else ""))
+    path = write_cost_report(result, out, command=command)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
 
 
 def main(argv=None) -> int:

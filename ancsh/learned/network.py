@@ -64,8 +64,32 @@ def _check_structure(num_parts: int, num_joints: int) -> None:
         raise ValueError(f"num_joints: expected >= 1, got {num_joints}")
 
 
-def _head(c_in: int, c_out: int, hidden: int) -> nn.Sequential:
-    return nn.Sequential(shared_mlp([c_in, hidden], dim=1), nn.Conv1d(hidden, c_out, 1))
+class _Head(nn.Sequential):
+    """A per-point head: ``[Conv1d, BatchNorm, ReLU]`` then a ``Conv1d`` to ``c_out`` channels."""
+
+    def __init__(self, c_in: int, c_out: int, hidden: int):
+        super().__init__(shared_mlp([c_in, hidden], dim=1), nn.Conv1d(hidden, c_out, 1))
+
+    def forward_last(self, x: torch.Tensor) -> torch.Tensor:
+        """Channel-last ``(B, N, C_in) -> (B, N, C_out)`` with the same parameters."""
+        conv = self[1]
+        return nn.functional.linear(self[0].forward_last(x), conv.weight.squeeze(-1), conv.bias)
+
+
+def _head(c_in: int, c_out: int, hidden: int) -> _Head:
+    return _Head(c_in, c_out, hidden)
+
+
+def _per_point(backbone, xyz: torch.Tensor, neighbourhoods) -> tuple[torch.Tensor, bool]:
+    """Backbone features ``(B, N, C)`` (channel-last) or ``(B, C, N)``, and whether they are channel-last."""
+    if backbone.channels_last:
+        return backbone.forward_last(xyz, neighbourhoods), True
+    return backbone(xyz, neighbourhoods), False
+
+
+def _apply(head: _Head, features: torch.Tensor, last: bool) -> torch.Tensor:
+    """``head`` on features from :func:`_per_point`, as ``(B, N, C_out)``."""
+    return head.forward_last(features) if last else head(features).transpose(1, 2)
 
 
 class AncshNet(nn.Module):
@@ -116,19 +140,18 @@ class AncshNet(nn.Module):
         ``neighbourhoods``: :meth:`neighbourhoods` of the same points (computed when omitted).
         """
         xyz, _, _ = normalize_cloud(points)
-        f1 = self.backbone(xyz, neighbourhoods)
-        f2 = f1 if self.backbone2 is None else self.backbone2(xyz, neighbourhoods)
+        f1, last = _per_point(self.backbone, xyz, neighbourhoods)
+        f2 = f1 if self.backbone2 is None else _per_point(self.backbone2, xyz, neighbourhoods)[0]
         B, N = points.shape[:2]
         M = self.num_parts
-        naocs = self.naocs_head(f2).transpose(1, 2)
-        joint = self.joint_head(f2).transpose(1, 2)
+        naocs = _apply(self.naocs_head, f2, last)
         return {
-            "seg_logits": self.seg_head(f1).transpose(1, 2),
-            "npcs": self.npcs_head(f1).transpose(1, 2).reshape(B, N, M, 3),
+            "seg_logits": _apply(self.seg_head, f1, last),
+            "npcs": _apply(self.npcs_head, f1, last).reshape(B, N, M, 3),
             "scale": nn.functional.softplus(naocs[..., :M]) + 1e-4,
             "translation": naocs[..., M:].reshape(B, N, M, 3),
-            "assoc_logits": self.assoc_head(f2).transpose(1, 2),
-            "joint": joint,
+            "assoc_logits": _apply(self.assoc_head, f2, last),
+            "joint": _apply(self.joint_head, f2, last),
         }
 
 
@@ -164,11 +187,11 @@ class DirectVotingNet(nn.Module):
 
         ``neighbourhoods`` as in :meth:`AncshNet.forward`."""
         xyz, _, scale = normalize_cloud(points)
-        f = self.backbone(xyz, neighbourhoods)
-        joint = self.joint_head(f).transpose(1, 2)
+        f, last = _per_point(self.backbone, xyz, neighbourhoods)
+        joint = _apply(self.joint_head, f, last)
         return {
-            "seg_logits": self.seg_head(f).transpose(1, 2),
-            "assoc_logits": self.assoc_head(f).transpose(1, 2),
+            "seg_logits": _apply(self.seg_head, f, last),
+            "assoc_logits": _apply(self.assoc_head, f, last),
             "joint": denormalize_joint_votes(joint, scale),
             "cloud_scale": scale,
         }

@@ -20,6 +20,7 @@ from torch import nn
 
 __all__ = [
     "farthest_point_sample",
+    "farthest_point_sample_reference",
     "ball_query",
     "gather_points",
     "group_points",
@@ -44,6 +45,10 @@ def _check_xyz(xyz: torch.Tensor, name: str) -> None:
 def farthest_point_sample(xyz: torch.Tensor, npoint: int) -> torch.Tensor:
     """Iterative farthest-point sampling.
 
+    The loop runs in numpy (its per-step cost is call overhead on small arrays) with the same
+    float arithmetic as the torch formulation ``min(dist, ((xyz - centre) ** 2).sum(-1))``; ties
+    go to the lowest index.
+
     Parameters
     ----------
     xyz : (B, N, 3) tensor
@@ -56,6 +61,33 @@ def farthest_point_sample(xyz: torch.Tensor, npoint: int) -> torch.Tensor:
     (B, npoint) int64 tensor
         Indices into ``N``; the first index is always 0 (deterministic).
     """
+    _check_xyz(xyz, "xyz")
+    B, N, _ = xyz.shape
+    if not 1 <= npoint <= N:
+        raise ValueError(f"npoint: expected 1 <= npoint <= {N}, got {npoint}")
+    px, py, pz = np.ascontiguousarray(xyz.detach().cpu().numpy().transpose(2, 0, 1))  # (B, N) each
+    idx = np.zeros((B, npoint), dtype=np.int64)
+    dist = np.full((B, N), np.inf, dtype=px.dtype)
+    d, t = np.empty_like(dist), np.empty_like(dist)
+    farthest = np.zeros(B, dtype=np.int64)
+    rows = np.arange(B)
+    for i in range(npoint):
+        idx[:, i] = farthest
+        np.subtract(px, px[rows, farthest][:, None], out=d)
+        np.multiply(d, d, out=d)
+        np.subtract(py, py[rows, farthest][:, None], out=t)
+        d += t * t
+        np.subtract(pz, pz[rows, farthest][:, None], out=t)
+        d += t * t  # ((dx^2 + dy^2) + dz^2): the order of a sum over the last axis of 3
+        np.minimum(dist, d, out=dist)
+        farthest = dist.argmax(1)
+    return torch.from_numpy(idx).to(xyz.device)
+
+
+@torch.no_grad()
+def farthest_point_sample_reference(xyz: torch.Tensor, npoint: int) -> torch.Tensor:
+    """:func:`farthest_point_sample` as torch operations, one step per centre (the earlier implementation:
+    the same indices, several times slower on a CPU; kept as the reference of tests and benchmarks)."""
     _check_xyz(xyz, "xyz")
     B, N, _ = xyz.shape
     if not 1 <= npoint <= N:
@@ -304,9 +336,9 @@ class SetAbstraction(nn.Module):
             grouped = xyz.transpose(1, 2).unsqueeze(2)  # (B, 3, 1, N)
             if features is not None:
                 grouped = torch.cat([grouped, features.unsqueeze(2)], dim=1)
-        else:
-            centre_idx, idx = self.sample_and_group(xyz)
-            centres = gather_points(xyz, centre_idx)
+        else:  # the reference path, as the step was before channel-last layers and cached neighbourhoods
+            centres = gather_points(xyz, farthest_point_sample_reference(xyz, self.npoint))
+            idx = ball_query(xyz, centres, self.radius, self.nsample)
             grouped = group_points(xyz, features, centres, idx)
         return centres, self.mlp(grouped).amax(dim=-1)
 
@@ -320,14 +352,21 @@ class SetAbstraction(nn.Module):
         if self.npoint is None:
             centres = xyz.new_zeros(xyz.shape[0], 1, 3)
             grouped = xyz if features is None else torch.cat([xyz, features], dim=-1)  # (B, N, 3 + C)
-            return centres, self.mlp.forward_last(grouped).amax(dim=1, keepdim=True)
+            return centres, _max_pool(self.mlp.forward_last(grouped), dim=1, keepdim=True)
         if centre_idx is None or group_idx is None:
             centre_idx, group_idx = self.sample_and_group(xyz)
         centres = gather_points(xyz, centre_idx)
         grouped = gather_points(xyz if features is None else torch.cat([xyz, features], dim=-1), group_idx)
         rel = grouped[..., :3] - centres.unsqueeze(2)
         grouped = rel if features is None else torch.cat([rel, grouped[..., 3:]], dim=-1)  # (B, S, K, 3 + C)
-        return centres, self.mlp.forward_last(grouped).amax(dim=2)
+        return centres, _max_pool(self.mlp.forward_last(grouped), dim=2)
+
+
+def _max_pool(x: torch.Tensor, dim: int, keepdim: bool = False) -> torch.Tensor:
+    """Maximum over ``dim`` whose backward scatters to one arg-max per output (``amax`` spreads the gradient
+    over ties with a full-size comparison, several times slower). Ties come from repeated neighbours, which
+    share their input, so the parameters' gradients are the same either way."""
+    return x.max(dim=dim, keepdim=keepdim).values
 
 
 class FeaturePropagation(nn.Module):
@@ -420,20 +459,24 @@ class PointNet2Backbone(nn.Module):
         skips sampling, grouping and the nearest-neighbour search; channel-last only.
         """
         _check_xyz(xyz, "xyz")
-        if not self.channels_last:
-            if neighbourhoods is not None:
-                raise ValueError("neighbourhoods: only supported with channels_last = True")
-            l1_xyz, l1 = self.sa1(xyz, None)
-            l2_xyz, l2 = self.sa2(l1_xyz, l1)
-            l3_xyz, l3 = self.sa3(l2_xyz, l2)
-            l2 = self.fp3(l2_xyz, l3_xyz, l2, l3)
-            l1 = self.fp2(l1_xyz, l2_xyz, l1, l2)
-            return self.fp1(xyz, l1_xyz, xyz.transpose(1, 2), l1)
+        if self.channels_last:
+            return self.forward_last(xyz, neighbourhoods).transpose(1, 2)
+        if neighbourhoods is not None:
+            raise ValueError("neighbourhoods: only supported with channels_last = True")
+        l1_xyz, l1 = self.sa1(xyz, None)
+        l2_xyz, l2 = self.sa2(l1_xyz, l1)
+        l3_xyz, l3 = self.sa3(l2_xyz, l2)
+        l2 = self.fp3(l2_xyz, l3_xyz, l2, l3)
+        l1 = self.fp2(l1_xyz, l2_xyz, l1, l2)
+        return self.fp1(xyz, l1_xyz, xyz.transpose(1, 2), l1)
+
+    def forward_last(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> torch.Tensor:
+        """Channel-last per-point features ``(B, N, 3) -> (B, N, C)`` (see :meth:`forward`)."""
+        _check_xyz(xyz, "xyz")
         nb = self.neighbourhoods(xyz) if neighbourhoods is None else neighbourhoods
         l1_xyz, l1 = self.sa1.forward_last(xyz, None, nb.centres1, nb.groups1)
         l2_xyz, l2 = self.sa2.forward_last(l1_xyz, l1, nb.centres2, nb.groups2)
         _, l3 = self.sa3.forward_last(l2_xyz, l2)
         l2 = self.fp3.forward_last(l2.shape[1], l2, l3, None, None)
         l1 = self.fp2.forward_last(l1.shape[1], l1, l2, nb.interp2_idx, nb.interp2_w)
-        out = self.fp1.forward_last(xyz.shape[1], xyz, l1, nb.interp1_idx, nb.interp1_w)
-        return out.transpose(1, 2)
+        return self.fp1.forward_last(xyz.shape[1], xyz, l1, nb.interp1_idx, nb.interp1_w)
