@@ -310,7 +310,7 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
                 loss.backward()
                 opt.step()
                 times[v.name].append((time.process_time() - t_cpu, time.perf_counter() - t_wall))
-                first_loss.setdefault(v.name, float(loss))
+                first_loss.setdefault(v.name, loss.item())
         forward = {}
         torch.set_num_threads(1)
         for layout, channels_last in (("reference", False), ("channels_last", True)):
