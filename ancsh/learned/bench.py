@@ -381,8 +381,101 @@ def write_cost_report(result: dict, path, *, command: str) -> Path:
     return path
 
 
+def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last.pt", "best.pt")) -> dict:
+    """Held-out test errors of training runs (e.g. paper loss vs paper + pose loss) through the full pipeline.
+
+    Parameters
+    ----------
+    runs : dict of str -> path
+        Name -> run directory of ``ancsh train`` (``config.json``, ``history.csv``, checkpoints).
+    frames : int
+        Rendered test frames (held-out instances, :func:`ancsh.learned.evaluate.evaluate_category`).
+    checkpoints : sequence of str
+        Checkpoint files of each run to evaluate (missing ones are skipped).
+
+    Returns
+    -------
+    dict
+        ``rows``: per run and checkpoint, its step, the run's training steps and training wall time,
+        and means of the ``exact_reduced`` fit's per-part rotation error, joint-axis and joint-state
+        errors and of the network's per-part NPCS orientation error (the error budget).
+    """
+    import csv
+
+    from .config import TrainConfig
+    from .evaluate import evaluate_category, summarize
+    from .weights import load_network
+
+    rows = []
+    for name, run in runs.items():
+        run = Path(run)
+        config = TrainConfig.from_json(run / "config.json")
+        with open(run / "history.csv", newline="") as f:
+            hist = list(csv.DictReader(f))
+        for ck in checkpoints:
+            if not (run / ck).is_file():
+                continue
+            ev = evaluate_category(config.category, frames=frames, methods=("exact_reduced",), weights=run / ck,
+                                   seed=seed, progress=False)
+            sm = summarize(ev)
+            m = sm["methods"]["exact_reduced"]
+            rows.append({
+                "run": name, "run_dir": str(run), "checkpoint": ck, "pose_weight": config.pose_weight,
+                "category": config.category, "step": load_network(run / ck).step,
+                "trained_steps": int(float(hist[-1]["step"])), "train_wall_min": float(hist[-1]["elapsed_s"]) / 60,
+                "frames": m["frames"], "failures": m["failures"], "rot_deg": m["rot_deg"]["mean"],
+                "rot_deg_median": m["rot_deg"]["median"], "axis_deg": m["axis_deg"]["mean"], "state_err": m["state_err"]["mean"],
+                "npcs_rot_deg": sm["budget"]["npcs_rot_deg"]["mean"],
+            })
+            print(json.dumps(rows[-1]), flush=True)
+    return {"rows": rows, "frames": frames, "seed": seed}
+
+
+def write_ablation_report(result: dict, path, *, command: str, commands=()) -> Path:
+    """Write :func:`ablation` output as Markdown to ``path`` (JSON beside it); ``commands``: how the runs were made."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+    def fmt(v, spec=".2f"):
+        return ", ".join("-" if x is None else format(x, spec) for x in v)
+
+    lines = [
+        "# Pose-aware loss: ablation at equal training time",
+        "",
+        f"Command: `{command}`  ",
+        f"Date: {date}; {result['frames']} rendered test frames (held-out instances, seed {result['seed']}) per row, "
+        "fit `exact_reduced`; means over frames (failed fits left out and counted).",
+        "",
+    ]
+    if commands:
+        lines += ["Training runs:", "", *[f"- `{c}`" for c in commands], ""]
+    lines += [
+        "| Run | pose weight | checkpoint (step) | steps trained | training wall (min) | rotation error per part (°) "
+        "| median rotation (°) | joint axis (°) | joint state | NPCS orientation error per part (°) | failed fits |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        lines.append(
+            f"| {r['run']} | {r['pose_weight']:g} | {r['checkpoint']} ({r['step']}) | {r['trained_steps']} "
+            f"| {r['train_wall_min']:.1f} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "
+            f"| {fmt(r['state_err'])} | {fmt(r['npcs_rot_deg'])} | {r['failures']}/{r['frames']} |")
+    lines.append("")
+    path.write_text("\n".join(lines))
+    path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    return path
+
+
 def register(sub) -> None:
-    """Add ``ancsh bench learned-cost`` to the ``bench`` sub-parsers."""
+    """Add ``ancsh bench learned-cost`` and ``ancsh bench learned-ablation`` to the ``bench`` sub-parsers."""
+    a = sub.add_parser("learned-ablation", help="held-out errors of training runs through the full pipeline (loss ablation)")
+    a.add_argument("--runs", nargs="+", required=True, metavar="NAME=RUN_DIR", help="run directories of `ancsh train`")
+    a.add_argument("--frames", type=int, default=300, help="rendered test frames per checkpoint (default 300)")
+    a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--train-commands", nargs="*", default=(), help="the commands that made the runs (for the report)")
+    a.add_argument("--out", type=Path, help="Markdown file (e.g. docs/results/learned_ablation.md); default: a fresh "
+                   "folder bench_out/learned_ablation_<UTC time>/")
+    a.set_defaults(func=run_ablation)
     p = sub.add_parser("learned-cost", help="training frames per CPU-second: today's step vs the new one (one run)")
     p.add_argument("--variants", nargs="+", default=list(STEP_VARIANTS), choices=list(STEP_VARIANTS))
     p.add_argument("--repeats", type=int, default=6, help="steps per variant, the first a warm-up (default 6)")
@@ -394,16 +487,34 @@ def register(sub) -> None:
 
 def run_cost(args) -> int:
     result = training_cost(args.variants, width=args.width, repeats=args.repeats)
-    out = args.out
-    if out is None:
-        stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
-        out = Path("bench_out") / f"learned_cost_{stamp}" / "learned_cost.md"
+    out = args.out or Path("bench_out") / f"learned_cost_{_stamp()}" / "learned_cost.md"
     command = (f"ancsh bench learned-cost --repeats {args.repeats} --width {args.width} --variants {' '.join(args.variants)}"
                + (f" --out {args.out}" if args.out else ""))
     path = write_cost_report(result, out, command=command)
     print(path.read_text())
     print(f"wrote {path}")
     return 0
+
+
+def run_ablation(args) -> int:
+    runs = {}
+    for item in args.runs:
+        name, sep, run = item.partition("=")
+        if not sep or not name or not run:
+            raise ValueError(f"--runs: expected NAME=RUN_DIR, got {item!r}")
+        runs[name] = run
+    result = ablation(runs, frames=args.frames, seed=args.seed)
+    out = args.out or Path("bench_out") / f"learned_ablation_{_stamp()}" / "learned_ablation.md"
+    command = f"ancsh bench learned-ablation --runs {' '.join(args.runs)} --frames {args.frames} --seed {args.seed}" + (
+        f" --out {args.out}" if args.out else "")
+    path = write_ablation_report(result, out, command=command, commands=args.train_commands)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def _stamp() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
 
 
 def main(argv=None) -> int:

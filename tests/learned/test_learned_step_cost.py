@@ -100,3 +100,19 @@ def test_trainer_caches_neighbourhoods_once_per_frame(tmp_path, tiny_arrays, tin
     np.testing.assert_array_equal(trainer.neighbourhoods["groups1"], fresh["groups1"])
     trainer.fit(max_steps=2)
     assert trainer.step == 2
+
+
+def test_cost_benchmark_measures_variants_side_by_side_and_writes_its_command(tmp_path):
+    from ancsh.learned.bench import training_cost, write_cost_report
+
+    result = training_cost(("today", "new"), width=0.125, num_points=256, repeats=2)
+    rows = {r["name"]: r for r in result["rows"]}
+    assert rows["today"]["speedup_cpu"] == 1.0 and rows["new"]["frames_per_cpu_s"] > 0
+    assert abs(rows["today"]["first_loss"] - rows["new"]["first_loss"]) < 1e-3 * abs(rows["today"]["first_loss"])
+    assert set(result["forward_ms"]) == {"reference", "channels_last"}
+    path = write_cost_report(result, tmp_path / "cost.md", command="ancsh bench learned-cost --repeats 2")
+    text = path.read_text()
+    assert "Command: `ancsh bench learned-cost --repeats 2`" in text and "today's step" in text
+    assert path.with_suffix(".json").is_file()
+    with pytest.raises(ValueError, match="repeats"):
+        training_cost(("new",), repeats=1)
