@@ -235,6 +235,7 @@ STEP_VARIANTS = {
         StepVariant("today", "today's step: 1x1 convolutions, sampling and grouping every step", False, False),
         StepVariant("channels_last", "channel-last layers, sampling and grouping every step", True, False),
         StepVariant("new", "new step: channel-last layers + cached neighbourhoods", True, True),
+        StepVariant("new_b8", "new step, batch 8", True, True, batch=8),
         StepVariant("new_b32", "new step, batch 32", True, True, batch=32),
         StepVariant("new_2threads", "new step, 2 threads", True, True, threads=2),
         StepVariant("new_bf16", "new step, bf16 autocast", True, True, bf16=True),
