@@ -376,6 +376,12 @@ def write_cost_report(result: dict, path, *, command: str) -> Path:
         f"Forward pass of one frame ({s['num_points']} points, one thread, eval mode, min CPU time): "
         f"{f['channels_last']:.1f} ms channel-last (sampling and grouping included), {f['reference']:.1f} ms with the reference layers.",
         "",
+        "Accuracy per training frame: the new step is the same network and computes the same function "
+        "(`tests/learned/test_learned_step_cost.py` checks, in float64, that its loss, parameter gradients and "
+        "batch-norm running statistics equal the reference step's to 1e-8 relative, and that cached neighbourhoods "
+        "equal freshly computed ones index for index); the bf16 and batch variants change the numerics or the "
+        "optimisation and would need an equal-frames training comparison before use.",
+        "",
     ]
     path.write_text("\n".join(lines))
     path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
