@@ -14,6 +14,7 @@ import importlib
 BENCH_MODULES = [
     "ancsh.data.cli:register_bench",
     "ancsh.solvers.bench",
+    "ancsh.learned.bench",
 ]
 
 

@@ -11,14 +11,25 @@ followed by each fitting formulation on test frames: per-part rotation/translati
 joint-state error, and the time of the network and of each fit.
 
 Results go to stdout as a markdown table (and ``--json`` to a file).
+
+``ancsh bench learned-cost`` -- training frames per CPU-second of today's step (reference 1x1
+convolutions, sampling and grouping at every step) beside the new one (channel-last layers,
+per-frame cached neighbourhoods) and variants (batch, threads, bf16), measured in one process
+with interleaved repetitions, plus the single-frame forward time; a Markdown table that names
+its command, written to a fresh folder (or ``--out``).
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
+import datetime
 import json
 import os
+import platform
 import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -189,6 +200,328 @@ def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", 
         })
         print(json.dumps(rows[-1]), flush=True)
     return rows
+
+
+@dataclass(frozen=True)
+class StepVariant:
+    """One way to run a training step, for :func:`training_cost`.
+
+    Attributes
+    ----------
+    name, label : str
+    channels_last : bool
+        Channel-last layers (else the reference 1x1 convolutions).
+    cached : bool
+        Neighbourhoods from a per-frame cache (else sampled and grouped in the step).
+    batch : int
+    threads : int
+        torch intra-op threads.
+    bf16 : bool
+        ``torch.autocast("cpu", torch.bfloat16)`` around the forward pass and the loss.
+    """
+
+    name: str
+    label: str
+    channels_last: bool = True
+    cached: bool = True
+    batch: int = 16
+    threads: int = 1
+    bf16: bool = False
+
+
+STEP_VARIANTS = {
+    v.name: v
+    for v in (
+        StepVariant("today", "today's step: 1x1 convolutions, sampling and grouping every step", False, False),
+        StepVariant("channels_last", "channel-last layers, sampling and grouping every step", True, False),
+        StepVariant("new", "new step: channel-last layers + cached neighbourhoods", True, True),
+        StepVariant("new_b8", "new step, batch 8", True, True, batch=8),
+        StepVariant("new_b32", "new step, batch 32", True, True, batch=32),
+        StepVariant("new_2threads", "new step, 2 threads", True, True, threads=2),
+        StepVariant("new_bf16", "new step, bf16 autocast", True, True, bf16=True),
+    )
+}
+"""Step variants of ``ancsh bench learned-cost`` by name; ``today`` is the reference, ``new`` the default step."""
+
+
+def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_points: int = 1024, repeats: int = 6,
+                  seed: int = 0) -> dict:
+    """Training-step cost of each :class:`StepVariant`, measured in one process, repetitions interleaved.
+
+    Every variant starts from the same network and optimiser state and trains on the same
+    random clouds (``width``, 256/64 centres, 32/32 neighbours: the shipped networks' size). The
+    first repetition of each variant is a warm-up and is left out; the process CPU time of a
+    step is the cost measure (the machine is shared, so wall times vary with the load).
+
+    Returns
+    -------
+    dict
+        ``rows`` (one per variant: ``frames_per_cpu_s``, ``frames_per_wall_s``, medians of
+        ``step_cpu_s`` / ``step_wall_s``, ``first_loss``), ``cache_ms_per_frame`` (CPU time to compute
+        the neighbourhoods of one frame, once per frame), ``forward_ms`` (one frame, one thread, eval
+        mode, per layout: min CPU time) and the settings.
+    """
+    import torch
+
+    from .config import TrainConfig
+    from .losses import Targets, ancsh_loss
+    from .network import build_network
+    from .pointnet2 import Neighbourhoods
+
+    variants = [STEP_VARIANTS[v] if isinstance(v, str) else v for v in variants]
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 2:
+        raise ValueError(f"repeats: expected an integer >= 2, got {repeats!r}")
+    threads_before = torch.get_num_threads()
+    cfg = TrainConfig(width=width, num_points=num_points)
+    g = torch.Generator().manual_seed(seed)
+    F = max(v.batch for v in variants)
+    x = torch.randn(F, num_points, 3, generator=g) * torch.tensor([0.2, 0.1, 0.15]) + torch.tensor([0.0, 0.0, 1.5])
+    targets = Targets(
+        torch.randint(0, 2, (F, num_points), generator=g), torch.rand(F, num_points, 3, generator=g),
+        torch.rand(F, num_points, generator=g) + 0.5, torch.rand(F, num_points, 3, generator=g),
+        torch.randint(0, 2, (F, num_points), generator=g), torch.rand(F, num_points, 7, generator=g),
+        torch.ones(F, num_points, 7), torch.rand(F, num_points, 7, generator=g),
+    )
+    torch.manual_seed(seed)
+    base = build_network("ancsh", 2, 1, **cfg.network_kwargs())
+    torch.set_num_threads(1)
+    c0 = time.process_time()
+    cache = Neighbourhoods.from_numpy(base.neighbourhoods(x).numpy())
+    cache_ms = 1e3 * (time.process_time() - c0) / F
+    states = {}
+    for v in variants:
+        net = copy.deepcopy(base)
+        net.backbone.channels_last = v.channels_last
+        states[v.name] = (net, torch.optim.Adam(net.parameters(), lr=cfg.lr))
+    times: dict[str, list] = {v.name: [] for v in variants}
+    first_loss = {}
+    try:
+        for _ in range(repeats):
+            for v in variants:
+                net, opt = states[v.name]
+                torch.set_num_threads(v.threads)
+                idx = slice(0, v.batch)
+                nb = None
+                if v.cached:
+                    nb = Neighbourhoods(**{k: getattr(cache, k)[idx] for k in asdict(cache)})
+                t_wall, t_cpu = time.perf_counter(), time.process_time()
+                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=v.bf16):
+                    loss, _ = ancsh_loss(net(x[idx], nb), targets[idx])
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+                times[v.name].append((time.process_time() - t_cpu, time.perf_counter() - t_wall))
+                first_loss.setdefault(v.name, loss.item())
+        forward = {}
+        torch.set_num_threads(1)
+        for layout, channels_last in (("reference", False), ("channels_last", True)):
+            net = copy.deepcopy(base).eval()
+            net.backbone.channels_last = channels_last
+            cpu = []
+            with torch.no_grad():
+                for _ in range(repeats + 1):
+                    c = time.process_time()
+                    net(x[:1])
+                    cpu.append(time.process_time() - c)
+            forward[layout] = 1e3 * float(np.min(cpu[1:]))
+    finally:
+        torch.set_num_threads(threads_before)
+    rows = []
+    for v in variants:
+        cpu = float(np.median([t[0] for t in times[v.name][1:]]))
+        wall = float(np.median([t[1] for t in times[v.name][1:]]))
+        rows.append({**asdict(v), "step_cpu_s": cpu, "step_wall_s": wall, "frames_per_cpu_s": v.batch / cpu,
+                     "frames_per_wall_s": v.batch / wall, "first_loss": first_loss[v.name]})
+    ref = next((r for r in rows if r["name"] == "today"), rows[0])
+    for r in rows:
+        r["speedup_cpu"] = r["frames_per_cpu_s"] / ref["frames_per_cpu_s"]
+    return {
+        "rows": rows, "cache_ms_per_frame": cache_ms, "forward_ms": forward, "reference": ref["name"],
+        "settings": {"width": width, "num_points": num_points, "npoints": list(cfg.npoints), "nsamples": list(cfg.nsamples),
+                     "repeats": repeats, "seed": seed, "torch": torch.__version__, "cpus": os.cpu_count(),
+                     "machine": platform.machine(), "load_avg": os.getloadavg()[0]},
+    }
+
+
+def write_cost_report(result: dict, path, *, command: str) -> Path:
+    """Write :func:`training_cost` output as Markdown to ``path`` (and the numbers as JSON beside it)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    s = result["settings"]
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    lines = [
+        "# Training cost of the ANCSH network on a CPU",
+        "",
+        f"Command: `{command}`  ",
+        f"Date: {date}; torch {s['torch']}, {s['machine']}, {s['cpus']} CPUs, load average {s['load_avg']:.1f} at the end  ",
+        f"Network: width {s['width']}, {s['num_points']} points, {s['npoints'][0]}/{s['npoints'][1]} centres, "
+        f"{s['nsamples'][0]}/{s['nsamples'][1]} neighbours, one backbone (the shipped networks' size); one process, "
+        f"{s['repeats']} repetitions per variant interleaved (the first a warm-up), medians.",
+        "",
+        "Frames per CPU-second = batch / process CPU time of one step (forward, loss, backward, Adam); the machine "
+        "is shared, so only ratios measured side by side in one run mean something.",
+        "",
+        "| Step | batch | threads | step CPU (s) | step wall (s) | frames / CPU-s | frames / wall-s | vs today (CPU) | first loss |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        lines.append(f"| {r['label']} | {r['batch']} | {r['threads']} | {r['step_cpu_s']:.3f} | {r['step_wall_s']:.3f} "
+                     f"| {r['frames_per_cpu_s']:.1f} | {r['frames_per_wall_s']:.1f} | {r['speedup_cpu']:.2f}x | {r['first_loss']:.5f} |")
+    f = result["forward_ms"]
+    lines += [
+        "",
+        f"Neighbourhood cache: {result['cache_ms_per_frame']:.1f} ms CPU per frame, computed once per frame "
+        "(on first load; saved in the run directory), not at every step.",
+        "",
+        f"Forward pass of one frame ({s['num_points']} points, one thread, eval mode, min CPU time): "
+        f"{f['channels_last']:.1f} ms channel-last (sampling and grouping included), {f['reference']:.1f} ms with the reference layers.",
+        "",
+        "Accuracy per training frame: the new step is the same network and computes the same function "
+        "(`tests/learned/test_learned_step_cost.py` checks, in float64, that its loss, parameter gradients and "
+        "batch-norm running statistics equal the reference step's to 1e-8 relative, and that cached neighbourhoods "
+        "equal freshly computed ones index for index); the bf16 and batch variants change the numerics or the "
+        "optimisation and would need an equal-frames training comparison before use.",
+        "",
+    ]
+    path.write_text("\n".join(lines))
+    path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    return path
+
+
+def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last.pt", "best.pt")) -> dict:
+    """Held-out test errors of training runs (e.g. paper loss vs paper + pose loss) through the full pipeline.
+
+    Parameters
+    ----------
+    runs : dict of str -> path
+        Name -> run directory of ``ancsh train`` (``config.json``, ``history.csv``, checkpoints).
+    frames : int
+        Rendered test frames (held-out instances, :func:`ancsh.learned.evaluate.evaluate_category`).
+    checkpoints : sequence of str
+        Checkpoint files of each run to evaluate (missing ones are skipped).
+
+    Returns
+    -------
+    dict
+        ``rows``: per run and checkpoint, its step, the run's training steps and training wall time,
+        and means of the ``exact_reduced`` fit's per-part rotation error, joint-axis and joint-state
+        errors and of the network's per-part NPCS orientation error (the error budget).
+    """
+    import csv
+
+    from .config import TrainConfig
+    from .evaluate import evaluate_category, summarize
+    from .weights import load_network
+
+    rows = []
+    for name, run in runs.items():
+        run = Path(run)
+        config = TrainConfig.from_json(run / "config.json")
+        with open(run / "history.csv", newline="") as f:
+            hist = list(csv.DictReader(f))
+        for ck in checkpoints:
+            if not (run / ck).is_file():
+                continue
+            ev = evaluate_category(config.category, frames=frames, methods=("exact_reduced",), weights=run / ck,
+                                   seed=seed, progress=False)
+            sm = summarize(ev)
+            m = sm["methods"]["exact_reduced"]
+            rows.append({
+                "run": name, "run_dir": str(run), "checkpoint": ck, "pose_weight": config.pose_weight,
+                "category": config.category, "step": load_network(run / ck).step,
+                "trained_steps": int(float(hist[-1]["step"])), "train_wall_min": float(hist[-1]["elapsed_s"]) / 60,
+                "frames": m["frames"], "failures": m["failures"], "rot_deg": m["rot_deg"]["mean"],
+                "rot_deg_median": m["rot_deg"]["median"], "axis_deg": m["axis_deg"]["mean"], "state_err": m["state_err"]["mean"],
+                "npcs_rot_deg": sm["budget"]["npcs_rot_deg"]["mean"],
+            })
+            print(json.dumps(rows[-1]), flush=True)
+    return {"rows": rows, "frames": frames, "seed": seed}
+
+
+def write_ablation_report(result: dict, path, *, command: str, commands=()) -> Path:
+    """Write :func:`ablation` output as Markdown to ``path`` (JSON beside it); ``commands``: how the runs were made."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+    def fmt(v, spec=".2f"):
+        return ", ".join("-" if x is None else format(x, spec) for x in v)
+
+    lines = [
+        "# Pose-aware loss: ablation at equal training time",
+        "",
+        f"Command: `{command}`  ",
+        f"Date: {date}; {result['frames']} rendered test frames (held-out instances, seed {result['seed']}) per row, "
+        "fit `exact_reduced`; means over frames (failed fits left out and counted).",
+        "",
+    ]
+    if commands:
+        lines += ["Training runs:", "", *[f"- `{c}`" for c in commands], ""]
+    lines += [
+        "| Run | pose weight | checkpoint (step) | steps trained | training wall (min) | rotation error per part (°) "
+        "| median rotation (°) | joint axis (°) | joint state | NPCS orientation error per part (°) | failed fits |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in result["rows"]:
+        lines.append(
+            f"| {r['run']} | {r['pose_weight']:g} | {r['checkpoint']} ({r['step']}) | {r['trained_steps']} "
+            f"| {r['train_wall_min']:.1f} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "
+            f"| {fmt(r['state_err'])} | {fmt(r['npcs_rot_deg'])} | {r['failures']}/{r['frames']} |")
+    lines.append("")
+    path.write_text("\n".join(lines))
+    path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    return path
+
+
+def register(sub) -> None:
+    """Add ``ancsh bench learned-cost`` and ``ancsh bench learned-ablation`` to the ``bench`` sub-parsers."""
+    a = sub.add_parser("learned-ablation", help="held-out errors of training runs through the full pipeline (loss ablation)")
+    a.add_argument("--runs", nargs="+", required=True, metavar="NAME=RUN_DIR", help="run directories of `ancsh train`")
+    a.add_argument("--frames", type=int, default=300, help="rendered test frames per checkpoint (default 300)")
+    a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--train-commands", nargs="*", default=(), help="the commands that made the runs (for the report)")
+    a.add_argument("--out", type=Path, help="Markdown file (e.g. docs/results/learned_ablation.md); default: a fresh "
+                   "folder bench_out/learned_ablation_<UTC time>/")
+    a.set_defaults(func=run_ablation)
+    p = sub.add_parser("learned-cost", help="training frames per CPU-second: today's step vs the new one (one run)")
+    p.add_argument("--variants", nargs="+", default=list(STEP_VARIANTS), choices=list(STEP_VARIANTS))
+    p.add_argument("--repeats", type=int, default=6, help="steps per variant, the first a warm-up (default 6)")
+    p.add_argument("--width", type=float, default=0.5)
+    p.add_argument("--out", type=Path, help="Markdown file (e.g. docs/results/learned_cost.md); default: a fresh "
+                   "folder bench_out/learned_cost_<UTC time>/")
+    p.set_defaults(func=run_cost)
+
+
+def run_cost(args) -> int:
+    result = training_cost(args.variants, width=args.width, repeats=args.repeats)
+    out = args.out or Path("bench_out") / f"learned_cost_{_stamp()}" / "learned_cost.md"
+    command = (f"ancsh bench learned-cost --repeats {args.repeats} --width {args.width} --variants {' '.join(args.variants)}"
+               + (f" --out {args.out}" if args.out else ""))
+    path = write_cost_report(result, out, command=command)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def run_ablation(args) -> int:
+    runs = {}
+    for item in args.runs:
+        name, sep, run = item.partition("=")
+        if not sep or not name or not run:
+            raise ValueError(f"--runs: expected NAME=RUN_DIR, got {item!r}")
+        runs[name] = run
+    result = ablation(runs, frames=args.frames, seed=args.seed)
+    out = args.out or Path("bench_out") / f"learned_ablation_{_stamp()}" / "learned_ablation.md"
+    command = f"ancsh bench learned-ablation --runs {' '.join(args.runs)} --frames {args.frames} --seed {args.seed}" + (
+        f" --out {args.out}" if args.out else "")
+    path = write_ablation_report(result, out, command=command, commands=args.train_commands)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def _stamp() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
 
 
 def main(argv=None) -> int:

@@ -61,7 +61,17 @@ def run(args: argparse.Namespace) -> int:
     train, val = split_by_instance(arrays, config.val_fraction, config.seed)
     print(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "
           f"({len(set(arrays.instance.tolist()))} instances) from {data}")
-    trainer = Trainer(config, train, val, out, progress=not args.no_progress)
+    pose_val = None
+    if config.pose_val_every and val is not None:
+        import numpy as np
+
+        from .train import PoseValidation
+
+        val_frames = np.flatnonzero(np.isin(arrays.instance, np.unique(val.instance)))
+        picks = val_frames[np.linspace(0, len(val_frames) - 1, min(config.pose_val_frames, len(val_frames))).round().astype(int)]
+        pose_val = PoseValidation.from_dataset(data, picks, seed=config.seed)
+        print(f"pose validation: {len(picks)} frames of the validation instances, every {config.pose_val_every} steps")
+    trainer = Trainer(config, train, val, out, progress=not args.no_progress, pose_val=pose_val)
     if args.resume:
         trainer.load_checkpoint(last)
         print(f"resumed {last} at step {trainer.step} ({trainer.elapsed_s / 60:.1f} min trained)")

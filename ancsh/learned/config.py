@@ -54,12 +54,21 @@ class TrainConfig:
         Total optimisation steps.
     loss_weights : tuple of 5 floats
         Weights of (seg, NPCS, NAOCS, association, joint); the paper's ``[1, 10, 1, 1, 1]``.
+    pose_weight : float
+        Weight of the pose-aware term :func:`~ancsh.learned.losses.npcs_pose_loss` (0 = the paper's
+        loss only, the default; ANCSH networks only).
     val_fraction : float
         Share of training *instances* held out for validation, in ``[0, 0.5]``.
     val_frames : int
         Validation frames evaluated at each validation (a fixed subset).
     val_every, checkpoint_every : int
         Steps between validations / checkpoints.
+    pose_val_every : int
+        Steps between pose validations (0 = none): validation frames through the full pipeline
+        (learned provider, then ``fit`` ``exact_reduced``); with them, ``best.pt`` is the checkpoint
+        with the lowest mean fitted rotation error (see :mod:`ancsh.learned.train`).
+    pose_val_frames : int
+        Validation frames of each pose validation (evenly spread over the validation frames).
     seed : int
         Seeds initialisation, point sampling and batch order.
     num_threads : int
@@ -80,10 +89,13 @@ class TrainConfig:
     lr_decay_steps: int = 1500
     max_steps: int = 6000
     loss_weights: tuple = (1.0, 10.0, 1.0, 1.0, 1.0)
+    pose_weight: float = 0.0
     val_fraction: float = 0.1
     val_frames: int = 256
     val_every: int = 250
     checkpoint_every: int = 250
+    pose_val_every: int = 0
+    pose_val_frames: int = 32
     seed: int = 0
     num_threads: int = 1
 
@@ -118,6 +130,15 @@ class TrainConfig:
         if any(not math.isfinite(x) or x < 0 for x in w):
             raise ValueError(f"loss_weights: expected non-negative numbers, got {w}")
         object.__setattr__(self, "loss_weights", w)
+        pw = self.pose_weight
+        if isinstance(pw, bool) or not isinstance(pw, (int, float)) or not math.isfinite(pw) or pw < 0:
+            raise ValueError(f"pose_weight: expected a non-negative number, got {pw!r}")
+        if self.kind == "direct_voting" and pw:
+            raise ValueError("pose_weight: the direct_voting network predicts no NPCS; expected 0")
+        object.__setattr__(self, "pose_weight", float(pw))
+        if isinstance(self.pose_val_every, bool) or not isinstance(self.pose_val_every, int) or self.pose_val_every < 0:
+            raise ValueError(f"pose_val_every: expected a non-negative integer, got {self.pose_val_every!r}")
+        _positive_int(self.pose_val_frames, "pose_val_frames")
         if isinstance(self.val_fraction, bool) or not isinstance(self.val_fraction, (int, float)) or not 0 <= self.val_fraction <= 0.5:
             raise ValueError(f"val_fraction: expected a number in [0, 0.5], got {self.val_fraction!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:

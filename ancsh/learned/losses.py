@@ -4,6 +4,11 @@ mean squares for NPCS, NPCS->NAOCS scale/translation and the 7-D joint vector.
 Total loss ``L = w1 L_seg + w2 L_NPCS + w3 L_NAOCS + w4 L_association + w5 L_joint`` with the
 paper's weights ``[1, 10, 1, 1, 1]``. "Mean square" here is the squared Euclidean error of a
 point's vector, averaged over the supervised points.
+
+Beside them, an optional pose-aware term (:func:`npcs_pose_loss`): per part, the rotation of a
+differentiable weighted Procrustes fit of the predicted NPCS onto the true NPCS -- the
+orientation error that a pose fit of the part cannot remove (see
+:func:`ancsh.learned.evaluate.npcs_error_budget`).
 """
 
 from __future__ import annotations
@@ -12,7 +17,8 @@ from dataclasses import dataclass, fields
 
 import torch
 
-__all__ = ["Targets", "relaxed_iou_loss", "ancsh_loss", "direct_voting_loss", "LOSS_NAMES"]
+__all__ = ["Targets", "relaxed_iou_loss", "ancsh_loss", "direct_voting_loss", "LOSS_NAMES", "procrustes_rotation",
+           "npcs_pose_loss"]
 
 LOSS_NAMES = ("seg", "npcs", "naocs", "assoc", "joint")
 
@@ -94,10 +100,137 @@ def _take_part(values: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
     return values.gather(2, idx).squeeze(2)
 
 
-def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0)) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+class _PolarRotation(torch.autograd.Function):
+    """``R = argmax_{R in SO(3)} tr(R^T C)`` for ``(..., 3, 3)`` ``C``, with a backward pass that stays finite.
+
+    Forward: ``C = U diag(s) V^T`` (torch SVD), ``D = diag(1, 1, det(U V^T))``, ``R = U D V^T``.
+    With ``s' = s D`` (the signed singular values), ``R`` is the orthogonal polar factor of
+    ``C = U diag(s') (V D)^T``; its derivative is ``dR = U W (V D)^T`` with ``W`` antisymmetric,
+    ``W_ij = (A_ij - A_ji) / (s'_i + s'_j)``, ``A = U^T dC V D``. The denominators vanish only
+    where the rotation is not determined (two vanishing singular values: collinear or coincident
+    points; or ``s_2 = s_3`` with a reflection); there they are clamped to ``eps``, so gradients stay
+    finite (large but never NaN). The generic SVD gradient, with ``1 / (s_i^2 - s_j^2)`` terms, is
+    not used.
+    """
+
+    @staticmethod
+    def forward(ctx, C, eps):
+        U, s, Vh = torch.linalg.svd(C)
+        d = torch.linalg.det(U @ Vh).sign()
+        d = torch.where(d == 0, torch.ones_like(d), d)
+        sign = torch.stack([torch.ones_like(d), torch.ones_like(d), d], dim=-1)  # (..., 3)
+        Vd = Vh.transpose(-1, -2) * sign.unsqueeze(-2)  # V D
+        R = U @ Vd.transpose(-1, -2)
+        ctx.save_for_backward(U, Vd, s * sign)
+        ctx.eps = eps
+        return R
+
+    @staticmethod
+    def backward(ctx, grad_R):
+        U, Vd, s_signed = ctx.saved_tensors
+        B = U.transpose(-1, -2) @ grad_R @ Vd
+        denom = s_signed.unsqueeze(-1) + s_signed.unsqueeze(-2)
+        denom = torch.where(denom.abs() < ctx.eps, torch.full_like(denom, ctx.eps), denom)
+        Cg = (B - B.transpose(-1, -2)) / denom
+        return U @ Cg @ Vd.transpose(-1, -2), None
+
+
+def procrustes_rotation(cross_covariance: torch.Tensor, eps: float = 1e-6) -> torch.Tensor:
+    """The rotation of a (weighted) Procrustes / Umeyama fit from its cross-covariance, differentiably.
+
+    For source points ``p_n`` and target points ``q_n`` (weights ``w_n``), the rotation minimising
+    ``sum w_n |R (p_n - mu_p) - (q_n - mu_q)|^2`` over SO(3) (reflections excluded) maximises
+    ``tr(R^T C)`` with ``C = sum w_n (q_n - mu_q)(p_n - mu_p)^T``.
+
+    Parameters
+    ----------
+    cross_covariance : (..., 3, 3) tensor
+        ``C`` as above (target x source).
+    eps : float
+        Floor of ``|s_i + s_j|`` in the backward pass (see :class:`_PolarRotation`), positive.
+
+    Returns
+    -------
+    (..., 3, 3) tensor
+        Rotation matrices (det +1) ``R`` with ``q - mu_q ~ R (p - mu_p)``.
+    """
+    if cross_covariance.shape[-2:] != (3, 3):
+        raise ValueError(f"cross_covariance: expected shape (..., 3, 3), got {tuple(cross_covariance.shape)}")
+    if not eps > 0:
+        raise ValueError(f"eps: expected a positive number, got {eps}")
+    return _PolarRotation.apply(cross_covariance, float(eps))
+
+
+def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor, num_parts: int, *,
+                   min_points: int = 4, min_spread: float = 1e-4) -> torch.Tensor:
+    """Mean over (frame, part) of the squared chordal distance ``|R - I|_F^2 = 4 (1 - cos theta)`` of the
+    Procrustes rotation ``R`` fitted from a part's predicted NPCS onto its true NPCS.
+
+    ``theta`` is the orientation error the predicted NPCS of the part carry (the quantity the pose
+    of the part inherits); the loss is 0 exactly when every part's prediction is a rotation-free
+    (translated, scaled, deformed without rotating) copy of the truth, smooth at the truth, and at
+    most 8. Points are weighted uniformly within their true part.
+
+    Parts are left out (no loss, no gradient) when they are degenerate in the ground truth: fewer
+    than ``min_points`` points, or true NPCS that do not span a plane (second eigenvalue of their
+    covariance below ``min_spread`` times the first: collinear or coincident points). A degenerate
+    *prediction* of a valid part gets finite gradients (:func:`procrustes_rotation`).
+
+    Parameters
+    ----------
+    pred : (B, N, 3) tensor
+        Predicted NPCS of each point's true part.
+    true : (B, N, 3) tensor
+        True NPCS.
+    labels : (B, N) int64 tensor
+        True part labels ``0..num_parts-1``.
+    num_parts : int
+    min_points : int
+        At least 3.
+    min_spread : float
+        In ``[0, 1)``.
+
+    Returns
+    -------
+    () tensor
+        0 (with a zero gradient) when no part qualifies.
+    """
+    if pred.dim() != 3 or pred.shape[-1] != 3 or true.shape != pred.shape or labels.shape != pred.shape[:2]:
+        raise ValueError(f"pred, true, labels: expected (B, N, 3), (B, N, 3), (B, N), got {tuple(pred.shape)}, "
+                         f"{tuple(true.shape)}, {tuple(labels.shape)}")
+    if isinstance(min_points, bool) or not isinstance(min_points, int) or min_points < 3:
+        raise ValueError(f"min_points: expected an integer >= 3, got {min_points!r}")
+    if not 0 <= min_spread < 1:
+        raise ValueError(f"min_spread: expected a number in [0, 1), got {min_spread!r}")
+    w = torch.nn.functional.one_hot(labels, num_parts).to(pred.dtype)  # (B, N, M)
+    count = w.sum(1)  # (B, M)
+    safe_count = count.clamp_min(1.0).unsqueeze(-1)
+
+    def centred(x):  # (B, N, M, 3), zero outside the part
+        mu = torch.einsum("bnm,bnc->bmc", w, x) / safe_count
+        return (x.unsqueeze(2) - mu.unsqueeze(1)) * w.unsqueeze(-1)
+
+    q, p = centred(true), centred(pred)
+    C = torch.einsum("bnmi,bnmj->bmij", q, p)  # (B, M, 3, 3)
+    with torch.no_grad():
+        ev = torch.linalg.eigvalsh(torch.einsum("bnmi,bnmj->bmij", q, q) / safe_count.unsqueeze(-1))  # ascending
+        valid = (count >= min_points) & (ev[..., 2] > 0) & (ev[..., 1] > min_spread * ev[..., 2])
+    eye = torch.eye(3, dtype=pred.dtype, device=pred.device)
+    # Invalid parts get a well-conditioned stand-in (R = I, zero loss); `where` passes them no gradient.
+    safe = torch.diag(torch.tensor([3.0, 2.0, 1.0], dtype=pred.dtype, device=pred.device))
+    C = torch.where(valid[..., None, None], C, safe)
+    R = procrustes_rotation(C)
+    chordal = (R - eye).square().sum((-1, -2))
+    n = valid.sum()
+    return (chordal * valid).sum() / n.clamp_min(1)
+
+
+def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0
+               ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Weighted ANCSH loss; returns the total and the unweighted components keyed by :data:`LOSS_NAMES`.
 
-    NPCS, scale and translation are taken at the ground-truth part (during training).
+    NPCS, scale and translation are taken at the ground-truth part (during training). With
+    ``pose_weight > 0`` the total adds ``pose_weight *`` :func:`npcs_pose_loss` (component ``"pose"``).
     """
     parts = {
         "seg": relaxed_iou_loss(outputs["seg_logits"], targets.labels),
@@ -108,15 +241,23 @@ def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.
         "joint": _masked_sq(outputs["joint"], targets.joint, targets.joint_mask),
     }
     total = sum(w * parts[k] for w, k in zip(weights, LOSS_NAMES))
+    if pose_weight:
+        npcs = _take_part(outputs["npcs"], targets.labels)
+        parts["pose"] = npcs_pose_loss(npcs, targets.npcs, targets.labels, outputs["npcs"].shape[2])
+        total = total + pose_weight * parts["pose"]
     return total, parts
 
 
-def direct_voting_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0)) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+def direct_voting_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0
+                       ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Loss of the direct-voting baseline: segmentation, association, camera-frame joint votes.
 
     The vote distance is compared in units of the normalised cloud (divided by ``cloud_scale``)
-    so the loss does not depend on the object's size in metres. NPCS/NAOCS components are zero.
+    so the loss does not depend on the object's size in metres. NPCS/NAOCS components are zero;
+    ``pose_weight`` must be 0 (the network predicts no NPCS).
     """
+    if pose_weight:
+        raise ValueError(f"pose_weight: the direct-voting network predicts no NPCS, got {pose_weight}")
     s = outputs["cloud_scale"]
     unit = torch.ones(7, dtype=s.dtype)
     pred = outputs["joint"] / torch.cat([unit[:6].expand(*s.shape[:-1], 6), s], dim=-1)

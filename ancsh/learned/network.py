@@ -28,7 +28,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .pointnet2 import PointNet2Backbone, shared_mlp
+from .pointnet2 import Neighbourhoods, PointNet2Backbone, shared_mlp
 
 __all__ = ["AncshNet", "DirectVotingNet", "build_network", "normalize_cloud", "denormalize_joint_votes"]
 
@@ -64,8 +64,32 @@ def _check_structure(num_parts: int, num_joints: int) -> None:
         raise ValueError(f"num_joints: expected >= 1, got {num_joints}")
 
 
-def _head(c_in: int, c_out: int, hidden: int) -> nn.Sequential:
-    return nn.Sequential(shared_mlp([c_in, hidden], dim=1), nn.Conv1d(hidden, c_out, 1))
+class _Head(nn.Sequential):
+    """A per-point head: ``[Conv1d, BatchNorm, ReLU]`` then a ``Conv1d`` to ``c_out`` channels."""
+
+    def __init__(self, c_in: int, c_out: int, hidden: int):
+        super().__init__(shared_mlp([c_in, hidden], dim=1), nn.Conv1d(hidden, c_out, 1))
+
+    def forward_last(self, x: torch.Tensor) -> torch.Tensor:
+        """Channel-last ``(B, N, C_in) -> (B, N, C_out)`` with the same parameters."""
+        conv = self[1]
+        return nn.functional.linear(self[0].forward_last(x), conv.weight.squeeze(-1), conv.bias)
+
+
+def _head(c_in: int, c_out: int, hidden: int) -> _Head:
+    return _Head(c_in, c_out, hidden)
+
+
+def _per_point(backbone, xyz: torch.Tensor, neighbourhoods) -> tuple[torch.Tensor, bool]:
+    """Backbone features ``(B, N, C)`` (channel-last) or ``(B, C, N)``, and whether they are channel-last."""
+    if backbone.channels_last:
+        return backbone.forward_last(xyz, neighbourhoods), True
+    return backbone(xyz, neighbourhoods), False
+
+
+def _apply(head: _Head, features: torch.Tensor, last: bool) -> torch.Tensor:
+    """``head`` on features from :func:`_per_point`, as ``(B, N, C_out)``."""
+    return head.forward_last(features) if last else head(features).transpose(1, 2)
 
 
 class AncshNet(nn.Module):
@@ -102,22 +126,32 @@ class AncshNet(nn.Module):
         self.assoc_head = _head(c, K + 1, c)
         self.joint_head = _head(c, 7, c)
 
-    def forward(self, points: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Predict every head for camera-frame points ``(B, N, 3)``; see the module table."""
+    def neighbourhoods(self, points: torch.Tensor) -> Neighbourhoods:
+        """Sampling, grouping and interpolation indices of camera-frame points ``(B, N, 3)`` (no gradient).
+
+        They depend only on the points, so a training loop can compute them once per frame and
+        pass them to :meth:`forward` (both backbones share them).
+        """
+        return self.backbone.neighbourhoods(normalize_cloud(points)[0])
+
+    def forward(self, points: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> dict[str, torch.Tensor]:
+        """Predict every head for camera-frame points ``(B, N, 3)``; see the module table.
+
+        ``neighbourhoods``: :meth:`neighbourhoods` of the same points (computed when omitted).
+        """
         xyz, _, _ = normalize_cloud(points)
-        f1 = self.backbone(xyz)
-        f2 = f1 if self.backbone2 is None else self.backbone2(xyz)
+        f1, last = _per_point(self.backbone, xyz, neighbourhoods)
+        f2 = f1 if self.backbone2 is None else _per_point(self.backbone2, xyz, neighbourhoods)[0]
         B, N = points.shape[:2]
         M = self.num_parts
-        naocs = self.naocs_head(f2).transpose(1, 2)
-        joint = self.joint_head(f2).transpose(1, 2)
+        naocs = _apply(self.naocs_head, f2, last)
         return {
-            "seg_logits": self.seg_head(f1).transpose(1, 2),
-            "npcs": self.npcs_head(f1).transpose(1, 2).reshape(B, N, M, 3),
+            "seg_logits": _apply(self.seg_head, f1, last),
+            "npcs": _apply(self.npcs_head, f1, last).reshape(B, N, M, 3),
             "scale": nn.functional.softplus(naocs[..., :M]) + 1e-4,
             "translation": naocs[..., M:].reshape(B, N, M, 3),
-            "assoc_logits": self.assoc_head(f2).transpose(1, 2),
-            "joint": joint,
+            "assoc_logits": _apply(self.assoc_head, f2, last),
+            "joint": _apply(self.joint_head, f2, last),
         }
 
 
@@ -143,15 +177,21 @@ class DirectVotingNet(nn.Module):
         self.assoc_head = _head(c, num_joints + 1, c)
         self.joint_head = _head(c, 7, c)
 
-    def forward(self, points: torch.Tensor) -> dict[str, torch.Tensor]:
+    def neighbourhoods(self, points: torch.Tensor) -> Neighbourhoods:
+        """As :meth:`AncshNet.neighbourhoods`."""
+        return self.backbone.neighbourhoods(normalize_cloud(points)[0])
+
+    def forward(self, points: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> dict[str, torch.Tensor]:
         """``(B, N, 3)`` camera points -> ``seg_logits``, ``assoc_logits``, ``joint`` (distance in metres),
-        ``cloud_scale`` ``(B, 1, 1)`` (metres per normalised unit, see :func:`normalize_cloud`)."""
+        ``cloud_scale`` ``(B, 1, 1)`` (metres per normalised unit, see :func:`normalize_cloud`).
+
+        ``neighbourhoods`` as in :meth:`AncshNet.forward`."""
         xyz, _, scale = normalize_cloud(points)
-        f = self.backbone(xyz)
-        joint = self.joint_head(f).transpose(1, 2)
+        f, last = _per_point(self.backbone, xyz, neighbourhoods)
+        joint = _apply(self.joint_head, f, last)
         return {
-            "seg_logits": self.seg_head(f).transpose(1, 2),
-            "assoc_logits": self.assoc_head(f).transpose(1, 2),
+            "seg_logits": _apply(self.seg_head, f, last),
+            "assoc_logits": _apply(self.assoc_head, f, last),
             "joint": denormalize_joint_votes(joint, scale),
             "cloud_scale": scale,
         }

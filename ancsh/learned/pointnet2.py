@@ -12,12 +12,15 @@ Point Sets in a Metric Space", NeurIPS 2017 (single-scale grouping).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, fields
 
+import numpy as np
 import torch
 from torch import nn
 
 __all__ = [
     "farthest_point_sample",
+    "farthest_point_sample_reference",
     "ball_query",
     "gather_points",
     "group_points",
@@ -26,6 +29,10 @@ __all__ = [
     "FeaturePropagation",
     "PointNet2Backbone",
     "shared_mlp",
+    "SharedMLP",
+    "Neighbourhoods",
+    "nearest_three",
+    "interpolate_last",
 ]
 
 
@@ -37,6 +44,10 @@ def _check_xyz(xyz: torch.Tensor, name: str) -> None:
 @torch.no_grad()
 def farthest_point_sample(xyz: torch.Tensor, npoint: int) -> torch.Tensor:
     """Iterative farthest-point sampling.
+
+    The loop runs in numpy (its per-step cost is call overhead on small arrays) with the same
+    float arithmetic as the torch formulation ``min(dist, ((xyz - centre) ** 2).sum(-1))``; ties
+    go to the lowest index.
 
     Parameters
     ----------
@@ -50,6 +61,33 @@ def farthest_point_sample(xyz: torch.Tensor, npoint: int) -> torch.Tensor:
     (B, npoint) int64 tensor
         Indices into ``N``; the first index is always 0 (deterministic).
     """
+    _check_xyz(xyz, "xyz")
+    B, N, _ = xyz.shape
+    if not 1 <= npoint <= N:
+        raise ValueError(f"npoint: expected 1 <= npoint <= {N}, got {npoint}")
+    px, py, pz = np.ascontiguousarray(xyz.detach().cpu().numpy().transpose(2, 0, 1))  # (B, N) each
+    idx = np.zeros((B, npoint), dtype=np.int64)
+    dist = np.full((B, N), np.inf, dtype=px.dtype)
+    d, t = np.empty_like(dist), np.empty_like(dist)
+    farthest = np.zeros(B, dtype=np.int64)
+    rows = np.arange(B)
+    for i in range(npoint):
+        idx[:, i] = farthest
+        np.subtract(px, px[rows, farthest][:, None], out=d)
+        np.multiply(d, d, out=d)
+        np.subtract(py, py[rows, farthest][:, None], out=t)
+        d += t * t
+        np.subtract(pz, pz[rows, farthest][:, None], out=t)
+        d += t * t  # ((dx^2 + dy^2) + dz^2): the order of a sum over the last axis of 3
+        np.minimum(dist, d, out=dist)
+        farthest = dist.argmax(1)
+    return torch.from_numpy(idx).to(xyz.device)
+
+
+@torch.no_grad()
+def farthest_point_sample_reference(xyz: torch.Tensor, npoint: int) -> torch.Tensor:
+    """:func:`farthest_point_sample` as torch operations, one step per centre (the earlier implementation:
+    the same indices, several times slower on a CPU; kept as the reference of tests and benchmarks)."""
     _check_xyz(xyz, "xyz")
     B, N, _ = xyz.shape
     if not 1 <= npoint <= N:
@@ -155,22 +193,121 @@ def three_nn_interpolate(xyz: torch.Tensor, known_xyz: torch.Tensor, known_featu
     S = known_xyz.shape[1]
     if S == 1:
         return known_features.expand(-1, -1, xyz.shape[1])
-    k = min(3, S)
-    d2 = torch.cdist(xyz, known_xyz).square()
-    d2, idx = d2.topk(k, dim=-1, largest=False)  # (B, N, k)
-    w = 1.0 / (d2 + 1e-8)
-    w = w / w.sum(-1, keepdim=True)
-    neigh = gather_points(known_features.transpose(1, 2), idx)  # (B, N, k, C)
-    return (neigh * w.unsqueeze(-1)).sum(2).transpose(1, 2)
+    idx, w = nearest_three(xyz, known_xyz)
+    return interpolate_last(known_features.transpose(1, 2), idx, w).transpose(1, 2)
 
 
-def shared_mlp(channels: Sequence[int], dim: int) -> nn.Sequential:
+def shared_mlp(channels: Sequence[int], dim: int) -> "SharedMLP":
     """Pointwise MLP of 1x1 convolutions with batch norm and ReLU (``dim`` is 1 or 2)."""
     conv, bn = (nn.Conv1d, nn.BatchNorm1d) if dim == 1 else (nn.Conv2d, nn.BatchNorm2d)
     layers: list[nn.Module] = []
     for c_in, c_out in zip(channels[:-1], channels[1:]):
         layers += [conv(c_in, c_out, 1, bias=False), bn(c_out), nn.ReLU(inplace=True)]
-    return nn.Sequential(*layers)
+    return SharedMLP(*layers)
+
+
+class SharedMLP(nn.Sequential):
+    """``[Conv(1x1, no bias), BatchNorm, ReLU] * L`` applied channel-first (``forward``) or channel-last.
+
+    :meth:`forward_last` evaluates the same parameters on channel-last ``(..., C)`` input as
+    matrix products and batch norm over the flattened rows: the same function (the same
+    batch statistics and running-stat updates), cheaper on a CPU than 1x1 convolutions on
+    channel-first tensors. The parameters (and the state dict) are those of the convolutions.
+    """
+
+    def forward_last(self, x: torch.Tensor) -> torch.Tensor:
+        """``(..., C_in) -> (..., C_out)``, channel-last."""
+        lead = x.shape[:-1]
+        h = x.reshape(-1, x.shape[-1])
+        layers = list(self)
+        for conv, bn in zip(layers[0::3], layers[1::3]):
+            h = h @ conv.weight.reshape(conv.weight.shape[0], -1).t()
+            h = torch.relu_(_batch_norm_rows(bn, h))
+        return h.reshape(*lead, h.shape[-1])
+
+
+def _batch_norm_rows(bn: nn.modules.batchnorm._BatchNorm, h: torch.Tensor) -> torch.Tensor:
+    """``bn`` applied to ``(P, C)`` rows with the semantics of ``bn.forward`` (train/eval, running stats)."""
+    momentum = 0.0 if bn.momentum is None else bn.momentum
+    use_batch = bn.training or not bn.track_running_stats
+    if bn.training and bn.track_running_stats:
+        bn.num_batches_tracked.add_(1)
+        if bn.momentum is None:  # cumulative moving average, as nn.BatchNorm does
+            momentum = 1.0 / float(bn.num_batches_tracked)
+    running = not bn.training or bn.track_running_stats
+    return nn.functional.batch_norm(
+        h, bn.running_mean if running else None, bn.running_var if running else None,
+        bn.weight, bn.bias, use_batch, momentum, bn.eps,
+    )
+
+
+@dataclass(frozen=True)
+class Neighbourhoods:
+    """Index tensors of one backbone pass that depend only on the input points.
+
+    Farthest-point centres, ball-query neighbourhoods and three-nearest-neighbour interpolation
+    indices and weights of :class:`PointNet2Backbone` for ``B`` clouds of ``N`` points
+    (``S1, S2`` set-abstraction centres, ``K1, K2`` neighbours). They carry no gradient, so a
+    training step can take them from a per-frame cache (:meth:`PointNet2Backbone.neighbourhoods`)
+    instead of recomputing them; with them, the interpolation weights carry no gradient to the
+    coordinates (the network's input points never require one).
+
+    Attributes
+    ----------
+    centres1 : (B, S1) int64
+        Indices into the ``N`` input points.
+    groups1 : (B, S1, K1) int64
+        Indices into the ``N`` input points.
+    centres2 : (B, S2) int64
+        Indices into the ``S1`` first-level centres.
+    groups2 : (B, S2, K2) int64
+        Indices into the ``S1`` first-level centres.
+    interp2_idx, interp2_w : (B, S1, k2) int64 / float
+        Interpolation of the second level onto the first (``k2 = min(3, S2)``, weights sum to 1).
+    interp1_idx, interp1_w : (B, N, k1) int64 / float
+        Interpolation of the first level onto the input points.
+    """
+
+    centres1: torch.Tensor
+    groups1: torch.Tensor
+    centres2: torch.Tensor
+    groups2: torch.Tensor
+    interp2_idx: torch.Tensor
+    interp2_w: torch.Tensor
+    interp1_idx: torch.Tensor
+    interp1_w: torch.Tensor
+
+    def numpy(self) -> dict[str, np.ndarray]:
+        """Compact numpy copies (indices int32, weights float32) keyed by field name."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = v.numpy().astype(np.float32 if v.is_floating_point() else np.int32)
+        return out
+
+    @classmethod
+    def from_numpy(cls, arrays: dict, index=None) -> "Neighbourhoods":
+        """Tensors (int64 indices, float32 weights) from :meth:`numpy` output, optionally of frames ``index``."""
+        kw = {}
+        for f in fields(cls):
+            a = arrays[f.name] if index is None else arrays[f.name][index]
+            t = torch.from_numpy(np.ascontiguousarray(a))
+            kw[f.name] = t.float() if t.is_floating_point() else t.long()
+        return cls(**kw)
+
+
+def nearest_three(xyz: torch.Tensor, known_xyz: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Indices ``(B, N, k)`` and normalised inverse-squared-distance weights of the ``k = min(3, S)`` nearest known points."""
+    k = min(3, known_xyz.shape[1])
+    d2 = torch.cdist(xyz, known_xyz).square()
+    d2, idx = d2.topk(k, dim=-1, largest=False)  # (B, N, k)
+    w = 1.0 / (d2 + 1e-8)
+    return idx, w / w.sum(-1, keepdim=True)
+
+
+def interpolate_last(known_features: torch.Tensor, idx: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """Weighted sum of channel-last features ``(B, S, C)`` at ``idx`` ``(B, N, k)`` with ``w`` -> ``(B, N, C)``."""
+    return (gather_points(known_features, idx) * w.unsqueeze(-1)).sum(2)
 
 
 class SetAbstraction(nn.Module):
@@ -187,6 +324,11 @@ class SetAbstraction(nn.Module):
         self.mlp = shared_mlp([in_channels + 3, *mlp], dim=2)
         self.out_channels = mlp[-1]
 
+    def sample_and_group(self, xyz: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Centre indices ``(B, S)`` (FPS) and neighbourhoods ``(B, S, K)`` (ball query) of ``(B, N, 3)`` points."""
+        centres = farthest_point_sample(xyz, self.npoint)
+        return centres, ball_query(xyz, gather_points(xyz, centres), self.radius, self.nsample)
+
     def forward(self, xyz: torch.Tensor, features: torch.Tensor | None) -> tuple[torch.Tensor, torch.Tensor]:
         """``(B, N, 3), (B, C, N) | None -> (B, S, 3), (B, C', S)``."""
         if self.npoint is None:
@@ -194,11 +336,37 @@ class SetAbstraction(nn.Module):
             grouped = xyz.transpose(1, 2).unsqueeze(2)  # (B, 3, 1, N)
             if features is not None:
                 grouped = torch.cat([grouped, features.unsqueeze(2)], dim=1)
-        else:
-            centres = gather_points(xyz, farthest_point_sample(xyz, self.npoint))
+        else:  # the reference path, as the step was before channel-last layers and cached neighbourhoods
+            centres = gather_points(xyz, farthest_point_sample_reference(xyz, self.npoint))
             idx = ball_query(xyz, centres, self.radius, self.nsample)
             grouped = group_points(xyz, features, centres, idx)
         return centres, self.mlp(grouped).amax(dim=-1)
+
+    def forward_last(self, xyz: torch.Tensor, features: torch.Tensor | None, centre_idx: torch.Tensor | None = None,
+                     group_idx: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Channel-last :meth:`forward`: ``(B, N, 3), (B, N, C) | None -> (B, S, 3), (B, S, C')``.
+
+        ``centre_idx`` ``(B, S)`` and ``group_idx`` ``(B, S, K)`` (from :meth:`sample_and_group`)
+        skip the sampling and grouping when given.
+        """
+        if self.npoint is None:
+            centres = xyz.new_zeros(xyz.shape[0], 1, 3)
+            grouped = xyz if features is None else torch.cat([xyz, features], dim=-1)  # (B, N, 3 + C)
+            return centres, _max_pool(self.mlp.forward_last(grouped), dim=1, keepdim=True)
+        if centre_idx is None or group_idx is None:
+            centre_idx, group_idx = self.sample_and_group(xyz)
+        centres = gather_points(xyz, centre_idx)
+        grouped = gather_points(xyz if features is None else torch.cat([xyz, features], dim=-1), group_idx)
+        rel = grouped[..., :3] - centres.unsqueeze(2)
+        grouped = rel if features is None else torch.cat([rel, grouped[..., 3:]], dim=-1)  # (B, S, K, 3 + C)
+        return centres, _max_pool(self.mlp.forward_last(grouped), dim=2)
+
+
+def _max_pool(x: torch.Tensor, dim: int, keepdim: bool = False) -> torch.Tensor:
+    """Maximum over ``dim`` whose backward scatters to one arg-max per output (``amax`` spreads the gradient
+    over ties with a full-size comparison, several times slower). Ties come from repeated neighbours, which
+    share their input, so the parameters' gradients are the same either way."""
+    return x.max(dim=dim, keepdim=keepdim).values
 
 
 class FeaturePropagation(nn.Module):
@@ -216,6 +384,21 @@ class FeaturePropagation(nn.Module):
             up = torch.cat([skip, up], dim=1)
         return self.mlp(up)
 
+    def forward_last(self, num_points: int, skip: torch.Tensor | None, known_features: torch.Tensor,
+                     idx: torch.Tensor | None, w: torch.Tensor | None) -> torch.Tensor:
+        """Channel-last :meth:`forward` with given interpolation (``idx``, ``w`` ``(B, N, k)`` from
+        :func:`nearest_three`; ``None`` when a single known point is spread to all ``num_points``).
+
+        ``(B, N, C1) | None, (B, S, C2) -> (B, N, C')``.
+        """
+        if idx is None:
+            up = known_features.expand(-1, num_points, -1)
+        else:
+            up = interpolate_last(known_features, idx, w)
+        if skip is not None:
+            up = torch.cat([skip, up], dim=-1)
+        return self.mlp.forward_last(up)
+
 
 class PointNet2Backbone(nn.Module):
     """PointNet++ part-segmentation backbone (SSG): three SA levels, three FP levels.
@@ -232,6 +415,13 @@ class PointNet2Backbone(nn.Module):
         Ball radii of the two local levels, in units of the normalised input.
     nsamples : (2,) ints
         Neighbours per ball.
+
+    Attributes
+    ----------
+    channels_last : bool
+        Evaluate the layers channel-last (:meth:`SharedMLP.forward_last`, the default) or as the
+        reference 1x1 convolutions on channel-first tensors (the same function, slower on a CPU;
+        kept to measure against).
     """
 
     def __init__(self, width: float = 1.0, npoints=(512, 128), radii=(0.2, 0.4), nsamples=(32, 64)):
@@ -249,13 +439,44 @@ class PointNet2Backbone(nn.Module):
         self.fp2 = FeaturePropagation(c(256) + c(128), [c(256), c(128)])
         self.fp1 = FeaturePropagation(c(128) + 3, [c(128), c(128), c(128)])
         self.out_channels = c(128)
+        self.channels_last = True
 
-    def forward(self, xyz: torch.Tensor) -> torch.Tensor:
-        """Per-point features ``(B, N, 3) -> (B, C, N)``."""
+    @torch.no_grad()
+    def neighbourhoods(self, xyz: torch.Tensor) -> Neighbourhoods:
+        """Everything of a pass over ``(B, N, 3)`` points that depends only on the points."""
         _check_xyz(xyz, "xyz")
+        c1, g1 = self.sa1.sample_and_group(xyz)
+        l1_xyz = gather_points(xyz, c1)
+        c2, g2 = self.sa2.sample_and_group(l1_xyz)
+        i2, w2 = nearest_three(l1_xyz, gather_points(l1_xyz, c2))
+        i1, w1 = nearest_three(xyz, l1_xyz)
+        return Neighbourhoods(c1, g1, c2, g2, i2, w2, i1, w1)
+
+    def forward(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> torch.Tensor:
+        """Per-point features ``(B, N, 3) -> (B, C, N)``.
+
+        ``neighbourhoods`` (from :meth:`neighbourhoods` of the same points, e.g. cached per frame)
+        skips sampling, grouping and the nearest-neighbour search; channel-last only.
+        """
+        _check_xyz(xyz, "xyz")
+        if self.channels_last:
+            return self.forward_last(xyz, neighbourhoods).transpose(1, 2)
+        if neighbourhoods is not None:
+            raise ValueError("neighbourhoods: only supported with channels_last = True")
         l1_xyz, l1 = self.sa1(xyz, None)
         l2_xyz, l2 = self.sa2(l1_xyz, l1)
         l3_xyz, l3 = self.sa3(l2_xyz, l2)
         l2 = self.fp3(l2_xyz, l3_xyz, l2, l3)
         l1 = self.fp2(l1_xyz, l2_xyz, l1, l2)
         return self.fp1(xyz, l1_xyz, xyz.transpose(1, 2), l1)
+
+    def forward_last(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> torch.Tensor:
+        """Channel-last per-point features ``(B, N, 3) -> (B, N, C)`` (see :meth:`forward`)."""
+        _check_xyz(xyz, "xyz")
+        nb = self.neighbourhoods(xyz) if neighbourhoods is None else neighbourhoods
+        l1_xyz, l1 = self.sa1.forward_last(xyz, None, nb.centres1, nb.groups1)
+        l2_xyz, l2 = self.sa2.forward_last(l1_xyz, l1, nb.centres2, nb.groups2)
+        _, l3 = self.sa3.forward_last(l2_xyz, l2)
+        l2 = self.fp3.forward_last(l2.shape[1], l2, l3, None, None)
+        l1 = self.fp2.forward_last(l1.shape[1], l1, l2, nb.interp2_idx, nb.interp2_w)
+        return self.fp1.forward_last(xyz.shape[1], xyz, l1, nb.interp1_idx, nb.interp1_w)

@@ -4,8 +4,13 @@ A run directory holds
 
 - ``config.json`` -- the :class:`~ancsh.learned.config.TrainConfig`;
 - ``last.pt`` -- the latest checkpoint (model, optimiser, step, history), written atomically;
-- ``best.pt`` -- the checkpoint with the lowest validation loss;
-- ``history.csv`` and ``curves.png`` -- training/validation losses and metrics.
+- ``best.pt`` -- the best checkpoint: the lowest pose score of the pose validation
+  (:class:`PoseValidation`: validation frames through the learned provider and the
+  ``exact_reduced`` fit, mean fitted rotation error plus mean joint-axis error, degrees) when
+  ``config.pose_val_every > 0``, else the lowest validation loss;
+- ``history.csv`` and ``curves.png`` -- training/validation losses and metrics;
+- ``neighbourhoods.npz`` -- the per-frame sampling / grouping / interpolation indices of the
+  training frames (:func:`neighbourhood_cache`), computed on first load and reused on resume.
 
 The batch of step ``s`` is a pure function of ``(seed, s)`` (a per-epoch permutation), and the
 learning rate is ``lr * lr_decay ** (s // lr_decay_steps)``, so a resumed run repeats exactly
@@ -15,6 +20,7 @@ the steps an uninterrupted run would have taken.
 from __future__ import annotations
 
 import csv
+import functools
 import math
 import os
 import time
@@ -27,8 +33,120 @@ from .config import TrainConfig
 from .data import TrainingArrays
 from .losses import LOSS_NAMES, ancsh_loss, direct_voting_loss
 from .network import build_network
+from .pointnet2 import Neighbourhoods
 
-__all__ = ["Trainer", "split_by_instance", "evaluate_arrays", "trivial_baselines"]
+__all__ = ["Trainer", "split_by_instance", "evaluate_arrays", "trivial_baselines", "loss_function", "neighbourhood_cache",
+           "PoseValidation"]
+
+
+def loss_function(config: TrainConfig):
+    """``(outputs, targets) -> (total, parts)``: the loss of ``config`` (kind, loss weights, pose weight)."""
+    fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
+    return functools.partial(fn, weights=config.loss_weights, pose_weight=config.pose_weight)
+
+
+def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path=None) -> dict[str, np.ndarray]:
+    """Per-frame :class:`~ancsh.learned.pointnet2.Neighbourhoods` of ``model`` for ``(F, N, 3)`` frames.
+
+    Everything of a forward pass that depends only on a frame's points (farthest-point centres,
+    ball-query neighbourhoods, interpolation indices and weights), computed once, ``batch_size``
+    frames at a time, as compact numpy arrays with a leading frame axis (indices int32, weights
+    float32); :meth:`Neighbourhoods.from_numpy` turns rows of it into a batch.
+
+    Parameters
+    ----------
+    model : AncshNet or DirectVotingNet
+    points : (F, N, 3) float32
+        Camera-frame points (metres), as fed to the network.
+    batch_size : int
+    path : path, optional
+        A ``.npz`` file: loaded when it holds the cache of these points and sampling settings,
+        else computed and written there.
+    """
+    import hashlib
+
+    import torch
+
+    bb = model.backbone
+    key = hashlib.sha256(np.ascontiguousarray(points, dtype=np.float32).tobytes())
+    key.update(repr((bb.sa1.npoint, bb.sa1.radius, bb.sa1.nsample, bb.sa2.npoint, bb.sa2.radius, bb.sa2.nsample)).encode())
+    key = key.hexdigest()
+    if path is not None and Path(path).is_file():
+        with np.load(path) as z:
+            if str(z["key"]) == key:
+                return {k: z[k] for k in z.files if k != "key"}
+    chunks = []
+    with torch.no_grad():
+        for start in range(0, len(points), batch_size):
+            x = torch.from_numpy(np.ascontiguousarray(points[start:start + batch_size], dtype=np.float32))
+            chunks.append(model.neighbourhoods(x).numpy())
+    cache = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
+    if path is not None:
+        tmp = Path(path).with_suffix(".tmp.npz")
+        np.savez(tmp, key=np.array(key), **cache)
+        os.replace(tmp, path)
+    return cache
+
+
+class PoseValidation:
+    """Validation on what users get: frames through the learned provider and ``fit`` (``exact_reduced``).
+
+    Parameters
+    ----------
+    frames : sequence of (Observation, AncshGroundTruth)
+        Held-out frames (validation instances of the training split -- never test instances).
+    formulation : str
+        Fitting formulation of :func:`ancsh.solvers.fit`.
+    seed : int
+        Seeds the provider's chunking and the fit's RANSAC.
+    """
+
+    def __init__(self, frames, *, formulation: str = "exact_reduced", seed: int = 0):
+        self.frames = list(frames)
+        if not self.frames:
+            raise ValueError("frames: expected at least one validation frame")
+        self.formulation = formulation
+        self.seed = int(seed)
+
+    @classmethod
+    def from_dataset(cls, source, frame_indices, **kw) -> "PoseValidation":
+        """Frames ``frame_indices`` of HDF5 shards ``source`` (:class:`~ancsh.data.dataset.FrameDataset`)."""
+        from ..data.dataset import FrameDataset
+        from ..solvers.types import Observation
+
+        ds = FrameDataset(source)
+        frames = []
+        for i in frame_indices:
+            fr = ds[int(i)]
+            frames.append((Observation(fr.points), fr.gt))
+        return cls(frames, **kw)
+
+    def evaluate(self, network) -> dict[str, float]:
+        """Means over frames: ``pose_rot_deg`` (over parts), ``pose_axis_deg``, ``pose_state_err`` (over joints),
+        ``pose_failures`` (failed fits, left out) and ``pose_score = pose_rot_deg + pose_axis_deg``.
+
+        ``network`` is a :class:`~ancsh.learned.weights.LoadedNetwork`.
+        """
+        from ..evaluation import evaluate_fit
+        from ..solvers import fit
+        from .provider import LearnedProvider
+
+        provider = LearnedProvider(network, seed=self.seed)
+        rot, axis, state, failures = [], [], [], 0
+        for i, (obs, gt) in enumerate(self.frames):
+            r = fit(obs, provider.correspond(obs), self.formulation, rng=self.seed + i)
+            ev = evaluate_fit(r, gt)
+            if not ev["ok"]:
+                failures += 1
+                continue
+            rot.append(np.mean([p["rot_deg"] for p in ev["parts"]]))
+            axis.append(np.mean([j["axis_deg"] for j in ev["joints"]]))
+            state.append(np.mean([j["state_err"] for j in ev["joints"]]))
+        out = {"pose_failures": float(failures)}
+        for name, v in (("pose_rot_deg", rot), ("pose_axis_deg", axis), ("pose_state_err", state)):
+            out[name] = float(np.mean(v)) if v else float("nan")
+        out["pose_score"] = out["pose_rot_deg"] + out["pose_axis_deg"] if rot else float("inf")
+        return out
 
 
 def split_by_instance(arrays: TrainingArrays, fraction: float, seed: int) -> tuple[TrainingArrays, TrainingArrays | None]:
@@ -64,7 +182,7 @@ def evaluate_arrays(model, arrays: TrainingArrays, config: TrainConfig, batch_si
     """
     was_training = model.training
     model.eval()
-    loss_fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
+    loss_fn = loss_function(config)
     sums: dict[str, float] = {}
     count = 0
     try:
@@ -72,7 +190,7 @@ def evaluate_arrays(model, arrays: TrainingArrays, config: TrainConfig, batch_si
             idx = np.arange(start, min(start + batch_size, len(arrays)))
             points, targets = arrays.batch(idx)
             out = model(points)
-            total, parts = loss_fn(out, targets, config.loss_weights)
+            total, parts = loss_fn(out, targets)
             pred = out["seg_logits"].argmax(-1)
             m = {"total": float(total), **{k: float(v) for k, v in parts.items()}}
             m["seg_acc"] = float((pred == targets.labels).float().mean())
@@ -127,9 +245,15 @@ class Trainer:
         Run directory (checkpoints, CSV, PNG); ``None`` keeps everything in memory.
     progress : bool
         Show a tqdm progress bar.
+    pose_val : PoseValidation, optional
+        Run every ``config.pose_val_every`` steps (and at the end); selects ``best.pt``.
+
+    The sampling / grouping indices of the training frames are computed once
+    (:func:`neighbourhood_cache`) and fed to every step.
     """
 
-    def __init__(self, config: TrainConfig, train: TrainingArrays, val: TrainingArrays | None = None, out_dir=None, *, progress: bool = True):
+    def __init__(self, config: TrainConfig, train: TrainingArrays, val: TrainingArrays | None = None, out_dir=None, *,
+                 progress: bool = True, pose_val: PoseValidation | None = None):
         if not isinstance(config, TrainConfig):
             raise ValueError(f"config: expected a TrainConfig, got {type(config).__name__}")
         if len(train) == 0:
@@ -145,7 +269,10 @@ class Trainer:
         torch.manual_seed(config.seed)
         self.model = build_network(config.kind, train.num_parts, train.num_joints, **config.network_kwargs())
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
-        self.loss_fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
+        self.loss_fn = loss_function(config)
+        if pose_val is not None and not isinstance(pose_val, PoseValidation):
+            raise ValueError(f"pose_val: expected a PoseValidation, got {type(pose_val).__name__}")
+        self.pose_val = pose_val
         self.step = 0
         self.elapsed_s = 0.0
         self.history: list[dict] = []
@@ -156,6 +283,8 @@ class Trainer:
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             config.to_json(self.out_dir / "config.json")
+        cache_path = None if self.out_dir is None else self.out_dir / "neighbourhoods.npz"
+        self.neighbourhoods = neighbourhood_cache(self.model, train.points, path=cache_path)
 
     # --- schedule ------------------------------------------------------------------
     def batch_indices(self, step: int) -> np.ndarray:
@@ -178,9 +307,10 @@ class Trainer:
         self.model.train()
         for g in self.optimizer.param_groups:
             g["lr"] = self.learning_rate(self.step)
-        points, targets = self.train_arrays.batch(self.batch_indices(self.step))
-        out = self.model(points)
-        total, parts = self.loss_fn(out, targets, self.config.loss_weights)
+        idx = self.batch_indices(self.step)
+        points, targets = self.train_arrays.batch(idx)
+        out = self.model(points, Neighbourhoods.from_numpy(self.neighbourhoods, idx))
+        total, parts = self.loss_fn(out, targets)
         if not torch.isfinite(total):
             raise FloatingPointError(f"non-finite loss at step {self.step}: { {k: v.item() for k, v in parts.items()} }")
         self.optimizer.zero_grad(set_to_none=True)
@@ -220,7 +350,7 @@ class Trainer:
                     bar.update(1)
                     bar.set_postfix({k: f"{v:.3g}" for k, v in step_losses.items()})
                 if self.step % c.val_every == 0 or self.step == max_steps:
-                    self.record()
+                    self.record(pose=self.step == max_steps)
                 if self.out_dir is not None and (self.step % c.checkpoint_every == 0 or self.step == max_steps):
                     self.save_checkpoint(self.out_dir / "last.pt")
                 if time_limit_s is not None and now - t_start >= time_limit_s:
@@ -229,24 +359,43 @@ class Trainer:
             if bar is not None:
                 bar.close()
         if self._acc_n:
-            self.record()
+            self.record(pose=True)
         if self.out_dir is not None and self._saved_step != self.step:
             self.save_checkpoint(self.out_dir / "last.pt")
         return losses
 
     # --- validation and logs -------------------------------------------------------------
-    def record(self) -> dict:
-        """Validate, append a history row (mean training losses since the last row), write CSV/PNG."""
+    def pose_network(self):
+        """The model being trained as a :class:`~ancsh.learned.weights.LoadedNetwork` (shares its parameters)."""
+        from .weights import LoadedNetwork
+
+        a = self.train_arrays
+        return LoadedNetwork(model=self.model, config=self.config, revolute=a.revolute, joint_parents=a.joint_parents,
+                             joint_children=a.joint_children, num_parts=a.num_parts, metrics={}, source="training",
+                             step=self.step)
+
+    def record(self, *, pose: bool = False) -> dict:
+        """Validate, append a history row (mean training losses since the last row), write CSV/PNG.
+
+        The pose validation runs when ``pose`` or at multiples of ``config.pose_val_every``; ``best.pt``
+        follows its ``pose_score`` when there is a pose validation, else the validation loss.
+        """
         row: dict = {"step": self.step, "elapsed_s": round(self.elapsed_s, 1), "lr": self.learning_rate(max(self.step - 1, 0))}
         n = max(self._acc_n, 1)
         row.update({f"train_{k}": v / n for k, v in self._acc.items()})
         self._acc, self._acc_n = {}, 0
         if self.val_arrays is not None:
             row.update({f"val_{k}": v for k, v in evaluate_arrays(self.model, self.val_arrays, self.config).items()})
+        every = self.config.pose_val_every
+        if self.pose_val is not None and every and (pose or self.step % every == 0):
+            try:
+                row.update(self.pose_val.evaluate(self.pose_network()))
+            finally:
+                self.model.train()
         self.history.append(row)
         if self.out_dir is not None:
             self.write_history()
-            val = row.get("val_total")
+            val = row.get("pose_score") if self.pose_val is not None and every else row.get("val_total")
             if val is not None and val < self.best_val:
                 self.best_val = val
                 self.save_checkpoint(self.out_dir / "best.pt")

@@ -102,3 +102,61 @@ def test_trainer_rejects_mismatched_inputs(tiny_arrays, tiny_config):
         Trainer(dataclasses.replace(tiny_config, num_points=128), tiny_arrays, progress=False)
     with pytest.raises(ValueError, match="config"):
         Trainer({"width": 1}, tiny_arrays, progress=False)
+
+
+def _pose_frames(seed=11, count=2):
+    from ancsh.model.canonical import ancsh_ground_truth
+    from ancsh.model.synthetic import random_articulated_model, sample_frame
+    from ancsh.solvers.types import Observation
+
+    rng = np.random.default_rng(seed)
+    model = random_articulated_model(rng, num_parts=2, joint_types="revolute")
+    frames = []
+    for _ in range(count):
+        fr = sample_frame(model, rng, points_per_part=40)
+        frames.append((Observation(fr.points_cam), ancsh_ground_truth(model, fr.q, fr.T_cam_base, fr.points_cam, fr.part_labels)))
+    return frames
+
+
+def test_pose_validation_runs_the_full_pipeline_and_reports_failures_as_data(tiny_arrays, tiny_config):
+    """Scenario: an untrained network on two frames of a two-part revolute object: the provider's output
+    goes through exact_reduced fits; fits that fail (a part without points) are counted, not raised."""
+    from ancsh.learned.train import PoseValidation
+
+    trainer = Trainer(dataclasses.replace(tiny_config, max_steps=2), tiny_arrays, progress=False)
+    scores = PoseValidation(_pose_frames()).evaluate(trainer.pose_network())
+    assert set(scores) == {"pose_failures", "pose_rot_deg", "pose_axis_deg", "pose_state_err", "pose_score"}
+    assert 0 <= scores["pose_failures"] <= 2
+    if scores["pose_failures"] < 2:
+        assert scores["pose_score"] == pytest.approx(scores["pose_rot_deg"] + scores["pose_axis_deg"])
+    else:
+        assert scores["pose_score"] == np.inf
+    with pytest.raises(ValueError, match="frames"):
+        PoseValidation([])
+
+
+def test_best_checkpoint_follows_the_pose_score_not_the_validation_loss(tmp_path, tiny_arrays, tiny_config):
+    """Scenario: a pose validation whose score is best at the first of three validations; best.pt holds
+    that step whatever the validation loss does."""
+    from ancsh.learned.train import PoseValidation
+    from ancsh.learned.weights import load_network
+
+    class Scripted(PoseValidation):
+        def __init__(self, scores):
+            super().__init__(_pose_frames(count=1))
+            self.scores = list(scores)
+
+        def evaluate(self, network):
+            assert network.model is trainer.model
+            return {"pose_score": self.scores.pop(0)}
+
+    cfg = dataclasses.replace(tiny_config, max_steps=6, val_every=2, pose_val_every=2)
+    trainer = Trainer(cfg, tiny_arrays, tiny_arrays, tmp_path / "run", progress=False, pose_val=Scripted([3.0, 5.0, 4.0]))
+    trainer.fit()
+    assert [r["pose_score"] for r in trainer.history] == [3.0, 5.0, 4.0]
+    assert trainer.model.training and trainer.best_val == 3.0
+    assert load_network(tmp_path / "run" / "best.pt").step == 2
+    with pytest.raises(ValueError, match="pose_val"):
+        Trainer(cfg, tiny_arrays, progress=False, pose_val=[])
+    with pytest.raises(ValueError, match="pose_val_every"):
+        TrainConfig(pose_val_every=-1)

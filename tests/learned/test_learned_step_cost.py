@@ -1,0 +1,118 @@
+"""The cheaper training step computes the same thing as the reference step.
+
+Scenario: a network of the shipped layout (smaller) on random clouds. The per-frame neighbourhood
+cache equals freshly computed neighbourhoods (bit-exact indices); the channel-last layers with
+cached neighbourhoods give the reference step's loss and gradients (float64, to rounding); the
+numpy farthest-point sampling equals the torch reference.
+"""
+
+import copy
+
+import numpy as np
+import pytest
+import torch
+
+from ancsh.learned.losses import ancsh_loss
+from ancsh.learned.network import build_network
+from ancsh.learned.pointnet2 import farthest_point_sample, farthest_point_sample_reference
+from ancsh.learned.train import Trainer, neighbourhood_cache
+
+
+def _net(kind="ancsh", **kw):
+    torch.manual_seed(0)
+    return build_network(kind, 2, 1, width=0.125, npoints=(32, 8), nsamples=(8, 8), **kw)
+
+
+def test_numpy_fps_equals_the_torch_reference():
+    g = torch.Generator().manual_seed(0)
+    for dtype in (torch.float32, torch.float64):
+        xyz = torch.rand(5, 200, 3, generator=g, dtype=dtype)
+        xyz[1, 50:60] = xyz[1, 40]  # repeated points: ties go to the lowest index in both
+        assert torch.equal(farthest_point_sample(xyz, 64), farthest_point_sample_reference(xyz, 64))
+    with pytest.raises(ValueError, match="npoint"):
+        farthest_point_sample_reference(xyz, 201)
+
+
+def test_neighbourhood_cache_equals_fresh_computation(tmp_path, tiny_arrays):
+    net = _net()
+    cache = neighbourhood_cache(net, tiny_arrays.points, batch_size=3, path=tmp_path / "nb.npz")
+    fresh = net.neighbourhoods(torch.from_numpy(tiny_arrays.points))
+    for name, value in fresh.numpy().items():
+        assert cache[name].dtype == value.dtype and cache[name].shape[0] == len(tiny_arrays)
+        if np.issubdtype(value.dtype, np.integer):
+            np.testing.assert_array_equal(cache[name], value, err_msg=name)  # bit-exact indices
+        else:
+            np.testing.assert_allclose(cache[name], value, rtol=1e-6, atol=0, err_msg=name)
+    again = neighbourhood_cache(net, tiny_arrays.points, path=tmp_path / "nb.npz")  # read back from the file
+    for name in cache:
+        np.testing.assert_array_equal(again[name], cache[name])
+    other = tiny_arrays.points.copy()
+    other[0, 0, 0] += 0.01  # other points: the stale file is not used
+    moved = neighbourhood_cache(net, other, path=tmp_path / "nb.npz")
+    np.testing.assert_array_equal(moved["groups1"], net.neighbourhoods(torch.from_numpy(other)).numpy()["groups1"])
+
+
+@pytest.mark.parametrize("kind", ["ancsh", "direct_voting"])
+def test_channel_last_cached_step_matches_the_reference_step(tiny_arrays, kind):
+    net = _net(kind).double()
+    points, targets = tiny_arrays.batch(np.arange(len(tiny_arrays)))
+    points = points.double()
+    targets = type(targets)(**{k: v.double() if v.is_floating_point() else v for k, v in vars(targets).items()})
+    nb = net.neighbourhoods(points)
+    loss_fn = ancsh_loss
+    if kind == "direct_voting":
+        from ancsh.learned.losses import direct_voting_loss as loss_fn
+
+    def step(model, neighbourhoods):
+        model.zero_grad()
+        total, _ = loss_fn(model(points, neighbourhoods), targets)
+        total.backward()
+        return total, {n: p.grad.clone() for n, p in model.named_parameters()}
+
+    ref_net = copy.deepcopy(net)
+    ref_net.backbone.channels_last = False
+    ref_loss, ref_grad = step(ref_net, None)
+    loss, grad = step(net, nb)  # (the float32 cache would round the float64 weights)
+    torch.testing.assert_close(loss, ref_loss, rtol=1e-10, atol=1e-12)
+    for name in ref_grad:
+        torch.testing.assert_close(grad[name], ref_grad[name], rtol=1e-8, atol=1e-10, msg=name)
+    for (name, b), (_, b_ref) in zip(net.named_buffers(), ref_net.named_buffers()):  # batch-norm running stats
+        torch.testing.assert_close(b, b_ref, rtol=1e-10, atol=1e-12, msg=name)
+    with pytest.raises(ValueError, match="neighbourhoods"):
+        ref_net(points, nb)
+
+
+def test_eval_mode_outputs_agree_between_layouts(tiny_arrays):
+    net = _net().eval()
+    ref = copy.deepcopy(net)
+    ref.backbone.channels_last = False
+    x = torch.from_numpy(tiny_arrays.points)
+    with torch.no_grad():
+        out, out_ref = net(x), ref(x)
+    for k in out:
+        torch.testing.assert_close(out[k], out_ref[k], rtol=1e-4, atol=1e-5, msg=k)
+
+
+def test_trainer_caches_neighbourhoods_once_per_frame(tmp_path, tiny_arrays, tiny_config):
+    trainer = Trainer(tiny_config, tiny_arrays, None, tmp_path / "run", progress=False)
+    assert (tmp_path / "run" / "neighbourhoods.npz").is_file()
+    fresh = trainer.model.neighbourhoods(torch.from_numpy(tiny_arrays.points)).numpy()
+    np.testing.assert_array_equal(trainer.neighbourhoods["groups1"], fresh["groups1"])
+    trainer.fit(max_steps=2)
+    assert trainer.step == 2
+
+
+def test_cost_benchmark_measures_variants_side_by_side_and_writes_its_command(tmp_path):
+    from ancsh.learned.bench import training_cost, write_cost_report
+
+    result = training_cost(("today", "new"), width=0.125, num_points=256, repeats=2)
+    rows = {r["name"]: r for r in result["rows"]}
+    assert rows["today"]["speedup_cpu"] == 1.0 and rows["new"]["frames_per_cpu_s"] > 0
+    assert abs(rows["today"]["first_loss"] - rows["new"]["first_loss"]) < 1e-3 * abs(rows["today"]["first_loss"])
+    assert set(result["forward_ms"]) == {"reference", "channels_last"}
+    path = write_cost_report(result, tmp_path / "cost.md", command="ancsh bench learned-cost --repeats 2")
+    text = path.read_text()
+    assert "Command: `ancsh bench learned-cost --repeats 2`" in text and "today's step" in text
+    assert path.with_suffix(".json").is_file()
+    with pytest.raises(ValueError, match="repeats"):
+        training_cost(("new",), repeats=1)
