@@ -291,21 +291,33 @@ class Trainer:
 
     def load_checkpoint(self, path) -> None:
         """Restore model, optimiser, step and history from :meth:`save_checkpoint` output."""
-        ck = torch.load(Path(path), map_location="cpu", weights_only=False)
-        saved = TrainConfig.from_dict(ck["config"])
+        from .weights import read_torch_file
+
+        keys = ("config", "step", "elapsed_s", "model", "optimizer", "history", "best_val", "acc", "num_parts", "revolute")
+        ck = read_torch_file(path, argument="--resume", required=keys)
+        try:
+            saved = TrainConfig.from_dict(ck["config"])
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"--resume: {path} holds an invalid config: {exc}") from None
+        if saved.category != self.config.category:
+            raise ValueError(f"--resume: {path} is a run of category {saved.category!r}, not {self.config.category!r}; "
+                             "choose another --out")
         mismatch = [k for k in ("kind", "width", "npoints", "radii", "nsamples", "backbones", "num_points")
                     if getattr(saved, k) != getattr(self.config, k)]
         if mismatch:
             raise ValueError(f"checkpoint {path}: network settings {mismatch} differ from the config")
         if ck["num_parts"] != self.train_arrays.num_parts or ck["revolute"] != self.train_arrays.revolute.tolist():
             raise ValueError(f"checkpoint {path}: trained for another kinematic structure")
-        self.model.load_state_dict(ck["model"])
-        self.optimizer.load_state_dict(ck["optimizer"])
-        self.step = int(ck["step"])
-        self.elapsed_s = float(ck["elapsed_s"])
-        self.history = list(ck["history"])
-        self.best_val = float(ck["best_val"])
-        self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+        try:
+            self.model.load_state_dict(ck["model"])
+            self.optimizer.load_state_dict(ck["optimizer"])
+            self.step = int(ck["step"])
+            self.elapsed_s = float(ck["elapsed_s"])
+            self.history = list(ck["history"])
+            self.best_val = float(ck["best_val"])
+            self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+        except (ValueError, TypeError, KeyError, IndexError, RuntimeError) as exc:
+            raise ValueError(f"--resume: {path} is not a usable checkpoint: {str(exc).splitlines()[0][:200]}") from None
         self._saved_step = self.step
 
 
