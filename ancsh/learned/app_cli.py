@@ -21,7 +21,11 @@ def register(sub) -> None:
     p.add_argument("--depth", required=True, type=Path, help="16-bit PNG (millimetres by default) or .npy (metres)")
     p.add_argument("--intrinsics", required=True, type=Path, help='JSON {"fx","fy","cx","cy","width","height"}')
     p.add_argument("--category", required=True, help="object category, e.g. laptop")
-    p.add_argument("--mask", type=Path, help="object mask (PNG or .npy, nonzero = object), same size as the depth")
+    p.add_argument("--mask", type=Path, help="object mask (PNG or .npy, nonzero = object), same size as the depth; "
+                   "without one the object is isolated automatically (planes removed, clusters, size + centrality)")
+    p.add_argument("--pixel", metavar="U,V", help="isolation hint: a pixel on the object")
+    p.add_argument("--box", metavar="U0,V0,U1,V1", help="isolation hint: a box around the object (pixels)")
+    p.add_argument("--no-isolate", action="store_true", help="without --mask, use every valid pixel (no isolation)")
     p.add_argument("--max-depth", type=float, help="drop pixels deeper than this (metres)")
     p.add_argument("--depth-scale", type=float, default=0.001, help="metres per PNG unit (default 0.001 = millimetres)")
     p.add_argument("--points", type=int, default=1024, help="points sampled from the valid pixels (default 1024)")
@@ -32,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.set_defaults(func=run_predict)
+    p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
 
     e = sub.add_parser(
         "evaluate",
@@ -50,7 +55,8 @@ def register(sub) -> None:
     e.add_argument("--weights", type=Path, help="ANCSH weights file instead of the shipped ones")
     e.add_argument("--direct-weights", type=Path, help="direct-voting weights (default: shipped, if any)")
     e.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
-    e.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder (default docs/results)")
+    e.add_argument("--out", type=Path, help="output folder (default: a fresh ancsh_results/evaluate-<category>-<time>/)")
+    e.add_argument("--update-docs", action="store_true", help="write into the committed docs/results/ (when --out is not given)")
     e.add_argument("--no-progress", action="store_true")
     e.set_defaults(func=run_evaluate)
     register_weights(sub)
@@ -139,20 +145,30 @@ def _command(argv_tail: list[str]) -> str:
 
 
 def run_predict(args: argparse.Namespace) -> int:
+    from ..data.isolate import parse_hint
     from ..data.show import save_figure
     from .predict import draw_prediction, predict_depth, read_depth, read_intrinsics, read_mask
 
+    if args.points < 1:
+        raise ValueError(f"--points: expected a positive number of points, got {args.points}")
+    hint = parse_hint(args.pixel, args.box)
     intr = read_intrinsics(args.intrinsics)
     depth = read_depth(args.depth, depth_scale=args.depth_scale)
     mask = None if args.mask is None else read_mask(args.mask, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
-                         formulation=args.formulation, num_points=args.points, seed=args.seed)
+                         formulation=args.formulation, num_points=args.points, seed=args.seed,
+                         isolate=not args.no_isolate, hint=hint)
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
-                     "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed}
+                     "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed,
+                     "pixel": args.pixel, "box": args.box, "isolate": not args.no_isolate}
     r = pred.result
     print(f"{args.category}: {data['points']} of {data['valid_pixels']} valid pixels, {r.formulation} fit: {r.status.value}"
           f" (network {data['timings_ms']['network']:.0f} ms, fit {data['timings_ms']['fit']:.0f} ms)")
+    if not r.ok:
+        print(f"  {r.message}")
+    for note in pred.notes:
+        print(f"  note: {note}")
     for part in data["parts"]:
         if part["pose"] is not None:
             t = part["pose"]["translation"]
@@ -161,29 +177,39 @@ def run_predict(args: argparse.Namespace) -> int:
                   + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else ""))
     for j in data["joints"]:
         if j["state"] is not None:
-            val = f"{j['state'] * 57.29577951308232:.1f} deg" if j["type"] == "revolute" else f"{j['state']:.3f} m"
-            print(f"  joint {j['name']:12s} ({j['type']}) state {val} (relative to rest)")
+            f, unit = (57.29577951308232, "deg") if j["type"] == "revolute" else (1.0, "m")
+            absolute = "" if j["state_abs"] is None else f", absolute {j['state_abs'] * f:.1f} {unit}"
+            print(f"  joint {j['name']:12s} ({j['type']}) state {j['state'] * f:.1f} {unit} relative to rest{absolute}")
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(data, indent=1) + "\n")
         print(f"  result: {args.out}")
     if args.png is not None:
         print(f"  picture: {save_figure(draw_prediction(depth, pred, intr), args.png)}")
-    return 0
+    return 0 if r.ok else 1
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from .evaluate import METHODS, evaluate_category, write_report
 
+    from ..outputs import DOCS_RESULTS, fresh_output_dir
+
     methods = tuple(args.formulations) if args.formulations else tuple(METHODS)
     frames = args.frames if args.frames is not None else (300 if args.quick else 3000)
+    if frames < 1:
+        raise ValueError(f"--frames: expected a positive number of frames, got {frames}")
+    if args.threads < 1:
+        raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
+    if args.time_limit_min is not None and not args.time_limit_min > 0:
+        raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
     ev = evaluate_category(
         args.category, frames=frames, methods=methods, seed=args.seed, weights=args.weights,
         direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
         num_threads=args.threads, progress=not args.no_progress,
     )
-    paths = write_report(ev, args.out, command=_rebuild(args))
+    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
+    paths = write_report(ev, out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
     return 0
 
@@ -199,6 +225,8 @@ def _rebuild(args: argparse.Namespace) -> str:
             parts += [flag, str(value)]
     if args.quick:
         parts.append("--quick")
+    if args.update_docs and args.out is None:
+        parts.append("--update-docs")
     if args.seed:
         parts += ["--seed", str(args.seed)]
     if args.threads != 1:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
-           "learning_curve_fit", "weights_summary", "read_torch_file", "weights_sha256"]
+           "learning_curve_fit", "weights_summary", "read_torch_file"]
 
 FORMAT = 1
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
@@ -45,6 +45,8 @@ class LoadedNetwork:
         File it was loaded from.
     step : int or None
         Training step of the weights.
+    sha256 : str or None
+        SHA-256 of the file's bytes, taken when it was loaded.
     """
 
     model: object
@@ -56,6 +58,7 @@ class LoadedNetwork:
     metrics: dict
     source: str
     step: int | None = None
+    sha256: str | None = None
 
     @property
     def kind(self) -> str:
@@ -109,17 +112,6 @@ def read_torch_file(path, *, argument: str, required=()) -> dict:
     if missing:
         raise ValueError(f"{argument}: {path} lacks the entries {missing}; is it a file made by ancsh?")
     return data
-
-
-def weights_sha256(path) -> str:
-    """SHA-256 hex digest of a weights file's bytes (reported with every prediction)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def weights_path(category: str, kind: str = "ancsh") -> Path:
@@ -192,6 +184,7 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
     FileNotFoundError
         When no weights exist for the category / path, listing what is available.
     """
+    from ..outputs import file_sha256
     from .config import TrainConfig
     from .network import build_network
 
@@ -231,6 +224,7 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
         metrics=dict(ck.get("metrics", {})),
         source=str(path),
         step=None if ck.get("step") is None else int(ck["step"]),
+        sha256=file_sha256(path),
     )
 
 

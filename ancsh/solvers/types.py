@@ -308,6 +308,8 @@ class FitStatus(str, Enum):
     TOO_FEW_POINTS = "too_few_points"
     DEGENERATE = "degenerate"
     INVALID_INPUT = "invalid_input"
+    IMPLAUSIBLE_SIZE = "implausible_size"  # the fitted object's size is outside its category's range
+    TOO_FEW_INLIERS = "too_few_inliers"  # too small a share of the points agrees with the fit
 
 
 @dataclass(frozen=True)
