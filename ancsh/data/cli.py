@@ -148,7 +148,7 @@ def run_bench(args) -> int:
 
     import numpy as np
 
-    from .generate import FrameGenerator, GenerationConfig
+    from .generate import FrameGenerator, FrameRejected, GenerationConfig
     from .procedural import CATEGORIES
     from .render import Intrinsics, sample_viewpoint, viewpoint_range
 
@@ -190,8 +190,12 @@ def run_bench(args) -> int:
                 pixels += int((view.part_ids >= 0).sum()) if not vis else 0
             cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
         t0, c0 = time.perf_counter(), time.process_time()
-        for i in range(args.frames):
-            gen.frame(i)
+        try:
+            for i in range(args.frames):
+                gen.frame(i)
+        except FrameRejected as exc:
+            raise ValueError(f"--width, --height: no usable frame at {intr.width}x{intr.height} pixels ({exc}); "
+                             "use a larger image") from None
         cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
         emit(f"{cat:16s}" + "".join(f"{x:13.1f}" for x in cols) + f"{pixels // args.frames:13d}")
     if args.out:

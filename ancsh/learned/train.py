@@ -225,6 +225,10 @@ class Trainer:
                     self.save_checkpoint(self.out_dir / "last.pt")
                 if time_limit_s is not None and now - t_start >= time_limit_s:
                     break
+        except KeyboardInterrupt:  # Ctrl-C: keep the finished steps, then let the caller report it
+            if self.out_dir is not None and self._saved_step != self.step:
+                self.save_checkpoint(self.out_dir / "last.pt")
+            raise
         finally:
             if bar is not None:
                 bar.close()
@@ -283,8 +287,12 @@ class Trainer:
         """Write the full training state atomically (temporary file + rename)."""
         path = Path(path)
         tmp = path.with_suffix(path.suffix + ".tmp")
-        torch.save(self.state(), tmp)
-        os.replace(tmp, path)
+        try:
+            torch.save(self.state(), tmp)
+            os.replace(tmp, path)
+        except (OSError, RuntimeError) as exc:  # full disk, read-only folder: the previous checkpoint stays intact
+            tmp.unlink(missing_ok=True)
+            raise OSError(getattr(exc, "errno", None), f"could not write the checkpoint {path}: {exc}") from None
         if path.name == "last.pt":
             self._saved_step = self.step
         return path
