@@ -101,6 +101,11 @@ def run_generate(args) -> int:
         print(f"\ninterrupted: complete shards are kept in {out}; run the same command again to resume",
               file=sys.stderr)
         return 130
+    except OSError as exc:  # no space left, read-only folder: complete shards stay valid
+        where = exc.filename or out
+        print(f"ancsh data generate: error: cannot write {where}: {exc.strerror or exc}; complete shards are kept in "
+              f"{out}; free space (or choose another --out) and run the same command again to resume", file=sys.stderr)
+        return 1
     for s, reason in report.replaced:
         print(f"regenerated shard {report.paths[s].name}: {reason}")
     rate = f" ({report.frames_per_second:.1f} frames/s)" if report.frames_generated else ""
