@@ -13,7 +13,7 @@ import numpy as np
 
 from .render import Intrinsics
 
-__all__ = ["MAX_PLAUSIBLE_DEPTH", "read_depth", "read_mask", "read_intrinsics"]
+__all__ = ["MAX_PLAUSIBLE_DEPTH", "read_depth", "read_mask", "read_intrinsics", "read_json"]
 
 #: Median valid depth (metres) above which a ``.npy`` depth image is taken to be in millimetres.
 MAX_PLAUSIBLE_DEPTH = 20.0
@@ -31,6 +31,24 @@ def _open_image(path: Path, argument: str) -> tuple[np.ndarray, str]:
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
         raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
     return data, mode
+
+
+def _load_npy(path: Path, argument: str) -> np.ndarray:
+    try:
+        return np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise ValueError(f"{argument}: {path} is not a readable .npy array ({exc})") from None
+
+
+def read_json(path, *, argument: str):
+    """The JSON value in a file; ``FileNotFoundError`` / ``ValueError`` naming ``argument`` and the file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{argument}: no such file {path}")
+    try:
+        return json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{argument}: {path} is not valid JSON ({exc})") from None
 
 
 def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth") -> np.ndarray:
@@ -59,10 +77,7 @@ def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth") -> 
     if not (np.isfinite(depth_scale) and depth_scale > 0):
         raise ValueError(f"depth_scale: expected a positive number, got {depth_scale}")
     if path.suffix.lower() == ".npy":
-        try:
-            d = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise ValueError(f"{argument}: {path} is not a readable .npy array ({exc})") from None
+        d = _load_npy(path, argument)
         if d.ndim != 2 or not np.issubdtype(d.dtype, np.number):
             raise ValueError(f"{argument}: expected a 2-D numeric array of metres in {path}, got {d.dtype} {d.shape}")
         d = np.where(np.isfinite(d), d, 0.0).astype(np.float64)
@@ -93,10 +108,7 @@ def read_mask(path, shape, *, argument: str = "mask") -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(f"{argument}: no such file {path}")
     if path.suffix.lower() == ".npy":
-        try:
-            m = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise ValueError(f"{argument}: {path} is not a readable .npy array ({exc})") from None
+        m = _load_npy(path, argument)
     else:
         m, _ = _open_image(path, argument)
     if m.ndim == 3:  # RGB(A) mask: any nonzero channel
@@ -108,13 +120,7 @@ def read_mask(path, shape, *, argument: str = "mask") -> np.ndarray:
 
 def read_intrinsics(path, *, argument: str = "intrinsics") -> Intrinsics:
     """Read ``{"fx", "fy", "cx", "cy", "width", "height"}`` JSON (:meth:`Intrinsics.to_json`); values must be JSON numbers."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{argument}: no such file {path}")
-    try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{argument}: {path} is not valid JSON ({exc})") from None
+    data = read_json(path, argument=argument)
     try:
         return Intrinsics.from_json(data)
     except ValueError as exc:

@@ -184,3 +184,14 @@ def test_eight_bit_png_is_refused_by_predict_and_fit_cad_alike(tmp_path, capsys)
     assert main(["fit-cad", "--urdf", str(urdf), *common]) == 2
     err_fit = capsys.readouterr().err
     assert "16-bit" in err_predict and "16-bit" in err_fit
+
+
+def test_the_one_call_api_reads_files_and_predicts(table_scene, tmp_path):
+    import ancsh
+
+    depth, intr, source, _ = table_scene
+    Image.fromarray(np.round(depth * 1000).astype(np.uint16)).save(tmp_path / "d.png")
+    (tmp_path / "K.json").write_text(json.dumps(intr.to_json()))
+    np.save(tmp_path / "mask.npy", source == 0)
+    pred = ancsh.predict(tmp_path / "d.png", tmp_path / "K.json", "laptop", mask=tmp_path / "mask.npy")
+    assert pred.result.ok and pred.to_json()["ancsh_version"] == ancsh.__version__

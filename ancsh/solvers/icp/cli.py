@@ -51,13 +51,9 @@ def load_init(path, model):
     from ...geometry.transforms import Sim3
     from .template import ArticulatedPose
 
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"init: no such file {path}")
-    try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"init: {path} is not valid JSON ({exc})") from None
+    from ...data.images import read_json
+
+    data = read_json(path, argument="init")
     if not isinstance(data, dict) or "T_cam_base" not in data:
         raise ValueError(f'init: {path}: expected a JSON object with "T_cam_base" (4x4) and optionally "q"')
     T = Sim3.from_matrix(np.asarray(data["T_cam_base"], dtype=float))
