@@ -18,7 +18,8 @@ def register(sub) -> None:
         description="Back-project a depth image, run the category's shipped ANCSH network and fit the part poses and "
         "joints. Prints a summary; --out writes the JSON, --png a picture.",
     )
-    p.add_argument("--depth", required=True, type=Path, help="16-bit PNG (millimetres by default) or .npy (metres)")
+    p.add_argument("--depth", required=True, type=Path, help="16-bit PNG (millimetres by default) or .npy (metres); "
+                   "a folder predicts every .png/.npy in it (--out and --png are then folders)")
     p.add_argument("--intrinsics", required=True, type=Path, help='JSON {"fx","fy","cx","cy","width","height"}')
     p.add_argument("--category", required=True, help="object category, e.g. laptop")
     p.add_argument("--mask", type=Path, help="object mask (PNG or .npy, nonzero = object), same size as the depth; "
@@ -153,6 +154,8 @@ def run_predict(args: argparse.Namespace) -> int:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
     hint = parse_hint(args.pixel, args.box)
     intr = read_intrinsics(args.intrinsics)
+    if args.depth.is_dir():
+        return _predict_folder(args, intr, hint)
     depth = read_depth(args.depth, depth_scale=args.depth_scale)
     mask = None if args.mask is None else read_mask(args.mask, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
@@ -173,8 +176,11 @@ def run_predict(args: argparse.Namespace) -> int:
         if part["pose"] is not None:
             t = part["pose"]["translation"]
             ext = part["box"]["extents"] if part["box"] else None
+            q = part["quality"] or {}
+            evidence = ("" if q.get("inlier_ratio") is None or q.get("residual_m") is None else
+                        f"  inliers {100 * q['inlier_ratio']:.0f}%, residual {1e3 * q['residual_m']:.1f} mm")
             print(f"  part {part['name']:12s} {part['points']:5d} pts  t = [{t[0]:+.3f} {t[1]:+.3f} {t[2]:+.3f}] m"
-                  + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else ""))
+                  + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else "") + evidence)
     for j in data["joints"]:
         if j["state"] is not None:
             f, unit = (57.29577951308232, "deg") if j["type"] == "revolute" else (1.0, "m")
@@ -187,6 +193,50 @@ def run_predict(args: argparse.Namespace) -> int:
     if args.png is not None:
         print(f"  picture: {save_figure(draw_prediction(depth, pred, intr), args.png)}")
     return 0 if r.ok else 1
+
+
+def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
+    """``ancsh predict --depth DIR``: every depth image of a folder, one JSON (and picture) each, a progress bar."""
+    from tqdm import tqdm
+
+    from ..data.show import save_figure
+    from ..outputs import fresh_output_dir
+    from .predict import draw_prediction, predict_depth, read_depth
+    from .provider import LearnedProvider
+
+    files = sorted(p for p in args.depth.iterdir() if p.suffix.lower() in (".png", ".npy"))
+    if not files:
+        raise ValueError(f"--depth: the folder {args.depth} holds no .png or .npy depth image")
+    if args.mask is not None:
+        raise ValueError("--mask: one mask cannot serve a folder of depth images; leave it out (isolation) or predict each file")
+    out = args.out if args.out is not None else fresh_output_dir(f"predict-{args.category}")
+    out.mkdir(parents=True, exist_ok=True)
+    if args.png is not None:
+        args.png.mkdir(parents=True, exist_ok=True)
+    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed)
+    statuses = {}
+    for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
+        try:
+            depth = read_depth(path, depth_scale=args.depth_scale)
+            pred = predict_depth(depth, intr, args.category, max_depth=args.max_depth, provider=provider,
+                                 formulation=args.formulation, num_points=args.points, seed=args.seed,
+                                 isolate=not args.no_isolate, hint=hint)
+        except ValueError as exc:  # one bad image does not stop the others
+            statuses[path.name] = f"error: {exc}"
+            continue
+        data = pred.to_json()
+        data["input"] = {"depth": str(path), "intrinsics": intr.to_json(), "depth_scale": args.depth_scale,
+                         "max_depth": args.max_depth, "seed": args.seed, "pixel": args.pixel, "box": args.box,
+                         "isolate": not args.no_isolate}
+        (out / f"{path.stem}.json").write_text(json.dumps(data, indent=1) + "\n")
+        if args.png is not None:
+            save_figure(draw_prediction(depth, pred, intr), args.png / f"{path.stem}.png")
+        statuses[path.name] = pred.result.status.value
+    for name, status in statuses.items():
+        print(f"  {name}: {status}")
+    good = sum(s == "success" for s in statuses.values())
+    print(f"{good} of {len(files)} images: success; results in {out}")
+    return 0 if good == len(files) else 1
 
 
 def run_evaluate(args: argparse.Namespace) -> int:

@@ -28,6 +28,7 @@ __all__ = [
     "MIN_INLIER_RATIO",
     "DepthPrediction",
     "check_plausibility",
+    "part_quality",
     "depth_to_points",
     "draw_prediction",
     "predict_depth",
@@ -135,6 +136,17 @@ class DepthPrediction:
         ``"revolute"`` / ``"prismatic"`` per joint.
     joint_parents, joint_children : tuple of int
         Part indices joined by each joint.
+    joint_rest : tuple of float
+        The category's rest state of each joint (NaN when unknown); ``rest_description`` says it in words.
+    weights_sha256 : str or None
+    notes : tuple of str
+        What the user should know (isolation choice, fewer valid pixels than asked for, ...).
+    isolation : Isolation or None
+        What :func:`ancsh.data.isolate.isolate_object` found, when it ran.
+    part_quality : tuple of dict
+        Per part: ``points``, ``inlier_ratio``, ``residual_m`` (median distance between each
+        observed point and its predicted NPCS mapped by the fitted pose), ``seg_margin`` (mean
+        difference of the two highest part probabilities of its points).
     """
 
     category: str
@@ -155,6 +167,7 @@ class DepthPrediction:
     weights_sha256: str | None = None
     notes: tuple = ()
     isolation: object = None
+    part_quality: tuple = ()
 
     def to_json(self) -> dict:
         """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
@@ -162,7 +175,8 @@ class DepthPrediction:
         counts = np.bincount(self.part_labels, minlength=len(self.part_names))
         parts = []
         for j, name in enumerate(self.part_names):
-            rec = {"name": name, "points": int(counts[j]), "pose": None, "box": None}
+            rec = {"name": name, "points": int(counts[j]), "pose": None, "box": None,
+                   "quality": self.part_quality[j] if j < len(self.part_quality) else None}
             if j < len(r.T_cam_npcs):
                 T = r.T_cam_npcs[j]
                 rec["pose"] = {"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)}
@@ -294,6 +308,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
                                    f"{MIN_POINTS} are needed for a fit", formulation=formulation, solver="none",
                                    num_joints=K, num_points=len(pts))
         labels = np.zeros(len(pts), dtype=np.int64)
+        quality = ()
         t_net = 0.0
         types = tuple("revolute" if r else "prismatic" for r in provider.network.revolute)
         parents, children = provider.network.joint_parents, provider.network.joint_children
@@ -305,6 +320,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         result = fit(obs, corr, formulation, rng=seed)
         labels = np.asarray(corr.part_labels)
         result = check_plausibility(result, labels, category)
+        quality = part_quality(result, pts, corr, getattr(provider, "last_prediction", None))
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
     rest, rest_text = _rest_states(category, len(joint_names))
@@ -318,7 +334,43 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         joint_children=tuple(int(c) for c in children),
         joint_rest=rest, rest_description=rest_text,
         weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
+        part_quality=quality,
     )
+
+
+def part_quality(result, points_cam, corr, prediction=None) -> tuple:
+    """Per-part evidence for a fit (see :attr:`DepthPrediction.part_quality`); NaN where undefined.
+
+    Parameters
+    ----------
+    result : FitResult
+    points_cam : (N, 3) float64
+        Observed points, camera frame, metres.
+    corr : Correspondences
+        Their part labels and NPCS.
+    prediction : Prediction, optional
+        The network's raw output (for the segmentation margin).
+    """
+    labels = np.asarray(corr.part_labels)
+    inl = np.asarray(result.inliers, dtype=bool)
+    margin = np.full(len(labels), np.nan)
+    if prediction is not None and prediction.seg_prob.shape[0] == len(labels) and prediction.seg_prob.shape[1] > 1:
+        top2 = np.sort(prediction.seg_prob, axis=1)[:, -2:]
+        margin = top2[:, 1] - top2[:, 0]
+    out = []
+    for j in range(corr.num_parts):
+        sel = labels == j
+        n = int(np.count_nonzero(sel))
+        rec = {"points": n, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": float("nan")}
+        if n:
+            rec["seg_margin"] = float(np.mean(margin[sel])) if np.isfinite(margin[sel]).all() else float("nan")
+            if inl.shape == labels.shape:
+                rec["inlier_ratio"] = float(inl[sel].mean())
+            if j < len(result.T_cam_npcs):
+                fitted = result.T_cam_npcs[j].apply(np.asarray(corr.npcs)[sel])
+                rec["residual_m"] = float(np.median(np.linalg.norm(fitted - points_cam[sel], axis=1)))
+        out.append(rec)
+    return tuple(out)
 
 
 def check_plausibility(result, part_labels, category: str):

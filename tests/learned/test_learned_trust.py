@@ -158,6 +158,10 @@ def test_json_carries_version_weights_hash_and_both_joint_states(table_scene, tm
     assert joint["state_abs"] == pytest.approx(joint["state"] + joint["rest"])
     assert "right angles" in data["rest_state"]
     assert data["isolation"]["planes_removed"] >= 1 and data["isolation"]["chosen"] is not None
+    for part in data["parts"]:  # evidence per part: points, inliers, residual, segmentation margin
+        q = part["quality"]
+        assert q["points"] == part["points"] > 0 and q["inlier_ratio"] >= 0.5
+        assert 0 <= q["residual_m"] < 0.05 and 0 < q["seg_margin"] <= 1
     assert "absolute" in capsys.readouterr().out
 
 
@@ -195,3 +199,21 @@ def test_the_one_call_api_reads_files_and_predicts(table_scene, tmp_path):
     np.save(tmp_path / "mask.npy", source == 0)
     pred = ancsh.predict(tmp_path / "d.png", tmp_path / "K.json", "laptop", mask=tmp_path / "mask.npy")
     assert pred.result.ok and pred.to_json()["ancsh_version"] == ancsh.__version__
+
+
+def test_a_folder_of_depth_images_gives_one_result_each(table_scene, tmp_path, capsys):
+    depth, intr, _, _ = table_scene
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    Image.fromarray(np.round(depth * 1000).astype(np.uint16)).save(folder / "a_scene.png")
+    np.save(folder / "b_wall.npy", np.full(depth.shape, 1.5))
+    np.save(folder / "c_millimetres.npy", depth * 1000.0)
+    (tmp_path / "K.json").write_text(json.dumps(intr.to_json()))
+    code = main(["predict", "--depth", str(folder), "--intrinsics", str(tmp_path / "K.json"), "--category", "laptop",
+                 "--out", str(tmp_path / "out"), "--png", str(tmp_path / "pics")])
+    out = capsys.readouterr().out
+    assert code == 1  # not every image succeeded
+    assert json.loads((tmp_path / "out" / "a_scene.json").read_text())["ok"]
+    assert not json.loads((tmp_path / "out" / "b_wall.json").read_text())["ok"]
+    assert "c_millimetres.npy: error" in out and "millimetres" in out
+    assert (tmp_path / "pics" / "a_scene.png").is_file() and (tmp_path / "pics" / "b_wall.png").is_file()
