@@ -13,7 +13,7 @@ import numpy as np
 
 from .render import Intrinsics
 
-__all__ = ["MAX_PLAUSIBLE_DEPTH", "read_depth", "read_mask", "read_intrinsics", "read_json"]
+__all__ = ["MAX_PLAUSIBLE_DEPTH", "read_depth", "read_mask", "read_rgb", "read_intrinsics", "read_json"]
 
 #: Median valid depth (metres) above which a ``.npy`` depth image is taken to be in millimetres.
 MAX_PLAUSIBLE_DEPTH = 20.0
@@ -21,13 +21,13 @@ MAX_PLAUSIBLE_DEPTH = 20.0
 _DEPTH_PNG_MODES = ("I;16", "I;16B", "I;16L", "I")
 
 
-def _open_image(path: Path, argument: str) -> tuple[np.ndarray, str]:
+def _open_image(path: Path, argument: str, convert: str | None = None) -> tuple[np.ndarray, str]:
     from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(path) as im:
             mode = im.mode
-            data = np.asarray(im)
+            data = np.asarray(im if convert is None else im.convert(convert))
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
         raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
     return data, mode
@@ -116,6 +116,18 @@ def read_mask(path, shape, *, argument: str = "mask") -> np.ndarray:
     if m.shape != tuple(shape):
         raise ValueError(f"{argument}: expected shape {tuple(shape)} (the depth image), got {m.shape} in {path}")
     return m != 0
+
+
+def read_rgb(path, shape, *, argument: str = "rgb") -> np.ndarray:
+    """Read a colour image registered to the depth as ``(H, W, 3)`` uint8 of the depth's ``shape``."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{argument}: no such file {path}")
+    rgb, _ = _open_image(path, argument, convert="RGB")
+    if rgb.shape[:2] != tuple(shape):
+        raise ValueError(f"{argument}: expected an image of {tuple(shape)} pixels (the depth image), got {rgb.shape[:2]} "
+                         f"in {path}")
+    return rgb
 
 
 def read_intrinsics(path, *, argument: str = "intrinsics") -> Intrinsics:

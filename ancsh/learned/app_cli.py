@@ -36,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
+    p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
     p.set_defaults(func=run_predict)
     p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
 
@@ -148,6 +149,7 @@ def _command(argv_tail: list[str]) -> str:
 def run_predict(args: argparse.Namespace) -> int:
     from ..data.isolate import parse_hint
     from ..data.show import save_figure
+    from ..data.images import read_rgb
     from .predict import draw_prediction, predict_depth, read_depth, read_intrinsics, read_mask
 
     if args.points < 1:
@@ -158,6 +160,7 @@ def run_predict(args: argparse.Namespace) -> int:
         return _predict_folder(args, intr, hint)
     depth = read_depth(args.depth, depth_scale=args.depth_scale)
     mask = None if args.mask is None else read_mask(args.mask, depth.shape)
+    rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
                          isolate=not args.no_isolate, hint=hint)
@@ -191,7 +194,7 @@ def run_predict(args: argparse.Namespace) -> int:
         args.out.write_text(json.dumps(data, indent=1) + "\n")
         print(f"  result: {args.out}")
     if args.png is not None:
-        print(f"  picture: {save_figure(draw_prediction(depth, pred, intr), args.png)}")
+        print(f"  picture: {save_figure(draw_prediction(depth, pred, intr, rgb=rgb), args.png)}")
     return 0 if r.ok else 1
 
 
@@ -207,6 +210,8 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     files = sorted(p for p in args.depth.iterdir() if p.suffix.lower() in (".png", ".npy"))
     if not files:
         raise ValueError(f"--depth: the folder {args.depth} holds no .png or .npy depth image")
+    if args.rgb is not None:
+        raise ValueError("--rgb: one colour image cannot serve a folder of depth images; predict each file")
     if args.mask is not None:
         raise ValueError("--mask: one mask cannot serve a folder of depth images; leave it out (isolation) or predict each file")
     out = args.out if args.out is not None else fresh_output_dir(f"predict-{args.category}")

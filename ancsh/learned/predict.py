@@ -445,13 +445,16 @@ def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
 # --------------------------------------------------------------------------------------------
 # picture
 # --------------------------------------------------------------------------------------------
-def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, *, title: str = ""):
-    """Boxes and joint axes over the point cloud (3D) and projected on the depth image.
+def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, *, title: str = "", rgb=None):
+    """Boxes and joint axes over the point cloud (3D) and projected on the depth (or colour) image.
 
-    Uses :func:`ancsh.data.show.draw_fit` and puts the depth image under its image-plane panel.
-    Returns a matplotlib ``Figure`` (Agg).
+    Uses :func:`ancsh.data.show.draw_fit` and puts the depth image, or ``rgb`` when given
+    (``(H, W, 3)`` uint8, registered to the depth), under its image-plane panel; a legend names the
+    parts. Returns a matplotlib ``Figure`` (Agg).
     """
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     from ..data.show import draw_fit
 
@@ -467,18 +470,25 @@ def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, 
     title = title or (f"{prediction.category}: {r.formulation} fit, status {r.status.value} "
                       f"({prediction.points_cam.shape[0]} points)")
     draw_fit(prediction.points_cam, r, intrinsics, labels=prediction.part_labels, title=title, fig=fig)
+    handles = [Line2D([], [], marker="o", linestyle="", color=colormaps["tab10"](j % 10), label=name)
+               for j, name in enumerate(prediction.part_names)]
+    fig.axes[0].legend(handles=handles, loc="upper left", fontsize=8, title="parts", title_fontsize=8)
     ax = fig.axes[-1]
     xlim, ylim = ax.get_xlim(), ax.get_ylim()
     d = np.asarray(depth, dtype=np.float64)
-    im = ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest", zorder=0,
-                   extent=(-0.5, d.shape[1] - 0.5, d.shape[0] - 0.5, -0.5))
+    extent = (-0.5, d.shape[1] - 0.5, d.shape[0] - 0.5, -0.5)
+    if rgb is None:
+        im = ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest", zorder=0, extent=extent)
+    else:
+        ax.imshow(np.asarray(rgb), interpolation="nearest", zorder=0, extent=extent)
     for coll in ax.collections:
         coll.set_alpha(0.35)
     ax.set_xlim(xlim)
     ax.set_ylim(ylim)
-    fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8)
+    if rgb is None:
+        fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8)
     _draw_isolation(ax, prediction.isolation)
-    ax.set_title("depth image: boxes (part colours) and joint axes (black) projected"
+    ax.set_title(("colour" if rgb is not None else "depth") + " image: boxes (part colours) and joint axes (black) projected"
                  + ("; isolated object outlined in red, other clusters in blue" if prediction.isolation is not None else ""),
                  fontsize=9)
     return fig

@@ -217,3 +217,21 @@ def test_a_folder_of_depth_images_gives_one_result_each(table_scene, tmp_path, c
     assert not json.loads((tmp_path / "out" / "b_wall.json").read_text())["ok"]
     assert "c_millimetres.npy: error" in out and "millimetres" in out
     assert (tmp_path / "pics" / "a_scene.png").is_file() and (tmp_path / "pics" / "b_wall.png").is_file()
+
+
+def test_picture_names_the_parts_and_draws_over_the_colour_image(table_scene, provider, tmp_path, capsys):
+    from ancsh.learned.predict import draw_prediction
+
+    depth, intr, _, _ = table_scene
+    pred = predict_depth(depth, intr, "laptop", provider=provider)
+    rgb = np.zeros(depth.shape + (3,), dtype=np.uint8)
+    rgb[..., 1] = 200
+    fig = draw_prediction(depth, pred, intr, rgb=rgb)
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["base", "display"]
+    assert any(np.asarray(im.get_array()).shape == rgb.shape for im in fig.axes[-1].get_images())
+    Image.fromarray(rgb).save(tmp_path / "c.png")
+    Image.fromarray(rgb[:10]).save(tmp_path / "small.png")
+    args = ["predict", *_files(tmp_path, depth, intr), "--category", "laptop", "--png", str(tmp_path / "v.png")]
+    assert main(args + ["--rgb", str(tmp_path / "small.png")]) == 2
+    assert "rgb: expected an image" in capsys.readouterr().err
+    assert main(args + ["--rgb", str(tmp_path / "c.png")]) == 0 and (tmp_path / "v.png").stat().st_size > 0
