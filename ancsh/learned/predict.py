@@ -26,6 +26,7 @@ __all__ = [
     "MIN_POINTS",
     "SIZE_TOLERANCE",
     "MIN_INLIER_RATIO",
+    "MAX_RELATIVE_RESIDUAL",
     "DepthPrediction",
     "check_plausibility",
     "part_quality",
@@ -46,6 +47,9 @@ MIN_POINTS = 100
 SIZE_TOLERANCE = 1.5
 #: Smallest share of inlier points, overall and for every part with at least 20 points.
 MIN_INLIER_RATIO = 0.5
+#: Largest median residual of a part (with at least 20 points) as a fraction of the category's typical
+#: size: on noisy rendered validation frames of the five categories it stays within 0.01-0.08.
+MAX_RELATIVE_RESIDUAL = 0.25
 
 
 # --------------------------------------------------------------------------------------------
@@ -319,8 +323,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         t_net = time.perf_counter() - t0
         result = fit(obs, corr, formulation, rng=seed)
         labels = np.asarray(corr.part_labels)
-        result = check_plausibility(result, labels, category)
         quality = part_quality(result, pts, corr, getattr(provider, "last_prediction", None))
+        result = check_plausibility(result, labels, category, quality)
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
     rest, rest_text = _rest_states(category, len(joint_names))
@@ -373,13 +377,15 @@ def part_quality(result, points_cam, corr, prediction=None) -> tuple:
     return tuple(out)
 
 
-def check_plausibility(result, part_labels, category: str):
+def check_plausibility(result, part_labels, category: str, quality=()):
     """The fit with a failed status naming the first check it fails (or unchanged).
 
     Checks, in order: ``too_few_inliers`` (under :data:`MIN_INLIER_RATIO` of all points, or of a
     part's points for parts with at least 20 points), ``implausible_size`` (the diagonal of the
     box around all part boxes, in the base part's box frame, outside the category's
-    ``diagonal_range`` widened by :data:`SIZE_TOLERANCE`; only for the procedural categories).
+    ``diagonal_range`` widened by :data:`SIZE_TOLERANCE`), ``large_residual`` (a part's median
+    residual above :data:`MAX_RELATIVE_RESIDUAL` of the category's typical size); the last two
+    only for the procedural categories.
 
     Parameters
     ----------
@@ -387,6 +393,8 @@ def check_plausibility(result, part_labels, category: str):
     part_labels : (N,) int
         The predicted part of each observed point.
     category : str
+    quality : sequence of dict, optional
+        :func:`part_quality` of the fit (for the residual check).
     """
     import dataclasses
 
@@ -412,6 +420,14 @@ def check_plausibility(result, part_labels, category: str):
             return dataclasses.replace(result, status=FitStatus.IMPLAUSIBLE_SIZE, message=(
                 f"check size: the fitted {category} is {diag:.3g} m across, outside {lo / SIZE_TOLERANCE:.3g}"
                 f"..{hi * SIZE_TOLERANCE:.3g} m (the category's {lo}..{hi} m, widened {SIZE_TOLERANCE}x)"))
+    if info is not None:
+        limit = MAX_RELATIVE_RESIDUAL * info.typical_size
+        for j, q in enumerate(quality):
+            if q["points"] >= 20 and q["residual_m"] > limit:
+                name = info.part_names[j] if j < len(info.part_names) else f"part{j}"
+                return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
+                    f"check residual: part {name}'s points lie {1e3 * q['residual_m']:.0f} mm (median) from the fit, "
+                    f"above {1e3 * limit:.0f} mm ({MAX_RELATIVE_RESIDUAL} of a typical {category})"))
     return result
 
 

@@ -235,3 +235,20 @@ def test_picture_names_the_parts_and_draws_over_the_colour_image(table_scene, pr
     assert main(args + ["--rgb", str(tmp_path / "small.png")]) == 2
     assert "rgb: expected an image" in capsys.readouterr().err
     assert main(args + ["--rgb", str(tmp_path / "c.png")]) == 0 and (tmp_path / "v.png").stat().st_size > 0
+
+
+def test_a_residual_far_above_validation_fails_the_fit(table_scene, provider):
+    import dataclasses
+
+    from ancsh.learned.predict import MAX_RELATIVE_RESIDUAL, check_plausibility
+
+    depth, intr, _, _ = table_scene
+    pred = predict_depth(depth, intr, "laptop", provider=provider)
+    assert pred.result.ok
+    typical = CATEGORY_INFO["laptop"].typical_size
+    assert all(q["residual_m"] < MAX_RELATIVE_RESIDUAL * typical for q in pred.part_quality)
+    bad = list(pred.part_quality)
+    bad[1] = dict(bad[1], residual_m=2 * MAX_RELATIVE_RESIDUAL * typical)
+    checked = check_plausibility(pred.result, pred.part_labels, "laptop", bad)
+    assert checked.status.value == "large_residual" and "display" in checked.message
+    assert check_plausibility(dataclasses.replace(pred.result), pred.part_labels, "laptop", pred.part_quality).ok
