@@ -66,8 +66,8 @@ def run(args: argparse.Namespace) -> int:
     if data is None:  # where `ancsh data generate --out data_out/...` or its default put the shards
         candidates = [Path("data_out") / f"{args.category}_train", Path("data") / f"{args.category}_train"]
         data = next((c for c in candidates if c.is_dir()), candidates[0])
-    _check_shards(data, args.category)
-    arrays = arrays_from_dataset(data, config.num_points, seed=config.seed)
+    shards = _check_shards(data, args.category)
+    arrays = arrays_from_dataset(shards, config.num_points, seed=config.seed)
     train, val = split_by_instance(arrays, config.val_fraction, config.seed)
     print(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "
           f"({len(set(arrays.instance.tolist()))} instances) from {data}")
@@ -100,19 +100,29 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_shards(data, category: str) -> None:
-    """Refuse shards of another procedural category or another part count than ``category``'s."""
-    from ..data.dataset import ShardReader, shard_paths
+def _check_shards(data, category: str) -> list:
+    """The intact shards of ``data`` (damaged ones are named on stderr and left out).
+
+    Refuses shards of another procedural category or another part count than ``category``'s, and
+    data without a single intact shard.
+    """
+    from ..data.dataset import FrameDataset
     from ..data.procedural import CATEGORY_INFO
 
     info = CATEGORY_INFO.get(category)
-    for path in shard_paths(data):
-        reader = ShardReader(path)
+    ds = FrameDataset(data, skip_corrupt=True)
+    for path, reason in ds.verify():
+        print(f"note: left out the damaged shard {path}: {reason}", file=sys.stderr)
+    if not ds.readers:
+        raise ValueError(f"--data: no intact shard in {data}")
+    for reader in ds.readers:
+        path = reader.path
         if reader.category in CATEGORY_INFO and reader.category != category:
             raise ValueError(f"--data: shard {path} holds {reader.category!r} frames, not {category!r}")
         parts = len(reader.part_names)
         if info is not None and parts != info.num_parts:
             raise ValueError(f"--data: shard {path} holds objects of {parts} parts; {category!r} has {info.num_parts}")
+    return [r.path for r in ds.readers]
 
 
 def evaluate_checkpoint(checkpoint, test_data, config) -> dict:

@@ -80,3 +80,18 @@ def test_resume_with_another_category_is_refused_and_keeps_the_run(tmp_path, sha
                  "--no-progress"])
     assert code == 2 and "--category" in capsys.readouterr().err
     assert (run / "config.json").read_text() == config
+
+
+def test_a_damaged_shard_is_named_and_left_out(tmp_path, shards, capsys):
+    import shutil
+
+    data = tmp_path / "data"
+    shutil.copytree(shards["laptop"], data)
+    (data / "zz_damaged.h5").write_bytes(b"not hdf5")
+    assert main(_args(tmp_path, data, tmp_path / "run")) == 0
+    captured = capsys.readouterr()
+    assert "zz_damaged.h5" in captured.err and "training frames" in captured.out
+    for shard in data.glob("*.h5"):
+        shard.write_bytes(b"x")
+    assert main(_args(tmp_path, data, tmp_path / "run2")) == 2
+    assert "no intact shard" in capsys.readouterr().err
