@@ -61,6 +61,22 @@ def register(sub) -> None:
     e.add_argument("--update-docs", action="store_true", help="write into the committed docs/results/ (when --out is not given)")
     e.add_argument("--no-progress", action="store_true")
     e.set_defaults(func=run_evaluate)
+    c = sub.add_parser(
+        "calibrate",
+        help="learn how far to trust a prediction: P(rotation errors < 10 deg) from the fit's evidence",
+        description="Render held-out frames (a seed stream other than `ancsh evaluate`'s), fit them, and learn a "
+        "logistic regression of whether every part's rotation error is below 10 deg on the fit's evidence; half the "
+        "frames train it, the other half measure its reliability (report and diagram). --install puts it beside "
+        "the shipped weights, where `ancsh predict` uses it.",
+    )
+    c.add_argument("--category", required=True)
+    c.add_argument("--frames", type=int, default=300, help="rendered frames, half to fit, half to measure (default 300)")
+    c.add_argument("--seed", type=int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")
+    c.add_argument("--out", type=Path, help="report folder (default: a fresh ancsh_results/calibrate-<category>-<time>/)")
+    c.add_argument("--update-docs", action="store_true", help="write the report into docs/results/ (when --out is not given)")
+    c.add_argument("--install", action="store_true", help="write ancsh/weights/<category>_confidence.json")
+    c.add_argument("--no-progress", action="store_true")
+    c.set_defaults(func=run_calibrate)
     register_weights(sub)
 
 
@@ -242,6 +258,38 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     good = sum(s == "success" for s in statuses.values())
     print(f"{good} of {len(files)} images: success; results in {out}")
     return 0 if good == len(files) else 1
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ..outputs import DOCS_RESULTS, fresh_output_dir
+    from .confidence import calibration_path, collect, fit_calibrator, reliability, write_report
+    from .weights import weights_path
+
+    if args.frames < 4:
+        raise ValueError(f"--frames: expected at least 4 frames, got {args.frames}")
+    if not weights_path(args.category).is_file():
+        from .evaluate import missing_weights_error
+
+        raise missing_weights_error(args.category)
+    data = collect(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
+    fit_half = np.arange(len(data["good"])) % 2 == 0
+    calibration = fit_calibrator(data["X"][fit_half], data["good"][fit_half])
+    rel = reliability(calibration, data["X"][~fit_half], data["good"][~fit_half])
+    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
+    parts = ["calibrate", "--category", args.category, "--frames", str(args.frames)]
+    parts += ["--seed", str(args.seed)] if args.seed != 7 else []
+    parts += ["--out", str(args.out)] if args.out is not None else ["--update-docs"] if args.update_docs else []
+    parts += ["--install"] if args.install else []
+    paths = write_report(args.category, calibration, rel, out, command=_command(parts))
+    print(f"good fits {100 * rel['good_rate']:.0f}%, Brier {rel['brier']:.4f} (constant {rel['brier_constant']:.4f}); "
+          f"wrote {paths['md']}, {paths['png']}")
+    if args.install:
+        target = calibration_path(args.category)
+        target.write_text(paths["json"].read_text())
+        print(f"installed {target}")
+    return 0
 
 
 def run_evaluate(args: argparse.Namespace) -> int:

@@ -151,6 +151,9 @@ class DepthPrediction:
         Per part: ``points``, ``inlier_ratio``, ``residual_m`` (median distance between each
         observed point and its predicted NPCS mapped by the fitted pose), ``seg_margin`` (mean
         difference of the two highest part probabilities of its points).
+    p_good : float or None
+        Calibrated probability that every part's rotation error is below 10 deg
+        (:mod:`ancsh.learned.confidence`); ``None`` without a calibration for the category or a fit.
     """
 
     category: str
@@ -172,6 +175,7 @@ class DepthPrediction:
     notes: tuple = ()
     isolation: object = None
     part_quality: tuple = ()
+    p_good: float | None = None
 
     def to_json(self) -> dict:
         """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
@@ -209,6 +213,8 @@ class DepthPrediction:
             "message": r.message, "iterations": int(r.iterations),
             "max_constraint_violation": float(r.max_constraint_violation),
             "points": int(self.points_cam.shape[0]), "valid_pixels": int(self.valid_pixels),
+            "confidence": {"p_good": self.p_good, "good": "every part's rotation error below 10 deg",
+                           "calibration": "ancsh calibrate (docs/results/<category>_confidence.md)"},
             "notes": list(self.notes), "isolation": None if self.isolation is None else self.isolation.to_dict(),
             "parts": parts, "joints": joints, "timings_ms": dict(self.timings_ms),
             "frames": "camera frame (x right, y down, z forward), metres; pose maps part NPCS c to the camera: "
@@ -313,6 +319,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
                                    num_joints=K, num_points=len(pts))
         labels = np.zeros(len(pts), dtype=np.int64)
         quality = ()
+        p_good = None
         t_net = 0.0
         types = tuple("revolute" if r else "prismatic" for r in provider.network.revolute)
         parents, children = provider.network.joint_parents, provider.network.joint_children
@@ -325,6 +332,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         labels = np.asarray(corr.part_labels)
         quality = part_quality(result, pts, corr, getattr(provider, "last_prediction", None))
         result = check_plausibility(result, labels, category, quality)
+        p_good = _p_good(category, quality) if result.ok else None
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
     rest, rest_text = _rest_states(category, len(joint_names))
@@ -338,8 +346,20 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         joint_children=tuple(int(c) for c in children),
         joint_rest=rest, rest_description=rest_text,
         weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
-        part_quality=quality,
+        part_quality=quality, p_good=p_good,
     )
+
+
+def _p_good(category: str, quality) -> float | None:
+    """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists."""
+    import json
+
+    from .confidence import calibration_path, fit_features, probability_good
+
+    path = calibration_path(category)
+    if not path.is_file():
+        return None
+    return probability_good(json.loads(path.read_text()), fit_features(quality, category))
 
 
 def part_quality(result, points_cam, corr, prediction=None) -> tuple:
