@@ -7,7 +7,6 @@ import json
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from ancsh.cli import build_parser, main
 from ancsh.outputs import DOCS_RESULTS, RESULTS_ROOT, fresh_output_dir, report_path

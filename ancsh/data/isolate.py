@@ -14,7 +14,7 @@ choice. A mask given by the user always wins over this (``ancsh predict --mask``
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -106,7 +106,6 @@ class Isolation:
     chosen: int | None = None
     planes: int = 0
     reason: str = ""
-    extra: dict = field(default_factory=dict)
 
     def summary(self) -> str:
         if self.chosen is None:
