@@ -11,6 +11,8 @@ a learned correspondence provider:
 - :mod:`ancsh.learned` -- the PointNet++ ANCSH network (the only package importing torch).
 
 Sub-packages are imported lazily so that ``import ancsh`` stays fast.
+
+Prediction on a depth image is one call, :func:`predict` (``ancsh predict`` on the command line).
 """
 
 from __future__ import annotations
@@ -20,6 +22,42 @@ import importlib
 __version__ = "0.1.0"
 
 _SUBPACKAGES = ("geometry", "model", "data", "solvers", "learned")
+
+
+def predict(depth, intrinsics, category: str, **options):
+    """Poses, boxes and joints of a ``category`` object in one depth image (the learned ANCSH pipeline).
+
+    Parameters
+    ----------
+    depth : str, Path or (H, W) float64 array
+        A 16-bit PNG of millimetres or a ``.npy`` of metres, or the depth itself in metres (0 = none).
+    intrinsics : str, Path or Intrinsics
+        ``{"fx", "fy", "cx", "cy", "width", "height"}`` JSON, or the object.
+    category : str
+        e.g. ``"laptop"``; its shipped network is used.
+    **options
+        Of :func:`ancsh.learned.predict.predict_depth`: ``mask`` (array, or a PNG/``.npy`` path),
+        ``hint`` (:class:`ancsh.data.isolate.ObjectHint`), ``isolate``, ``max_depth``, ``weights``,
+        ``formulation``, ``num_points``, ``seed``.
+
+    Returns
+    -------
+    DepthPrediction
+        ``.result`` (a :class:`ancsh.solvers.FitResult`: ``status``, ``message``, ``T_cam_npcs``,
+        ``boxes_cam``, ``joint_*``), ``.notes``, and ``.to_json()`` (``docs/json_schema.md``).
+    """
+    from pathlib import Path
+
+    from .data.images import read_depth, read_intrinsics, read_mask
+    from .learned.predict import predict_depth
+
+    if isinstance(depth, (str, Path)):
+        depth = read_depth(depth)
+    if isinstance(intrinsics, (str, Path)):
+        intrinsics = read_intrinsics(intrinsics)
+    if isinstance(options.get("mask"), (str, Path)):
+        options["mask"] = read_mask(options["mask"], (intrinsics.height, intrinsics.width))
+    return predict_depth(depth, intrinsics, category, **options)
 
 
 def __getattr__(name: str):

@@ -14,6 +14,24 @@ import sys
 
 from . import __version__
 
+# One example per command, shown at the end of its --help.
+EXAMPLES = {
+    "demo": "ancsh demo --categories laptop,oven --out demo_out",
+    "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume",
+    "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
+    "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
+    "weights": "ancsh weights --out weights.md",
+    "calibrate": "ancsh calibrate --category laptop --frames 300 --update-docs --install",
+    "data": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
+    "data generate": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
+    "data show": "ancsh data show data/laptop_train --frame 7 --out view.png",
+    "bench": "ancsh bench fit --quick",
+    "bench render": "ancsh bench render --frames 20 --categories laptop",
+    "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
+    "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
+    "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
+}
+
 # Modules that contribute sub-commands, in help order.
 COMMAND_MODULES = [
     "ancsh.demo",
@@ -34,7 +52,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    _add_examples(sub, "")
     return parser
+
+
+def _add_examples(subparsers, prefix: str) -> None:
+    """Put :data:`EXAMPLES` at the end of every (sub-)command's help."""
+    for name, p in subparsers.choices.items():
+        key = f"{prefix}{name}"
+        if key in EXAMPLES:
+            p.epilog = f"example:\n  {EXAMPLES[key]}"
+            p.formatter_class = argparse.RawDescriptionHelpFormatter
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                _add_examples(action, f"{key} ")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -47,6 +78,13 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         print(f"ancsh {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"ancsh {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except OSError as exc:  # permission denied, no space left on device, read-only file system, ...
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"ancsh {args.command}: error: cannot read or write{where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

@@ -10,6 +10,7 @@ and per-joint errors against ground truth, and draws each fit to ``--out``.
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -75,7 +76,10 @@ def run(args) -> int:
     unknown = [c for c in categories if c not in CATEGORIES]
     if unknown:
         raise ValueError(f"categories: unknown {unknown}; known: {', '.join(CATEGORIES)}")
+    if args.frame < 0:
+        raise ValueError(f"--frame: expected a frame index >= 0, got {args.frame}")
     out = Path(args.out)
+    failed = []
     methods = (("NPCS (per part)", "per_part"), ("ANCSH exact", "exact_reduced"))
     for category in categories:
         gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=args.seed))
@@ -102,10 +106,15 @@ def run(args) -> int:
         for k, jname in enumerate(frame.joint_names):
             print(_row(f"joint {jname:8s}", [records[n][1].joints for n, _ in methods], k, _joint_cell))
         result = records["ANCSH exact"][0]
+        if not result.ok:
+            failed.append(f"{category}: {result.status.value} ({result.message})")
         if result.ok:
             fig = draw_fit(frame.points, result, frame.intrinsics, labels=corr.part_labels, gt=frame.gt,
                            title=f"{category} / {frame.instance}: ANCSH exact fit ({label})")
             print(f"   picture: {save_figure(fig, out / f'{category}.png')}")
     print("\nErrors: rotation in degrees, translation and line distance in object units (metres / object size), "
           "IoU of the amodal part boxes; joint state in degrees (revolute) or object units (prismatic).")
+    if failed:
+        print("ANCSH exact fit failed: " + "; ".join(failed), file=sys.stderr)
+        return 1
     return 0

@@ -133,6 +133,11 @@ def run_generate(args) -> int:
         print(f"\ninterrupted: complete shards are kept in {out}; run the same command again to resume",
               file=sys.stderr)
         return 130
+    except OSError as exc:  # no space left, read-only folder: complete shards stay valid
+        where = exc.filename or out
+        print(f"ancsh data generate: error: cannot write {where}: {exc.strerror or exc}; complete shards are kept in "
+              f"{out}; free space (or choose another --out) and run the same command again to resume", file=sys.stderr)
+        return 1
     for s, reason in report.replaced:
         print(f"regenerated shard {report.paths[s].name}: {reason}")
     rate = f" ({report.frames_per_second:.1f} frames/s)" if report.frames_generated else ""
@@ -217,7 +222,7 @@ def run_bench(args) -> int:
 
     import numpy as np
 
-    from .generate import FrameGenerator, GenerationConfig
+    from .generate import FrameGenerator, FrameRejected, GenerationConfig
     from .procedural import CATEGORIES, PAPER_CATEGORIES
     from .render import Intrinsics, sample_viewpoint, viewpoint_range
 
@@ -259,8 +264,12 @@ def run_bench(args) -> int:
                 pixels += int((view.part_ids >= 0).sum()) if not vis else 0
             cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
         t0, c0 = time.perf_counter(), time.process_time()
-        for i in range(args.frames):
-            gen.frame(i)
+        try:
+            for i in range(args.frames):
+                gen.frame(i)
+        except FrameRejected as exc:
+            raise ValueError(f"--width, --height: no usable frame at {intr.width}x{intr.height} pixels ({exc}); "
+                             "use a larger image") from None
         cols += [args.frames / (time.perf_counter() - t0), 1e3 * (time.process_time() - c0) / args.frames]
         emit(f"{cat:16s}" + "".join(f"{x:13.1f}" for x in cols) + f"{pixels // args.frames:13d}")
     if args.out:

@@ -307,13 +307,13 @@ def write_shard(path, frames, *, split: str, source: str, config: str, frame_sta
                 values = [r[key] for r in records]
                 if dtype == "str":
                     data = np.array(values, dtype=h5py.string_dtype())
-                    f.create_dataset(key, data=data)
+                    f.create_dataset(key, data=data).attrs["sha256"] = _digest(values)
                     continue
                 data = np.stack([np.asarray(v) for v in values]).astype(dtype)
                 kwargs = {}
                 if data.size:
                     kwargs = {"chunks": (min(len(data), 64),) + data.shape[1:], "fletcher32": True}
-                f.create_dataset(key, data=data, **kwargs)
+                f.create_dataset(key, data=data, **kwargs).attrs["sha256"] = _digest(data)
             f.attrs.update(meta)
             f.attrs["format_version"] = FORMAT_VERSION
             f.attrs["split"] = split
@@ -330,6 +330,16 @@ def write_shard(path, frames, *, split: str, source: str, config: str, frame_sta
         if tmp.exists():
             tmp.unlink()
     return path
+
+
+def _digest(data) -> str:
+    """SHA-256 of a dataset's values: array bytes (C order), or strings joined by NUL."""
+    import hashlib
+
+    if isinstance(data, np.ndarray) and data.dtype != object:
+        return hashlib.sha256(np.ascontiguousarray(data).tobytes()).hexdigest()
+    items = [x if isinstance(x, bytes) else str(x).encode() for x in data]
+    return hashlib.sha256(b"\0".join(items)).hexdigest()
 
 
 def _fsync_file(path: Path) -> None:
@@ -492,7 +502,7 @@ def _read_attrs(path: Path) -> dict:
     try:
         with h5py.File(path, "r") as f:
             attrs = {k: f.attrs[k] for k in f.attrs}
-    except OSError as exc:
+    except Exception as exc:  # noqa: BLE001 - OSError, KeyError, RuntimeError, ... from a damaged file
         raise CorruptShardError(f"shard {path}: cannot be opened as HDF5 (truncated or damaged): {exc}") from None
     missing = [k for k in _REQUIRED_ATTRS if k not in attrs]
     if missing:
@@ -520,11 +530,18 @@ def _read_datasets(path: Path, keys: list, expected_len: int) -> dict:
                     raise CorruptShardError(
                         f"shard {path}: dataset {k!r} has {len(data)} frames, attributes say {expected_len}"
                     )
+                stored = f[k].attrs.get("sha256")
+                if stored is not None:  # shards written before the digests have Fletcher-32 only
+                    stored = stored.decode() if isinstance(stored, bytes) else str(stored)
+                    if _digest(data) != stored:
+                        raise CorruptShardError(f"shard {path}: dataset {k!r} fails its SHA-256 check (damaged bytes)")
                 if FIELDS[k][0] == "str":
                     data = np.array([x.decode() if isinstance(x, bytes) else str(x) for x in data], dtype=object)
                 out[k] = data
-    except (OSError, RuntimeError) as exc:
-        raise CorruptShardError(f"shard {path}: damaged data ({exc})") from None
+    except CorruptShardError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - h5py raises OSError, KeyError, RuntimeError, ... on damaged files
+        raise CorruptShardError(f"shard {path}: damaged data ({type(exc).__name__}: {exc})") from None
     return out
 
 
@@ -556,14 +573,32 @@ class FrameDataset:
     max_loaded : int
         Shards kept in memory at once for :meth:`__getitem__` (least recently used are
         released), so iterating over a large dataset needs little memory.
+    skip_corrupt : bool
+        Leave out shards that cannot be opened or fail their checks (listed in :attr:`skipped`
+        as ``(path, reason)``) instead of raising :class:`CorruptShardError`, so one bad shard
+        does not block the intact ones. Data damage is found when a shard's data are read
+        (:meth:`arrays` checks every shard; :meth:`verify` does it up front).
     """
 
-    def __init__(self, source, *, max_loaded: int = 2):
+    def __init__(self, source, *, max_loaded: int = 2, skip_corrupt: bool = False):
         if isinstance(max_loaded, bool) or not isinstance(max_loaded, int) or max_loaded < 1:
             raise ValueError(f"max_loaded: expected an int >= 1, got {max_loaded!r}")
-        self.readers = [ShardReader(p) for p in shard_paths(source)]
-        self._offsets = np.cumsum([0] + [len(r) for r in self.readers])
+        self.skip_corrupt = bool(skip_corrupt)
+        self.skipped: list = []
         self._max_loaded = max_loaded
+        readers = []
+        for p in shard_paths(source):
+            try:
+                readers.append(ShardReader(p))
+            except CorruptShardError as exc:
+                if not self.skip_corrupt:
+                    raise
+                self.skipped.append((p, str(exc)))
+        self._set_readers(readers)
+
+    def _set_readers(self, readers) -> None:
+        self.readers = readers
+        self._offsets = np.cumsum([0] + [len(r) for r in self.readers])
         self._loaded: list[int] = []
 
     def __len__(self) -> int:
@@ -590,8 +625,30 @@ class FrameDataset:
             yield self[i]
 
     def arrays(self, keys=None) -> dict:
-        """``{key: array}`` over all shards, concatenated along the frame axis."""
-        return _concat([r.arrays(keys) for r in self.readers])
+        """``{key: array}`` over all shards, concatenated along the frame axis (checksums verified)."""
+        return _concat(self._read_each(lambda r: r.arrays(keys)))
+
+    def verify(self) -> list:
+        """Read every shard's data once (checksums); with ``skip_corrupt`` drop the damaged ones.
+
+        Returns :attr:`skipped`.
+        """
+        self._read_each(lambda r: r.arrays() and None)
+        return self.skipped
+
+    def _read_each(self, read) -> list:
+        out, good = [], []
+        for r in self.readers:
+            try:
+                out.append(read(r))
+                good.append(r)
+            except CorruptShardError as exc:
+                if not self.skip_corrupt:
+                    raise
+                self.skipped.append((r.path, str(exc)))
+        if len(good) != len(self.readers):
+            self._set_readers(good)
+        return out
 
 
 def _concat(parts: list) -> dict:

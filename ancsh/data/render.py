@@ -137,6 +137,9 @@ class Intrinsics:
         if not isinstance(data, dict) or set(data) != keys:
             got = sorted(data) if isinstance(data, dict) else type(data).__name__
             raise ValueError(f"data: expected the keys {sorted(keys)}, got {got}")
+        for name in sorted(keys):  # JSON numbers only: "525" (a string) is a mistake, not a focal length
+            if isinstance(data[name], bool) or not isinstance(data[name], (int, float)):
+                raise ValueError(f"{name}: expected a JSON number, got {data[name]!r}")
         return cls(**data)
 
 

@@ -126,6 +126,8 @@ def load_urdf(path, *, category: str | None = None, joint_types=None) -> Articul
         pl = info[parent]
         for j in children.get(parent, []):
             T_origin = np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=np.float64)
+            if not np.all(np.isfinite(T_origin)):
+                raise ValueError(f"{path}: <joint name={j.name!r}> <origin> has non-finite xyz/rpy values")
             T_ppart_origin = pl.T_part_link @ T_origin
             if j.type == "fixed":
                 info[j.child] = _Link(j.child, pl.part, T_ppart_origin)
@@ -165,7 +167,9 @@ def _parse(path: Path, joint_types: dict):
     try:
         from lxml import etree
 
-        tree = etree.parse(str(path))
+        # no entity expansion, no DTD or network access: a URDF cannot pull in other files
+        parser = etree.XMLParser(resolve_entities=False, load_dtd=False, no_network=True)
+        tree = etree.parse(str(path), parser)
     except Exception as exc:  # noqa: BLE001 - any parser failure is a malformed file
         raise ValueError(f"{path}: malformed URDF XML: {exc}") from None
     root = tree.getroot()

@@ -18,10 +18,15 @@ def register(sub) -> None:
         description="Back-project a depth image, run the category's shipped ANCSH network and fit the part poses and "
         "joints. Prints a summary; --out writes the JSON, --png a picture.",
     )
-    p.add_argument("--depth", required=True, type=Path, help="16-bit PNG (millimetres by default) or .npy (metres)")
+    p.add_argument("--depth", required=True, type=Path, help="16-bit PNG (millimetres by default) or .npy (metres); "
+                   "a folder predicts every .png/.npy in it (--out and --png are then folders)")
     p.add_argument("--intrinsics", required=True, type=Path, help='JSON {"fx","fy","cx","cy","width","height"}')
     p.add_argument("--category", required=True, help="object category, e.g. laptop")
-    p.add_argument("--mask", type=Path, help="object mask (PNG or .npy, nonzero = object), same size as the depth")
+    p.add_argument("--mask", type=Path, help="object mask (PNG or .npy, nonzero = object), same size as the depth; "
+                   "without one the object is isolated automatically (planes removed, clusters, size + centrality)")
+    p.add_argument("--pixel", metavar="U,V", help="isolation hint: a pixel on the object")
+    p.add_argument("--box", metavar="U0,V0,U1,V1", help="isolation hint: a box around the object (pixels)")
+    p.add_argument("--no-isolate", action="store_true", help="without --mask, use every valid pixel (no isolation)")
     p.add_argument("--max-depth", type=float, help="drop pixels deeper than this (metres)")
     p.add_argument("--depth-scale", type=float, default=0.001, help="metres per PNG unit (default 0.001 = millimetres)")
     p.add_argument("--points", type=int, default=1024, help="points sampled from the valid pixels (default 1024)")
@@ -31,7 +36,9 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
+    p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
     p.set_defaults(func=run_predict)
+    p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
 
     e = sub.add_parser(
         "evaluate",
@@ -53,9 +60,26 @@ def register(sub) -> None:
     e.add_argument("--real", default=None, metavar="CATALOG",
                    help="also evaluate the real test split of a catalog ('builtin' = the shipped one) and write "
                         "<category>_real.md beside the procedural report")
-    e.add_argument("--out", type=Path, default=Path("docs/results"), help="output folder (default docs/results)")
+    e.add_argument("--out", type=Path, help="output folder (default: a fresh ancsh_results/evaluate-<category>-<time>/)")
+    e.add_argument("--update-docs", action="store_true", help="write into the committed docs/results/ (when --out is not given)")
     e.add_argument("--no-progress", action="store_true")
     e.set_defaults(func=run_evaluate)
+    c = sub.add_parser(
+        "calibrate",
+        help="learn how far to trust a prediction: P(rotation errors < 10 deg) from the fit's evidence",
+        description="Render held-out frames (a seed stream other than `ancsh evaluate`'s), fit them, and learn a "
+        "logistic regression of whether every part's rotation error is below 10 deg on the fit's evidence; half the "
+        "frames train it, the other half measure its reliability (report and diagram). --install puts it beside "
+        "the shipped weights, where `ancsh predict` uses it.",
+    )
+    c.add_argument("--category", required=True)
+    c.add_argument("--frames", type=int, default=300, help="rendered frames, half to fit, half to measure (default 300)")
+    c.add_argument("--seed", type=int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")
+    c.add_argument("--out", type=Path, help="report folder (default: a fresh ancsh_results/calibrate-<category>-<time>/)")
+    c.add_argument("--update-docs", action="store_true", help="write the report into docs/results/ (when --out is not given)")
+    c.add_argument("--install", action="store_true", help="write ancsh/weights/<category>_confidence.json")
+    c.add_argument("--no-progress", action="store_true")
+    c.set_defaults(func=run_calibrate)
     register_weights(sub)
 
 
@@ -142,51 +166,156 @@ def _command(argv_tail: list[str]) -> str:
 
 
 def run_predict(args: argparse.Namespace) -> int:
+    from ..data.isolate import parse_hint
     from ..data.show import save_figure
+    from ..data.images import read_rgb
     from .predict import draw_prediction, predict_depth, read_depth, read_intrinsics, read_mask
 
+    if args.points < 1:
+        raise ValueError(f"--points: expected a positive number of points, got {args.points}")
+    hint = parse_hint(args.pixel, args.box)
     intr = read_intrinsics(args.intrinsics)
+    if args.depth.is_dir():
+        return _predict_folder(args, intr, hint)
     depth = read_depth(args.depth, depth_scale=args.depth_scale)
     mask = None if args.mask is None else read_mask(args.mask, depth.shape)
+    rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
-                         formulation=args.formulation, num_points=args.points, seed=args.seed)
+                         formulation=args.formulation, num_points=args.points, seed=args.seed,
+                         isolate=not args.no_isolate, hint=hint)
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
-                     "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed}
+                     "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed,
+                     "pixel": args.pixel, "box": args.box, "isolate": not args.no_isolate}
     r = pred.result
     print(f"{args.category}: {data['points']} of {data['valid_pixels']} valid pixels, {r.formulation} fit: {r.status.value}"
           f" (network {data['timings_ms']['network']:.0f} ms, fit {data['timings_ms']['fit']:.0f} ms)")
+    if not r.ok:
+        print(f"  {r.message}")
+    for note in pred.notes:
+        print(f"  note: {note}")
     for part in data["parts"]:
         if part["pose"] is not None:
             t = part["pose"]["translation"]
             ext = part["box"]["extents"] if part["box"] else None
+            q = part["quality"] or {}
+            evidence = ("" if q.get("inlier_ratio") is None or q.get("residual_m") is None else
+                        f"  inliers {100 * q['inlier_ratio']:.0f}%, residual {1e3 * q['residual_m']:.1f} mm")
             print(f"  part {part['name']:12s} {part['points']:5d} pts  t = [{t[0]:+.3f} {t[1]:+.3f} {t[2]:+.3f}] m"
-                  + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else ""))
+                  + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else "") + evidence)
     for j in data["joints"]:
         if j["state"] is not None:
-            val = f"{j['state'] * 57.29577951308232:.1f} deg" if j["type"] == "revolute" else f"{j['state']:.3f} m"
-            print(f"  joint {j['name']:12s} ({j['type']}) state {val} (relative to rest)")
+            f, unit = (57.29577951308232, "deg") if j["type"] == "revolute" else (1.0, "m")
+            absolute = "" if j["state_abs"] is None else f", absolute {j['state_abs'] * f:.1f} {unit}"
+            print(f"  joint {j['name']:12s} ({j['type']}) state {j['state'] * f:.1f} {unit} relative to rest{absolute}")
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(data, indent=1) + "\n")
         print(f"  result: {args.out}")
     if args.png is not None:
-        print(f"  picture: {save_figure(draw_prediction(depth, pred, intr), args.png)}")
+        print(f"  picture: {save_figure(draw_prediction(depth, pred, intr, rgb=rgb), args.png)}")
+    return 0 if r.ok else 1
+
+
+def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
+    """``ancsh predict --depth DIR``: every depth image of a folder, one JSON (and picture) each, a progress bar."""
+    from tqdm import tqdm
+
+    from ..data.show import save_figure
+    from ..outputs import fresh_output_dir
+    from .predict import draw_prediction, predict_depth, read_depth
+    from .provider import LearnedProvider
+
+    files = sorted(p for p in args.depth.iterdir() if p.suffix.lower() in (".png", ".npy"))
+    if not files:
+        raise ValueError(f"--depth: the folder {args.depth} holds no .png or .npy depth image")
+    if args.rgb is not None:
+        raise ValueError("--rgb: one colour image cannot serve a folder of depth images; predict each file")
+    if args.mask is not None:
+        raise ValueError("--mask: one mask cannot serve a folder of depth images; leave it out (isolation) or predict each file")
+    out = args.out if args.out is not None else fresh_output_dir(f"predict-{args.category}")
+    out.mkdir(parents=True, exist_ok=True)
+    if args.png is not None:
+        args.png.mkdir(parents=True, exist_ok=True)
+    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed)
+    statuses = {}
+    for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
+        try:
+            depth = read_depth(path, depth_scale=args.depth_scale)
+            pred = predict_depth(depth, intr, args.category, max_depth=args.max_depth, provider=provider,
+                                 formulation=args.formulation, num_points=args.points, seed=args.seed,
+                                 isolate=not args.no_isolate, hint=hint)
+        except ValueError as exc:  # one bad image does not stop the others
+            statuses[path.name] = f"error: {exc}"
+            continue
+        data = pred.to_json()
+        data["input"] = {"depth": str(path), "intrinsics": intr.to_json(), "depth_scale": args.depth_scale,
+                         "max_depth": args.max_depth, "seed": args.seed, "pixel": args.pixel, "box": args.box,
+                         "isolate": not args.no_isolate}
+        (out / f"{path.stem}.json").write_text(json.dumps(data, indent=1) + "\n")
+        if args.png is not None:
+            save_figure(draw_prediction(depth, pred, intr), args.png / f"{path.stem}.png")
+        statuses[path.name] = pred.result.status.value
+    for name, status in statuses.items():
+        print(f"  {name}: {status}")
+    good = sum(s == "success" for s in statuses.values())
+    print(f"{good} of {len(files)} images: success; results in {out}")
+    return 0 if good == len(files) else 1
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ..outputs import DOCS_RESULTS, fresh_output_dir
+    from .confidence import calibration_path, collect, fit_calibrator, reliability, write_report
+    from .weights import weights_path
+
+    if args.frames < 4:
+        raise ValueError(f"--frames: expected at least 4 frames, got {args.frames}")
+    if not weights_path(args.category).is_file():
+        from .evaluate import missing_weights_error
+
+        raise missing_weights_error(args.category)
+    data = collect(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
+    fit_half = np.arange(len(data["good"])) % 2 == 0
+    calibration = fit_calibrator(data["X"][fit_half], data["good"][fit_half])
+    rel = reliability(calibration, data["X"][~fit_half], data["good"][~fit_half])
+    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
+    parts = ["calibrate", "--category", args.category, "--frames", str(args.frames)]
+    parts += ["--seed", str(args.seed)] if args.seed != 7 else []
+    parts += ["--out", str(args.out)] if args.out is not None else ["--update-docs"] if args.update_docs else []
+    parts += ["--install"] if args.install else []
+    paths = write_report(args.category, calibration, rel, out, command=_command(parts))
+    print(f"good fits {100 * rel['good_rate']:.0f}%, Brier {rel['brier']:.4f} (constant {rel['brier_constant']:.4f}); "
+          f"wrote {paths['md']}, {paths['png']}")
+    if args.install:
+        target = calibration_path(args.category)
+        target.write_text(paths["json"].read_text())
+        print(f"installed {target}")
     return 0
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from .evaluate import METHODS, evaluate_category, write_report
 
+    from ..outputs import DOCS_RESULTS, fresh_output_dir
+
     methods = tuple(args.formulations) if args.formulations else tuple(METHODS)
     frames = args.frames if args.frames is not None else (300 if args.quick else 3000)
+    if frames < 1:
+        raise ValueError(f"--frames: expected a positive number of frames, got {frames}")
+    if args.threads < 1:
+        raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
+    if args.time_limit_min is not None and not args.time_limit_min > 0:
+        raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
     ev = evaluate_category(
         args.category, frames=frames, methods=methods, seed=args.seed, weights=args.weights,
         direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
         num_threads=args.threads, progress=not args.no_progress,
     )
-    paths = write_report(ev, args.out, command=_rebuild(args))
+    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
+    paths = write_report(ev, out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
     if args.real:
         from .evaluate import write_real_report
@@ -197,7 +326,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
             time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
             num_threads=args.threads, progress=not args.no_progress, real=args.real,
         )
-        path = write_real_report(ev, real, args.out, command=_rebuild(args))
+        path = write_real_report(ev, real, out, command=_rebuild(args))
         print(f"{real['settings']['frames']} real frames; wrote {path}")
     return 0
 
@@ -215,6 +344,8 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts.append("--quick")
     if args.real:
         parts += ["--real", args.real]
+    if args.update_docs and args.out is None:
+        parts.append("--update-docs")
     if args.seed:
         parts += ["--seed", str(args.seed)]
     if args.threads != 1:

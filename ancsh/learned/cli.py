@@ -6,6 +6,7 @@ torch is imported inside :func:`run`, so ``ancsh --help`` stays light.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -49,6 +50,14 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--out: {out} already holds a checkpoint; pass --resume to continue or choose another --out")
     if args.resume and not last.is_file():
         raise FileNotFoundError(f"--resume: no checkpoint {last}")
+    if args.resume and (out / "config.json").is_file():
+        try:
+            saved = json.loads((out / "config.json").read_text()).get("category")
+        except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+            raise ValueError(f"--resume: {out / 'config.json'} is not a valid run configuration") from None
+        if saved != args.category:
+            raise ValueError(f"--category: the run in {out} trains {saved!r}, not {args.category!r}; "
+                             "resume it with --category " + str(saved) + " or choose another --out")
 
     from .data import arrays_from_dataset
     from .train import Trainer, split_by_instance
@@ -57,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     if data is None:  # where `ancsh data generate --out data_out/...` or its default put the shards
         candidates = [Path("data_out") / f"{args.category}_train", Path("data") / f"{args.category}_train"]
         data = next((c for c in candidates if c.is_dir()), candidates[0])
-    arrays = arrays_from_dataset(data, config.num_points, seed=config.seed)
+    shards = _check_shards(data, args.category)
+    arrays = arrays_from_dataset(shards, config.num_points, seed=config.seed)
     train, val = split_by_instance(arrays, config.val_fraction, config.seed)
     print(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "
           f"({len(set(arrays.instance.tolist()))} instances) from {data}")
@@ -76,7 +86,12 @@ def run(args: argparse.Namespace) -> int:
         trainer.load_checkpoint(last)
         print(f"resumed {last} at step {trainer.step} ({trainer.elapsed_s / 60:.1f} min trained)")
     time_limit = None if args.time_limit_min is None else 60.0 * args.time_limit_min
-    trainer.fit(time_limit_s=time_limit)
+    try:
+        trainer.fit(time_limit_s=time_limit)
+    except KeyboardInterrupt:
+        print(f"\ninterrupted at step {trainer.step}: checkpoint {last} saved; run the same command with --resume "
+              "to continue", file=sys.stderr)
+        return 130
     if trainer.history:
         row = trainer.history[-1]
         print("last:", ", ".join(f"{k}={v:.4g}" for k, v in row.items() if isinstance(v, float)))
@@ -93,6 +108,31 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
         copy_training_log(out, path, metrics)
     return 0
+
+
+def _check_shards(data, category: str) -> list:
+    """The intact shards of ``data`` (damaged ones are named on stderr and left out).
+
+    Refuses shards of another procedural category or another part count than ``category``'s, and
+    data without a single intact shard.
+    """
+    from ..data.dataset import FrameDataset
+    from ..data.procedural import CATEGORY_INFO
+
+    info = CATEGORY_INFO.get(category)
+    ds = FrameDataset(data, skip_corrupt=True)
+    for path, reason in ds.verify():
+        print(f"note: left out the damaged shard {path}: {reason}", file=sys.stderr)
+    if not ds.readers:
+        raise ValueError(f"--data: no intact shard in {data}")
+    for reader in ds.readers:
+        path = reader.path
+        if reader.category in CATEGORY_INFO and reader.category != category:
+            raise ValueError(f"--data: shard {path} holds {reader.category!r} frames, not {category!r}")
+        parts = len(reader.part_names)
+        if info is not None and parts != info.num_parts:
+            raise ValueError(f"--data: shard {path} holds objects of {parts} parts; {category!r} has {info.num_parts}")
+    return [r.path for r in ds.readers]
 
 
 def evaluate_checkpoint(checkpoint, test_data, config) -> dict:

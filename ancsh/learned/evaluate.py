@@ -299,12 +299,6 @@ def missing_weights_error(category: str) -> FileNotFoundError:
     )
 
 
-def _sha256(path) -> str:
-    import hashlib
-
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
 def evaluate_category(
     category: str,
     *,
@@ -370,7 +364,9 @@ def evaluate_category(
     if weights is None and not weights_path(category).is_file():
         raise missing_weights_error(category)
     provider = LearnedProvider(category if weights is None else weights, seed=seed, num_threads=num_threads)
-    weights_sha = _sha256(provider.network.source)  # at load time: the file may be replaced while we run
+    from ..outputs import file_sha256
+
+    weights_sha = file_sha256(provider.network.source)  # at load time: the file may be replaced while we run
     voter = None
     if direct_weights is not None:
         voter = DirectVotingPredictor(direct_weights, seed=seed)
@@ -866,8 +862,10 @@ def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
         "",
     ]
     paths["md"].write_text("\n".join(md))
+    from .. import __version__
+
     data = {
-        "category": category, "command": command, "date": date, "settings": s, "summary": summary,
+        "category": category, "command": command, "date": date, "ancsh_version": __version__, "settings": s, "summary": summary,
         "paper": {"table1": paper1, "table2": paper2},
     }
     # Readable summary; the per-frame arrays one line per entry to keep the file small.

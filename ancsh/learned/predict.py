@@ -13,17 +13,22 @@ Frames: camera (OpenCV: x right, y down, z forward), metres. A part pose maps it
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from ..data.images import read_depth, read_intrinsics, read_mask  # noqa: F401 - re-exported
 from ..data.render import Intrinsics
 
 __all__ = [
+    "MIN_POINTS",
+    "SIZE_TOLERANCE",
+    "MIN_INLIER_RATIO",
+    "MAX_RELATIVE_RESIDUAL",
     "DepthPrediction",
+    "check_plausibility",
+    "part_quality",
     "depth_to_points",
     "draw_prediction",
     "predict_depth",
@@ -33,80 +38,22 @@ __all__ = [
 ]
 
 
+#: Fewer valid points than this: no fit is tried (status ``too_few_points``).
+MIN_POINTS = 100
+#: A fit is plausible when the object's box diagonal lies in the category's rest-state range
+#: ``diagonal_range`` widened by this factor both ways (articulation changes the box, and real
+#: objects vary beyond the procedural ones).
+SIZE_TOLERANCE = 1.5
+#: Smallest share of inlier points, overall and for every part with at least 20 points.
+MIN_INLIER_RATIO = 0.5
+#: Largest median residual of a part (with at least 20 points) as a fraction of the category's typical
+#: size: on noisy rendered validation frames of the five categories it stays within 0.01-0.08.
+MAX_RELATIVE_RESIDUAL = 0.25
+
+
 # --------------------------------------------------------------------------------------------
 # inputs
 # --------------------------------------------------------------------------------------------
-def read_depth(path, *, depth_scale: float = 0.001) -> np.ndarray:
-    """Read a depth image as ``(H, W)`` float64 metres (0 = no measurement).
-
-    Parameters
-    ----------
-    path : str or Path
-        A 16-bit single-channel PNG (values times ``depth_scale`` = metres; millimetres by default)
-        or a ``.npy`` array of depths in metres (non-finite entries count as no measurement).
-    depth_scale : float
-        Metres per PNG unit, positive.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"depth: no such file {path}")
-    if not (np.isfinite(depth_scale) and depth_scale > 0):
-        raise ValueError(f"depth_scale: expected a positive number, got {depth_scale}")
-    if path.suffix.lower() == ".npy":
-        d = np.load(path, allow_pickle=False)
-        if d.ndim != 2 or not np.issubdtype(d.dtype, np.number):
-            raise ValueError(f"depth: expected a 2-D numeric array of metres in {path}, got {d.dtype} {d.shape}")
-        d = np.where(np.isfinite(d), d, 0.0).astype(np.float64)
-    elif path.suffix.lower() == ".png":
-        from PIL import Image
-
-        with Image.open(path) as im:
-            if im.mode not in ("I;16", "I;16B", "I;16L", "I"):
-                raise ValueError(f"depth: expected a 16-bit single-channel PNG in {path}, got mode {im.mode!r}")
-            d = np.asarray(im).astype(np.float64) * float(depth_scale)
-        if d.ndim != 2:
-            raise ValueError(f"depth: expected a single-channel image in {path}, got shape {d.shape}")
-    else:
-        raise ValueError(f"depth: expected a .png or .npy file, got {path.name}")
-    if np.any(d < 0):
-        raise ValueError(f"depth: negative depths in {path}")
-    return d
-
-
-def read_mask(path, shape) -> np.ndarray:
-    """Read a mask image (PNG or ``.npy``) as ``(H, W)`` bool (nonzero = object) of the given shape."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"mask: no such file {path}")
-    if path.suffix.lower() == ".npy":
-        m = np.load(path, allow_pickle=False)
-    else:
-        from PIL import Image
-
-        with Image.open(path) as im:
-            m = np.asarray(im)
-    if m.ndim == 3:  # RGB(A) mask: any nonzero channel
-        m = m[..., :3].any(axis=-1)
-    if m.shape != tuple(shape):
-        raise ValueError(f"mask: expected shape {tuple(shape)} (the depth image), got {m.shape} in {path}")
-    return m != 0
-
-
-def read_intrinsics(path) -> Intrinsics:
-    """Read ``{"fx", "fy", "cx", "cy", "width", "height"}`` JSON (:meth:`Intrinsics.to_json`)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"intrinsics: no such file {path}")
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"intrinsics: {path} is not valid JSON ({exc})") from None
-    try:
-        return Intrinsics.from_json(data)
-    except ValueError as exc:
-        raise ValueError(f"intrinsics: {path}: {exc}") from None
-
-
 def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: float | None = None,
                     num_points: int | None = 1024, rng=0) -> tuple[np.ndarray, np.ndarray, int]:
     """Back-project the valid pixels and sample ``num_points`` of them.
@@ -192,6 +139,20 @@ class DepthPrediction:
         ``"revolute"`` / ``"prismatic"`` per joint.
     joint_parents, joint_children : tuple of int
         Part indices joined by each joint.
+    joint_rest : tuple of float
+        The category's rest state of each joint (NaN when unknown); ``rest_description`` says it in words.
+    weights_sha256 : str or None
+    notes : tuple of str
+        What the user should know (isolation choice, fewer valid pixels than asked for, ...).
+    isolation : Isolation or None
+        What :func:`ancsh.data.isolate.isolate_object` found, when it ran.
+    part_quality : tuple of dict
+        Per part: ``points``, ``inlier_ratio``, ``residual_m`` (median distance between each
+        observed point and its predicted NPCS mapped by the fitted pose), ``seg_margin`` (mean
+        difference of the two highest part probabilities of its points).
+    p_good : float or None
+        Calibrated probability that every part's rotation error is below 10 deg
+        (:mod:`ancsh.learned.confidence`); ``None`` without a calibration for the category or a fit.
     """
 
     category: str
@@ -207,14 +168,22 @@ class DepthPrediction:
     joint_types: tuple = ()
     joint_parents: tuple = ()
     joint_children: tuple = ()
+    joint_rest: tuple = ()
+    rest_description: str = ""
+    weights_sha256: str | None = None
+    notes: tuple = ()
+    isolation: object = None
+    part_quality: tuple = ()
+    p_good: float | None = None
 
     def to_json(self) -> dict:
-        """Plain-JSON description (lists, floats; NaN -> ``None``)."""
+        """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
         r = self.result
         counts = np.bincount(self.part_labels, minlength=len(self.part_names))
         parts = []
         for j, name in enumerate(self.part_names):
-            rec = {"name": name, "points": int(counts[j]), "pose": None, "box": None}
+            rec = {"name": name, "points": int(counts[j]), "pose": None, "box": None,
+                   "quality": self.part_quality[j] if j < len(self.part_quality) else None}
             if j < len(r.T_cam_npcs):
                 T = r.T_cam_npcs[j]
                 rec["pose"] = {"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)}
@@ -226,21 +195,30 @@ class DepthPrediction:
         joints = []
         for k, name in enumerate(self.joint_names):
             jt = self.joint_types[k] if k < len(self.joint_types) else None
+            rest = float(self.joint_rest[k]) if k < len(self.joint_rest) else float("nan")
             joints.append({
                 "name": name, "type": jt,
                 "parent": self.part_names[int(self.joint_parents[k])], "child": self.part_names[int(self.joint_children[k])],
                 "axis_cam": r.joint_axes_cam[k].tolist(), "pivot_cam": r.joint_pivots_cam[k].tolist(),
-                "state": float(r.joint_states[k]), "state_unit": "rad" if jt == "revolute" else "m",
+                "state": float(r.joint_states[k]), "state_abs": float(r.joint_states[k]) + rest, "rest": rest,
+                "state_unit": "rad" if jt == "revolute" else "m",
             })
+        from ..outputs import provenance
+
         data = {
-            "category": self.category, "weights": self.weights,
+            "schema": "ancsh.prediction/1", **provenance(self.weights, self.weights_sha256),
+            "category": self.category, "rest_state": self.rest_description,
             "formulation": r.formulation, "solver": r.solver, "status": r.status.value, "ok": bool(r.ok),
             "message": r.message, "iterations": int(r.iterations),
             "max_constraint_violation": float(r.max_constraint_violation),
             "points": int(self.points_cam.shape[0]), "valid_pixels": int(self.valid_pixels),
+            "confidence": {"p_good": self.p_good, "good": "every part's rotation error below 10 deg",
+                           "calibration": "ancsh calibrate (docs/results/<category>_confidence.md)"},
+            "notes": list(self.notes), "isolation": None if self.isolation is None else self.isolation.to_dict(),
             "parts": parts, "joints": joints, "timings_ms": dict(self.timings_ms),
             "frames": "camera frame (x right, y down, z forward), metres; pose maps part NPCS c to the camera: "
-                      "p = scale * rotation @ c + translation; joint states relative to the category's rest state",
+                      "p = scale * rotation @ c + translation; joint 'state' relative to the category's rest state "
+                      "('rest'), 'state_abs' = state + rest",
         }
         from .evaluate import json_safe
 
@@ -250,8 +228,13 @@ class DepthPrediction:
 
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
-                  seed: int = 0) -> DepthPrediction:
-    """Run the learned pipeline on one depth image.
+                  seed: int = 0, isolate: bool = True, hint=None) -> DepthPrediction:
+    """Run the learned pipeline on one depth image: the one call for a prediction.
+
+    Without a ``mask``, the object is isolated first (:func:`ancsh.data.isolate.isolate_object`:
+    supporting planes removed, the rest clustered, one cluster chosen by ``hint`` or by the
+    category's size and centrality). A fit that fails a plausibility check
+    (:func:`check_plausibility`) comes back with a failed status naming the check.
 
     Parameters
     ----------
@@ -261,6 +244,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     category : str
         Object category; its shipped weights are used unless ``weights`` or ``provider`` is given.
     mask : (H, W) bool, optional
+        The object's pixels; it wins over isolation.
     max_depth : float, optional
         Metres.
     weights : str or Path, optional
@@ -273,15 +257,21 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         Points sampled from the valid pixels.
     seed : int
         Sampling, network chunking and RANSAC seed.
+    isolate : bool
+        Isolate the object when no ``mask`` is given (default). ``False`` uses every valid pixel.
+    hint : ObjectHint, optional
+        A pixel or box on the object, for isolation.
 
     Raises
     ------
     FileNotFoundError
         No shipped weights for ``category`` (the message names the available ones).
     ValueError
-        Bad inputs (shapes, empty depth after masking, unknown formulation).
+        Bad inputs (shapes, empty depth after masking, depths that look like millimetres, unknown formulation).
     """
+    from ..data.images import MAX_PLAUSIBLE_DEPTH
     from ..solvers import FORMULATIONS, Observation, fit
+    from ..solvers.types import FitResult, FitStatus
     from .provider import LearnedProvider
     from .weights import weights_path
 
@@ -294,24 +284,188 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
 
             raise missing_weights_error(category)
         provider = LearnedProvider(category if weights is None else weights, seed=seed)
+    d = np.asarray(depth, dtype=np.float64)
+    good = d[np.isfinite(d) & (d > 0)]
+    if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
+        raise ValueError(f"depth: median depth {float(np.median(good)):.4g} m looks like millimetres; depth is in metres "
+                         "(divide by 1000)")
+    notes = []
+    isolation = None
     t0 = time.perf_counter()
-    pts, pixels, valid = depth_to_points(depth, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points, rng=seed)
+    if mask is None and isolate:
+        from ..data.isolate import isolate_object
+
+        isolation = isolate_object(d, intrinsics, category, hint=hint, max_depth=max_depth, rng=seed)
+        mask = isolation.mask
+        notes.append(isolation.summary())
+    elif mask is not None and hint is not None:
+        notes.append("a mask was given: the hint is ignored")
+    if isolation is not None and isolation.chosen is None:  # nothing but planes / noise: no object to fit
+        pts, pixels, valid = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), 0
+    else:
+        pts, pixels, valid = depth_to_points(d, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points,
+                                             rng=seed)
     t_bp = time.perf_counter() - t0
-    obs = Observation(pts)
-    t0 = time.perf_counter()
-    corr = provider.correspond(obs)
-    t_net = time.perf_counter() - t0
-    result = fit(obs, corr, formulation, rng=seed)
-    part_names, joint_names = _names(category, corr.num_parts, corr.num_joints)
+    if 0 < valid < num_points:
+        notes.append(f"{valid} valid pixels, fewer than the {num_points} points asked for: all of them are used "
+                     f"(the network pads its input to {provider.network.config.num_points} points with repeats)")
+    part_names, joint_names = _names(category, provider.network.num_parts, len(provider.network.revolute))
+    if valid < MIN_POINTS:
+        K = len(joint_names)
+        why = f"no object found ({isolation.reason})" if valid == 0 else f"{valid} valid points"
+        result = FitResult.failure(FitStatus.TOO_FEW_POINTS, f"check min_points: {why}, at least "
+                                   f"{MIN_POINTS} are needed for a fit", formulation=formulation, solver="none",
+                                   num_joints=K, num_points=len(pts))
+        labels = np.zeros(len(pts), dtype=np.int64)
+        quality = ()
+        p_good = None
+        t_net = 0.0
+        types = tuple("revolute" if r else "prismatic" for r in provider.network.revolute)
+        parents, children = provider.network.joint_parents, provider.network.joint_children
+    else:
+        obs = Observation(pts)
+        t0 = time.perf_counter()
+        corr = provider.correspond(obs)
+        t_net = time.perf_counter() - t0
+        result = fit(obs, corr, formulation, rng=seed)
+        labels = np.asarray(corr.part_labels)
+        quality = part_quality(result, pts, corr, getattr(provider, "last_prediction", None))
+        result = check_plausibility(result, labels, category, quality)
+        p_good = _p_good(category, quality) if result.ok else None
+        types = tuple(t.value for t in corr.joint_types)
+        parents, children = corr.joint_parents, corr.joint_children
+    rest, rest_text = _rest_states(category, len(joint_names))
     return DepthPrediction(
-        category=str(category), result=result, points_cam=pts, pixels=pixels, part_labels=np.asarray(corr.part_labels),
+        category=str(category), result=result, points_cam=pts, pixels=pixels, part_labels=labels,
         part_names=part_names, joint_names=joint_names, weights=str(provider.network.source), valid_pixels=valid,
         timings_ms={"backproject": 1e3 * t_bp, "network": 1e3 * t_net, "fit": 1e3 * result.time_s,
                     "total": 1e3 * (time.perf_counter() - t_start)},
-        joint_types=tuple(t.value for t in corr.joint_types),
-        joint_parents=tuple(int(p) for p in corr.joint_parents),
-        joint_children=tuple(int(c) for c in corr.joint_children),
+        joint_types=types,
+        joint_parents=tuple(int(p) for p in parents),
+        joint_children=tuple(int(c) for c in children),
+        joint_rest=rest, rest_description=rest_text,
+        weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
+        part_quality=quality, p_good=p_good,
     )
+
+
+def _p_good(category: str, quality) -> float | None:
+    """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists."""
+    import json
+
+    from .confidence import calibration_path, fit_features, probability_good
+
+    path = calibration_path(category)
+    if not path.is_file():
+        return None
+    return probability_good(json.loads(path.read_text()), fit_features(quality, category))
+
+
+def part_quality(result, points_cam, corr, prediction=None) -> tuple:
+    """Per-part evidence for a fit (see :attr:`DepthPrediction.part_quality`); NaN where undefined.
+
+    Parameters
+    ----------
+    result : FitResult
+    points_cam : (N, 3) float64
+        Observed points, camera frame, metres.
+    corr : Correspondences
+        Their part labels and NPCS.
+    prediction : Prediction, optional
+        The network's raw output (for the segmentation margin).
+    """
+    labels = np.asarray(corr.part_labels)
+    inl = np.asarray(result.inliers, dtype=bool)
+    margin = np.full(len(labels), np.nan)
+    if prediction is not None and prediction.seg_prob.shape[0] == len(labels) and prediction.seg_prob.shape[1] > 1:
+        top2 = np.sort(prediction.seg_prob, axis=1)[:, -2:]
+        margin = top2[:, 1] - top2[:, 0]
+    out = []
+    for j in range(corr.num_parts):
+        sel = labels == j
+        n = int(np.count_nonzero(sel))
+        rec = {"points": n, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": float("nan")}
+        if n:
+            rec["seg_margin"] = float(np.mean(margin[sel])) if np.isfinite(margin[sel]).all() else float("nan")
+            if inl.shape == labels.shape:
+                rec["inlier_ratio"] = float(inl[sel].mean())
+            if j < len(result.T_cam_npcs):
+                fitted = result.T_cam_npcs[j].apply(np.asarray(corr.npcs)[sel])
+                rec["residual_m"] = float(np.median(np.linalg.norm(fitted - points_cam[sel], axis=1)))
+        out.append(rec)
+    return tuple(out)
+
+
+def check_plausibility(result, part_labels, category: str, quality=()):
+    """The fit with a failed status naming the first check it fails (or unchanged).
+
+    Checks, in order: ``too_few_inliers`` (under :data:`MIN_INLIER_RATIO` of all points, or of a
+    part's points for parts with at least 20 points), ``implausible_size`` (the diagonal of the
+    box around all part boxes, in the base part's box frame, outside the category's
+    ``diagonal_range`` widened by :data:`SIZE_TOLERANCE`), ``large_residual`` (a part's median
+    residual above :data:`MAX_RELATIVE_RESIDUAL` of the category's typical size); the last two
+    only for the procedural categories.
+
+    Parameters
+    ----------
+    result : FitResult
+    part_labels : (N,) int
+        The predicted part of each observed point.
+    category : str
+    quality : sequence of dict, optional
+        :func:`part_quality` of the fit (for the residual check).
+    """
+    import dataclasses
+
+    from ..data.procedural import CATEGORY_INFO
+    from ..solvers.types import FitStatus
+
+    if not result.ok:
+        return result
+    labels = np.asarray(part_labels)
+    inl = np.asarray(result.inliers, dtype=bool)
+    if inl.shape == labels.shape and inl.size:
+        ratios = {j: float(inl[labels == j].mean()) for j in np.unique(labels) if np.count_nonzero(labels == j) >= 20}
+        worst = min(ratios, key=ratios.get) if ratios else None
+        if inl.mean() < MIN_INLIER_RATIO or (worst is not None and ratios[worst] < MIN_INLIER_RATIO):
+            return dataclasses.replace(result, status=FitStatus.TOO_FEW_INLIERS, message=(
+                f"check inliers: {100 * inl.mean():.0f}% of the points are inliers (part {worst}: "
+                f"{100 * ratios.get(worst, float('nan')):.0f}%), at least {100 * MIN_INLIER_RATIO:.0f}% are needed"))
+    info = CATEGORY_INFO.get(category)
+    if info is not None and result.boxes_cam:
+        lo, hi = info.diagonal_range
+        diag = object_diagonal(result.boxes_cam)
+        if not lo / SIZE_TOLERANCE <= diag <= hi * SIZE_TOLERANCE:
+            return dataclasses.replace(result, status=FitStatus.IMPLAUSIBLE_SIZE, message=(
+                f"check size: the fitted {category} is {diag:.3g} m across, outside {lo / SIZE_TOLERANCE:.3g}"
+                f"..{hi * SIZE_TOLERANCE:.3g} m (the category's {lo}..{hi} m, widened {SIZE_TOLERANCE}x)"))
+    if info is not None:
+        limit = MAX_RELATIVE_RESIDUAL * info.typical_size
+        for j, q in enumerate(quality):
+            if q["points"] >= 20 and q["residual_m"] > limit:
+                name = info.part_names[j] if j < len(info.part_names) else f"part{j}"
+                return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
+                    f"check residual: part {name}'s points lie {1e3 * q['residual_m']:.0f} mm (median) from the fit, "
+                    f"above {1e3 * limit:.0f} mm ({MAX_RELATIVE_RESIDUAL} of a typical {category})"))
+    return result
+
+
+def object_diagonal(boxes) -> float:
+    """Diagonal (metres) of the box around all part boxes, aligned with the first part's box."""
+    R = boxes[0].rotation
+    corners = np.concatenate([b.corners() for b in boxes]) @ R
+    return float(np.linalg.norm(np.ptp(corners, axis=0)))
+
+
+def _rest_states(category: str, K: int) -> tuple[tuple, str]:
+    """Rest joint states of a procedural category (NaN otherwise) and their description."""
+    from ..data.procedural import CATEGORY_INFO, load_instance
+
+    info = CATEGORY_INFO.get(category)
+    if info is None or info.num_joints != K:
+        return tuple([float("nan")] * K), "unknown category: rest states unknown"
+    model = load_instance(category, "test", 0)
+    return tuple(float(q) for q in model.rest_states), info.rest_description
 
 
 def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
@@ -326,30 +480,61 @@ def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
 # --------------------------------------------------------------------------------------------
 # picture
 # --------------------------------------------------------------------------------------------
-def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, *, title: str = ""):
-    """Boxes and joint axes over the point cloud (3D) and projected on the depth image.
+def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, *, title: str = "", rgb=None):
+    """Boxes and joint axes over the point cloud (3D) and projected on the depth (or colour) image.
 
-    Uses :func:`ancsh.data.show.draw_fit` and puts the depth image under its image-plane panel.
-    Returns a matplotlib ``Figure`` (Agg).
+    Uses :func:`ancsh.data.show.draw_fit` and puts the depth image, or ``rgb`` when given
+    (``(H, W, 3)`` uint8, registered to the depth), under its image-plane panel; a legend names the
+    parts. Returns a matplotlib ``Figure`` (Agg).
     """
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     from ..data.show import draw_fit
 
     r = prediction.result
     fig = Figure(figsize=(14, 6), dpi=100)
+    if prediction.points_cam.shape[0] == 0:  # nothing fitted: the depth image and the isolation only
+        ax = fig.add_subplot(1, 1, 1)
+        d = np.asarray(depth, dtype=np.float64)
+        ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest")
+        _draw_isolation(ax, prediction.isolation)
+        ax.set_title(title or f"{prediction.category}: {r.status.value}: {r.message}", fontsize=9)
+        return fig
     title = title or (f"{prediction.category}: {r.formulation} fit, status {r.status.value} "
                       f"({prediction.points_cam.shape[0]} points)")
     draw_fit(prediction.points_cam, r, intrinsics, labels=prediction.part_labels, title=title, fig=fig)
+    handles = [Line2D([], [], marker="o", linestyle="", color=colormaps["tab10"](j % 10), label=name)
+               for j, name in enumerate(prediction.part_names)]
+    fig.axes[0].legend(handles=handles, loc="upper left", fontsize=8, title="parts", title_fontsize=8)
     ax = fig.axes[-1]
     xlim, ylim = ax.get_xlim(), ax.get_ylim()
     d = np.asarray(depth, dtype=np.float64)
-    im = ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest", zorder=0,
-                   extent=(-0.5, d.shape[1] - 0.5, d.shape[0] - 0.5, -0.5))
+    extent = (-0.5, d.shape[1] - 0.5, d.shape[0] - 0.5, -0.5)
+    if rgb is None:
+        im = ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest", zorder=0, extent=extent)
+    else:
+        ax.imshow(np.asarray(rgb), interpolation="nearest", zorder=0, extent=extent)
     for coll in ax.collections:
         coll.set_alpha(0.35)
     ax.set_xlim(xlim)
     ax.set_ylim(ylim)
-    fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8)
-    ax.set_title("depth image: boxes (part colours) and joint axes (black) projected", fontsize=9)
+    if rgb is None:
+        fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8)
+    _draw_isolation(ax, prediction.isolation)
+    ax.set_title(("colour" if rgb is not None else "depth") + " image: boxes (part colours) and joint axes (black) projected"
+                 + ("; isolated object outlined in red, other clusters in blue" if prediction.isolation is not None else ""),
+                 fontsize=9)
     return fig
+
+
+def _draw_isolation(ax, isolation) -> None:
+    """Outline the chosen cluster (red) and the others (blue) of an :class:`~ancsh.data.isolate.Isolation`."""
+    if isolation is None:
+        return
+    others = (isolation.labels >= 0) & ~isolation.mask
+    if others.any():
+        ax.contour(others.astype(float), levels=[0.5], colors="tab:blue", linewidths=0.8)
+    if isolation.mask.any():
+        ax.contour(isolation.mask.astype(float), levels=[0.5], colors="red", linewidths=1.2)

@@ -355,6 +355,10 @@ class Trainer:
                     self.save_checkpoint(self.out_dir / "last.pt")
                 if time_limit_s is not None and now - t_start >= time_limit_s:
                     break
+        except KeyboardInterrupt:  # Ctrl-C: keep the finished steps, then let the caller report it
+            if self.out_dir is not None and self._saved_step != self.step:
+                self.save_checkpoint(self.out_dir / "last.pt")
+            raise
         finally:
             if bar is not None:
                 bar.close()
@@ -432,29 +436,45 @@ class Trainer:
         """Write the full training state atomically (temporary file + rename)."""
         path = Path(path)
         tmp = path.with_suffix(path.suffix + ".tmp")
-        torch.save(self.state(), tmp)
-        os.replace(tmp, path)
+        try:
+            torch.save(self.state(), tmp)
+            os.replace(tmp, path)
+        except (OSError, RuntimeError) as exc:  # full disk, read-only folder: the previous checkpoint stays intact
+            tmp.unlink(missing_ok=True)
+            raise OSError(getattr(exc, "errno", None), f"could not write the checkpoint {path}: {exc}") from None
         if path.name == "last.pt":
             self._saved_step = self.step
         return path
 
     def load_checkpoint(self, path) -> None:
         """Restore model, optimiser, step and history from :meth:`save_checkpoint` output."""
-        ck = torch.load(Path(path), map_location="cpu", weights_only=False)
-        saved = TrainConfig.from_dict(ck["config"])
+        from .weights import read_torch_file
+
+        keys = ("config", "step", "elapsed_s", "model", "optimizer", "history", "best_val", "acc", "num_parts", "revolute")
+        ck = read_torch_file(path, argument="--resume", required=keys)
+        try:
+            saved = TrainConfig.from_dict(ck["config"])
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"--resume: {path} holds an invalid config: {exc}") from None
+        if saved.category != self.config.category:
+            raise ValueError(f"--resume: {path} is a run of category {saved.category!r}, not {self.config.category!r}; "
+                             "choose another --out")
         mismatch = [k for k in ("kind", "width", "npoints", "radii", "nsamples", "backbones", "num_points")
                     if getattr(saved, k) != getattr(self.config, k)]
         if mismatch:
             raise ValueError(f"checkpoint {path}: network settings {mismatch} differ from the config")
         if ck["num_parts"] != self.train_arrays.num_parts or ck["revolute"] != self.train_arrays.revolute.tolist():
             raise ValueError(f"checkpoint {path}: trained for another kinematic structure")
-        self.model.load_state_dict(ck["model"])
-        self.optimizer.load_state_dict(ck["optimizer"])
-        self.step = int(ck["step"])
-        self.elapsed_s = float(ck["elapsed_s"])
-        self.history = list(ck["history"])
-        self.best_val = float(ck["best_val"])
-        self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+        try:
+            self.model.load_state_dict(ck["model"])
+            self.optimizer.load_state_dict(ck["optimizer"])
+            self.step = int(ck["step"])
+            self.elapsed_s = float(ck["elapsed_s"])
+            self.history = list(ck["history"])
+            self.best_val = float(ck["best_val"])
+            self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+        except (ValueError, TypeError, KeyError, IndexError, RuntimeError) as exc:
+            raise ValueError(f"--resume: {path} is not a usable checkpoint: {str(exc).splitlines()[0][:200]}") from None
         self._saved_step = self.step
 
 

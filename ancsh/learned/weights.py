@@ -9,6 +9,10 @@ A weights file (``ancsh/weights/<category>.pt``, package data, nothing is downlo
 
 It omits the optimiser state, so it is a few MB. A full training checkpoint (``last.pt`` /
 ``best.pt`` of a run) is accepted too.
+
+Every file is read by :func:`read_torch_file` with ``torch.load(..., weights_only=True)``: only
+tensors and plain containers/numbers/strings are unpickled, so a crafted file cannot run code; such a
+file, a truncated one or one with missing entries is refused with a ``ValueError`` naming it.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
-           "learning_curve_fit", "weights_summary"]
+           "learning_curve_fit", "weights_summary", "read_torch_file"]
 
 FORMAT = 1
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
@@ -41,6 +45,8 @@ class LoadedNetwork:
         File it was loaded from.
     step : int or None
         Training step of the weights.
+    sha256 : str or None
+        SHA-256 of the file's bytes, taken when it was loaded.
     """
 
     model: object
@@ -52,10 +58,60 @@ class LoadedNetwork:
     metrics: dict
     source: str
     step: int | None = None
+    sha256: str | None = None
 
     @property
     def kind(self) -> str:
         return self.config.kind
+
+
+def read_torch_file(path, *, argument: str, required=()) -> dict:
+    """Read a ``torch.save`` dict safely (``weights_only=True``: tensors and plain values only).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    argument : str
+        The argument or option that named it (used in error messages, e.g. ``"--weights"``).
+    required : iterable of str
+        Keys the dict must hold.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Naming ``argument`` and the file: it holds other objects than tensors and plain values
+        (refused unread: unpickling them could run code), it is truncated or not a torch file, it is
+        not a dict, or it lacks a ``required`` key.
+    """
+    import pickle
+    import warnings
+
+    import torch
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{argument}: no such file {path}")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            data = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        first = str(exc).split("WeightsUnpickler error:")[-1].strip().splitlines()
+        why = first[0] if first else ""
+        raise ValueError(f"{argument}: {path} is not a plain weights file ({why}); refused without loading it, since "
+                         "unpickling arbitrary objects could run code") from None
+    except Exception as exc:  # truncated zip, garbage bytes, unknown format: never a traceback from torch
+        raise ValueError(f"{argument}: {path} is not a readable torch file (truncated or corrupt? "
+                         f"{type(exc).__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{argument}: {path} holds a {type(data).__name__}, expected a weights or checkpoint dict")
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise ValueError(f"{argument}: {path} lacks the entries {missing}; is it a file made by ancsh?")
+    return data
 
 
 def weights_path(category: str, kind: str = "ancsh") -> Path:
@@ -80,9 +136,7 @@ def export_weights(checkpoint, out_path, *, metrics: dict | None = None) -> Path
     """Write a compact weights file from a training checkpoint (see the module docstring)."""
     import torch
 
-    ck = torch.load(Path(checkpoint), map_location="cpu", weights_only=False)
-    if "model" not in ck or "config" not in ck:
-        raise ValueError(f"checkpoint: {checkpoint} is not a training checkpoint")
+    ck = read_torch_file(checkpoint, argument="checkpoint", required=("model", "config", "num_parts", "revolute", "step"))
     cfg = ck["config"]
     parents, children = _structure(ck)
     data = {
@@ -130,8 +184,7 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
     FileNotFoundError
         When no weights exist for the category / path, listing what is available.
     """
-    import torch
-
+    from ..outputs import file_sha256
     from .config import TrainConfig
     from .network import build_network
 
@@ -144,19 +197,22 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
             )
     elif not path.is_file():
         raise FileNotFoundError(f"source: no such weights file {path}")
-    ck = torch.load(path, map_location="cpu", weights_only=False)
-    if "state_dict" in ck:
-        state = ck["state_dict"]
-        parents, children = ck["joint_parents"], ck["joint_children"]
-    elif "model" in ck:
-        state = ck["model"]
-        parents, children = _structure(ck)
-    else:
-        raise ValueError(f"source: {path} is neither a weights file nor a training checkpoint")
-    config = TrainConfig.from_dict(ck["config"])
-    revolute = np.array(ck["revolute"], dtype=bool)
-    model = build_network(config.kind, int(ck["num_parts"]), len(revolute), **config.network_kwargs())
-    model.load_state_dict(state)
+    ck = read_torch_file(path, argument="weights", required=("config", "num_parts", "revolute"))
+    try:
+        if "state_dict" in ck:
+            state = ck["state_dict"]
+            parents, children = ck["joint_parents"], ck["joint_children"]
+        elif "model" in ck:
+            state = ck["model"]
+            parents, children = _structure(ck)
+        else:
+            raise ValueError("neither a weights file nor a training checkpoint (no state_dict / model entry)")
+        config = TrainConfig.from_dict(ck["config"])
+        revolute = np.array(ck["revolute"], dtype=bool)
+        model = build_network(config.kind, int(ck["num_parts"]), len(revolute), **config.network_kwargs())
+        model.load_state_dict(state)
+    except (ValueError, TypeError, KeyError, RuntimeError) as exc:
+        raise ValueError(f"weights: {path} does not hold a usable network: {str(exc).splitlines()[0][:200]}") from None
     model.eval()
     return LoadedNetwork(
         model=model,
@@ -168,6 +224,7 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
         metrics=dict(ck.get("metrics", {})),
         source=str(path),
         step=None if ck.get("step") is None else int(ck["step"]),
+        sha256=file_sha256(path),
     )
 
 

@@ -638,7 +638,8 @@ def register(sub) -> None:
     p = sub.add_parser("fit", help="compare every fitting formulation and the official ANCSH scheme")
     p.add_argument("--quick", action="store_true", help="few frames, two corruption levels (~1-2 min)")
     p.add_argument("--json", action="store_true", help="also write the records as JSON next to the markdown")
-    p.add_argument("--out", default="docs/results/fit_benchmark.md", help="markdown report path")
+    p.add_argument("--out", default=None, help="markdown report path (default: a fresh ancsh_results/bench-fit-<time>/)")
+    p.add_argument("--update-docs", action="store_true", help="write docs/results/fit_benchmark.md (when --out is not given)")
     p.add_argument("--frames", type=int, default=None, help="frames per category (default 8; quick 2)")
     p.add_argument("--categories", default=None, help="comma-separated categories (default: the paper's five)")
     p.add_argument("--levels", default=None, help="comma-separated corruption presets")
@@ -662,7 +663,10 @@ def _command(args) -> str:
             parts.append(f"--{flag.replace('_', '-')} {value}")
     if args.seed:
         parts.append(f"--seed {args.seed}")
-    parts.append(f"--out {args.out}")
+    if args.out is not None:
+        parts.append(f"--out {args.out}")
+    elif args.update_docs:
+        parts.append("--update-docs")
     return " ".join(parts)
 
 
@@ -685,7 +689,9 @@ def run(args) -> int:
     command = _command(args)
     t0 = time.perf_counter()
     report = run_benchmark(config, progress=lambda s: print(s, flush=True))
-    out_md = Path(args.out)
+    from ..outputs import report_path
+
+    out_md = report_path(args.out, update_docs=args.update_docs, docs_name="fit_benchmark.md", command="bench-fit")
     out_json = out_md.with_suffix(".json") if args.json else None
     head = write_report(report, out_md, out_json, command=command)
     print(f"\nwrote {out_md}" + (f" and {out_json}" if out_json else "") + f" in {time.perf_counter() - t0:.0f} s")

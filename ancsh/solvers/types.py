@@ -301,6 +301,9 @@ class FitStatus(str, Enum):
     TOO_FEW_POINTS = "too_few_points"
     DEGENERATE = "degenerate"
     INVALID_INPUT = "invalid_input"
+    IMPLAUSIBLE_SIZE = "implausible_size"  # the fitted object's size is outside its category's range
+    TOO_FEW_INLIERS = "too_few_inliers"  # too small a share of the points agrees with the fit
+    LARGE_RESIDUAL = "large_residual"  # the points lie far from the fitted parts (far above validation frames)
 
 
 @dataclass(frozen=True)

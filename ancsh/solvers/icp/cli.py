@@ -38,29 +38,10 @@ def register(sub) -> None:
     e = sub.add_parser("evaluate-cad", help="AD accuracy of articulated ICP vs rigid ICP on rendered view sequences")
     e.add_argument("--quick", action="store_true", help="a ~2 minute subset")
     e.add_argument("--frames", type=int, default=None, help="views per sequence (default 6, quick 3)")
-    e.add_argument("--out", default="docs/results/cad_fitting.md", help="markdown report (a .json is written next to it)")
+    e.add_argument("--out", default=None, help="markdown report, a .json is written next to it "
+                   "(default: a fresh ancsh_results/evaluate-cad-<time>/cad_fitting.md)")
+    e.add_argument("--update-docs", action="store_true", help="write docs/results/cad_fitting.md (when --out is not given)")
     e.set_defaults(func=run_evaluate)
-
-
-def load_depth(path, depth_scale: float = 0.001):
-    """``(H, W)`` float64 depth from ``.npy`` or 16-bit ``.png`` (NaN/inf/negative -> 0)."""
-    import numpy as np
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"depth: no such file {str(path)!r}")
-    if path.suffix.lower() == ".npy":
-        depth = np.load(path).astype(np.float64)
-    elif path.suffix.lower() == ".png":
-        from PIL import Image
-
-        depth = np.asarray(Image.open(path), dtype=np.float64) * float(depth_scale)
-    else:
-        raise ValueError(f"depth: expected a .npy or .png file, got {path.suffix!r}")
-    if depth.ndim != 2:
-        raise ValueError(f"depth: expected a 2-D image, got shape {depth.shape}")
-    depth[~np.isfinite(depth) | (depth < 0)] = 0.0
-    return depth
 
 
 def load_init(path, model):
@@ -70,9 +51,11 @@ def load_init(path, model):
     from ...geometry.transforms import Sim3
     from .template import ArticulatedPose
 
-    data = json.loads(Path(path).read_text())
+    from ...data.images import read_json
+
+    data = read_json(path, argument="init")
     if not isinstance(data, dict) or "T_cam_base" not in data:
-        raise ValueError('init: expected a JSON object with "T_cam_base" (4x4) and optionally "q"')
+        raise ValueError(f'init: {path}: expected a JSON object with "T_cam_base" (4x4) and optionally "q"')
     T = Sim3.from_matrix(np.asarray(data["T_cam_base"], dtype=float))
     if not T.is_rigid and abs(T.scale - 1.0) > 1e-6:
         raise ValueError(f"init: T_cam_base must be rigid (scale 1), got scale {T.scale:.6g}")
@@ -84,8 +67,10 @@ def load_init(path, model):
 def run_fit(args) -> int:
     import numpy as np
 
-    from ...data.render import Intrinsics, backproject
+    from ...data.images import read_depth, read_intrinsics
+    from ...data.render import backproject
     from ...data.urdf import load_urdf
+    from ...outputs import provenance
     from ..types import Observation
     from .articulated import articulated_icp, auto_init
 
@@ -95,8 +80,10 @@ def run_fit(args) -> int:
     model = load_urdf(urdf)
     if model.num_joints == 0:
         raise ValueError(f"urdf: {urdf.name} has no movable joint (nothing articulated to fit)")
-    intr = Intrinsics.from_json(json.loads(Path(args.intrinsics).read_text()))
-    depth = load_depth(args.depth, args.depth_scale)
+    if args.points < 1:
+        raise ValueError(f"--points: expected a positive number of points, got {args.points}")
+    intr = read_intrinsics(args.intrinsics)
+    depth = read_depth(args.depth, depth_scale=args.depth_scale)
     if depth.shape != (intr.height, intr.width):
         raise ValueError(f"depth: shape {depth.shape} does not match the intrinsics' {(intr.height, intr.width)}")
     mask = depth > 0
@@ -106,22 +93,28 @@ def run_fit(args) -> int:
         raise ValueError("depth: the image has no valid depth pixel")
     points = backproject(depth, intr, mask)
     rng = np.random.default_rng(args.seed)
+    if points.shape[0] < args.points:
+        print(f"note: {points.shape[0]} valid pixels, fewer than --points {args.points}: using all of them", file=sys.stderr)
     if points.shape[0] > args.points:
         points = points[rng.choice(points.shape[0], args.points, replace=False)]
     init = load_init(args.init, model) if args.init else auto_init(model, points)
     t0 = time.perf_counter()
     result = articulated_icp(model, Observation(points), init, rng=rng)
     dt = time.perf_counter() - t0
+    q_report = _wrapped_states(model, result.q)
     print(f"{model.name}: {result.status.value} ({result.message}) in {dt:.2f} s, {result.starts} starts, "
           f"{result.iterations} iterations, inliers {100 * result.inlier_ratio:.1f}%, rmse {result.rmse:.4g}")
     for k, j in enumerate(model.joints):
-        v = result.q[k]
+        v = q_report[k]
         print(f"  joint {j.name:24s} {j.type.value:9s} q = {np.degrees(v) if j.is_revolute else v:9.4f}"
               f" {'deg' if j.is_revolute else 'units'}")
     for part, T in zip(model.parts, result.T_cam_parts):
         print(f"  part  {part.name:24s} {T}")
     if args.out:
-        payload = result.to_dict()
+        payload = {**provenance(), "urdf": str(urdf), **result.to_dict()}
+        payload["q"] = [float(v) for v in q_report]
+        payload["q_rest"] = [float(v) for v in model.rest_states]
+        payload["q_relative_to_rest"] = [float(v) for v in q_report - model.rest_states]
         payload["parts"] = model.part_names
         payload["joints"] = [j.name for j in model.joints]
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
@@ -131,6 +124,17 @@ def run_fit(args) -> int:
         draw_fit(model, result, points, intr, args.png)
         print(f"wrote {args.png}")
     return 0 if result.ok else 1
+
+
+def _wrapped_states(model, q):
+    """Absolute joint states with those of unlimited (continuous) revolute joints wrapped into ``(-pi, pi]``."""
+    import numpy as np
+
+    q = np.array(q, dtype=np.float64)
+    for k, j in enumerate(model.joints):
+        if j.is_revolute and not (np.isfinite(j.lower) and np.isfinite(j.upper)):
+            q[k] = -((-q[k] + np.pi) % (2 * np.pi) - np.pi)
+    return q
 
 
 def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None = None) -> None:
@@ -172,10 +176,16 @@ def run_evaluate(args) -> int:
 
     from .evaluate import EvalConfig, run_evaluation, write_report
 
+    from ...outputs import report_path
+
     config = EvalConfig.quick() if args.quick else EvalConfig()
     if args.frames is not None:
+        if args.frames < 1:
+            raise ValueError(f"--frames: expected a positive number of views, got {args.frames}")
         config = replace(config, frames=int(args.frames))
     command = "ancsh evaluate-cad" + (" --quick" if args.quick else "") + (f" --frames {args.frames}" if args.frames else "")
+    command += f" --out {args.out}" if args.out is not None else " --update-docs" if args.update_docs else ""
+    out = report_path(args.out, update_docs=args.update_docs, docs_name="cad_fitting.md", command="evaluate-cad")
     t0 = time.perf_counter()
 
     def progress(name, noise, recs):
@@ -185,6 +195,6 @@ def run_evaluate(args) -> int:
               f"[{time.perf_counter() - t0:6.0f} s]", file=sys.stderr, flush=True)
 
     records, meta = run_evaluation(config, progress=progress)
-    text = write_report(records, meta, args.out, command=command, wall_s=time.perf_counter() - t0)
+    text = write_report(records, meta, out, command=command, wall_s=time.perf_counter() - t0)
     print(text)
     return 0

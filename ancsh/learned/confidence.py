@@ -1,0 +1,156 @@
+"""A calibrated estimate of whether a prediction is good: P(every part's rotation error < 10 deg).
+
+Features of a fit (:func:`fit_features`, from :func:`ancsh.learned.predict.part_quality`): the
+lowest part inlier ratio, the largest part residual relative to the category's typical size, the
+lowest and the mean part segmentation margin, and the log of the point count. A logistic
+regression (scikit-learn) maps them to the probability, trained on rendered frames of the held-out
+instances drawn from a seed stream other than the evaluation's (:func:`collect`), its reliability
+measured on a separate half of them. The fitted model is a few numbers in
+``ancsh/weights/<category>_confidence.json``; applying it needs numpy only (:func:`probability_good`).
+
+``ancsh calibrate --category laptop`` collects, fits, writes the report (reliability diagram) and,
+with ``--install``, the JSON beside the shipped weights.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "calibration_path", "fit_features", "collect", "fit_calibrator",
+           "probability_good", "reliability", "write_report"]
+
+FEATURES = ("inlier_ratio_min", "residual_rel_max", "seg_margin_min", "seg_margin_mean", "log_points")
+#: A fit is "good" when every part's rotation error is below this (degrees).
+GOOD_ROTATION_DEG = 10.0
+
+
+def calibration_path(category: str) -> Path:
+    """``ancsh/weights/<category>_confidence.json``."""
+    from .weights import WEIGHTS_DIR
+
+    return WEIGHTS_DIR / f"{category}_confidence.json"
+
+
+def fit_features(quality, category: str) -> np.ndarray:
+    """``(len(FEATURES),)`` float64 from per-part quality dicts (NaN entries count as worst)."""
+    from ..data.procedural import CATEGORY_INFO
+
+    size = CATEGORY_INFO[category].typical_size
+    inl = [q["inlier_ratio"] for q in quality if q["points"]]
+    res = [q["residual_m"] / size for q in quality if q["points"]]
+    mar = [q["seg_margin"] for q in quality if q["points"]]
+    pts = sum(q["points"] for q in quality)
+
+    def clean(values, worst):
+        v = np.asarray(values, dtype=np.float64)
+        return np.where(np.isfinite(v), v, worst) if v.size else np.array([worst])
+
+    return np.array([clean(inl, 0.0).min(), clean(res, 1.0).max(), clean(mar, 0.0).min(), clean(mar, 0.0).mean(),
+                     np.log(max(pts, 1))])
+
+
+def collect(category: str, frames: int, *, seed: int = 7, provider=None, progress: bool = True) -> dict:
+    """Features and labels of ``frames`` rendered held-out frames (test split, base seed ``seed``).
+
+    Returns ``{"X": (F, D), "good": (F,) bool, "rot_deg": (F,) worst part rotation error (inf when the fit failed)}``.
+    """
+    from tqdm import tqdm
+
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..evaluation import evaluate_fit
+    from ..solvers import Observation, fit
+    from .predict import part_quality
+    from .provider import LearnedProvider
+
+    if isinstance(frames, bool) or int(frames) != frames or frames < 4:
+        raise ValueError(f"frames: expected an integer >= 4, got {frames!r}")
+    provider = provider or LearnedProvider(category, seed=seed)
+    gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=seed))
+    X, rot = [], []
+    for i in tqdm(range(int(frames)), desc=f"calibrate {category}", disable=not progress, dynamic_ncols=True):
+        frame = gen.frame(i)
+        obs = Observation(frame.points)
+        corr = provider.correspond(obs)
+        result = fit(obs, corr, "exact_reduced", rng=i)
+        X.append(fit_features(part_quality(result, frame.points, corr, provider.last_prediction), category))
+        rec = evaluate_fit(result, frame.gt)
+        rot.append(max((p["rot_deg"] for p in rec["parts"]), default=np.inf) if rec["ok"] else np.inf)
+    rot = np.asarray(rot)
+    return {"X": np.asarray(X), "good": rot < GOOD_ROTATION_DEG, "rot_deg": rot}
+
+
+def fit_calibrator(X, good) -> dict:
+    """Standardised logistic regression (scikit-learn) of ``good`` on ``X``, as plain JSON numbers."""
+    from sklearn.linear_model import LogisticRegression
+
+    X = np.asarray(X, dtype=np.float64)
+    y = np.asarray(good, dtype=bool)
+    if y.all() or not y.any():
+        raise ValueError("good: both good and bad fits are needed to calibrate")
+    mean, scale = X.mean(axis=0), X.std(axis=0)
+    scale[scale == 0] = 1.0
+    model = LogisticRegression(C=1.0, max_iter=1000).fit((X - mean) / scale, y)
+    return {"features": list(FEATURES), "good_rotation_deg": GOOD_ROTATION_DEG, "mean": mean.tolist(),
+            "scale": scale.tolist(), "coef": model.coef_[0].tolist(), "intercept": float(model.intercept_[0]),
+            "frames": int(len(y)), "good_rate": float(y.mean())}
+
+
+def probability_good(calibration: dict, x) -> float:
+    """P(good) of one feature vector under a :func:`fit_calibrator` result."""
+    z = (np.asarray(x, dtype=np.float64) - calibration["mean"]) / np.asarray(calibration["scale"])
+    return float(1.0 / (1.0 + np.exp(-(z @ np.asarray(calibration["coef"]) + calibration["intercept"]))))
+
+
+def reliability(calibration: dict, X, good, bins: int = 5) -> dict:
+    """Reliability diagram data: per probability bin the mean predicted P and the observed good rate; Brier scores."""
+    p = np.array([probability_good(calibration, x) for x in np.asarray(X)])
+    y = np.asarray(good, dtype=np.float64)
+    edges = np.linspace(0.0, 1.0, bins + 1)
+    which = np.clip(np.digitize(p, edges[1:-1]), 0, bins - 1)
+    rows = [{"lo": float(edges[b]), "hi": float(edges[b + 1]), "frames": int(np.sum(which == b)),
+             "predicted": float(p[which == b].mean()) if np.any(which == b) else float("nan"),
+             "observed": float(y[which == b].mean()) if np.any(which == b) else float("nan")} for b in range(bins)]
+    return {"bins": rows, "brier": float(np.mean((p - y) ** 2)), "brier_constant": float(np.mean((y.mean() - y) ** 2)),
+            "frames": int(len(y)), "good_rate": float(y.mean())}
+
+
+def write_report(category: str, calibration: dict, rel: dict, out_dir, *, command: str) -> dict:
+    """``<category>_confidence.md`` and ``_reliability.png`` in ``out_dir``; returns their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"md": out / f"{category}_confidence.md", "png": out / f"{category}_reliability.png",
+             "json": out / f"{category}_confidence.json"}
+    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    pred = [b["predicted"] for b in rel["bins"] if b["frames"]]
+    obs = [b["observed"] for b in rel["bins"] if b["frames"]]
+    ax.plot([0, 1], [0, 1], "k--", lw=0.8, label="perfectly calibrated")
+    ax.plot(pred, obs, "o-", label=f"{category} ({rel['frames']} held-out frames)")
+    ax.set_xlabel(f"predicted P(every part's rotation error < {GOOD_ROTATION_DEG:g} deg)")
+    ax.set_ylabel("observed fraction")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(paths["png"], dpi=90)
+    plt.close(fig)
+    paths["json"].write_text(json.dumps(calibration, indent=1) + "\n")
+    rows = "\n".join(f"| {b['lo']:.1f}-{b['hi']:.1f} | {b['frames']} | {b['predicted']:.3f} | {b['observed']:.3f} |"
+                     for b in rel["bins"])
+    paths["md"].write_text(
+        f"# {category}: how far to trust a prediction\n\nCommand: `{command}`\n\n"
+        f"A logistic regression (scikit-learn) of whether every part's rotation error is below "
+        f"{GOOD_ROTATION_DEG:g} deg on the fit's own evidence ({', '.join(FEATURES)}), trained on "
+        f"{calibration['frames']} rendered frames of the held-out instances (seed stream 7, not the evaluation's), "
+        f"measured on {rel['frames']} others. Good fits: {100 * rel['good_rate']:.0f}%.\n\n"
+        f"Brier score {rel['brier']:.4f} (a constant {rel['good_rate']:.2f}: {rel['brier_constant']:.4f}).\n\n"
+        "| predicted P | frames | mean predicted | observed good |\n|---|---|---|---|\n" + rows + "\n\n"
+        f"![reliability diagram]({paths['png'].name})\n")
+    return paths

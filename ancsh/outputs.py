@@ -1,0 +1,82 @@
+"""Where commands write their results, and what every JSON result carries.
+
+- Report-writing commands (``ancsh evaluate``, ``ancsh evaluate-cad``, ``ancsh bench fit``) write into
+  a fresh folder ``ancsh_results/<command>-<UTC time>/`` unless ``--out`` is given; the committed
+  ``docs/results/`` is rewritten only with ``--update-docs`` (or an explicit ``--out`` there).
+- Every JSON result carries :func:`provenance`: the ancsh version and, where a network was used,
+  the SHA-256 of its weights file (the schema is documented in ``docs/json_schema.md``).
+
+numpy-free and light: imported by the command-line modules at parse time.
+"""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+
+__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "provenance"]
+
+#: Parent of the fresh output folders (relative to the working directory).
+RESULTS_ROOT = Path("ancsh_results")
+#: The committed results, rewritten only on request.
+DOCS_RESULTS = Path("docs/results")
+
+
+def fresh_output_dir(command: str, root=None) -> Path:
+    """Create and return a new folder ``<root>/<command>-<YYYYmmdd-HHMMSS>[-n]`` (never an existing one).
+
+    Parameters
+    ----------
+    command : str
+        Names the folder, e.g. ``"evaluate-laptop"``.
+    root : str or Path, optional
+        Parent folder (default :data:`RESULTS_ROOT`).
+    """
+    root = RESULTS_ROOT if root is None else Path(root)
+    stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y%m%d-%H%M%S")
+    root.mkdir(parents=True, exist_ok=True)
+    for n in range(1, 1000):
+        path = root / (f"{command}-{stamp}" if n == 1 else f"{command}-{stamp}-{n}")
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(f"{root}: no free folder name for {command}-{stamp}")
+
+
+def report_path(out, *, update_docs: bool, docs_name: str, command: str) -> Path:
+    """The file a report-writing command writes.
+
+    ``out`` (the ``--out`` option) wins; else ``--update-docs`` selects ``docs/results/<docs_name>``;
+    else a file of that name in a :func:`fresh_output_dir`.
+    """
+    if out is not None:
+        return Path(out)
+    if update_docs:
+        return DOCS_RESULTS / docs_name
+    return fresh_output_dir(command) / docs_name
+
+
+def file_sha256(path) -> str:
+    """SHA-256 hex digest of a file's bytes."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def provenance(weights=None, weights_sha256: str | None = None) -> dict:
+    """``{"ancsh_version", "weights", "weights_sha256"}`` for a JSON result (weights entries ``None`` without a file).
+
+    ``weights_sha256`` is used when given (a digest taken when the file was loaded), else computed.
+    """
+    from . import __version__
+
+    if weights_sha256 is None and weights is not None and Path(weights).is_file():
+        weights_sha256 = file_sha256(weights)
+    return {"ancsh_version": __version__, "weights": None if weights is None else str(weights),
+            "weights_sha256": weights_sha256}

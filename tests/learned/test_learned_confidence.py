@@ -1,0 +1,68 @@
+"""The calibrated confidence: features of a fit, a logistic regression of 'good', its reliability, its use in predict."""
+
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.cli import main
+from ancsh.learned import confidence
+from ancsh.learned.confidence import FEATURES, collect, fit_calibrator, fit_features, probability_good, reliability
+
+
+def test_calibrator_recovers_a_known_logistic_relation():
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(4000, len(FEATURES)))
+    p_true = 1.0 / (1.0 + np.exp(-(2.0 * X[:, 0] - 1.0 * X[:, 1] + 0.5)))
+    good = rng.random(4000) < p_true
+    cal = fit_calibrator(X[:2000], good[:2000])
+    assert cal["features"] == list(FEATURES) and len(cal["coef"]) == len(FEATURES)
+    p = np.array([probability_good(cal, x) for x in X[2000:]])
+    assert np.abs(p - p_true[2000:]).mean() < 0.05
+    rel = reliability(cal, X[2000:], good[2000:])
+    for b in rel["bins"]:
+        if b["frames"] > 100:
+            assert abs(b["predicted"] - b["observed"]) < 0.08
+    assert rel["brier"] < rel["brier_constant"]
+    with pytest.raises(ValueError, match="both good and bad"):
+        fit_calibrator(X[:10], np.ones(10, dtype=bool))
+
+
+def test_features_treat_missing_evidence_as_worst():
+    q = [{"points": 100, "inlier_ratio": 0.9, "residual_m": 0.01, "seg_margin": 0.8},
+         {"points": 0, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": float("nan")},
+         {"points": 30, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": 0.4}]
+    f = fit_features(q, "laptop")
+    assert f.shape == (len(FEATURES),)
+    assert f[0] == 0.0 and f[1] == 1.0 and f[2] == pytest.approx(0.4) and f[4] == pytest.approx(np.log(130))
+
+
+@pytest.mark.slow
+def test_collect_labels_rendered_frames():
+    data = collect("laptop", 4, progress=False)
+    assert data["X"].shape == (4, len(FEATURES)) and data["good"].dtype == bool
+    assert np.array_equal(data["good"], data["rot_deg"] < 10.0)
+
+
+def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.learned.predict import predict_depth
+
+    cal = {"features": list(FEATURES), "good_rotation_deg": 10.0, "mean": [0.0] * 5, "scale": [1.0] * 5,
+           "coef": [0.0] * 5, "intercept": float(np.log(3.0)), "frames": 10, "good_rate": 0.75}
+    path = tmp_path / "laptop_confidence.json"
+    path.write_text(json.dumps(cal))
+    monkeypatch.setattr(confidence, "calibration_path", lambda category: path)
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
+    frame = gen.frame(1)
+    _, renderer = gen.instance(frame.instance_index)
+    depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
+    data = predict_depth(depth, frame.intrinsics, "laptop").to_json()
+    assert data["ok"] and data["confidence"]["p_good"] == pytest.approx(0.75)
+    path.unlink()
+    assert predict_depth(depth, frame.intrinsics, "laptop").to_json()["confidence"]["p_good"] is None
+
+
+def test_calibrate_refuses_too_few_frames(capsys):
+    assert main(["calibrate", "--category", "laptop", "--frames", "2"]) == 2
+    assert "--frames" in capsys.readouterr().err

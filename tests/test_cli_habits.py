@@ -1,0 +1,138 @@
+"""Command-line habits: an example in every --help, no overwriting of committed results by default,
+clear errors (naming the option or file) instead of tracebacks, non-zero exits on failure."""
+
+import argparse
+import errno
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.cli import build_parser, main
+from ancsh.outputs import DOCS_RESULTS, RESULTS_ROOT, fresh_output_dir, report_path
+
+
+def _commands(parser, prefix=()):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield (*prefix, name), sub
+                yield from _commands(sub, (*prefix, name))
+
+
+def test_every_command_help_shows_an_example():
+    commands = list(_commands(build_parser()))
+    assert len(commands) >= 12
+    for name, sub in commands:
+        assert "example:\n  ancsh " in sub.format_help(), " ".join(name)
+
+
+@pytest.mark.parametrize("argv", [["evaluate", "--category", "laptop"], ["evaluate-cad"], ["bench", "fit"]])
+def test_report_commands_do_not_default_to_the_committed_results(argv):
+    args = build_parser().parse_args(argv)
+    assert args.out is None and args.update_docs is False
+
+
+def test_report_paths_are_fresh_unless_docs_are_asked_for(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    a = report_path(None, update_docs=False, docs_name="cad_fitting.md", command="evaluate-cad")
+    b = report_path(None, update_docs=False, docs_name="cad_fitting.md", command="evaluate-cad")
+    assert a.parent != b.parent and a.parent.parent == b.parent.parent == RESULTS_ROOT and a.parent.is_dir()
+    assert report_path(None, update_docs=True, docs_name="x.md", command="c") == DOCS_RESULTS / "x.md"
+    assert report_path("mine.md", update_docs=True, docs_name="x.md", command="c").name == "mine.md"
+    assert fresh_output_dir("evaluate-laptop").name.startswith("evaluate-laptop-")
+
+
+@pytest.mark.slow
+def test_evaluate_writes_a_fresh_folder_with_the_version(tmp_path, monkeypatch, capsys):
+    from ancsh import __version__
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["evaluate", "--category", "laptop", "--frames", "1", "--formulations", "per_part", "--no-progress"]) == 0
+    (folder,) = (tmp_path / RESULTS_ROOT).iterdir()
+    assert folder.name.startswith("evaluate-laptop-") and not (tmp_path / "docs").exists()
+    data = json.loads((folder / "laptop.json").read_text())
+    assert data["ancsh_version"] == __version__ and len(data["settings"]["weights_sha256"]) == 64
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["evaluate", "--category", "laptop", "--threads", "0"], "--threads"),
+    (["evaluate", "--category", "laptop", "--time-limit-min", "0"], "--time-limit-min"),
+    (["evaluate", "--category", "laptop", "--frames", "-1"], "--frames"),
+    (["evaluate-cad", "--frames", "-1"], "--frames"),
+    (["demo", "--frame", "-1", "--categories", "laptop"], "--frame"),
+    (["bench", "render", "--width", "4", "--height", "4", "--frames", "1", "--categories", "laptop"], "--width"),
+])
+def test_bad_numbers_name_the_option(argv, option, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert option in err and "Traceback" not in err
+    assert not (tmp_path / RESULTS_ROOT).exists()  # refused before anything was written
+
+
+@pytest.fixture
+def depth_files(tmp_path):
+    K = {"fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 3.0, "width": 8, "height": 6}
+    (tmp_path / "K.json").write_text(json.dumps(K))
+    np.save(tmp_path / "d.npy", np.full((6, 8), 1.0))
+    return tmp_path
+
+
+def test_bad_input_files_are_named(depth_files, capsys):
+    d = depth_files
+    base = ["predict", "--depth", str(d / "d.npy"), "--category", "laptop"]
+    (d / "mask.png").write_text("not an image")
+    assert main(base + ["--intrinsics", str(d / "K.json"), "--mask", str(d / "mask.png")]) == 2
+    assert "mask: " in (err := capsys.readouterr().err) and "mask.png" in err and "Traceback" not in err
+    (d / "K525.json").write_text(json.dumps({"fx": "525", "fy": 8.0, "cx": 4.0, "cy": 3.0, "width": 8, "height": 6}))
+    assert main(base + ["--intrinsics", str(d / "K525.json")]) == 2
+    assert "fx: expected a JSON number" in (err := capsys.readouterr().err) and "K525.json" in err
+    (d / "broken.json").write_text('{"fx": 8.0,')
+    urdf = d / "hinge.urdf"
+    urdf.write_text(
+        "<robot name='h'><link name='a'><visual><geometry><box size='.1 .1 .1'/></geometry></visual></link>"
+        "<joint name='j' type='revolute'><parent link='a'/><child link='b'/><axis xyz='0 0 1'/>"
+        "<limit lower='0' upper='1'/></joint>"
+        "<link name='b'><visual><origin xyz='.1 0 0'/><geometry><box size='.1 .1 .1'/></geometry></visual></link></robot>")
+    assert main(["fit-cad", "--urdf", str(urdf), "--depth", str(d / "d.npy"), "--intrinsics", str(d / "broken.json")]) == 2
+    assert "broken.json" in (err := capsys.readouterr().err) and "not valid JSON" in err
+
+
+def test_an_unwritable_out_is_a_clear_error(depth_files, capsys):
+    d = depth_files
+    (d / "file").write_text("x")
+    code = main(["predict", "--depth", str(d / "d.npy"), "--intrinsics", str(d / "K.json"), "--category", "laptop",
+                 "--no-isolate", "--out", str(d / "file" / "r.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "file" in err and "Traceback" not in err
+
+
+def test_continuous_joints_are_reported_within_a_turn():
+    from ancsh.model.articulated import ArticulatedModel, Joint, JointType, Part
+    from ancsh.solvers.icp.cli import _wrapped_states
+
+    joints = (Joint("wheel", JointType.REVOLUTE, "a", "b", axis=[0, 0, 1], pivot=[0, 0, 0], lower=-np.inf, upper=np.inf),
+              Joint("lid", JointType.REVOLUTE, "a", "c", axis=[0, 0, 1], pivot=[0, 0, 0], lower=0.0, upper=50.0))
+    model = ArticulatedModel((Part("a"), Part("b"), Part("c")), joints, name="m")
+    q = _wrapped_states(model, [np.radians(2687.0), 46.9])
+    assert np.degrees(q[0]) == pytest.approx(2687.0 - 7 * 360.0)  # 167 deg
+    assert q[1] == 46.9  # a limited joint keeps its value
+
+
+def test_a_full_disk_during_generation_says_so_and_keeps_complete_shards(tmp_path, monkeypatch, capsys):
+    import ancsh.data.generate as generate
+
+    calls = []
+
+    def full(path, *args, **kwargs):
+        calls.append(path)
+        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+
+    monkeypatch.setattr(generate, "write_shard", full)
+    code = main(["data", "generate", "--category", "laptop", "--frames", "2", "--shard-size", "1", "--points", "64",
+                 "--width", "160", "--height", "120", "--workers", "1", "--quiet", "--out", str(tmp_path / "ds")])
+    err = capsys.readouterr().err
+    assert code == 1 and calls and "No space left on device" in err and "resume" in err and "Traceback" not in err
+
+
