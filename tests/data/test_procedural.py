@@ -157,7 +157,9 @@ def _side_door_opens_forwards(model):
     np.testing.assert_allclose(np.abs(joint.axis), [0.0, 1.0, 0.0])
     rest = _world_vertices(model, model.rest_states)
     a, b = _bounds(rest[1])
-    assert a[2] >= model.parts[0].vertices[:, 2].max() - 0.1  # at the front
+    base_a, base_b = _bounds(rest[0])
+    assert a[2] + b[2] > base_a[2] + base_b[2]  # in front of the body's centre (a thick door may be inset)
+    assert b[2] >= base_b[2] - (b - a)[2]  # reaching the front face
     assert (b - a)[1] > (b - a)[2]  # upright
     side = np.sign(joint.axis[1])  # -y: hinged on the left (door to its right), +y: on the right
     assert side * (a[0] + b[0]) / 2 < side * joint.pivot[0]
@@ -197,6 +199,12 @@ def test_washing_machine_front_door_hinges_on_its_left_side_and_top_lid_at_its_b
         np.testing.assert_allclose(joint.axis, [0.0, -1.0, 0.0])
         _side_door_opens_forwards(model)
         assert 0.5 < (b - a)[1] / (b - a)[0] < 2.0  # round-ish
+
+
+@pytest.mark.parametrize("category", ["microwave", "safe"])
+def test_side_hinged_doors_stand_in_front_and_open_forwards(objects, category):
+    for model in objects[category]:
+        _side_door_opens_forwards(model)
 
 
 def test_drawers_at_rest_are_closed_inside_the_cabinet(objects):
