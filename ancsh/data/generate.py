@@ -137,6 +137,10 @@ class GenerationConfig:
         d = asdict(self)
         d["intrinsics"] = self.intrinsics.to_json()
         d["noise"] = json.loads(self.noise.to_json())
+        if self.urdf is None:  # procedural shapes depend on the generators' version, not only the seed
+            from .procedural import GENERATOR_VERSION
+
+            d["generator_version"] = GENERATOR_VERSION
         return json.dumps(d, sort_keys=True)
 
 

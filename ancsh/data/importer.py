@@ -57,7 +57,7 @@ from .conventions import (
     UP,
     CategoryConvention,
     _joint_pair,
-    _closed_score,
+    closed_scores,
     _horizontal_angle_to_front_deg,
     _side_ok,
     _with_state,
@@ -311,15 +311,16 @@ def _find_zero(model, k, jc) -> float:
     lo, hi = _limits(model.joints[k])
     if jc.zero == "closed":
         vol0 = box_volume(*_joint_pair(model, k, model.rest_states))
+        qs = np.linspace(lo, hi, _GRID)
+        scores = closed_scores(model, k, qs) / vol0 + 1e-6 * np.abs(qs)  # ties go to the file's 0
+        if not np.all(np.isinf(scores)):
+            i = int(np.argmin(scores))
+            step = (hi - lo) / (_GRID - 1)
+            fine = np.linspace(max(lo, qs[i] - step), min(hi, qs[i] + step), 21)
+            fscores = closed_scores(model, k, fine) / vol0 + 1e-6 * np.abs(fine)
+            return float(fine[int(np.argmin(fscores))]) if np.isfinite(fscores.min()) else float(qs[i])
 
-        def score(q):  # box volume (parts swung into the body excluded); ties go to the file's 0
-            return _closed_score(model, k, q) / vol0 + 1e-6 * abs(q)
-
-        qz, best = _argbest(score, lo, hi)
-        if np.isfinite(best):
-            return qz
-
-        def score(q):  # no state lies in a canonical plane (an odd shape): the smallest box
+        def score(q):  # no state is aligned with the base (an odd shape): the smallest box
             return box_volume(*_joint_pair(model, k, _with_state(model, k, q))) / vol0 + 1e-6 * abs(q)
 
         return _argbest(score, lo, hi)[0]

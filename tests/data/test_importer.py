@@ -213,3 +213,15 @@ def test_ranges_report_puts_real_objects_beside_the_generator(tmp_path, make_ove
     text = ranges_report(Catalog(tuple(assign_splits(objs))), procedural_instances=3, command="test")
     assert "## oven" in text and "| real (2) | procedural (3) |" in text
     assert "door_on | front 100 %" in text  # the synthetic ovens' doors are on the front
+
+
+def test_a_dataset_of_other_generators_is_not_resumed(tmp_path, monkeypatch):
+    import ancsh.data.procedural as procedural
+    from ancsh.data.generate import GenerationConfig, generate_dataset
+
+    cfg = GenerationConfig(category="oven", split="test", shard_size=1)
+    monkeypatch.setattr(procedural, "GENERATOR_VERSION", procedural.GENERATOR_VERSION - 1)
+    generate_dataset(cfg, 1, tmp_path / "ds", workers=1, progress=False)
+    monkeypatch.undo()
+    with pytest.raises(ValueError, match="generator_version"):
+        generate_dataset(cfg, 1, tmp_path / "ds", workers=1, progress=False)

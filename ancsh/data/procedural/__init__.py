@@ -50,6 +50,11 @@ _MODULES = {
 }
 
 #: Every procedural category, the paper's five first.
+#: Version of the generators' shapes: 1 = the first five categories; 2 = issue #11's variants and
+#: microwave / safe. Stored in every dataset's settings, so a dataset made by other generators is
+#: never resumed with these (its seeds would give other shapes).
+GENERATOR_VERSION = 2
+
 CATEGORIES = tuple(_MODULES)
 #: The ANCSH paper's five categories (shipped weights, ``ancsh demo``, published evaluations).
 PAPER_CATEGORIES = tuple(c for c in CATEGORIES if _MODULES[c].INFO.in_paper)
