@@ -62,7 +62,7 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..evaluation import evaluate_fit
     from ..solvers import Observation, fit
-    from .predict import part_quality
+    from .predict import infer, part_quality
     from .provider import LearnedProvider
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 4:
@@ -73,10 +73,11 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
     for i in tqdm(range(int(frames)), desc=f"calibrate {category}", disable=not progress, dynamic_ncols=True):
         frame = gen.frame(i)
         obs = Observation(frame.points)
-        corr = provider.correspond(obs)
+        corr, raw = infer(provider, obs)
         result = fit(obs, corr, "exact_reduced", rng=i)
-        X.append(fit_features(part_quality(result, frame.points, corr, provider.last_prediction), category))
+        X.append(fit_features(part_quality(result, frame.points, corr, raw), category))
         rec = evaluate_fit(result, frame.gt)
+        rec = rec.to_dict() if hasattr(rec, "to_dict") else rec  # a dict, or a dataclass with to_dict()
         rot.append(max((p["rot_deg"] for p in rec["parts"]), default=np.inf) if rec["ok"] else np.inf)
     rot = np.asarray(rot)
     return {"X": np.asarray(X), "good": rot < GOOD_ROTATION_DEG, "rot_deg": rot}

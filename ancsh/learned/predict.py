@@ -325,11 +325,11 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     else:
         obs = Observation(pts)
         t0 = time.perf_counter()
-        corr = provider.correspond(obs)
+        corr, raw = infer(provider, obs)
         t_net = time.perf_counter() - t0
         result = fit(obs, corr, formulation, rng=seed)
         labels = np.asarray(corr.part_labels)
-        quality = part_quality(result, pts, corr, getattr(provider, "last_prediction", None))
+        quality = part_quality(result, pts, corr, raw)
         result = check_plausibility(result, labels, category, quality)
         p_good = _p_good(category, quality) if result.ok else None
         types = tuple(t.value for t in corr.joint_types)
@@ -359,6 +359,19 @@ def _p_good(category: str, quality) -> float | None:
     if not path.is_file():
         return None
     return probability_good(json.loads(path.read_text()), fit_features(quality, category))
+
+
+def infer(provider, observation):
+    """``(correspondences, raw network prediction)`` of a provider for an observation.
+
+    Uses ``provider.infer`` where the provider has it (it returns both), else ``correspond`` and
+    the ``last_prediction`` it keeps (``None`` when it keeps none).
+    """
+    if hasattr(provider, "infer"):
+        inference = provider.infer(observation)
+        return inference.correspondences, inference.prediction
+    corr = provider.correspond(observation)
+    return corr, getattr(provider, "last_prediction", None)
 
 
 def part_quality(result, points_cam, corr, prediction=None) -> tuple:

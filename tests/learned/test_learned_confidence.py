@@ -66,3 +66,15 @@ def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
 def test_calibrate_refuses_too_few_frames(capsys):
     assert main(["calibrate", "--category", "laptop", "--frames", "2"]) == 2
     assert "--frames" in capsys.readouterr().err
+
+
+def test_infer_takes_the_raw_prediction_from_either_provider_interface():
+    from types import SimpleNamespace
+
+    from ancsh.learned.predict import infer
+
+    corr, raw = object(), object()
+    new = SimpleNamespace(infer=lambda obs: SimpleNamespace(correspondences=corr, prediction=raw))
+    old = SimpleNamespace(correspond=lambda obs: corr, last_prediction=raw)
+    bare = SimpleNamespace(correspond=lambda obs: corr)
+    assert infer(new, None) == (corr, raw) and infer(old, None) == (corr, raw) and infer(bare, None) == (corr, None)
