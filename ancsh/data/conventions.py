@@ -430,14 +430,41 @@ CLOSED_ALIGNMENT_FACTOR = 1.25
 _TURN_SAMPLES = 721
 
 
+def _child_vertices_at(model, k, qs) -> np.ndarray:
+    """Hull vertices of joint ``k``'s child at each state ``qs`` (other joints at rest), in the
+    canonically rotated base frame, all states at once; the limits do not apply (a geometry probe).
+
+    Returns
+    -------
+    (Q, V, 3) float64
+        Model units.
+    """
+    qs = np.asarray(qs, dtype=np.float64)
+    poses = model.forward_kinematics(model.rest_states)
+    parent, child = model.joint_parts(k)
+    joint = model.joints[k]
+    v = joint.origin.apply(_hull_vertices(model.parts[child]))  # parent frame at state 0
+    if joint.is_revolute:  # Rodrigues for every state: rotation about the axis through the pivot
+        a = joint.axis
+        K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+        s, c = np.sin(qs)[:, None, None], np.cos(qs)[:, None, None]
+        R = np.eye(3) + s * K + (1.0 - c) * (K @ K)
+        moved = np.einsum("qij,vj->qvi", R, v - joint.pivot) + joint.pivot
+    else:
+        moved = v[None] + qs[:, None, None] * joint.axis
+    T = poses[parent]
+    return (T.scale * np.einsum("ij,qvj->qvi", T.rotation, moved) + T.translation) @ model.R_canon_base.T
+
+
+def _box_volumes(v: np.ndarray) -> np.ndarray:
+    """Axis-aligned box volume of each ``(V, 3)`` set of a ``(Q, V, 3)`` stack."""
+    return np.prod(v.max(axis=1) - v.min(axis=1), axis=1)
+
+
 def _aligned_child_volume(model, k) -> float:
     """The smallest axis-aligned box volume of joint ``k``'s child over a full turn about the
     joint (its limits do not apply: this probes the part's shape, not a reachable state)."""
-    poses = model.forward_kinematics(model.rest_states)
-    parent, child = model.joint_parts(k)
-    joint, v, R = model.joints[k], _hull_vertices(model.parts[child]), model.R_canon_base
-    return min(box_volume((poses[parent] @ joint.T_parent_child(q)).apply(v) @ R.T)
-               for q in np.linspace(-np.pi, np.pi, _TURN_SAMPLES))
+    return float(_box_volumes(_child_vertices_at(model, k, np.linspace(-np.pi, np.pi, _TURN_SAMPLES))).min())
 
 
 def closed_scores(model, k, qs) -> np.ndarray:
@@ -449,13 +476,13 @@ def closed_scores(model, k, qs) -> np.ndarray:
     (len(qs),) float64
         Model units cubed.
     """
-    revolute = model.joints[k].is_revolute
-    ref = _aligned_child_volume(model, k) if revolute else 0.0
-    out = np.empty(len(qs))
-    for i, q in enumerate(qs):
-        base, child = _joint_pair(model, k, _with_state(model, k, q))
-        aligned = not revolute or box_volume(child) <= CLOSED_ALIGNMENT_FACTOR * ref
-        out[i] = box_volume(base, child) if aligned else np.inf
+    child = _child_vertices_at(model, k, qs)
+    base = part_vertices_canonical(model, model.rest_states)[model.base_index]
+    lo = np.minimum(child.min(axis=1), base.min(axis=0))
+    hi = np.maximum(child.max(axis=1), base.max(axis=0))
+    out = np.prod(hi - lo, axis=1)
+    if model.joints[k].is_revolute:
+        out[_box_volumes(child) > CLOSED_ALIGNMENT_FACTOR * _aligned_child_volume(model, k)] = np.inf
     return out
 
 
