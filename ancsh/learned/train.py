@@ -136,12 +136,12 @@ class PoseValidation:
         for i, (obs, gt) in enumerate(self.frames):
             r = fit(obs, provider.correspond(obs), self.formulation, rng=self.seed + i)
             ev = evaluate_fit(r, gt)
-            if not ev["ok"]:
+            if not ev.ok:
                 failures += 1
                 continue
-            rot.append(np.mean([p["rot_deg"] for p in ev["parts"]]))
-            axis.append(np.mean([j["axis_deg"] for j in ev["joints"]]))
-            state.append(np.mean([j["state_err"] for j in ev["joints"]]))
+            rot.append(np.mean([p.rot_deg for p in ev.parts]))
+            axis.append(np.mean([j.axis_deg for j in ev.joints]))
+            state.append(np.mean([j.state_err for j in ev.joints]))
         out = {"pose_failures": float(failures)}
         for name, v in (("pose_rot_deg", rot), ("pose_axis_deg", axis), ("pose_state_err", state)):
             out[name] = float(np.mean(v)) if v else float("nan")
