@@ -296,7 +296,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from .evaluate import METHODS, evaluate_category, write_report
+    from .evaluate import METHODS, evaluate_category, summarize, write_report
 
     from ..outputs import DOCS_RESULTS, fresh_output_dir
 
@@ -315,7 +315,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         num_threads=args.threads, progress=not args.no_progress,
     )
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
-    paths = write_report(ev, out, command=_rebuild(args))
+    paths = write_report(ev, summarize(ev), out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
     if args.real:
         from .evaluate import write_real_report
