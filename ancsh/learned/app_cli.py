@@ -141,13 +141,14 @@ def run_weights(args: argparse.Namespace) -> int:
             "Held-out scores are those stored in each weights file at export (the test split's instances, never "
             "seen in training), beside trivial baselines in parentheses. NPCS error: mean distance in NPCS units "
             "(unit part diagonal). Joint-axis error: the network's per-point axis votes in NAOCS (direct voting: "
-            "in the camera frame). Training on one thread of a shared 2-core CPU; steps of batch 16, 1024 points. "
+            f"in the camera frame). {training_settings(rows)} Training times are the wall times recorded in each "
+            "run's history on the machine that trained it, not measured here. "
             "Each file's config, history (CSV), curves (PNG) and test metrics ship beside it in `ancsh/weights/`.",
             "", *lines, "",
             "## Learning curves: what more training time would buy", "",
             "A power law `err = a·t^b` fitted (least squares in log-log) to the validation NPCS error of the "
             "second half of each run's history (`ancsh.learned.weights.learning_curve_fit`), and the training "
-            "time it projects for a 2x and a 5x lower error at the same settings, on one thread. 'last' is the "
+            "time it projects for a 2x and a 5x lower error at the same settings and on the same machine. 'last' is the "
             "fit at the end of the run. Extrapolating this far is an order-of-magnitude guide only (curves "
             "usually flatten, so the projections are optimistic). The NPCS error is only a proxy for the pose: "
             "the fitted part rotations follow the network's NPCS *orientation* error (see *Where the rotation "
@@ -159,6 +160,19 @@ def run_weights(args: argparse.Namespace) -> int:
         args.out.write_text("\n".join(text))
         print(f"wrote {args.out}")
     return 0
+
+
+def training_settings(rows: list[dict]) -> str:
+    """The training settings stored in the weights files (:func:`~ancsh.learned.weights.weights_summary` rows),
+    as a sentence: one clause per distinct setting, naming its files when they differ."""
+    groups: dict[tuple, list[str]] = {}
+    for r in rows:
+        groups.setdefault((r["num_threads"], r["batch_size"], r["num_points"]), []).append(f"`{r['name']}.pt`")
+    clauses = [f"{t} torch thread(s), steps of batch {b}, {p} points" for t, b, p in groups]
+    if len(groups) <= 1:
+        return f"Trained (each file's config) with {clauses[0]}." if groups else ""
+    return "Trained (each file's config) with " + "; ".join(
+        f"{c} ({', '.join(names)})" for c, names in zip(clauses, groups.values())) + "."
 
 
 def _command(argv_tail: list[str]) -> str:
@@ -296,7 +310,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from .evaluate import METHODS, evaluate_category, write_report
+    from .evaluate import METHODS, evaluate_category, summarize, write_report
 
     from ..outputs import DOCS_RESULTS, fresh_output_dir
 
@@ -315,7 +329,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         num_threads=args.threads, progress=not args.no_progress,
     )
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
-    paths = write_report(ev, out, command=_rebuild(args))
+    paths = write_report(ev, summarize(ev), out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
     if args.real:
         from .evaluate import write_real_report

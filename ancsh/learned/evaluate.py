@@ -56,6 +56,8 @@ __all__ = [
     "per_point_naocs",
     "shipped_categories",
     "summarize",
+    "write_json",
+    "write_real_report",
     "write_report",
 ]
 
@@ -671,6 +673,38 @@ def json_safe(x):
     return x
 
 
+def _json_text(value, pad: str, one_line_entries: bool) -> str:
+    """JSON of ``value`` at indentation ``pad``: containers one item a line (``indent=1``), or, where
+    ``one_line_entries``, a mapping whose entries each fit on one line."""
+    if not isinstance(value, (dict, list)) or not value:
+        return json.dumps(value, allow_nan=False)
+    inner = pad + " "
+    if isinstance(value, list):
+        items = [inner + _json_text(v, inner, False) for v in value]
+        return "[\n" + ",\n".join(items) + "\n" + pad + "]"
+    key = lambda k: json.dumps(k if isinstance(k, str) else json.dumps(k))  # noqa: E731  (JSON's key rule)
+    if one_line_entries:
+        items = [f"{inner}{key(k)}: {json.dumps(v, allow_nan=False)}" for k, v in value.items()]
+    else:
+        items = [f"{inner}{key(k)}: {_json_text(v, inner, False)}" for k, v in value.items()]
+    return "{\n" + ",\n".join(items) + "\n" + pad + "}"
+
+
+def write_json(path, data: dict, *, one_line: tuple = ()) -> Path:
+    """Write ``data`` (made :func:`json_safe`) as JSON indented by one space a level, except the mappings
+    under the top-level keys ``one_line``: each of their entries on one line (per-frame arrays, so
+    the file stays small). ``json.loads`` of the file equals ``json_safe(data)``."""
+    data = json_safe(data)
+    unknown = [k for k in one_line if not isinstance(data.get(k), dict)]
+    if unknown:
+        raise ValueError(f"one_line: {unknown} are not mapping entries of data")
+    inner = " "
+    items = [f"{inner}{json.dumps(k)}: {_json_text(v, inner, k in one_line)}" for k, v in data.items()]
+    path = Path(path)
+    path.write_text("{\n" + ",\n".join(items) + "\n}\n")
+    return path
+
+
 def split_comparison(procedural: dict, real: dict) -> list[str]:
     """Markdown: the real test split's Table 1 means beside the procedural split's, per part and
     method, with their ratio (the real-CAD issue's goal: real <= 1.25x procedural, per part)."""
@@ -747,14 +781,23 @@ def write_real_report(procedural: dict, real: dict, out_dir, *, command: str) ->
     return path
 
 
-def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
+def write_report(evaluation: dict, summary: dict, out_dir, *, command: str) -> dict:
     """Write ``<category>.md``, ``<category>.json`` and ``<category>_occlusion.png`` to ``out_dir``.
 
-    Returns ``{"md", "json", "png"}`` paths.
+    Parameters
+    ----------
+    evaluation : dict
+        :func:`evaluate_category` output (settings and the per-frame records, for ``per_frame``).
+    summary : dict
+        ``summarize(evaluation)``: the report writes it and computes no statistic itself.
+    out_dir : path
+    command : str
+        The command line that produced ``evaluation`` (quoted in the report).
+
+    Returns ``{"md", "json", "png"}`` paths. The JSON schema is in ``docs/REPORT_SCHEMAS.md``.
     """
     category = evaluation["category"]
     s = dict(evaluation["settings"], category=category)
-    summary = summarize(evaluation)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"md": out / f"{category}.md", "json": out / f"{category}.json", "png": out / f"{category}_occlusion.png"}
@@ -866,10 +909,7 @@ def write_report(evaluation: dict, out_dir, *, command: str) -> dict:
 
     data = {
         "category": category, "command": command, "date": date, "ancsh_version": __version__, "settings": s, "summary": summary,
-        "paper": {"table1": paper1, "table2": paper2},
+        "paper": {"table1": paper1, "table2": paper2}, "per_frame": _per_frame(evaluation),
     }
-    # Readable summary; the per-frame arrays one line per entry to keep the file small.
-    head = json.dumps(json_safe(data), indent=1)[:-2]
-    frames = ",\n".join(f"  {json.dumps(k)}: {json.dumps(json_safe(v))}" for k, v in _per_frame(evaluation).items())
-    paths["json"].write_text(f'{head},\n "per_frame": {{\n{frames}\n }}\n}}\n')
+    write_json(paths["json"], data, one_line=("per_frame",))
     return paths

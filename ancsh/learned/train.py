@@ -24,7 +24,10 @@ import functools
 import math
 import os
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
+from typing import Mapping, Sequence
 
 import numpy as np
 import torch
@@ -35,8 +38,8 @@ from .losses import LOSS_NAMES, ancsh_loss, direct_voting_loss
 from .network import build_network
 from .pointnet2 import Neighbourhoods
 
-__all__ = ["Trainer", "split_by_instance", "evaluate_arrays", "trivial_baselines", "loss_function", "neighbourhood_cache",
-           "PoseValidation"]
+__all__ = ["Trainer", "HistoryRow", "split_by_instance", "evaluate_arrays", "trivial_baselines", "loss_function",
+           "neighbourhood_cache", "PoseValidation", "write_history_csv", "plot_history"]
 
 
 def loss_function(config: TrainConfig):
@@ -136,12 +139,12 @@ class PoseValidation:
         for i, (obs, gt) in enumerate(self.frames):
             r = fit(obs, provider.correspond(obs), self.formulation, rng=self.seed + i)
             ev = evaluate_fit(r, gt)
-            if not ev["ok"]:
+            if not ev.ok:
                 failures += 1
                 continue
-            rot.append(np.mean([p["rot_deg"] for p in ev["parts"]]))
-            axis.append(np.mean([j["axis_deg"] for j in ev["joints"]]))
-            state.append(np.mean([j["state_err"] for j in ev["joints"]]))
+            rot.append(np.mean([p.rot_deg for p in ev.parts]))
+            axis.append(np.mean([j.axis_deg for j in ev.joints]))
+            state.append(np.mean([j.state_err for j in ev.joints]))
         out = {"pose_failures": float(failures)}
         for name, v in (("pose_rot_deg", rot), ("pose_axis_deg", axis), ("pose_state_err", state)):
             out[name] = float(np.mean(v)) if v else float("nan")
@@ -230,6 +233,63 @@ def trivial_baselines(arrays: TrainingArrays) -> dict[str, float]:
             cos = np.clip(axes @ (mean / np.linalg.norm(mean)), -1.0, 1.0)
             out["axis_err_deg_mean_axis"] = float(np.degrees(np.arccos(cos)).mean())
     return out
+
+
+@dataclass(frozen=True)
+class HistoryRow:
+    """One row of a training history: measured by :meth:`Trainer.measure`, written by :meth:`Trainer.record`.
+
+    Attributes
+    ----------
+    step : int
+        Optimisation steps done.
+    elapsed_s : float
+        Training wall time so far, seconds (rounded to 0.1 s).
+    lr : float
+        Learning rate of the last step.
+    train : mapping of str to float
+        Mean training loss components since the previous row (``total`` and :data:`LOSS_NAMES`).
+    val : mapping of str to float
+        :func:`evaluate_arrays` on the validation frames; empty without validation frames.
+    pose : mapping of str to float
+        :meth:`PoseValidation.evaluate` (``pose_score``, ...); empty when it did not run for this row.
+    """
+
+    step: int
+    elapsed_s: float
+    lr: float
+    train: Mapping[str, float] = field(default_factory=dict)
+    val: Mapping[str, float] = field(default_factory=dict)
+    pose: Mapping[str, float] = field(default_factory=dict)
+
+    def __post_init__(self):
+        for name in ("train", "val", "pose"):
+            object.__setattr__(self, name, MappingProxyType(dict(getattr(self, name))))
+
+    def to_dict(self) -> dict:
+        """The flat row of ``history.csv``: ``step, elapsed_s, lr, train_<k>..., val_<k>...`` and the pose keys
+        as :meth:`PoseValidation.evaluate` names them (``pose_...``)."""
+        return {"step": self.step, "elapsed_s": self.elapsed_s, "lr": self.lr,
+                **{f"train_{k}": v for k, v in self.train.items()},
+                **{f"val_{k}": v for k, v in self.val.items()},
+                **self.pose}
+
+    def selection_score(self, *, pose: bool) -> float | None:
+        """The number ``best.pt`` minimises: ``pose_score`` when ``pose`` (the run has a pose validation),
+        else the validation loss; ``None`` when this row has not measured it."""
+        return self.pose.get("pose_score") if pose else self.val.get("total")
+
+
+def write_history_csv(history: Sequence[Mapping], path) -> None:
+    """Write history rows (dicts, :meth:`HistoryRow.to_dict`) as CSV; the columns are the union of the rows'
+    keys in order of first appearance, empty where a row lacks one."""
+    keys: list[str] = []
+    for row in history:
+        keys += [k for k in row if k not in keys]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        w.writerows(history)
 
 
 class Trainer:
@@ -378,41 +438,50 @@ class Trainer:
                              joint_children=a.joint_children, num_parts=a.num_parts, metrics={}, source="training",
                              step=self.step)
 
-    def record(self, *, pose: bool = False) -> dict:
-        """Validate, append a history row (mean training losses since the last row), write CSV/PNG.
+    def measure(self, *, pose: bool = False) -> HistoryRow:
+        """Measure one history row: the mean training losses since the last row (and reset them), the
+        validation metrics, and the pose validation when ``pose`` or at multiples of ``config.pose_val_every``.
 
-        The pose validation runs when ``pose`` or at multiples of ``config.pose_val_every``; ``best.pt``
-        follows its ``pose_score`` when there is a pose validation, else the validation loss.
+        Writes nothing; :meth:`record` appends the row and writes the run directory.
         """
-        row: dict = {"step": self.step, "elapsed_s": round(self.elapsed_s, 1), "lr": self.learning_rate(max(self.step - 1, 0))}
         n = max(self._acc_n, 1)
-        row.update({f"train_{k}": v / n for k, v in self._acc.items()})
+        train = {k: v / n for k, v in self._acc.items()}
         self._acc, self._acc_n = {}, 0
-        if self.val_arrays is not None:
-            row.update({f"val_{k}": v for k, v in evaluate_arrays(self.model, self.val_arrays, self.config).items()})
-        every = self.config.pose_val_every
-        if self.pose_val is not None and every and (pose or self.step % every == 0):
+        val = {} if self.val_arrays is None else evaluate_arrays(self.model, self.val_arrays, self.config)
+        scores = {}
+        if self._pose_selects and (pose or self.step % self.config.pose_val_every == 0):
             try:
-                row.update(self.pose_val.evaluate(self.pose_network()))
+                scores = self.pose_val.evaluate(self.pose_network())
             finally:
                 self.model.train()
-        self.history.append(row)
+        return HistoryRow(step=self.step, elapsed_s=round(self.elapsed_s, 1), lr=self.learning_rate(max(self.step - 1, 0)),
+                          train=train, val=val, pose=scores)
+
+    @property
+    def _pose_selects(self) -> bool:
+        """Whether the pose validation runs (and so selects ``best.pt``) in this run."""
+        return self.pose_val is not None and bool(self.config.pose_val_every)
+
+    def record(self, *, pose: bool = False) -> dict:
+        """Measure a row (:meth:`measure`), append it to the history and, with a run directory, write
+        ``history.csv``/``curves.png`` and save ``best.pt`` when the row improves on the best.
+
+        ``best.pt`` follows the row's ``pose_score`` when there is a pose validation, else the
+        validation loss. Returns the row as written (:meth:`HistoryRow.to_dict`).
+        """
+        row = self.measure(pose=pose)
+        self.history.append(row.to_dict())
         if self.out_dir is not None:
             self.write_history()
-            val = row.get("pose_score") if self.pose_val is not None and every else row.get("val_total")
-            if val is not None and val < self.best_val:
-                self.best_val = val
+            score = row.selection_score(pose=self._pose_selects)
+            if score is not None and score < self.best_val:
+                self.best_val = score
                 self.save_checkpoint(self.out_dir / "best.pt")
-        return row
+        return self.history[-1]
 
     def write_history(self) -> None:
-        keys: list[str] = []
-        for row in self.history:
-            keys += [k for k in row if k not in keys]
-        with open(self.out_dir / "history.csv", "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=keys)
-            w.writeheader()
-            w.writerows(self.history)
+        """Write ``history.csv`` and ``curves.png`` of the run directory from the whole history."""
+        write_history_csv(self.history, self.out_dir / "history.csv")
         plot_history(self.history, self.out_dir / "curves.png", title=f"{self.config.category} ({self.config.kind})")
 
     # --- checkpoints --------------------------------------------------------------------

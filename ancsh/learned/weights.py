@@ -286,6 +286,7 @@ def weights_summary() -> list[dict]:
     the weights (``nan`` without it); the scores are those stored in the file (held-out test frames,
     beside the trivial baselines: majority label, all-zero NPCS, mean axis). ``curve`` is
     :func:`learning_curve_fit` of the history's validation NPCS error (``None`` without one).
+    ``num_threads``, ``batch_size`` and ``num_points`` are the training settings stored in the file's config.
     """
     import csv
 
@@ -309,6 +310,8 @@ def weights_summary() -> list[dict]:
             "name": name, "kind": net.kind, "category": net.config.category, "parts": net.num_parts,
             "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": net.step,
             "trained_steps": steps, "train_min": minutes, "test_frames": m.get("test_frames"), "curve": curve,
+            "num_threads": net.config.num_threads, "batch_size": net.config.batch_size,
+            "num_points": net.config.num_points,
             **{k: m.get(k, float("nan")) for k in (
                 "seg_acc", "seg_acc_majority", "npcs_err", "npcs_err_zero", "assoc_acc", "axis_err_deg")},
         })

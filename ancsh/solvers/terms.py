@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from ..geometry._checks import as_array, check_number
 from ..geometry.transforms import Sim3
 from ..model.articulated import JointType, joint_tree_order, joint_tree_root
 
@@ -48,9 +49,11 @@ __all__ = [
     "KinematicStructure",
     "PartMoments",
     "PointToPlaneTerm",
+    "PreviousSolution",
     "ProgramInputs",
     "ProgramStart",
     "SoftJointTerm",
+    "TemporalPriorTerm",
     "TermWeights",
     "exp_so3_sx",
     "joint_state_expr",
@@ -235,6 +238,33 @@ class TermWeights:
 
 
 @dataclass(frozen=True)
+class PreviousSolution:
+    """A previous frame's solution, which :class:`TemporalPriorTerm` pulls a solve toward (tracking).
+
+    Attributes
+    ----------
+    T_cam_naocs : Sim3
+        Object pose, NAOCS -> camera of the root part, scale in metres per NAOCS unit
+        (:attr:`~ancsh.solvers.program.Solution.T_cam_naocs` of the previous solve).
+    joint_states : (K,) float64
+        Joint states relative to rest (radians / metres; revolute ones within the window of
+        :func:`joint_state_expr`).
+    weight : float
+        Non-negative weight of the prior.
+    """
+
+    T_cam_naocs: Sim3
+    joint_states: np.ndarray
+    weight: float
+
+    def __post_init__(self):
+        if not isinstance(self.T_cam_naocs, Sim3):
+            raise ValueError(f"T_cam_naocs: expected a Sim3, got {type(self.T_cam_naocs).__name__}")
+        object.__setattr__(self, "joint_states", as_array(self.joint_states, "joint_states", (None,)))
+        object.__setattr__(self, "weight", check_number(self.weight, "weight", minimum=0.0))
+
+
+@dataclass(frozen=True)
 class ProgramInputs:
     """Everything a program's parameters are filled from, for one solve.
 
@@ -248,6 +278,8 @@ class ProgramInputs:
         One per part (data terms).
     weights : TermWeights, optional
         (weighted terms).
+    previous : PreviousSolution, optional
+        (:class:`TemporalPriorTerm`).
     """
 
     scale: float
@@ -255,6 +287,7 @@ class ProgramInputs:
     start: ProgramStart = field(default_factory=ProgramStart)
     moments: tuple | None = None
     weights: TermWeights | None = None
+    previous: PreviousSolution | None = None
 
     def require(self, what: str, term: str):
         """``getattr(self, what)``, or a ``ValueError`` naming the term that needs it."""
@@ -735,6 +768,38 @@ class CanonicalPriorTerm(EnergyTerm):
 
     def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
         return {"naocs_prior_weight": inputs.require("weights", self.name).naocs_prior_weight}
+
+
+@register_term
+class TemporalPriorTerm(EnergyTerm):
+    """Zero-velocity prior toward a previous solution (tracking): ``sqrt(w) [vec(R - R'); (o - o') / L;
+    (sigma - sigma') / L; dtheta_k]``.
+
+    ``R``, ``o``, ``sigma``: the object pose seen through the root part (rotation, NAOCS origin in
+    the camera, metres per NAOCS unit); primes: the :class:`PreviousSolution`. ``dtheta_k`` is the
+    change of joint state ``k`` (:func:`joint_state_expr`): radians, or divided by ``L`` (prismatic).
+    Defined on the part poses, so it serves both parameterisations.
+    """
+
+    name = "temporal_prior"
+
+    def expression(self, ctx: Context) -> ca.SX:
+        st, r = ctx.structure, ctx.structure.root
+        out = [ca.vec(ctx.poses[r].R - ctx.params.get("prev_R", 3, 3)),
+               (ctx.naocs_to_cam(r, ca.DM.zeros(3)) - ctx.params.get("prev_origin", 3)) / ctx.L,
+               (ctx.object_scale(r) - ctx.params.get("prev_scale")) / ctx.L]
+        for k in range(st.num_joints):
+            d = joint_state_expr(ctx, k) - ctx.params.get(f"prev_state{k}")
+            out.append(d if st.is_revolute(k) else d / ctx.L)
+        return ca.sqrt(ctx.params.get("temporal_weight")) * ca.vertcat(*out)
+
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        prev = inputs.require("previous", self.name)
+        if len(prev.joint_states) != structure.num_joints:
+            raise ValueError(f"inputs.previous.joint_states: expected {structure.num_joints} states, got {len(prev.joint_states)}")
+        T = prev.T_cam_naocs
+        return {"temporal_weight": prev.weight, "prev_R": T.rotation, "prev_origin": T.translation, "prev_scale": T.scale,
+                **{f"prev_state{k}": q for k, q in enumerate(prev.joint_states)}}
 
 
 @register_term

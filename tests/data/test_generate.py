@@ -187,12 +187,23 @@ def test_cli_error_paths(tmp_path, capsys):
     assert issubclass(CorruptShardError, ValueError)
 
 
-def test_bench_render_prints_rates(capsys):
-    assert main(["bench", "render", "--frames", "2", "--categories", "laptop", "--width", "160", "--height", "120"]) == 0
+def test_bench_render_prints_rates(capsys, tmp_path):
+    assert main(["bench", "render", "--frames", "2", "--categories", "laptop", "--width", "160", "--height", "120",
+                 "--out", str(tmp_path / "r.md")]) == 0
     out = capsys.readouterr().out
     assert "laptop" in out and "fr/s" in out
+    text = (tmp_path / "r.md").read_text()
+    assert "Measured on" in text and "not checked (this run measured 160x120 frames)" in text and "2-core" not in text
     assert main(["bench", "render", "--frames", "1", "--categories", "toaster"]) == 2
     assert "toaster" in capsys.readouterr().err
+
+
+def test_render_target_verdict_states_what_was_measured():
+    from ancsh.data.cli import render_target_verdict
+
+    assert render_target_verdict({"laptop": 60.0, "oven": 40.0}, 640, 480).endswith("met here by 1 of 2 categories (laptop).")
+    assert render_target_verdict({"laptop": 60.0}, 640, 480).endswith("met here by 1 of 1 categories.")
+    assert render_target_verdict({"laptop": 10.0}, 640, 480).endswith("met here by 0 of 1 categories.")
 
 
 def test_every_field_documented():

@@ -108,6 +108,23 @@ def test_summary_means_medians_failures_and_occlusion_bins():
     assert occ["counts"][b2] == 2 and occ["per_part"]["rot_deg"][b2] == pytest.approx(5.0)  # failure left out
 
 
+def test_report_json_reads_back_with_one_line_per_frame_entry(tmp_path):
+    """Scenario: a report dict with NaN, numpy numbers and per-frame arrays: the file reads back with
+    json.loads (NaN as null), nested settings one item a line, each per-frame entry on one line."""
+    data = {"category": "x", "settings": {"frames": np.int64(2), "names": ["a", "b"], "empty": {}},
+            "summary": {"rot_deg": {"mean": [1.5, float("nan")]}},
+            "per_frame": {"instance": ["i0", "i1"], "per_part": {"rot_deg": [[1.0, 2.0], None]}}}
+    path = ev.write_json(tmp_path / "r.json", data, one_line=("per_frame",))
+    text = path.read_text()
+    back = json.loads(text)
+    assert back == ev.json_safe(data) and list(back) == ["category", "settings", "summary", "per_frame"]
+    assert back["summary"]["rot_deg"]["mean"] == [1.5, None] and back["settings"]["frames"] == 2
+    assert text == json.dumps(ev.json_safe({k: v for k, v in data.items() if k != "per_frame"}), indent=1)[:-2] + (
+        ',\n "per_frame": {\n  "instance": ["i0", "i1"],\n  "per_part": {"rot_deg": [[1.0, 2.0], null]}\n }\n}\n')
+    with pytest.raises(ValueError, match="one_line"):
+        ev.write_json(tmp_path / "bad.json", data, one_line=("category",))
+
+
 def test_quick_evaluation_writes_the_report(tmp_path):
     code = main(["evaluate", "--category", "laptop", "--quick", "--frames", "2", "--out", str(tmp_path), "--no-progress"])
     assert code == 0
@@ -121,6 +138,8 @@ def test_quick_evaluation_writes_the_report(tmp_path):
         assert len(row["rot_deg"]["mean"]) == 2 and len(row["state_err"]["mean"]) == 1
     assert data["summary"]["methods"]["naocs"]["iou"]["mean"] == [None, None]  # no boxes for NAOCS
     assert data["paper"]["table1"]["ANCSH"]["rot_deg"] == [6.7, 4.3]
+    assert list(data) == ["category", "command", "date", "ancsh_version", "settings", "summary", "paper", "per_frame"]
+    assert set(data["per_frame"]) == {"instance", "visibility", *ev.METHODS} and len(data["per_frame"]["instance"]) == 2
     assert (tmp_path / "laptop_occlusion.png").stat().st_size > 0
 
 

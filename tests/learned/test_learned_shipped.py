@@ -113,6 +113,7 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     assert main(["weights", "--out", str(out)]) == 0
     text, printed = out.read_text(), capsys.readouterr().out
     assert "ancsh weights --out" in text
+    assert "2-core" not in text and "torch thread(s), steps of batch" in text  # the files' settings, not a machine
     for name in available_weights():
         assert f"`{name}.pt`" in text and f"`{name}.pt`" in printed
     table, curves = text.split("## Learning curves")
@@ -120,6 +121,17 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     assert len(rows) == len(available_weights())
     curve_rows = [line for line in curves.splitlines() if line.startswith("| `")]
     assert len(curve_rows) == len(shipped_categories())  # every ANCSH network has a validation NPCS curve
+
+
+def test_training_settings_sentence_comes_from_the_files_configs():
+    from ancsh.learned.app_cli import training_settings
+
+    row = lambda name, threads: {"name": name, "num_threads": threads, "batch_size": 16, "num_points": 1024}  # noqa: E731
+    assert training_settings([row("a", 1), row("b", 1)]) == \
+        "Trained (each file's config) with 1 torch thread(s), steps of batch 16, 1024 points."
+    text = training_settings([row("a", 1), row("b", 2), row("c", 1)])
+    assert "1 torch thread(s), steps of batch 16, 1024 points (`a.pt`, `c.pt`)" in text and "2 torch thread(s)" in text
+    assert training_settings([]) == ""
 
 
 def test_learning_curve_fit_recovers_a_power_law_and_its_projections():

@@ -8,7 +8,7 @@ import pytest
 
 from ancsh.learned.config import TrainConfig
 from ancsh.learned.data import TrainingArrays
-from ancsh.learned.train import Trainer, split_by_instance, trivial_baselines
+from ancsh.learned.train import HistoryRow, Trainer, split_by_instance, trivial_baselines, write_history_csv
 
 
 def test_config_validates_and_round_trips(tmp_path):
@@ -75,6 +75,26 @@ def test_tiny_model_overfits_a_handful_of_frames(tiny_arrays, tiny_config):
     assert np.mean(losses[-5:]) < losses[0] / 10
     row = trainer.record()
     assert row["step"] == tiny_config.max_steps
+
+
+def test_history_row_is_measured_apart_from_writing(tmp_path, tiny_arrays, tiny_config):
+    """Scenario: measuring a row writes nothing and resets the running losses; the row's flat form is the
+    CSV row (train_/val_ prefixes, pose keys as they are) and the CSV takes the union of the rows' columns."""
+    trainer = Trainer(dataclasses.replace(tiny_config, max_steps=2), tiny_arrays, tiny_arrays, tmp_path / "run", progress=False)
+    trainer.train_step()
+    row = trainer.measure()
+    assert isinstance(row, HistoryRow) and row.step == 1 and set(row.train) >= {"total"} and "total" in row.val
+    assert trainer.history == [] and not (tmp_path / "run" / "history.csv").exists() and trainer._acc_n == 0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        row.step = 2
+    with pytest.raises(TypeError):
+        row.val["total"] = 0.0
+    flat = HistoryRow(step=3, elapsed_s=1.5, lr=0.1, train={"total": 2.0}, val={"total": 1.0}, pose={"pose_score": 4.0}).to_dict()
+    assert flat == {"step": 3, "elapsed_s": 1.5, "lr": 0.1, "train_total": 2.0, "val_total": 1.0, "pose_score": 4.0}
+    assert HistoryRow(step=3, elapsed_s=0.0, lr=0.1, val={"total": 1.0}).selection_score(pose=False) == 1.0
+    assert HistoryRow(step=3, elapsed_s=0.0, lr=0.1, val={"total": 1.0}).selection_score(pose=True) is None
+    write_history_csv([{"step": 1, "a": 1.0}, {"step": 2, "b": 2.0}], tmp_path / "h.csv")
+    assert (tmp_path / "h.csv").read_text().splitlines() == ["step,a,b", "1,1.0,", "2,,2.0"]
 
 
 def test_checkpoint_round_trip_and_resume_repeat_the_same_steps(tmp_path, tiny_arrays, tiny_config):

@@ -102,3 +102,63 @@ def test_term_registry_rejects_duplicates():
         register_term(type("Again", (DataTerm,), {"name": "data"}))
     with pytest.raises(ValueError, match="unknown term"):
         Program(ProgramKey(STRUCTURE, "maximal", False, ("no_such_term",)))
+
+
+def _two_part_frame(rng, theta: float, T_cam_naocs: Sim3):
+    """Noise-free points of a two-part revolute object (NPCS = NAOCS, pivot off the origin) at ``theta``."""
+    from ancsh.geometry.rotations import axis_angle_matrix
+
+    u, q = np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.1, 0.0])
+    c = [rng.uniform(-0.5, 0.5, size=(60, 3)) for _ in range(2)]
+    g1 = c[1] @ axis_angle_matrix(u, theta).T + q - axis_angle_matrix(u, theta) @ q
+    points = [T_cam_naocs.apply(c[0]), T_cam_naocs.apply(g1)]
+    canonical = CanonicalParameters(np.ones(2), np.zeros((2, 3)), u[None], q[None], np.zeros(1))
+    return c, points, canonical
+
+
+@pytest.mark.parametrize("weight", [0.0, 1e-3, 1e4])
+def test_temporal_prior_pulls_the_reduced_solution_toward_the_previous_one(weight):
+    """Scenario: noise-free points of a two-part revolute object at state 0.6 and a previous solution at
+    state 0.2 with another pose: weight 0 recovers the truth (~1e-8), a small weight lands between the two,
+    a large one on the previous solution."""
+    from ancsh.solvers.backends import Bounds, SolverOptions, solve
+    from ancsh.solvers.terms import PreviousSolution, TemporalPriorTerm
+
+    rng = np.random.default_rng(5)
+    truth = Sim3(random_rotation(rng), np.array([0.1, -0.2, 1.5]), 0.4)
+    c, points, canonical = _two_part_frame(rng, 0.6, truth)
+    L = truth.scale
+    previous = PreviousSolution(Sim3(truth.rotation @ exp_so3(np.array([0.0, 0.1, 0.0])), truth.translation + 0.02, 0.42),
+                                np.array([0.2]), weight)
+    st = KinematicStructure(2, ("revolute",), (0,), (1,))
+    prog = Program(ProgramKey(st, "reduced", True, (DataTerm, TemporalPriorTerm)))
+    moments = tuple(part_moments(pts, cj, np.ones(len(cj)), L) for pts, cj in zip(points, c))
+    p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_naocs=previous.T_cam_naocs), moments, previous=previous))
+    out = solve("lsq", prog, p, prog.initial_x(previous.joint_states), Bounds.of(prog), SolverOptions(max_iterations=200))
+    sol = prog.unpack(out.x, p)
+    state, T = float(sol.joint_states[0]), sol.T_cam_naocs
+    if weight == 0.0:
+        assert state == pytest.approx(0.6, abs=1e-8)
+        np.testing.assert_allclose(T.translation, truth.translation, atol=1e-8)
+    elif weight < 1:
+        assert 0.2 < state < 0.6 - 1e-4
+        assert np.linalg.norm(T.translation - truth.translation) > 1e-6
+    else:
+        assert state == pytest.approx(0.2, abs=1e-3)
+        np.testing.assert_allclose(T.translation, previous.T_cam_naocs.translation, atol=1e-3 * L)
+        assert T.scale == pytest.approx(previous.T_cam_naocs.scale, abs=1e-3 * L)
+
+
+def test_temporal_prior_names_what_it_lacks():
+    from ancsh.solvers.terms import PreviousSolution, TemporalPriorTerm
+
+    st = KinematicStructure(2, ("revolute",), (0,), (1,))
+    prog = Program(ProgramKey(st, "reduced", True, (TemporalPriorTerm,)))
+    canonical = CanonicalParameters(np.ones(2), np.zeros((2, 3)), np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3)), np.zeros(1))
+    start = ProgramStart(T_cam_naocs=Sim3.identity())
+    with pytest.raises(ValueError, match="inputs.previous: required by the 'temporal_prior' term"):
+        prog.pack(ProgramInputs(1.0, canonical, start))
+    with pytest.raises(ValueError, match="joint_states: expected 1 states"):
+        prog.pack(ProgramInputs(1.0, canonical, start, previous=PreviousSolution(Sim3.identity(), np.zeros(2), 1.0)))
+    with pytest.raises(ValueError, match="weight"):
+        PreviousSolution(Sim3.identity(), np.zeros(1), -1.0)
