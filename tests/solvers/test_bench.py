@@ -26,6 +26,9 @@ def test_quick_path_writes_markdown_and_json(tmp_path, capsys):
     text = out.read_text()
     assert "ancsh bench fit --quick --json --frames 1 --categories laptop --methods official" in text
     assert "| laptop | official | 100% |" in text
+    # the translation section (issue 13 item 7): what the metric measures, with a scale column
+    assert "## Translation error and the scale" in text and "docs/results/fit_translation.md" in text
+    assert "| method | trans | scale error | rot (deg) |" in text
     payload = json.loads(out.with_suffix(".json").read_text())
     assert payload["config"]["levels"] == ["none", "realistic"]
     assert {r["level"] for r in payload["summary"]} == {"none", "realistic"}
