@@ -25,7 +25,10 @@ Geometric rules (``JointConvention.zero``)
 ``"closed"``
     State 0 is where the moving part is shut against the base: a door or drawer flush with the
     front, a laptop display lying on the keyboard. Measured as the state, within the limits,
-    that minimises the volume of the canonical axis-aligned box around the base and the part.
+    that minimises the volume of the canonical axis-aligned box around the base and the part,
+    among the states where a revolute part is aligned with the canonical axes
+    (:data:`CLOSED_ALIGNMENT_FACTOR`: a door swung into the body, which some files' limits
+    allow, makes a smaller box but is not closed).
 ``"perpendicular"``
     State 0 is where the part's long axis is perpendicular to the base's front face (an
     eyeglasses temple opened at right angles), on the convention's ``side``.

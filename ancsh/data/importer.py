@@ -17,7 +17,8 @@ Rules (each measured on the geometry, see :mod:`ancsh.data.conventions`)
    is one of the convention's ``semantics``; those joints are restored when the file froze them
    (GenSim2's copies keep one movable joint), every other movable joint is frozen (knobs,
    buttons, trays). Without it, the file's movable joints. The count must match the convention.
-3. State 0: ``closed`` — the state within the limits minimising the box around base and part;
+3. State 0: ``closed`` — the state within the limits minimising the box around base and part
+   among the states where the part is aligned with the base (not swung into it);
    ``perpendicular`` — the state with the part's long axis along the front axis, on the
    convention's side. Direction: the sign under which the state ``opens`` / ``folds``.
 4. Orientation: the loader's up/front (:mod:`ancsh.data.urdf`); turned 180 degrees about up when
