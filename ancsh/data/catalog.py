@@ -13,6 +13,7 @@ and a moved state, NAOCS axes and part names, so a person checks a catalog at a 
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import tempfile
@@ -31,6 +32,7 @@ __all__ = [
     "draw_preview_sheet",
     "load_catalog",
     "ranges_report",
+    "write_bytes_atomically",
     "write_catalog",
     "write_import_report",
 ]
@@ -166,7 +168,9 @@ def build_catalog(paths, category: str | None = None, *, overrides: dict | None 
     return Catalog(tuple(assign_splits(objects)), tuple(rejected), command)
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
+def write_bytes_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename: a failed write leaves
+    the old file (or none), never half a file. Creates the parent folders."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -182,7 +186,7 @@ def _atomic_write(path: Path, data: bytes) -> None:
 def write_catalog(catalog: Catalog, path) -> Path:
     """Write ``catalog`` as JSON (atomically: a failed write leaves no half file)."""
     path = Path(path)
-    _atomic_write(path, (json.dumps(catalog.to_dict(), indent=1) + "\n").encode())
+    write_bytes_atomically(path, (json.dumps(catalog.to_dict(), indent=1) + "\n").encode())
     return path
 
 
@@ -226,7 +230,7 @@ def write_import_report(catalog: Catalog, path) -> Path:
     for r in sorted(catalog.rejected, key=lambda r: r.name):
         lines.append(f"| {r.name} | {r.category or '-'} | {r.reason} |")
     path = Path(path)
-    _atomic_write(path, ("\n".join(lines) + "\n").encode())
+    write_bytes_atomically(path, ("\n".join(lines) + "\n").encode())
     return path
 
 
@@ -296,17 +300,10 @@ def draw_preview_sheet(objects, out, *, title: str = "", points_per_part: int = 
             ax.set_title(f"{obj.name} ({obj.split}) {label}\nq=[{states}]", fontsize=8)
             if j == 0:
                 ax.legend(loc="lower left", fontsize=6, markerscale=5, frameon=False)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, prefix=f".{out.name}.", suffix=".png")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_bytes_atomically(out, buf.getvalue())
     return out
 
 

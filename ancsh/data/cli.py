@@ -175,12 +175,12 @@ def run_import(args) -> int:
 def run_ranges(args) -> int:
     from pathlib import Path
 
-    from .catalog import _atomic_write, load_catalog, ranges_report
+    from .catalog import write_bytes_atomically, load_catalog, ranges_report
 
     catalog = load_catalog(None if args.catalog == "builtin" else args.catalog)
     command = f"ancsh data ranges --catalog {args.catalog} --instances {args.instances} --out {args.out}"
     text = ranges_report(catalog, procedural_instances=args.instances, command=command)
-    _atomic_write(Path(args.out), text.encode())
+    write_bytes_atomically(Path(args.out), text.encode())
     print(f"wrote {args.out}")
     return 0
 
