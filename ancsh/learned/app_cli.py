@@ -322,25 +322,21 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
-    ev = evaluate_category(
-        args.category, frames=frames, methods=methods, seed=args.seed, weights=args.weights,
-        direct_weights=args.direct_weights,
+    common = dict(
+        frames=frames, methods=methods, seed=args.seed, weights=args.weights, direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
         num_threads=args.threads, progress=not args.no_progress,
     )
+    ev = evaluate_category(args.category, **common)
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
-    paths = write_report(ev, summarize(ev), out, command=_rebuild(args))
+    summary = summarize(ev)
+    paths = write_report(ev, summary, out, command=_rebuild(args))
     print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
     if args.real:
         from .evaluate import write_real_report
 
-        real = evaluate_category(
-            args.category, frames=frames, methods=methods, seed=args.seed, weights=args.weights,
-            direct_weights=args.direct_weights,
-            time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
-            num_threads=args.threads, progress=not args.no_progress, real=args.real,
-        )
-        path = write_real_report(ev, real, out, command=_rebuild(args))
+        real = evaluate_category(args.category, real=args.real, **common)
+        path = write_real_report(ev, summary, real, summarize(real), out, command=_rebuild(args))
         print(f"{real['settings']['frames']} real frames; wrote {path}")
     return 0
 

@@ -705,10 +705,10 @@ def write_json(path, data: dict, *, one_line: tuple = ()) -> Path:
     return path
 
 
-def split_comparison(procedural: dict, real: dict) -> list[str]:
+def split_comparison(procedural: dict, sp: dict, real: dict, sr: dict) -> list[str]:
     """Markdown: the real test split's Table 1 means beside the procedural split's, per part and
-    method, with their ratio (the real-CAD issue's goal: real <= 1.25x procedural, per part)."""
-    sp, sr = summarize(procedural), summarize(real)
+    method, with their ratio (the real-CAD issue's goal: real <= 1.25x procedural, per part).
+    ``sp`` and ``sr`` are the two evaluations' :func:`summarize` results."""
     parts = procedural["settings"]["part_names"]
     joints = procedural["settings"]["joint_names"]
     lines = [
@@ -752,8 +752,11 @@ def split_comparison(procedural: dict, real: dict) -> list[str]:
     return lines
 
 
-def write_real_report(procedural: dict, real: dict, out_dir, *, command: str) -> Path:
-    """Write ``<category>_real.md``: the real test split beside the procedural one (Table 1, ratios)."""
+def write_real_report(procedural: dict, procedural_summary: dict, real: dict, real_summary: dict, out_dir, *,
+                      command: str) -> Path:
+    """Write ``<category>_real.md``: the real test split beside the procedural one (Table 1, ratios).
+
+    The summaries are the evaluations' :func:`summarize` results (measured by the caller)."""
     category = procedural["category"]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -769,11 +772,11 @@ def write_real_report(procedural: dict, real: dict, out_dir, *, command: str) ->
         "category's convention, `ancsh data import`), rendered with the same renderer, noise, viewpoints and points "
         "as the procedural test instances. Means over frames; translation in object units; failed fits left out.",
         "",
-        *split_comparison(procedural, real),
+        *split_comparison(procedural, procedural_summary, real, real_summary),
         "",
         "## Table 1 on the real split (means)",
         "",
-        *_table1(summarize(real), dict(s), "mean", None),
+        *_table1(real_summary, dict(s), "mean", None),
         "",
     ]
     path = out / f"{category}_real.md"

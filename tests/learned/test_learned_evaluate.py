@@ -169,7 +169,7 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
     assert proc["settings"]["split"] == "procedural" and real["settings"]["split"] == "real"
     assert {r["instance"] for r in real["records"]} <= {o.name for o in objs}
     assert not {r["instance"] for r in proc["records"]} & {o.name for o in objs}
-    text = ev.write_real_report(proc, real, tmp_path / "out", command="test").read_text()
+    text = ev.write_real_report(proc, ev.summarize(proc), real, ev.summarize(real), tmp_path / "out", command="test").read_text()
     assert "oven_0" in text and "| ANCSH-exact reduced (ours) | door |" in text and "x |" in text
     with pytest.raises(ValueError, match="no real test object"):
         ev.evaluate_category("laptop", real=str(catalog), **kw)
