@@ -256,27 +256,25 @@ def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links
     movable = {link for link, (_, t) in joints.items() if t in ("revolute", "prismatic", "continuous")}
     wanted_type = {j.type.value for j in conv.joints}
     semantics = {s for j in conv.joints for s in j.semantics}
+    mobility = _mobility_joints(path)
     if forced_links is not None:
         moving = [str(x) for x in forced_links]
         unknown = [x for x in moving if x not in joints]
         if unknown:
             raise ValueError(f"{name}: override moving_links names unknown link(s) {unknown}")
+    elif mobility is None:
+        moving = [link for link in joints if link in movable]
     else:
-        mobility = _mobility_joints(path)
-        if mobility is None:
-            moving = [link for link in joints if link in movable]
-        else:
-            moving = [link for link in joints if link in mobility and _KIND.get(mobility[link][0]) in wanted_type
-                      and mobility[link][1] in semantics]
+        moving = [link for link in joints if link in mobility and _KIND.get(mobility[link][0]) in wanted_type
+                  and mobility[link][1] in semantics]
+    mobility = mobility or {}
     if len(moving) != conv.num_joints:
-        mobility = _mobility_joints(path) or {}
         kinds = [f"{mobility[link][1]} ({mobility[link][0]})" for link in joints if link in mobility and mobility[link][0] in _KIND]
         kinds = kinds or [f"{link} ({joints[link][1]})" for link in joints if link in movable]
         raise ImportRejected(name, f"has {len(moving)} moving part(s) of the kind the {conv.name} category needs "
                                    f"({'/'.join(sorted(semantics))}; {'/'.join(sorted(wanted_type))}), it needs "
                                    f"{conv.num_joints}; the file's movable parts: {', '.join(kinds) or 'none'}")
     overrides = {}
-    mobility = _mobility_joints(path) or {}
     for link, (jname, jtype) in joints.items():
         if link in moving:
             kind = _KIND.get(mobility.get(link, ("",))[0], jtype)
@@ -296,41 +294,45 @@ def _limits(joint) -> tuple[float, float]:
     return lo, hi
 
 
-def _argbest(score, lo, hi):
-    """Grid search then a finer grid around the best value; ``score`` is minimised."""
+def _argbest(scores, lo, hi) -> tuple[float, float]:
+    """Grid search over ``[lo, hi]``, then a finer grid around the best value.
+
+    ``scores`` maps a ``(Q,)`` array of states to ``(Q,)`` values, minimised; returns
+    ``(state, value)``.
+    """
     qs = np.linspace(lo, hi, _GRID)
-    vals = np.array([score(q) for q in qs])
-    i = int(np.argmin(vals))
+    i = int(np.argmin(scores(qs)))
     step = (hi - lo) / (_GRID - 1)
     fine = np.linspace(max(lo, qs[i] - step), min(hi, qs[i] + step), 21)
-    fvals = np.array([score(q) for q in fine])
-    j = int(np.argmin(fvals))
-    return float(fine[j]), float(fvals[j])
+    vals = scores(fine)
+    j = int(np.argmin(vals))
+    return float(fine[j]), float(vals[j])
+
+
+def _each(score):
+    """``score`` of one state, applied to every state of an array."""
+    return lambda qs: np.array([score(q) for q in qs])
 
 
 def _find_zero(model, k, jc) -> float:
     lo, hi = _limits(model.joints[k])
     if jc.zero == "closed":
         vol0 = box_volume(*_joint_pair(model, k, model.rest_states))
-        qs = np.linspace(lo, hi, _GRID)
-        scores = closed_scores(model, k, qs) / vol0 + 1e-6 * np.abs(qs)  # ties go to the file's 0
-        if not np.all(np.isinf(scores)):
-            i = int(np.argmin(scores))
-            step = (hi - lo) / (_GRID - 1)
-            fine = np.linspace(max(lo, qs[i] - step), min(hi, qs[i] + step), 21)
-            fscores = closed_scores(model, k, fine) / vol0 + 1e-6 * np.abs(fine)
-            return float(fine[int(np.argmin(fscores))]) if np.isfinite(fscores.min()) else float(qs[i])
+        tie = 1e-6  # ties (flat minima) go to the state nearest the file's 0
+        q, value = _argbest(lambda qs: closed_scores(model, k, qs) / vol0 + tie * np.abs(qs), lo, hi)
+        if np.isfinite(value):
+            return q
 
         def score(q):  # no state is aligned with the base (an odd shape): the smallest box
-            return box_volume(*_joint_pair(model, k, _with_state(model, k, q))) / vol0 + 1e-6 * abs(q)
+            return box_volume(*_joint_pair(model, k, _with_state(model, k, q))) / vol0 + tie * abs(q)
 
-        return _argbest(score, lo, hi)[0]
+        return _argbest(_each(score), lo, hi)[0]
 
     def score(q):  # perpendicular: long axis along the front axis, on the convention's side
         base, child = _joint_pair(model, k, _with_state(model, k, q))
         return _horizontal_angle_to_front_deg(child) + (0.0 if _side_ok(base, child, jc.side) else 180.0)
 
-    return _argbest(score, lo, hi)[0]
+    return _argbest(_each(score), lo, hi)[0]
 
 
 def _find_sign(model, k, jc, zero) -> int:
