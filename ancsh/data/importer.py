@@ -497,9 +497,17 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
     problems = convention_violations(model, conv)
     if problems:
         raise ImportRejected(name, "does not meet the category's convention after import: " + "; ".join(problems))
-    return ImportedObject(name=name, category=conv.name, urdf=_relative_urdf(path), joint_types=joint_types,
-                          moving_links=tuple(moving), zero=tuple(zeros), sign=tuple(signs), flip_front=flip,
-                          scale=float(scale), split="test", notes=tuple(notes))
+    obj = ImportedObject(name=name, category=conv.name, urdf=_relative_urdf(path), joint_types=joint_types,
+                         moving_links=tuple(moving), zero=tuple(zeros), sign=tuple(signs), flip_front=flip,
+                         scale=float(scale), split="test", notes=tuple(notes))
+    return _carry_model(model, obj)
+
+
+def _carry_model(model: ArticulatedModel, obj: ImportedObject) -> ImportedObject:
+    """``obj`` with ``model`` as its already built :meth:`ImportedObject.model` (the same record
+    rebuilds the same model from the file; this saves loading the meshes a second time)."""
+    obj.__dict__["_model"] = model
+    return obj
 
 
 def _try_build(build, moving, zeros, signs, flip, scale, conv, name):
@@ -520,5 +528,6 @@ def assign_splits(objects) -> list:
     out = []
     for o in objects:
         test = counts[o.category] <= MIN_REAL_FOR_TRAINING or zlib.crc32(o.name.encode()) % 4 == 0
-        out.append(replace(o, split="test" if test else "train"))
+        new = replace(o, split="test" if test else "train")
+        out.append(_carry_model(o.__dict__["_model"], new) if "_model" in o.__dict__ else new)
     return out

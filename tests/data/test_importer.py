@@ -225,3 +225,16 @@ def test_a_dataset_of_other_generators_is_not_resumed(tmp_path, monkeypatch):
     monkeypatch.undo()
     with pytest.raises(ValueError, match="generator_version"):
         generate_dataset(cfg, 1, tmp_path / "ds", workers=1, progress=False)
+
+
+def test_the_import_hands_over_the_model_its_record_rebuilds(tmp_path, make_oven_urdf):
+    """The model built during import is kept (no second mesh load) and equals the record's rebuild."""
+    obj = assign_splits([import_object(make_oven_urdf(tmp_path / "oven_k"), "oven")])[0]
+    fresh = ImportedObject.from_dict(obj.to_dict()).model()
+    carried = obj.model()
+    assert carried.part_names == fresh.part_names
+    for a, b in zip(carried.parts, fresh.parts):
+        np.testing.assert_array_equal(a.vertices, b.vertices)
+    for a, b in zip(carried.joints, fresh.joints):
+        assert (a.lower, a.upper, a.rest) == (b.lower, b.upper, b.rest) and a.origin.allclose(b.origin, atol=0)
+        np.testing.assert_array_equal(a.axis, b.axis)
