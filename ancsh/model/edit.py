@@ -85,7 +85,7 @@ def reparameterized(model: ArticulatedModel, k: int, *, zero: float, sign: int =
     lo, hi = sorted((sign * (j.lower - zero), sign * (j.upper - zero)))
     new_rest = sign * (j.rest - zero) if rest is None else float(rest)
     new = Joint(name or j.name, j.type, j.parent, j.child, axis=sign * j.axis, pivot=j.pivot,
-                lower=lo, upper=hi, rest=min(max(new_rest, lo), hi) if rest is None else new_rest, origin=origin)
+                lower=lo, upper=hi, rest=new_rest, origin=origin)
     joints = list(model.joints)
     joints[k] = new
     return _model(model, model.parts, joints)
