@@ -57,6 +57,9 @@ class TrainConfig:
     pose_weight : float
         Weight of the pose-aware term :func:`~ancsh.learned.losses.npcs_pose_loss` (0 = the paper's
         loss only, the default; ANCSH networks only).
+    pose_start_step : int
+        First step whose training loss includes the pose term (0 = from the start). Switching it
+        on late lets the paper's losses shape the NPCS first (a large pose term slows early training).
     val_fraction : float
         Share of training *instances* held out for validation, in ``[0, 0.5]``.
     val_frames : int
@@ -90,6 +93,7 @@ class TrainConfig:
     max_steps: int = 6000
     loss_weights: tuple = (1.0, 10.0, 1.0, 1.0, 1.0)
     pose_weight: float = 0.0
+    pose_start_step: int = 0
     val_fraction: float = 0.1
     val_frames: int = 256
     val_every: int = 250
@@ -136,6 +140,8 @@ class TrainConfig:
         if self.kind == "direct_voting" and pw:
             raise ValueError("pose_weight: the direct_voting network predicts no NPCS; expected 0")
         object.__setattr__(self, "pose_weight", float(pw))
+        if isinstance(self.pose_start_step, bool) or not isinstance(self.pose_start_step, int) or self.pose_start_step < 0:
+            raise ValueError(f"pose_start_step: expected a non-negative integer, got {self.pose_start_step!r}")
         if isinstance(self.pose_val_every, bool) or not isinstance(self.pose_val_every, int) or self.pose_val_every < 0:
             raise ValueError(f"pose_val_every: expected a non-negative integer, got {self.pose_val_every!r}")
         _positive_int(self.pose_val_frames, "pose_val_frames")

@@ -357,6 +357,11 @@ class Trainer:
         perm = np.random.default_rng([self.config.seed, epoch]).permutation(F)
         return perm[i * B:(i + 1) * B]
 
+    def pose_weight(self, step: int) -> float:
+        """Weight of the pose term in the training loss of ``step`` (0 before ``config.pose_start_step``)."""
+        c = self.config
+        return c.pose_weight if step >= c.pose_start_step else 0.0
+
     def learning_rate(self, step: int) -> float:
         c = self.config
         return c.lr * c.lr_decay ** (step // c.lr_decay_steps)
@@ -370,7 +375,7 @@ class Trainer:
         idx = self.batch_indices(self.step)
         points, targets = self.train_arrays.batch(idx)
         out = self.model(points, Neighbourhoods.from_numpy(self.neighbourhoods, idx))
-        total, parts = self.loss_fn(out, targets)
+        total, parts = self.loss_fn(out, targets, pose_weight=self.pose_weight(self.step))
         if not torch.isfinite(total):
             raise FloatingPointError(f"non-finite loss at step {self.step}: { {k: v.item() for k, v in parts.items()} }")
         self.optimizer.zero_grad(set_to_none=True)

@@ -27,6 +27,7 @@ def test_config_validates_and_round_trips(tmp_path):
         ({"npoints": (64, 128)}, "npoints"), ({"loss_weights": (1, 1)}, "loss_weights"),
         ({"val_fraction": 0.9}, "val_fraction"), ({"batch_size": 0}, "batch_size"), ({"backbones": 3}, "backbones"),
         ({"kind": "direct_voting", "backbones": 2}, "backbones"), ({"seed": -1}, "seed"),
+        ({"pose_start_step": -1}, "pose_start_step"), ({"pose_start_step": 1.5}, "pose_start_step"),
     ]:
         with pytest.raises(ValueError, match=match):
             TrainConfig(**kw)
@@ -75,6 +76,14 @@ def test_tiny_model_overfits_a_handful_of_frames(tiny_arrays, tiny_config):
     assert np.mean(losses[-5:]) < losses[0] / 10
     row = trainer.record()
     assert row["step"] == tiny_config.max_steps
+
+
+def test_pose_term_joins_the_training_loss_at_pose_start_step(tiny_arrays, tiny_config):
+    config = dataclasses.replace(tiny_config, pose_weight=2.0, pose_start_step=3, max_steps=5)
+    losses = Trainer(config, tiny_arrays, progress=False).fit()
+    assert ["pose" in s for s in losses] == [False, False, False, True, True]
+    late = losses[3]
+    assert late["total"] > 2.0 * late["pose"] > 0  # the weighted term is part of the total
 
 
 def test_history_row_is_measured_apart_from_writing(tmp_path, tiny_arrays, tiny_config):
