@@ -66,6 +66,11 @@ class TrainConfig:
         Validation frames evaluated at each validation (a fixed subset).
     val_every, checkpoint_every : int
         Steps between validations / checkpoints.
+    init_weights : str
+        Start from these weights instead of a random initialisation: ``""`` (none, the default),
+        ``"builtin"`` (the shipped weights of ``category`` and ``kind``) or a weights file / checkpoint
+        path. The network's structure must match this configuration's; the optimiser and the step
+        start afresh.
     pose_val_every : int
         Steps between pose validations (0 = none): validation frames through the full pipeline
         (learned provider, then ``fit`` ``exact_reduced``); with them, ``best.pt`` is the checkpoint
@@ -94,6 +99,7 @@ class TrainConfig:
     loss_weights: tuple = (1.0, 10.0, 1.0, 1.0, 1.0)
     pose_weight: float = 0.0
     pose_start_step: int = 0
+    init_weights: str = ""
     val_fraction: float = 0.1
     val_frames: int = 256
     val_every: int = 250
@@ -140,6 +146,8 @@ class TrainConfig:
         if self.kind == "direct_voting" and pw:
             raise ValueError("pose_weight: the direct_voting network predicts no NPCS; expected 0")
         object.__setattr__(self, "pose_weight", float(pw))
+        if not isinstance(self.init_weights, str):
+            raise ValueError(f"init_weights: expected a string ('' = none, 'builtin' or a path), got {self.init_weights!r}")
         if isinstance(self.pose_start_step, bool) or not isinstance(self.pose_start_step, int) or self.pose_start_step < 0:
             raise ValueError(f"pose_start_step: expected a non-negative integer, got {self.pose_start_step!r}")
         if isinstance(self.pose_val_every, bool) or not isinstance(self.pose_val_every, int) or self.pose_val_every < 0:

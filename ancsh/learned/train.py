@@ -328,6 +328,9 @@ class Trainer:
         torch.set_num_threads(config.num_threads)
         torch.manual_seed(config.seed)
         self.model = build_network(config.kind, train.num_parts, train.num_joints, **config.network_kwargs())
+        self.init_sha256: str | None = None  # of config.init_weights, when given
+        if config.init_weights:
+            self._initialise_from(config.init_weights, train)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self.loss_fn = loss_function(config)
         if pose_val is not None and not isinstance(pose_val, PoseValidation):
@@ -345,6 +348,22 @@ class Trainer:
             config.to_json(self.out_dir / "config.json")
         cache_path = None if self.out_dir is None else self.out_dir / "neighbourhoods.npz"
         self.neighbourhoods = neighbourhood_cache(self.model, train.points, path=cache_path)
+
+    def _initialise_from(self, source: str, train: TrainingArrays) -> None:
+        """Copy the parameters of ``source`` (``config.init_weights``) into the new model, refusing another structure."""
+        from .weights import load_network
+
+        c = self.config
+        loaded = load_network(c.category if source == "builtin" else source, kind=c.kind)
+        if loaded.kind != c.kind or loaded.config.network_kwargs() != c.network_kwargs():
+            raise ValueError(f"init_weights: {loaded.source} is a {loaded.kind} network with {loaded.config.network_kwargs()}, "
+                             f"not the configured {c.kind} network with {c.network_kwargs()}")
+        if loaded.num_parts != train.num_parts or not np.array_equal(loaded.revolute, train.revolute):
+            raise ValueError(f"init_weights: {loaded.source} has {loaded.num_parts} parts and joints "
+                             f"{['revolute' if r else 'prismatic' for r in loaded.revolute]}; the training frames have "
+                             f"{train.num_parts} parts and {['revolute' if r else 'prismatic' for r in train.revolute]}")
+        self.model.load_state_dict(loaded.model.state_dict())
+        self.init_sha256 = loaded.sha256
 
     # --- schedule ------------------------------------------------------------------
     def batch_indices(self, step: int) -> np.ndarray:

@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+import torch
 
 from ancsh.learned.config import TrainConfig
 from ancsh.learned.data import TrainingArrays
@@ -104,6 +105,25 @@ def test_history_row_is_measured_apart_from_writing(tmp_path, tiny_arrays, tiny_
     assert HistoryRow(step=3, elapsed_s=0.0, lr=0.1, val={"total": 1.0}).selection_score(pose=True) is None
     write_history_csv([{"step": 1, "a": 1.0}, {"step": 2, "b": 2.0}], tmp_path / "h.csv")
     assert (tmp_path / "h.csv").read_text().splitlines() == ["step,a,b", "1,1.0,", "2,,2.0"]
+
+
+def test_init_weights_starts_from_a_trained_network_and_refuses_another_structure(tmp_path, tiny_arrays, prismatic_arrays,
+                                                                                 tiny_config):
+    cfg = dataclasses.replace(tiny_config, max_steps=3, checkpoint_every=3)
+    trained = Trainer(cfg, tiny_arrays, None, tmp_path / "a", progress=False)
+    trained.fit()
+    started = Trainer(dataclasses.replace(cfg, init_weights=str(tmp_path / "a" / "last.pt"), seed=7), tiny_arrays,
+                      progress=False)
+    fresh = Trainer(dataclasses.replace(cfg, seed=7), tiny_arrays, progress=False)
+    for name, p in trained.model.state_dict().items():
+        torch.testing.assert_close(started.model.state_dict()[name], p)
+    assert any(not torch.equal(fresh.model.state_dict()[n], p) for n, p in trained.model.state_dict().items())
+    assert started.step == 0 and started.init_sha256 is not None
+    with pytest.raises(ValueError, match="init_weights.*parts"):
+        Trainer(dataclasses.replace(cfg, init_weights=str(tmp_path / "a" / "last.pt")), prismatic_arrays, progress=False)
+    with pytest.raises(ValueError, match="init_weights.*network"):
+        Trainer(dataclasses.replace(cfg, width=0.25, init_weights=str(tmp_path / "a" / "last.pt")), tiny_arrays,
+                progress=False)
 
 
 def test_checkpoint_round_trip_and_resume_repeat_the_same_steps(tmp_path, tiny_arrays, tiny_config):
