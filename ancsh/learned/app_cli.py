@@ -280,7 +280,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
 def run_calibrate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..outputs import DOCS_RESULTS, fresh_output_dir
+    from ..outputs import DOCS_RESULTS, file_sha256, fresh_output_dir
     from .confidence import calibration_path, collect, fit_calibrator, reliability, write_report
     from .weights import weights_path
 
@@ -293,6 +293,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     data = collect(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
     fit_half = np.arange(len(data["good"])) % 2 == 0
     calibration = fit_calibrator(data["X"][fit_half], data["good"][fit_half])
+    calibration["weights_sha256"] = file_sha256(weights_path(args.category))  # it holds for these weights only
     rel = reliability(calibration, data["X"][~fit_half], data["good"][~fit_half])
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
     parts = ["calibrate", "--category", args.category, "--frames", str(args.frames)]

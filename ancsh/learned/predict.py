@@ -331,7 +331,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         labels = np.asarray(corr.part_labels)
         quality = part_quality(result, pts, corr, raw)
         result = check_plausibility(result, labels, category, quality)
-        p_good = _p_good(category, quality) if result.ok else None
+        p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
     rest, rest_text = _rest_states(category, len(joint_names))
@@ -349,8 +349,9 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     )
 
 
-def _p_good(category: str, quality) -> float | None:
-    """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists."""
+def _p_good(category: str, quality, weights_sha256: str | None) -> float | None:
+    """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists and was
+    calibrated for these weights (``weights_sha256``); ``None`` otherwise."""
     import json
 
     from .confidence import calibration_path, fit_features, probability_good
@@ -358,7 +359,10 @@ def _p_good(category: str, quality) -> float | None:
     path = calibration_path(category)
     if not path.is_file():
         return None
-    return probability_good(json.loads(path.read_text()), fit_features(quality, category))
+    calibration = json.loads(path.read_text())
+    if calibration.get("weights_sha256") != weights_sha256:
+        return None  # calibrated on other weights (e.g. before a retraining): its probabilities would be another net's
+    return probability_good(calibration, fit_features(quality, category))
 
 
 def infer(provider, observation):

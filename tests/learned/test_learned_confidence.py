@@ -47,9 +47,12 @@ def test_collect_labels_rendered_frames():
 def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
     from ancsh.data.generate import FrameGenerator, GenerationConfig
     from ancsh.learned.predict import predict_depth
+    from ancsh.learned.weights import weights_path
+    from ancsh.outputs import file_sha256
 
     cal = {"features": list(FEATURES), "good_rotation_deg": 10.0, "mean": [0.0] * 5, "scale": [1.0] * 5,
-           "coef": [0.0] * 5, "intercept": float(np.log(3.0)), "frames": 10, "good_rate": 0.75}
+           "coef": [0.0] * 5, "intercept": float(np.log(3.0)), "frames": 10, "good_rate": 0.75,
+           "weights_sha256": file_sha256(weights_path("laptop"))}
     path = tmp_path / "laptop_confidence.json"
     path.write_text(json.dumps(cal))
     monkeypatch.setattr(confidence, "calibration_path", lambda category: path)
@@ -59,6 +62,8 @@ def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
     depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
     data = predict_depth(depth, frame.intrinsics, "laptop").to_json()
     assert data["ok"] and data["confidence"]["p_good"] == pytest.approx(0.75)
+    path.write_text(json.dumps({**cal, "weights_sha256": "0" * 64}))  # calibrated for other weights: not used
+    assert predict_depth(depth, frame.intrinsics, "laptop").to_json()["confidence"]["p_good"] is None
     path.unlink()
     assert predict_depth(depth, frame.intrinsics, "laptop").to_json()["confidence"]["p_good"] is None
 
