@@ -285,6 +285,7 @@ class Program:
         self.poses = ca.Function("poses", [x, p], [ca.vertcat(*pose_out)], ["x", "p"], ["poses"])
         self._outputs = ca.vertcat(*pose_out, outputs)
         self._output_jacobian = None
+        self._linearisation = None
         self._nlpsols: dict = {}
         self._nlp_lock = threading.Lock()
 
@@ -341,6 +342,30 @@ class Program:
     @property
     def num_parts(self) -> int:
         return self.key.structure.num_parts
+
+    def linearisation(self, x, p) -> tuple[np.ndarray, ...]:
+        """Everything a covariance needs at ``x``, in one call: ``(r, J, Jg, outputs, G)`` -- the
+        residuals ``(m,)`` and their Jacobian ``(m, n)``, the Jacobian of the equality constraints
+        ``(num_equalities, n)``, and :meth:`output_jacobian`'s outputs and Jacobian ``G``."""
+        with self._nlp_lock:
+            if self._linearisation is None:
+                eq = self._g[: self.num_equalities]
+                out = [self._r, ca.densify(ca.jacobian(self._r, self.x)), ca.densify(ca.jacobian(eq, self.x)),
+                       self._outputs, ca.densify(ca.jacobian(self._outputs, self.x))]
+                self._linearisation = ca.Function("linearisation", [self.x, self._p], out)
+                _count_build("output_jacobian")
+        f = self._linearisation
+        # Evaluated into numpy buffers: converting dense DM results costs more than evaluating them.
+        buf, trigger = f.buffer()
+        args = [np.ascontiguousarray(x, dtype=np.float64).ravel(), np.ascontiguousarray(p, dtype=np.float64).ravel()]
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))
+        res = [np.zeros(f.size_out(i)[::-1]) for i in range(f.n_out())]  # column-major storage, transposed below
+        for i, a in enumerate(res):
+            buf.set_res(i, memoryview(a))
+        trigger()
+        r, J, Jg, out, G = (a.T for a in res)
+        return r.ravel(), J, Jg, out.ravel(), G
 
     def output_jacobian(self, x, p) -> tuple[np.ndarray, np.ndarray]:
         """The reported quantities at ``x`` and their Jacobian with respect to ``x``.

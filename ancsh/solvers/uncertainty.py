@@ -35,7 +35,9 @@ A direction that the data do not determine (a degenerate part, collinear points)
 :attr:`FitUncertainty.status` is ``"singular"`` -- never an exception.
 
 **Inflation.** Jacobian covariances assume independent residuals; the errors of a network's
-NPCS predictions are correlated, so they are over-confident. :class:`Inflation` holds measured
+NPCS predictions are correlated, so they are over-confident. :class:`Inflation` holds a measured
+within-part residual correlation (each raw result carries the covariance per unit of it,
+:attr:`FitUncertainty.correlated`: ``v_j (1 - 1 / n_j)`` in place of ``v_j / n_j``) and measured
 per-quantity factors on the standard deviations (``ancsh bench uncertainty``, stored in
 ``ancsh/weights/uncertainty_inflation.json``, :func:`inflation_for`);
 :meth:`FitUncertainty.inflated` applies them, the raw covariances stay available.
@@ -74,6 +76,11 @@ class Inflation:
         Part and object pose blocks (the covariance blocks scale by the products of factors).
     joint_state, joint_axis, joint_pivot : float
         Joint blocks.
+    correlation : float
+        In ``[0, 1]``: the correlation ``rho`` of the residuals within a part, applied before the
+        factors. A part's ``n`` points then count as ``n / (1 + (n - 1) rho)`` independent ones (the
+        design effect of equicorrelated errors): with ``rho n >> 1`` its pose uncertainty no longer
+        shrinks with more points, as for a network's spatially correlated NPCS errors.
     source : str
         Where the factors come from (``"raw"``, ``"learned/laptop"``, ...).
     """
@@ -84,12 +91,18 @@ class Inflation:
     joint_state: float = 1.0
     joint_axis: float = 1.0
     joint_pivot: float = 1.0
+    correlation: float = 0.0
     source: str = "raw"
 
     def __post_init__(self):
         for f in fields(self):
             if f.name != "source":
-                object.__setattr__(self, f.name, check_number(getattr(self, f.name), f.name, minimum=0.0))
+                top = 1.0 if f.name == "correlation" else None
+                object.__setattr__(self, f.name, check_number(getattr(self, f.name), f.name, minimum=0.0, maximum=top))
+
+    @property
+    def is_identity(self) -> bool:
+        return self.correlation == 0.0 and all(v == 1.0 for k, v in self.factors().items() if k != "correlation")
 
     def factors(self) -> dict:
         """``{quantity: factor}`` without the source."""
@@ -131,6 +144,11 @@ class FitUncertainty:
         The factors already applied (``source == "raw"``: none).
     time_s : float
         Wall time of the computation (seconds).
+    correlated : FitUncertainty or None
+        Raw results only: the covariances added per unit of within-part residual correlation
+        (see :attr:`Inflation.correlation`), same layout.
+    base : FitUncertainty or None
+        Inflated results only: the raw result they were made from (:meth:`raw`).
     """
 
     status: str
@@ -144,6 +162,8 @@ class FitUncertainty:
     points: np.ndarray
     inflation: Inflation = field(default_factory=Inflation)
     time_s: float = 0.0
+    correlated: "FitUncertainty | None" = field(default=None, repr=False)
+    base: "FitUncertainty | None" = field(default=None, repr=False)
 
     def __post_init__(self):
         if self.status not in UNCERTAINTY_STATUSES:
@@ -200,38 +220,34 @@ class FitUncertainty:
 
     # -- inflation -------------------------------------------------------------------------------
     def inflated(self, inflation: Inflation) -> "FitUncertainty":
-        """These covariances with the standard deviations multiplied by ``inflation``'s factors
-        (relative to the raw ones: inflating twice does not compound)."""
+        """These covariances with the within-part correlation added and the standard deviations
+        multiplied by ``inflation``'s factors (always from the raw ones: inflating twice does not compound)."""
         if not isinstance(inflation, Inflation):
             raise ValueError(f"inflation: expected an Inflation, got {type(inflation).__name__}")
         raw = self.raw()
+        if inflation.is_identity:
+            return replace(raw, inflation=inflation)
+        rho = inflation.correlation
+        corr = raw.correlated
+
+        def add(name):
+            a = getattr(raw, name)
+            return a + rho * getattr(corr, name) if rho > 0 and corr is not None else a
+
         d = _pose_factors(inflation)
         D = np.outer(d, d)
         with np.errstate(invalid="ignore"):
             return replace(
-                raw, inflation=inflation,
-                part_covariances=raw.part_covariances * D, object_covariance=raw.object_covariance * D,
-                joint_state_covariance=raw.joint_state_covariance * inflation.joint_state**2,
-                joint_axis_covariances=raw.joint_axis_covariances * inflation.joint_axis**2,
-                joint_pivot_covariances=raw.joint_pivot_covariances * inflation.joint_pivot**2,
+                raw, inflation=inflation, base=raw, correlated=None,
+                part_covariances=add("part_covariances") * D, object_covariance=add("object_covariance") * D,
+                joint_state_covariance=add("joint_state_covariance") * inflation.joint_state**2,
+                joint_axis_covariances=add("joint_axis_covariances") * inflation.joint_axis**2,
+                joint_pivot_covariances=add("joint_pivot_covariances") * inflation.joint_pivot**2,
             )
 
     def raw(self) -> "FitUncertainty":
         """The raw Jacobian covariances (this object when no inflation was applied)."""
-        inf = self.inflation
-        if inf.source == "raw" and all(v == 1.0 for v in inf.factors().values()):
-            return self
-        d = _pose_factors(inf)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            Dinv = np.where(np.outer(d, d) > 0, 1.0 / np.outer(d, d), 0.0)
-            k = lambda f: 1.0 / f**2 if f > 0 else 0.0  # noqa: E731
-            return replace(
-                self, inflation=Inflation(),
-                part_covariances=self.part_covariances * Dinv, object_covariance=self.object_covariance * Dinv,
-                joint_state_covariance=self.joint_state_covariance * k(inf.joint_state),
-                joint_axis_covariances=self.joint_axis_covariances * k(inf.joint_axis),
-                joint_pivot_covariances=self.joint_pivot_covariances * k(inf.joint_pivot),
-            )
+        return self if self.base is None else self.base
 
     # -- output ----------------------------------------------------------------------------------
     def summary(self) -> dict:
@@ -311,8 +327,7 @@ def fit_covariance(program, x, p, points, *, equality_constraints: bool = True) 
     M, K = st.num_parts, st.num_joints
     points = np.asarray(points, dtype=np.float64).reshape(M)
     x = np.asarray(x, dtype=np.float64).ravel()
-    r, J = program.residual_jacobian(x, p)
-    r, J = np.asarray(r).ravel(), np.asarray(J)
+    r, J, Jg, out, G = program.linearisation(x, p)
     n = x.size
 
     def unavailable(msg):
@@ -323,7 +338,6 @@ def fit_covariance(program, x, p, points, *, equality_constraints: bool = True) 
         return unavailable("non-finite residuals or Jacobian at the solution")
     Z = np.eye(n)
     if equality_constraints and program.num_equalities:
-        Jg = np.asarray(program.constraint_jacobian(x, p))[: program.num_equalities]
         Z = _null_space(Jg, n)
     Hr = Z.T @ (J.T @ J) @ Z
     lam, V = np.linalg.eigh(0.5 * (Hr + Hr.T))
@@ -335,23 +349,24 @@ def fit_covariance(program, x, p, points, *, equality_constraints: bool = True) 
         return unavailable(f"{observed:.0f} residual components for {free} free variables")
     dof = observed / (observed - free)
     L = float(program.params.value(np.asarray(p, dtype=np.float64).ravel(), "L"))
-    meat = np.zeros((n, n))
+    meat = np.zeros((n, n))  # independent residuals: variance v / n of a part's mean
+    meat_corr = np.zeros((n, n))  # per unit within-part correlation rho: v (1 - 1 / n) more
     noise = np.full(M, np.nan)
     for b in blocks:
         if points[b.part] <= 0:
             continue
         Jb = J[b.rows]
         v = dof * float(r[b.rows] @ r[b.rows]) / b.residual_dims  # variance of one normalised residual component
-        meat += (v / points[b.part]) * (Jb.T @ Jb)
+        JtJ = Jb.T @ Jb
+        meat += (v / points[b.part]) * JtJ
+        meat_corr += (v * max(1.0 - 1.0 / points[b.part], 0.0)) * JtJ
         if np.isnan(noise[b.part]):
             noise[b.part] = L * np.sqrt(v)
     Vg = V[:, good]
     Hinv = (Vg / lam[good]) @ Vg.T
-    cov_x = Z @ (Hinv @ (Z.T @ meat @ Z) @ Hinv) @ Z.T
     null = Z @ V[:, ~good]
 
     # -- propagate to the reported quantities ----------------------------------------------------
-    out, G = program.output_jacobian(x, p)
     rows = []
     for j in range(M + 1):  # parts, then the object pose
         b = 13 * j
@@ -359,24 +374,37 @@ def fit_covariance(program, x, p, points, *, equality_constraints: bool = True) 
         rows += [_rotation_rows(G[b : b + 9], R), G[b + 9 : b + 13]]
     rows.append(G[13 * (M + 1) :])  # axes (3K), pivots (3K), states (K)
     Gq = np.concatenate(rows)
-    cov = Gq @ cov_x @ Gq.T
+    A = Gq @ Z @ Hinv  # reported quantities per unit of the reduced gradient
+    B = Z.T
     status, message = "ok", f"Gauss-Newton covariance over {free} free variables, {observed:.0f} residual components"
+    leak = np.zeros(Gq.shape[0], dtype=bool)
     if null.shape[1]:
         leak = np.linalg.norm(Gq @ null, axis=1) > _NULL_LEAK * (np.linalg.norm(Gq, axis=1) + 1e-300)
         if np.any(leak):
-            cov[leak, :] = 0.0
-            cov[:, leak] = 0.0
-            cov[leak, leak] = np.inf
             status = "singular"
             message = f"{null.shape[1]} direction(s) undetermined by the data; {int(leak.sum())} quantities unbounded"
+    blocks_white = _blocks(A @ (B @ meat @ B.T) @ A.T, leak, M, K)
+    blocks_corr = _blocks(A @ (B @ meat_corr @ B.T) @ A.T, leak, M, K)
+    correlated = FitUncertainty(status, "covariance per unit within-part correlation", *blocks_corr, noise, points)
+    return FitUncertainty(status, message, *blocks_white, noise, points, time_s=time.perf_counter() - t0,
+                          correlated=correlated)
+
+
+def _blocks(cov: np.ndarray, leak: np.ndarray, M: int, K: int) -> tuple:
+    """``(parts (M, 7, 7), object (7, 7), states (K, K), axes (K, 3, 3), pivots (K, 3, 3))`` of the
+    covariance of the stacked reported quantities; rows in ``leak`` unbounded (``inf`` variance)."""
+    if np.any(leak):
+        cov = cov.copy()
+        cov[leak, :] = 0.0
+        cov[:, leak] = 0.0
+        cov[leak, leak] = np.inf
     parts = np.stack([cov[7 * j : 7 * j + 7, 7 * j : 7 * j + 7] for j in range(M)])
     o = 7 * M
     obj = cov[o : o + 7, o : o + 7]
     a0, p0, s0 = o + 7, o + 7 + 3 * K, o + 7 + 6 * K
     axes = np.stack([cov[a0 + 3 * k : a0 + 3 * k + 3, a0 + 3 * k : a0 + 3 * k + 3] for k in range(K)]) if K else np.zeros((0, 3, 3))
     piv = np.stack([cov[p0 + 3 * k : p0 + 3 * k + 3, p0 + 3 * k : p0 + 3 * k + 3] for k in range(K)]) if K else np.zeros((0, 3, 3))
-    states = cov[s0 : s0 + K, s0 : s0 + K]
-    return FitUncertainty(status, message, parts, obj, states, axes, piv, noise, points, time_s=time.perf_counter() - t0)
+    return parts, obj, cov[s0 : s0 + K, s0 : s0 + K], axes, piv
 
 
 def effective_points(weights) -> float:

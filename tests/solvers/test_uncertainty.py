@@ -175,6 +175,14 @@ def test_inflation_scales_the_sigmas_and_raw_recovers_them(fit_case, tmp_path):
     assert d["inflation"]["source"] == "test" and d["raw"]["joints"][0]["state_std"] == pytest.approx(u.joint_state_std[0])
     with pytest.raises(ValueError, match="inflation"):
         u.inflated({"rotation": 2.0})
+    # Within-part correlation: every part has n = 120 equally weighted points here, so the correlated
+    # component is (n - 1) times the independent one, and rho adds it before the factors.
+    np.testing.assert_allclose(u.points, 120.0)
+    np.testing.assert_allclose(u.correlated.joint_state_covariance, 119.0 * u.joint_state_covariance, rtol=1e-9)
+    rho = Inflation(correlation=0.01, joint_state=2.0)
+    np.testing.assert_allclose(u.inflated(rho).joint_state_covariance, 4.0 * (1 + 0.01 * 119) * u.joint_state_covariance)
+    with pytest.raises(ValueError, match="correlation"):
+        Inflation(correlation=1.5)
     assert inflation_for("no-such-provider", "laptop").source == "raw"
     bad = tmp_path / "bad.json"
     bad.write_text("[1, 2]")
@@ -189,3 +197,15 @@ def test_failed_fit_has_no_uncertainty(fit_case):
     r = fit(case.observation, replace(case.correspondences, weights=np.zeros(case.correspondences.num_points)))
     assert not r.ok and r.uncertainty is None
     assert isinstance(FitUncertainty.unavailable("x", 2, 1), FitUncertainty)
+
+
+def test_coverage_and_inflation_fit_recover_a_known_scale():
+    """Squared Mahalanobis distances of errors twice as large as predicted: the fitted factor is 2."""
+    from ancsh.uncertainty_calibration import COVERAGE_TARGETS, coverage, fit_inflation
+
+    rng = np.random.default_rng(0)
+    d2 = 4.0 * np.sum(rng.normal(size=(4000, 3)) ** 2, axis=1)
+    assert coverage(d2, "rotation")[0] < 0.25
+    f = fit_inflation(d2, "rotation")
+    assert f == pytest.approx(2.0, rel=0.05)
+    np.testing.assert_allclose(coverage(d2, "rotation", f), COVERAGE_TARGETS, atol=0.02)
