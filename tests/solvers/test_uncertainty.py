@@ -209,3 +209,23 @@ def test_coverage_and_inflation_fit_recover_a_known_scale():
     f = fit_inflation(d2, "rotation")
     assert f == pytest.approx(2.0, rel=0.05)
     np.testing.assert_allclose(coverage(d2, "rotation", f), COVERAGE_TARGETS, atol=0.02)
+
+
+def test_error_records_have_the_quantities_dimensions(fit_case):
+    """Every fitted quantity yields an error of its degrees of freedom with finite covariances; with
+    the predicted covariance the mean squared Mahalanobis distance of iid-noise fits is near ``dof``."""
+    from ancsh.uncertainty_calibration import QUANTITIES, error_records, normalised_errors
+
+    pooled = {q: [] for q in QUANTITIES}
+    for draw in range(12):
+        case, corr = _noisy_case(fit_case, 100 + draw, 0.01)
+        r = fit(case.observation, corr, config=FitConfig(ransac=False), rng=draw)
+        for q, recs in error_records(r, case.gt).items():
+            for e, C, Cc in recs:
+                assert e.shape == (QUANTITIES[q],) and C.shape == Cc.shape == (QUANTITIES[q],) * 2
+            pooled[q] += recs
+    assert len(pooled["rotation"]) == 36 and len(pooled["joint_state"]) == 24 and len(pooled["joint_pivot"]) == 12
+    for q in ("rotation", "translation", "joint_state"):
+        d2 = normalised_errors(pooled[q])
+        assert np.all(np.isfinite(d2))
+        assert 0.5 * QUANTITIES[q] < np.mean(d2) < 1.6 * QUANTITIES[q], (q, np.mean(d2))
