@@ -78,7 +78,10 @@ def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, ren
 
     unc, inflation = data["uncertainty"], inflation_for("learned", "laptop")
     assert unc["inflation"]["source"] == inflation.source
-    assert unc["joints"][0]["state_std"] == pytest.approx(inflation.joint_state * unc["raw"]["joints"][0]["state_std"])
+    raw = pred.result.uncertainty.raw()
+    assert unc["raw"]["joints"][0]["state_std"] == pytest.approx(raw.joint_state_std[0])
+    assert unc["joints"][0]["state_std"] == pytest.approx(raw.inflated(inflation).joint_state_std[0])
+    assert unc["joints"][0]["state_std"] > unc["raw"]["joints"][0]["state_std"]  # the raw sigmas are over-confident
     # every part box centre lies within the observed cloud's extent (grown by its diagonal)
     lo, hi = pred.points_cam.min(0), pred.points_cam.max(0)
     diag = np.linalg.norm(hi - lo)
