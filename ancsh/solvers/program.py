@@ -284,7 +284,6 @@ class Program:
             pose_out += [ca.vec(P.R), P.t, P.s]
         self.poses = ca.Function("poses", [x, p], [ca.vertcat(*pose_out)], ["x", "p"], ["poses"])
         self._outputs = ca.vertcat(*pose_out, outputs)
-        self._output_jacobian = None
         self._linearisation = None
         self._nlpsols: dict = {}
         self._nlp_lock = threading.Lock()
@@ -380,13 +379,8 @@ class Program:
             canonical parameters.
         jacobian : (len(outputs), n) float64
         """
-        with self._nlp_lock:
-            if self._output_jacobian is None:
-                J = ca.densify(ca.jacobian(self._outputs, self.x))
-                self._output_jacobian = ca.Function("output_jacobian", [self.x, self._p], [self._outputs, J])
-                _count_build("output_jacobian")
-        out, J = self._output_jacobian(x, p)
-        return np.asarray(out).ravel(), np.asarray(J)
+        _, _, _, out, G = self.linearisation(x, p)
+        return out, G
 
     def variable_bounds(self, joint_limits=None) -> tuple[np.ndarray, np.ndarray]:
         """``(lbx, ubx)``: the joint limits ``(K, 2)`` (relative to rest) on the joint states of a
