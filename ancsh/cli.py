@@ -32,6 +32,7 @@ EXAMPLES = {
     "bench": "ancsh bench fit --quick",
     "bench render": "ancsh bench render --frames 20 --categories laptop",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
+    "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~20 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
 }

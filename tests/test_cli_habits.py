@@ -27,7 +27,8 @@ def test_every_command_help_shows_an_example():
         assert "example:\n  ancsh " in sub.format_help(), " ".join(name)
 
 
-@pytest.mark.parametrize("argv", [["evaluate", "--category", "laptop"], ["evaluate-cad"], ["bench", "fit"]])
+@pytest.mark.parametrize("argv", [["evaluate", "--category", "laptop"], ["evaluate-cad"], ["bench", "fit"],
+                                  ["bench", "uncertainty"]])
 def test_report_commands_do_not_default_to_the_committed_results(argv):
     args = build_parser().parse_args(argv)
     assert args.out is None and args.update_docs is False

@@ -215,7 +215,9 @@ class DepthPrediction:
             "confidence": {"p_good": self.p_good, "good": "every part's rotation error below 10 deg",
                            "calibration": "ancsh calibrate (docs/results/<category>_confidence.md)"},
             "notes": list(self.notes), "isolation": None if self.isolation is None else self.isolation.to_dict(),
-            "parts": parts, "joints": joints, "timings_ms": dict(self.timings_ms),
+            "parts": parts, "joints": joints,
+            "uncertainty": None if getattr(r, "uncertainty", None) is None else r.uncertainty.to_dict(),
+            "timings_ms": dict(self.timings_ms),
             "frames": "camera frame (x right, y down, z forward), metres; pose maps part NPCS c to the camera: "
                       "p = scale * rotation @ c + translation; joint 'state' relative to the category's rest state "
                       "('rest'), 'state_abs' = state + rest",
@@ -331,6 +333,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         labels = np.asarray(corr.part_labels)
         quality = part_quality(result, pts, corr, raw)
         result = check_plausibility(result, labels, category, quality)
+        result = _inflate_uncertainty(result, category, provider)
         p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
@@ -347,6 +350,19 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
         part_quality=quality, p_good=p_good,
     )
+
+
+def _inflate_uncertainty(result, category: str, provider):
+    """The fit with its standard deviations inflated by the factors measured for these weights of
+    ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights."""
+    import dataclasses
+
+    from ..solvers.uncertainty import inflation_for
+
+    if result.uncertainty is None:
+        return result
+    inflation = inflation_for("learned", str(category), weights_sha256=getattr(provider.network, "sha256", None))
+    return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
 
 
 def _p_good(category: str, quality, weights_sha256: str | None) -> float | None:

@@ -28,7 +28,7 @@ states, joints exact by construction, limits as bounds; IPOPT, least squares or 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -109,6 +109,9 @@ class FitConfig:
         Backend iteration limit.
     tol : float
         Backend tolerance.
+    uncertainty : bool
+        Compute :attr:`FitResult.uncertainty` (Gauss-Newton covariances from the program's
+        Jacobian at the solution, :mod:`ancsh.solvers.uncertainty`; well under a millisecond).
     """
 
     ransac: bool = True
@@ -128,9 +131,10 @@ class FitConfig:
     enforce_limits: bool = True
     max_iterations: int = 100
     tol: float = 1e-10
+    uncertainty: bool = True
 
     def __post_init__(self):
-        for name in ("ransac", "optimize_scale", "enforce_limits"):
+        for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty"):
             check_bool(getattr(self, name), name)
         for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
             check_int(getattr(self, name), name, minimum=lo)
@@ -314,6 +318,8 @@ class _SolveRun:
     p: np.ndarray | None = None
     outcome: object = None
     iterations: int = 0
+    weights: np.ndarray | None = None  # the point weights of the last solve
+    moments: tuple | None = None  # and their per-part moments
 
 
 class _Fit:
@@ -361,9 +367,11 @@ class _Fit:
             poses = [self._rescale(j, T, inliers) for j, T in enumerate(poses)]
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         if self.form.parameterisation is None:
-            costs = self._data_costs(poses, L, inliers)
+            moments = self._moments(inliers, self.weights, L)
+            costs = self._data_costs(poses, L, moments)
+            uncertainty = self._uncertainty(poses, None, inliers, self.weights, moments, L)
             return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, costs,
-                                self.canonical)
+                                self.canonical, uncertainty)
         run = self._start_solve(poses, L)
         inliers = self._solve_loop(run, inliers, L)
         return self._extract(run, inliers, L)
@@ -455,7 +463,8 @@ class _Fit:
         rounds = cfg.irls_iterations if cfg.robust else 1
         for rescore in range(cfg.rescore_rounds + 1):
             for _ in range(rounds):
-                inputs = ProgramInputs(L, self.canonical, run.start, self._moments(inliers, weights, L), self.term_weights)
+                run.weights, run.moments = weights, self._moments(inliers, weights, L)
+                inputs = ProgramInputs(L, self.canonical, run.start, run.moments, self.term_weights)
                 run.p = prog.pack(inputs)
                 run.outcome = solve(self.solver, prog, run.p, run.x, run.bounds, opts)
                 run.iterations += run.outcome.iterations
@@ -486,7 +495,39 @@ class _Fit:
         canonical = self.canonical
         if solution.canonical_offsets is not None:  # report joints with the adjusted canonical parameters
             canonical = canonical.with_offsets(solution.canonical_offsets)
-        return self._finish(solved, inliers, L, outcome.status, outcome.message, run.iterations, costs, canonical)
+        uncertainty = self._uncertainty(solved, solution, inliers, run.weights, run.moments, L)
+        return self._finish(solved, inliers, L, outcome.status, outcome.message, run.iterations, costs, canonical,
+                            uncertainty)
+
+    def _uncertainty(self, poses: list, solution, inliers: np.ndarray, weights: np.ndarray, moments: tuple, L: float):
+        """The covariances at the solution (:mod:`.uncertainty`), in the formulation's program with the
+        object scale (per part: every scale) as a variable; ``None`` when switched off.
+
+        ``solution``: the program's :class:`~ancsh.solvers.program.Solution` (``None`` for ``per_part``,
+        whose coordinates are each part's own SE(3) + scale).
+        """
+        if not self.config.uncertainty:
+            return None
+        from .program import ProgramKey, get_program
+        from .uncertainty import effective_points, fit_covariance
+
+        cfg = self.config
+        if solution is None:
+            key = ProgramKey(self.structure, "maximal", True, (DataTerm,))
+        else:
+            key = ProgramKey(self.structure, self.form.parameterisation, True,
+                             self.form.terms(replace(cfg, optimize_scale=True), self.corr),
+                             free_canonical=cfg.naocs_prior_weight > 0)
+        prog = get_program(key)
+        states = offsets = None
+        if solution is not None:
+            states = solution.joint_states if prog.has_joint_states else None
+            offsets = solution.canonical_offsets
+        x = prog.initial_x(states, offsets)
+        start = ProgramStart(tuple(poses), None if solution is None else solution.T_cam_naocs)
+        p = prog.pack(ProgramInputs(L, self.canonical, start, moments, self.term_weights))
+        points = [effective_points(weights[inliers & (self.labels == j) & (weights > 0)]) for j in range(self.M)]
+        return fit_covariance(prog, x, p, points)
 
     def _onto_joints(self, poses: list, L: float, limits: np.ndarray) -> list:
         """The per-part poses moved onto the joints: the root part's pose and each joint's state
@@ -560,7 +601,7 @@ class _Fit:
         return total
 
     # -- post-processing ------------------------------------------------------------------------
-    def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical) -> FitResult:
+    def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical, uncertainty=None) -> FitResult:
         axes, pivots, states = _postprocess(self.structure, poses, canonical)
         violation = self._violation(poses, canonical, L)
         boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
@@ -568,7 +609,7 @@ class _Fit:
             formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
             joint_pivots_cam=pivots, joint_states=states, boxes_cam=boxes, status=status, message=message,
             cost_per_term=costs, iterations=int(iterations), max_constraint_violation=violation, inliers=inliers,
-            time_s=time.perf_counter() - self.start,
+            time_s=time.perf_counter() - self.start, uncertainty=uncertainty,
         )
 
     def _violation(self, poses, canonical, L) -> float:
@@ -581,12 +622,12 @@ class _Fit:
         lo, hi = prog.constraint_bounds(self._limits())
         return float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
 
-    def _data_costs(self, poses, L, inliers) -> dict:
-        """``{"data": e}``: the data energy of ``inliers`` at the given poses (closed-form fits)."""
+    def _data_costs(self, poses, L, moments: tuple) -> dict:
+        """``{"data": e}``: the data energy of the points with these moments at the given poses (closed-form fits)."""
         from .program import ProgramKey, get_program
 
         prog = get_program(ProgramKey(self.structure, "maximal", False, (DataTerm,)))
-        inputs = ProgramInputs(L, self.canonical, ProgramStart(T_cam_npcs=tuple(poses)), self._moments(inliers, self.weights, L))
+        inputs = ProgramInputs(L, self.canonical, ProgramStart(T_cam_npcs=tuple(poses)), moments)
         p = prog.pack(inputs)
         return dict(zip(prog.cost_names, np.asarray(prog.term_costs(prog.initial_x(), p)).ravel().tolist()))
 

@@ -51,7 +51,7 @@ from .terms import (
 )
 
 __all__ = [
-    "PARAMETERISATIONS", "Program", "ProgramKey", "PostProcess", "Solution", "get_program", "postprocess_function",
+    "PARAMETERISATIONS", "DataBlock", "Program", "ProgramKey", "PostProcess", "Solution", "get_program", "postprocess_function",
     "program_build_count",
 ]
 
@@ -90,6 +90,25 @@ class ProgramKey:
             else:
                 raise ValueError(f"terms: unknown term {t!r}; registered: {sorted(TERMS)}")
         object.__setattr__(self, "terms", tuple(classes))
+
+
+@dataclass(frozen=True)
+class DataBlock:
+    """Residual rows of one data term on one part (see :attr:`Program.data_blocks`).
+
+    Attributes
+    ----------
+    rows : slice
+        Rows of the program's residual vector (their squared norm is the part's weighted mean
+        squared point residual over ``L^2``).
+    part : int
+    residual_dims : int
+        Residual components per observed point (3 point-to-point, 1 point-to-plane).
+    """
+
+    rows: slice
+    part: int
+    residual_dims: int
 
 
 @dataclass(frozen=True)
@@ -220,11 +239,18 @@ class Program:
         self.terms = [cls() for cls in key.terms]
         costs, eqs, ineqs = [], [], []
         self.cost_names, self.inequality_terms = [], []
+        self._data_blocks = []
+        row = 0
         for term in self.terms:
             e = term.expression(ctx)
             if term.kind == "cost":
                 costs.append(e)
                 self.cost_names.append(term.name)
+                if term.rows_per_part:
+                    for j in range(st.num_parts):
+                        a = row + j * term.rows_per_part
+                        self._data_blocks.append(DataBlock(slice(a, a + term.rows_per_part), j, term.residual_dims))
+                row += int(e.numel())
             elif term.kind == "equality":
                 eqs.append(e)
             elif term.kind == "inequality":
@@ -232,6 +258,10 @@ class Program:
                 self.inequality_terms.append(term)
             else:
                 raise ValueError(f"term {term.name!r}: unknown kind {term.kind!r}")
+        # The reported object pose and joints as expressions of x (declares their parameters before p is fixed).
+        r0 = st.root
+        outputs = ca.vertcat(ca.vec(poses[r0].R), ctx.naocs_to_cam(r0, ca.DM.zeros(3)), ctx.object_scale(r0),
+                             *_joint_expressions(ctx))
         p = self.params.vector()
         r = ca.vertcat(*costs) if costs else ca.SX(0, 1)
         self.num_equalities = int(sum(e.numel() for e in eqs))
@@ -253,6 +283,8 @@ class Program:
         for P in poses:
             pose_out += [ca.vec(P.R), P.t, P.s]
         self.poses = ca.Function("poses", [x, p], [ca.vertcat(*pose_out)], ["x", "p"], ["poses"])
+        self._outputs = ca.vertcat(*pose_out, outputs)
+        self._linearisation = None
         self._nlpsols: dict = {}
         self._nlp_lock = threading.Lock()
 
@@ -279,15 +311,76 @@ class Program:
         """Whether joint states are decision variables (``reduced``)."""
         return "theta" in self._layout
 
-    def initial_x(self, joint_states=None) -> np.ndarray:
+    def initial_x(self, joint_states=None, canonical_offsets: CanonicalOffsets | None = None) -> np.ndarray:
         """The start ``x``: zero (the :class:`~ancsh.solvers.terms.ProgramStart` itself) with the
-        joint states ``(K,)`` (relative to rest; ``reduced`` only) when given."""
+        joint states ``(K,)`` (relative to rest; ``reduced`` only) and the canonical offsets (free
+        canonical parameters only) when given.
+
+        With the start poses of a :class:`Solution` and its states and offsets this ``x``
+        reproduces the solution (how a solution is linearised in another program of its structure).
+        """
         x0 = np.zeros(self.num_x)
         if joint_states is not None:
             if not self.has_joint_states:
                 raise ValueError("joint_states: this program has no joint-state variables (maximal parameterisation)")
             x0[self._layout["theta"]] = joint_states
+        if canonical_offsets is not None:
+            if "canonical" not in self._layout:
+                raise ValueError("canonical_offsets: this program's canonical parameters are fixed")
+            M = self.key.structure.num_parts
+            parts = [np.asarray(canonical_offsets.npcs_translation, dtype=np.float64).reshape(M, 3).ravel()]
+            parts += [np.asarray(canonical_offsets.joint_pivots_naocs[k], dtype=np.float64) for k in sorted(self.canonical.dq)]
+            x0[self._layout["canonical"]] = np.concatenate(parts)
         return x0
+
+    @property
+    def data_blocks(self) -> tuple["DataBlock", ...]:
+        """The residual rows of observed data, per term and part (the noise sources of a covariance)."""
+        return tuple(self._data_blocks)
+
+    @property
+    def num_parts(self) -> int:
+        return self.key.structure.num_parts
+
+    def linearisation(self, x, p) -> tuple[np.ndarray, ...]:
+        """Everything a covariance needs at ``x``, in one call: ``(r, J, Jg, outputs, G)`` -- the
+        residuals ``(m,)`` and their Jacobian ``(m, n)``, the Jacobian of the equality constraints
+        ``(num_equalities, n)``, and :meth:`output_jacobian`'s outputs and Jacobian ``G``."""
+        with self._nlp_lock:
+            if self._linearisation is None:
+                eq = self._g[: self.num_equalities]
+                out = [self._r, ca.densify(ca.jacobian(self._r, self.x)), ca.densify(ca.jacobian(eq, self.x)),
+                       self._outputs, ca.densify(ca.jacobian(self._outputs, self.x))]
+                self._linearisation = ca.Function("linearisation", [self.x, self._p], out)
+                _count_build("output_jacobian")
+        f = self._linearisation
+        # Evaluated into numpy buffers: converting dense DM results costs more than evaluating them.
+        buf, trigger = f.buffer()
+        args = [np.ascontiguousarray(x, dtype=np.float64).ravel(), np.ascontiguousarray(p, dtype=np.float64).ravel()]
+        for i, a in enumerate(args):
+            buf.set_arg(i, memoryview(a))
+        res = [np.zeros(f.size_out(i)[::-1]) for i in range(f.n_out())]  # column-major storage, transposed below
+        for i, a in enumerate(res):
+            buf.set_res(i, memoryview(a))
+        trigger()
+        r, J, Jg, out, G = (a.T for a in res)
+        return r.ravel(), J, Jg, out.ravel(), G
+
+    def output_jacobian(self, x, p) -> tuple[np.ndarray, np.ndarray]:
+        """The reported quantities at ``x`` and their Jacobian with respect to ``x``.
+
+        Returns
+        -------
+        outputs : (13 M + 13 + 7 K,) float64
+            Per part ``vec(R)`` (column-major), ``t`` (metres), ``s``; the object pose (root part's
+            ``vec(R)``, NAOCS origin in the camera (metres), metres per NAOCS unit); joint axes
+            ``(3 K)`` (unit, camera), pivots ``(3 K)`` (metres, camera), states ``(K)`` (relative to
+            rest), defined as in :func:`postprocess_function` but with the program's own (free)
+            canonical parameters.
+        jacobian : (len(outputs), n) float64
+        """
+        _, _, _, out, G = self.linearisation(x, p)
+        return out, G
 
     def variable_bounds(self, joint_limits=None) -> tuple[np.ndarray, np.ndarray]:
         """``(lbx, ubx)``: the joint limits ``(K, 2)`` (relative to rest) on the joint states of a
@@ -359,7 +452,7 @@ class Program:
 
 _CACHE: dict = {}
 _CACHE_LOCK = threading.Lock()
-_BUILDS = {"program": 0, "nlpsol": 0, "postprocess": 0}
+_BUILDS = {"program": 0, "nlpsol": 0, "postprocess": 0, "output_jacobian": 0}
 
 
 def _count_build(kind: str) -> None:
@@ -414,6 +507,28 @@ class PostProcess:
         )
 
 
+def _joint_expressions(ctx: Context) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Camera-space joint axes ``(3 K)``, pivots ``(3 K)`` and states ``(K)`` from the context's part poses.
+
+    Revolute: axis ``normalise((R_p + R_c) u)``, pivot the mean of ``X_p(q)`` and ``X_c(q)``;
+    prismatic: axis likewise, pivot ``X_p(q)``; states from :func:`~ancsh.solvers.terms.joint_state_expr`.
+    """
+    st, poses = ctx.structure, ctx.poses
+    axes, pivots, states = [], [], []
+    for k in range(st.num_joints):
+        p, c = ctx.joint_parts(k)
+        u, q = ctx.axis(k), ctx.pivot(k)
+        a = (poses[p].R + poses[c].R) @ u
+        axes.append(a / ca.norm_2(a))
+        if st.is_revolute(k):
+            pivots.append(0.5 * (ctx.naocs_to_cam(p, q) + ctx.naocs_to_cam(c, q)))
+        else:
+            pivots.append(ctx.naocs_to_cam(p, q))
+        states.append(joint_state_expr(ctx, k))
+    cat = lambda xs: ca.vertcat(*xs) if xs else ca.SX(0, 1)  # noqa: E731
+    return cat(axes), cat(pivots), cat(states)
+
+
 def postprocess_function(structure: KinematicStructure) -> PostProcess:
     """Camera-space joint parameters and states from part poses (paper Sec. 4.4).
 
@@ -433,20 +548,9 @@ def postprocess_function(structure: KinematicStructure) -> PostProcess:
             pose_syms.append(v)
             poses.append(PoseExpr(ca.reshape(v[:9], 3, 3), v[9:12], v[12]))
         ctx = Context(structure, params, poses)
-        axes, pivots, states = [], [], []
-        for k in range(structure.num_joints):
-            p, c = ctx.joint_parts(k)
-            u, q = ctx.axis(k), ctx.pivot(k)
-            a = (poses[p].R + poses[c].R) @ u
-            axes.append(a / ca.norm_2(a))
-            if structure.is_revolute(k):
-                pivots.append(0.5 * (ctx.naocs_to_cam(p, q) + ctx.naocs_to_cam(c, q)))
-            else:
-                pivots.append(ctx.naocs_to_cam(p, q))
-            states.append(joint_state_expr(ctx, k))
-        cat = lambda xs: ca.vertcat(*xs) if xs else ca.SX(0, 1)  # noqa: E731
+        axes, pivots, states = _joint_expressions(ctx)
         f = ca.Function(
-            "postprocess", [cat(pose_syms), params.vector()], [cat(axes), cat(pivots), cat(states)],
+            "postprocess", [ca.vertcat(*pose_syms), params.vector()], [axes, pivots, states],
             ["poses", "p"], ["axes", "pivots", "states"],
         )
         f = PostProcess(f, params)

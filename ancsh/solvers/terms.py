@@ -547,6 +547,12 @@ class EnergyTerm:
 
     name: str = ""
     kind: str = "cost"
+    #: Observed-data costs (the noise sources of a fit's covariance): residual rows per part, in
+    #: part order, each part's squared norm its weighted mean squared point residual over ``L^2``;
+    #: 0 for priors and penalties.
+    rows_per_part: int = 0
+    #: Residual components per observed point of a data term (3 point-to-point, 1 point-to-plane).
+    residual_dims: int = 3
 
     def expression(self, ctx: Context) -> ca.SX:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -586,6 +592,7 @@ class DataTerm(EnergyTerm):
     """
 
     name = "data"
+    rows_per_part = 13
 
     def expression(self, ctx: Context) -> ca.SX:
         out = []
@@ -816,6 +823,8 @@ class PointToPlaneTerm(EnergyTerm):
     """
 
     name = "point_to_plane"
+    rows_per_part = 13
+    residual_dims = 1
 
     def expression(self, ctx: Context) -> ca.SX:
         out = []

@@ -336,6 +336,10 @@ class FitResult:
         Points used by the final solve.
     time_s : float
         Wall time of the whole fit, seconds.
+    uncertainty : FitUncertainty or None
+        Covariances and standard deviations of the part poses, object pose and joints
+        (:mod:`ancsh.solvers.uncertainty`; raw Jacobian values unless a caller inflated them);
+        ``None`` for a fit without an estimate or with ``FitConfig(uncertainty=False)``.
     """
 
     formulation: str
@@ -352,8 +356,14 @@ class FitResult:
     max_constraint_violation: float = 0.0
     inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     time_s: float = 0.0
+    uncertainty: object = None
 
     def __post_init__(self):
+        if self.uncertainty is not None:
+            from .uncertainty import FitUncertainty
+
+            if not isinstance(self.uncertainty, FitUncertainty):
+                raise ValueError(f"uncertainty: expected a FitUncertainty or None, got {type(self.uncertainty).__name__}")
         if not isinstance(self.status, FitStatus):
             object.__setattr__(self, "status", FitStatus(self.status))
         for p in self.T_cam_npcs:

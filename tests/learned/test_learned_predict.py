@@ -62,6 +62,9 @@ def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rend
             assert np.shape(part["pose"]["rotation"]) == (3, 3) and np.shape(part["pose"]["translation"]) == (3,)
             assert np.shape(part["box"]["corners"]) == (8, 3) and np.shape(part["box"]["extents"]) == (3,)
         assert np.shape(data["joints"][0]["axis_cam"]) == (3,) and data["joints"][0]["state_unit"] == "rad"
+        unc = data["uncertainty"]
+        assert unc["inflation"]["source"] == "raw"  # weights other than the shipped ones: no measured factors
+        assert len(unc["parts"]) == len(data["parts"]) and len(unc["joints"]) == len(data["joints"])
     assert set(data["timings_ms"]) == {"backproject", "network", "fit", "total"}
 
 
@@ -70,6 +73,15 @@ def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, ren
     pred = predict_depth(read_depth(files / "depth.png"), read_intrinsics(files / "K.json"), "laptop")
     data = pred.to_json()
     assert data["ok"] and data["formulation"] == "exact_reduced"
+    # the shipped weights' standard deviations carry the measured inflation (raw ones beside them)
+    from ancsh.solvers.uncertainty import inflation_for
+
+    unc, inflation = data["uncertainty"], inflation_for("learned", "laptop", weights_sha256=data["weights_sha256"])
+    assert unc["inflation"]["source"] == inflation.source == "learned/laptop"
+    raw = pred.result.uncertainty.raw()
+    assert unc["raw"]["joints"][0]["state_std"] == pytest.approx(raw.joint_state_std[0])
+    assert unc["joints"][0]["state_std"] == pytest.approx(raw.inflated(inflation).joint_state_std[0])
+    assert unc["joints"][0]["state_std"] > unc["raw"]["joints"][0]["state_std"]  # the raw sigmas are over-confident
     # every part box centre lies within the observed cloud's extent (grown by its diagonal)
     lo, hi = pred.points_cam.min(0), pred.points_cam.max(0)
     diag = np.linalg.norm(hi - lo)

@@ -1,0 +1,236 @@
+"""Fit uncertainty: Jacobians vs central differences, Monte Carlo spread vs predicted sigma,
+constraints kept by the reduced covariance, singular and unavailable cases, inflation."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ancsh.geometry.rotations import log_so3, random_rotation
+from ancsh.geometry.transforms import Sim3
+from ancsh.solvers import FitConfig, fit
+from ancsh.solvers.program import Program, ProgramKey
+from ancsh.solvers.terms import (
+    CanonicalParameters, CanonicalPriorTerm, DataTerm, KinematicStructure, ProgramInputs, ProgramStart, TermWeights,
+    part_moments,
+)
+from ancsh.solvers.uncertainty import FitUncertainty, Inflation, fit_covariance, inflation_for, load_inflation_table
+
+# A tiny articulated object: 0 -> 1 revolute, 0 -> 2 prismatic.
+STRUCTURE = KinematicStructure(3, ("revolute", "prismatic"), (0, 0), (1, 2))
+
+
+def _tiny_program(rng, parameterisation="reduced", free=True, n=40, noise=0.02):
+    """A program of STRUCTURE with moments of noisy random correspondences, and a point ``x`` near the start."""
+    terms = (DataTerm, CanonicalPriorTerm) if free else (DataTerm,)
+    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free))
+    axes = rng.normal(size=(2, 3))
+    canonical = CanonicalParameters(np.array([0.8, 0.5, 0.6]), rng.normal(scale=0.1, size=(3, 3)),
+                                    axes / np.linalg.norm(axes, axis=1, keepdims=True), rng.normal(scale=0.2, size=(2, 3)),
+                                    np.zeros(2))
+    poses = tuple(Sim3(random_rotation(rng), rng.normal(size=3), rng.uniform(0.3, 0.6)) for _ in range(3))
+    moments = []
+    for T in poses:
+        c = rng.uniform(-0.5, 0.5, size=(n, 3))
+        moments.append(part_moments(T.apply(c) + rng.normal(scale=noise, size=(n, 3)), c, np.ones(n), 1.0))
+    start = ProgramStart(poses, Sim3(poses[0].rotation, poses[0].translation, 1.0))
+    p = prog.pack(ProgramInputs(1.0, canonical, start, tuple(moments), TermWeights(1.0, 1.0, 0.0, 0.1)))
+    x = rng.normal(scale=0.05, size=prog.num_x)
+    return prog, x, p
+
+
+@pytest.mark.parametrize("parameterisation", ["reduced", "maximal"])
+def test_output_jacobian_matches_central_differences(parameterisation, numeric_derivative):
+    prog, x, p = _tiny_program(np.random.default_rng(1), parameterisation)
+    out, J = prog.output_jacobian(x, p)
+    numeric = numeric_derivative(lambda x_: prog.output_jacobian(x_, p)[0], x)
+    assert J.shape == (13 * 3 + 13 + 7 * 2, prog.num_x)
+    np.testing.assert_allclose(J, numeric, rtol=1e-6, atol=1e-7)
+    # The poses part of the outputs is the program's own part poses.
+    np.testing.assert_allclose(out[: 13 * 3], np.asarray(prog.poses(x, p)).ravel())
+
+
+def test_covariance_matches_a_finite_difference_sandwich(numeric_derivative):
+    """The joint states are coordinates of the reduced program: their covariance is the sandwich
+    ``H^-1 M H^-1`` built from central-difference Jacobians of the residuals."""
+    rng = np.random.default_rng(2)
+    prog, x, p = _tiny_program(rng, "reduced", free=True)
+    points = np.array([40.0, 40.0, 40.0])
+    u = fit_covariance(prog, x, p, points)
+    assert u.status == "ok", u.message
+    r = np.asarray(prog.residual(x, p)).ravel()
+    J = numeric_derivative(lambda x_: np.asarray(prog.residual(x_, p)).ravel(), x)
+    blocks = prog.data_blocks
+    free = prog.num_x
+    observed = sum(3 * points[b.part] for b in blocks)
+    meat = sum(observed / (observed - free) * (r[b.rows] @ r[b.rows]) / 3 / points[b.part] * J[b.rows].T @ J[b.rows]
+               for b in blocks)
+    Hinv = np.linalg.inv(J.T @ J)
+    cov = Hinv @ meat @ Hinv
+    theta = [int(np.flatnonzero(prog.initial_x(np.eye(2)[k]))[0]) for k in range(2)]
+    # The reported states are the program's theta (up to the revolute window): same covariance.
+    np.testing.assert_allclose(u.joint_state_covariance, cov[np.ix_(theta, theta)], rtol=1e-5)
+
+
+def _noisy_case(fit_case, seed, sigma):
+    case = fit_case(31, num_parts=3, joint_types=["revolute", "prismatic"], points_per_part=120)
+    rng = np.random.default_rng(seed)
+    corr = replace(case.correspondences, npcs=case.correspondences.npcs + rng.normal(0.0, sigma, case.correspondences.npcs.shape))
+    return case, corr
+
+
+@pytest.mark.parametrize("formulation", ["exact_reduced", "per_part"])
+def test_monte_carlo_spread_matches_the_predicted_sigma(fit_case, formulation):
+    """Seeded synthetic fits with iid NPCS noise: the RMS errors of 30 repeated fits match the
+    predicted RMS (rotation, translation) and standard deviation (joint states) within 35 %."""
+    config = FitConfig(ransac=False)
+    rot, trans, states, pred = [], [], [], []
+    for draw in range(30):
+        case, corr = _noisy_case(fit_case, draw, 0.01)
+        r = fit(case.observation, corr, formulation, config=config, rng=draw)
+        assert r.ok and r.uncertainty.ok, r.uncertainty.message
+        rot.append([np.linalg.norm(log_so3(G.rotation @ T.rotation.T)) for G, T in zip(case.gt.T_cam_npcs, r.T_cam_npcs)])
+        trans.append([np.linalg.norm(G.translation - T.translation) for G, T in zip(case.gt.T_cam_npcs, r.T_cam_npcs)])
+        states.append(r.joint_states - case.gt.joint_states)
+        u = r.uncertainty
+        pred.append(np.concatenate([u.rotation_rms_rad, u.translation_rms_m, u.joint_state_std]))
+    empirical = np.concatenate([np.sqrt(np.mean(np.square(rot), axis=0)), np.sqrt(np.mean(np.square(trans), axis=0)),
+                                np.sqrt(np.mean(np.square(states), axis=0))])
+    ratio = empirical / np.mean(pred, axis=0)
+    assert np.all((ratio > 1 / 1.35) & (ratio < 1.35)), ratio.round(3)
+
+
+def _skew(a):
+    return np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+
+
+@pytest.mark.parametrize("formulation", ["exact_reduced", "exact_maximal"])
+def test_reduced_covariance_keeps_the_revolute_axis_consistent(fit_case, formulation):
+    """With exact joints the parent's and child's rotations differ only about the joint axis, so the
+    axis covariance is the same seen through either part; and both parameterisations agree."""
+    case, corr = _noisy_case(fit_case, 5, 0.01)
+    r = fit(case.observation, corr, formulation, config=FitConfig(ransac=False), rng=0)
+    u = r.uncertainty
+    k = 0  # revolute, parent 0 -> child 1
+    A = -_skew(r.joint_axes_cam[k])  # d(axis) = phi x axis
+    via_parent = A @ u.part_covariances[0][:3, :3] @ A.T
+    via_child = A @ u.part_covariances[1][:3, :3] @ A.T
+    scale = np.trace(u.joint_axis_covariances[k])
+    np.testing.assert_allclose(via_parent, u.joint_axis_covariances[k], atol=1e-6 * scale)
+    np.testing.assert_allclose(via_child, u.joint_axis_covariances[k], atol=1e-6 * scale)
+    other = fit(case.observation, corr, "exact_reduced", config=FitConfig(ransac=False), rng=0).uncertainty
+    np.testing.assert_allclose(u.part_covariances, other.part_covariances, rtol=2e-3,
+                               atol=2e-3 * np.max(np.abs(other.part_covariances)))
+
+
+def test_soft_joints_do_not_tie_the_rotations(fit_case):
+    """Contrast: the soft formulation leaves the child's rotation partly independent of the parent's."""
+    case, corr = _noisy_case(fit_case, 5, 0.01)
+    u = fit(case.observation, corr, "soft", config=FitConfig(ransac=False), rng=0).uncertainty
+    A = -_skew(fit(case.observation, corr, "soft", config=FitConfig(ransac=False), rng=0).joint_axes_cam[0])
+    assert not np.allclose(A @ u.part_covariances[0][:3, :3] @ A.T, A @ u.part_covariances[1][:3, :3] @ A.T, rtol=1e-3)
+
+
+def test_noise_free_fit_has_zero_sigma_and_switching_it_off(fit_case):
+    case = fit_case(8, num_parts=3)
+    r = fit(case.observation, case.correspondences, config=FitConfig(ransac=False))
+    assert r.uncertainty.ok and np.max(r.uncertainty.rotation_rms_rad) < 1e-6
+    assert fit(case.observation, case.correspondences, config=FitConfig(uncertainty=False)).uncertainty is None
+    with pytest.raises(ValueError, match="uncertainty"):
+        FitConfig(uncertainty="yes")
+
+
+def test_collinear_part_is_singular_not_a_crash():
+    """A part seen as a line cannot fix its rotation about that line: ``inf`` there, finite elsewhere."""
+    rng = np.random.default_rng(4)
+    prog = Program(ProgramKey(STRUCTURE, "maximal", True, (DataTerm,)))
+    poses = tuple(Sim3(random_rotation(rng), rng.normal(size=3), 0.5) for _ in range(3))
+    moments = []
+    for j, T in enumerate(poses):
+        c = rng.uniform(-0.5, 0.5, size=(30, 3))
+        if j == 2:
+            c = np.outer(np.linspace(-0.5, 0.5, 30), [1.0, 0.2, 0.1])
+        moments.append(part_moments(T.apply(c) + rng.normal(scale=0.01, size=c.shape), c, np.ones(30), 1.0))
+    canonical = CanonicalParameters(np.ones(3), np.zeros((3, 3)), np.eye(3)[:2], np.zeros((2, 3)), np.zeros(2))
+    p = prog.pack(ProgramInputs(1.0, canonical, ProgramStart(poses), tuple(moments)))
+    u = fit_covariance(prog, prog.initial_x(), p, [30, 30, 30])
+    assert u.status == "singular" and "undetermined" in u.message
+    assert np.isinf(u.rotation_rms_rad[2]) and np.all(np.isfinite(u.rotation_rms_rad[:2]))
+    few = fit_covariance(prog, prog.initial_x(), p, [2, 2, 2])
+    assert few.status == "unavailable" and np.all(np.isinf(few.joint_state_std))
+
+
+def test_inflation_scales_the_sigmas_and_raw_recovers_them(fit_case, tmp_path):
+    case, corr = _noisy_case(fit_case, 1, 0.01)
+    u = fit(case.observation, corr, config=FitConfig(ransac=False)).uncertainty
+    inf = Inflation(rotation=3.0, translation=2.0, scale=1.5, joint_state=4.0, joint_axis=2.5, joint_pivot=1.2, source="test")
+    big = u.inflated(inf)
+    np.testing.assert_allclose(big.rotation_rms_rad, 3.0 * u.rotation_rms_rad)
+    np.testing.assert_allclose(big.translation_rms_m, 2.0 * u.translation_rms_m)
+    np.testing.assert_allclose(big.scale_std, 1.5 * u.scale_std)
+    np.testing.assert_allclose(big.joint_state_std, 4.0 * u.joint_state_std)
+    np.testing.assert_allclose(big.inflated(inf).joint_state_std, big.joint_state_std)  # relative to raw: no compounding
+    np.testing.assert_allclose(big.raw().part_covariances, u.part_covariances, rtol=1e-12, atol=1e-300)
+    d = big.to_dict()
+    assert d["inflation"]["source"] == "test" and d["raw"]["joints"][0]["state_std"] == pytest.approx(u.joint_state_std[0])
+    with pytest.raises(ValueError, match="inflation"):
+        u.inflated({"rotation": 2.0})
+    # Within-part correlation: every part has n = 120 equally weighted points here, so the correlated
+    # component is (n - 1) times the independent one, and rho adds it before the factors.
+    np.testing.assert_allclose(u.points, 120.0)
+    np.testing.assert_allclose(u.correlated.joint_state_covariance, 119.0 * u.joint_state_covariance, rtol=1e-9)
+    rho = Inflation(correlation=0.01, joint_state=2.0)
+    np.testing.assert_allclose(u.inflated(rho).joint_state_covariance, 4.0 * (1 + 0.01 * 119) * u.joint_state_covariance)
+    with pytest.raises(ValueError, match="correlation"):
+        Inflation(correlation=1.5)
+    assert inflation_for("no-such-provider", "laptop").source == "raw"
+    table = tmp_path / "table.json"  # factors measured for one network hold for that network only
+    table.write_text(json.dumps({"providers": {"learned": {"laptop": {"rotation": 3.0, "weights_sha256": "ab"}}}}))
+    assert inflation_for("learned", "laptop", weights_sha256="ab", path=table).rotation == 3.0
+    assert inflation_for("learned", "laptop", weights_sha256="cd", path=table).source == "raw"
+    bad = tmp_path / "bad.json"
+    bad.write_text("[1, 2]")
+    with pytest.raises(ValueError, match="bad.json"):
+        load_inflation_table(bad)
+    with pytest.raises(ValueError, match="status"):
+        replace(u, status="fine")
+
+
+def test_failed_fit_has_no_uncertainty(fit_case):
+    case = fit_case(3, num_parts=2)
+    r = fit(case.observation, replace(case.correspondences, weights=np.zeros(case.correspondences.num_points)))
+    assert not r.ok and r.uncertainty is None
+    assert isinstance(FitUncertainty.unavailable("x", 2, 1), FitUncertainty)
+
+
+def test_coverage_and_inflation_fit_recover_a_known_scale():
+    """Squared Mahalanobis distances of errors twice as large as predicted: the fitted factor is 2."""
+    from ancsh.uncertainty_calibration import COVERAGE_TARGETS, coverage, fit_inflation
+
+    rng = np.random.default_rng(0)
+    d2 = 4.0 * np.sum(rng.normal(size=(4000, 3)) ** 2, axis=1)
+    assert coverage(d2, "rotation")[0] < 0.25
+    f = fit_inflation(d2, "rotation")
+    assert f == pytest.approx(2.0, rel=0.05)
+    np.testing.assert_allclose(coverage(d2, "rotation", f), COVERAGE_TARGETS, atol=0.02)
+
+
+def test_error_records_have_the_quantities_dimensions(fit_case):
+    """Every fitted quantity yields an error of its degrees of freedom with finite covariances; with
+    the predicted covariance the mean squared Mahalanobis distance of iid-noise fits is near ``dof``."""
+    from ancsh.uncertainty_calibration import QUANTITIES, error_records, normalised_errors
+
+    pooled = {q: [] for q in QUANTITIES}
+    for draw in range(12):
+        case, corr = _noisy_case(fit_case, 100 + draw, 0.01)
+        r = fit(case.observation, corr, config=FitConfig(ransac=False), rng=draw)
+        for q, recs in error_records(r, case.gt).items():
+            for e, C, Cc in recs:
+                assert e.shape == (QUANTITIES[q],) and C.shape == Cc.shape == (QUANTITIES[q],) * 2
+            pooled[q] += recs
+    assert len(pooled["rotation"]) == 36 and len(pooled["joint_state"]) == 24 and len(pooled["joint_pivot"]) == 12
+    for q in ("rotation", "translation", "joint_state"):
+        d2 = normalised_errors(pooled[q])
+        assert np.all(np.isfinite(d2))
+        assert 0.5 * QUANTITIES[q] < np.mean(d2) < 1.6 * QUANTITIES[q], (q, np.mean(d2))
