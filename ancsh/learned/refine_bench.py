@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["register", "refinement_rows", "run_template_refinement", "write_summary"]
+__all__ = ["defaults_from", "refinement_helps", "register", "refinement_rows", "run_template_refinement", "write_summary"]
 
 
 def register(sub) -> None:
@@ -30,6 +30,9 @@ def register(sub) -> None:
                    help="real test-split frames per category where the shipped catalog has test objects (default 50; 0 = none)")
     p.add_argument("--out", type=Path, help="folder (default: a fresh ancsh_results/template-refinement-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write into docs/results/ (when --out is not given)")
+    p.add_argument("--install-defaults", action="store_true",
+                   help="write ancsh/data/templates/refine_defaults.json (refine='auto'): on for the categories where "
+                   "the refinement helped on the procedural split (refinement_helps)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run)
 
@@ -50,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--real-frames", str(args.real_frames)]
     if args.out is not None:
         parts += ["--out", str(args.out)]
+    if args.install_defaults:
+        parts.append("--install-defaults")
     elif args.update_docs:
         parts.append("--update-docs")
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
@@ -65,7 +70,31 @@ def run(args: argparse.Namespace) -> int:
     path = write_summary(results, summary_path, command=command, folder=folder)
     print(path.read_text())
     print(f"wrote {path} and the per-category reports in {folder}")
+    if args.install_defaults:
+        import json
+
+        target = Path(__file__).resolve().parents[1] / "data" / "templates" / "refine_defaults.json"
+        target.write_text(json.dumps({"measured_by": command, "summary": str(path), "rule": HELPS_RULE,
+                                      "categories": defaults_from(results)}, indent=1) + "\n")
+        print(f"installed {target}")
     return 0
+
+
+HELPS_RULE = ("on where, on the procedural test split, the refinement lowered the mean rotation error of every part "
+              "and did not raise the mean joint-state error by more than 5 %")
+
+
+def refinement_helps(summary: dict) -> bool:
+    """The rule of :data:`HELPS_RULE` on one evaluation's :func:`~ancsh.learned.evaluate.summarize` result."""
+    a, b = summary["methods"]["exact_reduced"], summary["methods"]["template"]
+    rot_a, rot_b = np.array(a["rot_deg"]["mean"], dtype=float), np.array(b["rot_deg"]["mean"], dtype=float)
+    st_a, st_b = np.array(a["state_err"]["mean"], dtype=float), np.array(b["state_err"]["mean"], dtype=float)
+    return bool(np.all(rot_b < rot_a) and np.all(st_b <= 1.05 * st_a))
+
+
+def defaults_from(results: list[dict]) -> dict:
+    """``{category: on}`` from :func:`run_template_refinement`'s procedural results."""
+    return {r["category"]: refinement_helps(r["summary"]) for r in results if r["split"] == "procedural"}
 
 
 def run_template_refinement(categories, *, frames: int, real_frames: int, out_dir, command: str,
@@ -161,11 +190,15 @@ def write_summary(results: list[dict], path, *, command: str, folder) -> Path:
     ]
     for r in results:
         lines += refinement_rows(r)
-    lines += ["", "| Category | Split | Refinement | Frames with a part > 2° worse | > 2° better |", "|---|---|---|---|---|"]
+    lines += ["", "| Category | Split | Refinement | Frames with a part > 2° worse | > 2° better | Helps (rule below) |",
+              "|---|---|---|---|---|---|"]
     for r in results:
         worse, better = _worse_share(r)
+        helps = ("yes" if refinement_helps(r["summary"]) else "no") if r["split"] == "procedural" else ""
         lines.append(f"| {r['category']} | {r['split']} | {refine_summary_line(r['summary']['methods']['template'])} "
-                     f"| {100 * worse:.0f}% | {100 * better:.0f}% |")
+                     f"| {100 * worse:.0f}% | {100 * better:.0f}% | {helps} |")
+    lines += ["", f"Rule for the per-category default (`refine='auto'`, `ancsh predict`; written by `--install-defaults` "
+              f"to `ancsh/data/templates/refine_defaults.json`): {HELPS_RULE}."]
     lines.append("")
     path.write_text("\n".join(lines))
     return path
