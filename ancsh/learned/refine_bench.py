@@ -53,10 +53,10 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--real-frames", str(args.real_frames)]
     if args.out is not None:
         parts += ["--out", str(args.out)]
-    if args.install_defaults:
-        parts.append("--install-defaults")
     elif args.update_docs:
         parts.append("--update-docs")
+    if args.install_defaults:
+        parts.append("--install-defaults")
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     if args.out is not None:
         summary_path, folder = args.out / "template_refinement.md", args.out
