@@ -16,6 +16,7 @@ BENCH_MODULES = [
     "ancsh.solvers.bench",
     "ancsh.learned.bench",
     "ancsh.uncertainty_calibration",
+    "ancsh.learned.refine_bench",
 ]
 
 

@@ -29,6 +29,7 @@ EXAMPLES = {
     "data ranges": "ancsh data ranges --out ranges.md",
     "bench learned-ablation": "ancsh bench learned-ablation --runs base=runs/laptop_ancsh wide=runs/laptop_wide --frames 100",
     "bench learned-cost": "ancsh bench learned-cost --variants today new --repeats 6",
+    "bench template-refinement": "ancsh bench template-refinement --categories laptop --frames 20 --real-frames 0",
     "bench": "ancsh bench fit --quick",
     "bench render": "ancsh bench render --frames 20 --categories laptop",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",

@@ -33,6 +33,9 @@ def register(sub) -> None:
     p.add_argument("--formulation", default="exact_reduced",
                    help="fitting formulation: per_part, soft, exact_maximal, exact_reduced (default)")
     p.add_argument("--weights", type=Path, help="a weights file instead of the category's shipped weights")
+    p.add_argument("--refine", choices=("auto", "template", "none"), default="auto",
+                   help="refine the fit against the category template (articulated ICP, kept where its score on the "
+                   "points is better): 'auto' (default) where measured to help (ancsh/data/templates/refine_defaults.json)")
     p.add_argument("--seed", type=int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
@@ -49,7 +52,11 @@ def register(sub) -> None:
     )
     e.add_argument("--category", required=True)
     e.add_argument("--formulations", nargs="+", metavar="METHOD",
-                   help="methods (default all): per_part (NPCS), naocs, soft, exact_reduced, exact_maximal")
+                   help="methods (default all but template): per_part (NPCS), naocs, soft, exact_reduced, exact_maximal, "
+                   "template (= --refine template)")
+    e.add_argument("--refine", choices=("template",), help="also refine the exact_reduced fit against the category "
+                   "template (the nearest training instance, articulated ICP; kept where its score on the points is "
+                   "better): the 'ANCSH-exact + category template' row")
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
     e.add_argument("--time-limit-min", type=float, help="stop after this many minutes, keeping the frames done")
@@ -196,7 +203,7 @@ def run_predict(args: argparse.Namespace) -> int:
     rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
-                         isolate=not args.no_isolate, hint=hint)
+                         isolate=not args.no_isolate, hint=hint, refine=args.refine)
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
                      "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed,
@@ -251,7 +258,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if args.png is not None:
         args.png.mkdir(parents=True, exist_ok=True)
-    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed)
+    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine)
     statuses = {}
     for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
         try:
@@ -311,11 +318,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from .evaluate import METHODS, evaluate_category, summarize, write_report
+    from .evaluate import DEFAULT_METHODS, evaluate_category, summarize, write_report
 
     from ..outputs import DOCS_RESULTS, fresh_output_dir
 
-    methods = tuple(args.formulations) if args.formulations else tuple(METHODS)
+    methods = tuple(args.formulations) if args.formulations else DEFAULT_METHODS
     frames = args.frames if args.frames is not None else (300 if args.quick else 3000)
     if frames < 1:
         raise ValueError(f"--frames: expected a positive number of frames, got {frames}")
@@ -326,7 +333,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     common = dict(
         frames=frames, methods=methods, seed=args.seed, weights=args.weights, direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
-        num_threads=args.threads, progress=not args.no_progress,
+        num_threads=args.threads, progress=not args.no_progress, refine=args.refine,
     )
     ev = evaluate_category(args.category, **common)
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
@@ -355,6 +362,8 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts.append("--quick")
     if args.real:
         parts += ["--real", args.real]
+    if args.refine:
+        parts += ["--refine", args.refine]
     if args.update_docs and args.out is None:
         parts.append("--update-docs")
     if args.seed:

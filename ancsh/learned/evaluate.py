@@ -19,6 +19,10 @@ then fit the same network output, so they differ only in how they use it:
     Sec. 4.3 soft joint energies, ``FitConfig.paper()``.
 ``exact_reduced`` / ``exact_maximal`` (ANCSH-exact, ours)
     Joints as exact constraints (IPOPT), default ``FitConfig()``.
+``template`` (ANCSH-exact + category template, ours; only when asked for, ``refine="template"``)
+    The ``exact_reduced`` fit refined by articulated ICP against the nearest training instance of the
+    category (:func:`ancsh.solvers.icp.category.refine_fit`): kept only where its own score on the
+    observed points beats the input fit's, else the ``exact_reduced`` fit itself.
 
 The NPCS and NAOCS baselines use the heads of the one ANCSH network rather than separately trained
 networks. Frame metrics come from :func:`ancsh.evaluation.evaluate_fit` (one definition).
@@ -42,6 +46,7 @@ from ..solvers.types import Correspondences, FitResult, Observation
 from .weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 
 __all__ = [
+    "DEFAULT_METHODS",
     "METHODS",
     "PAPER_TABLE1",
     "PAPER_TABLE2",
@@ -80,9 +85,13 @@ METHODS: dict[str, Method] = {
         Method("soft", "ANCSH-soft (paper)", "soft", True),
         Method("exact_reduced", "ANCSH-exact reduced (ours)", "exact_reduced", False),
         Method("exact_maximal", "ANCSH-exact maximal (ours)", "exact_maximal", False),
+        Method("template", "ANCSH-exact + category template (ours)", "exact_reduced", False),
     )
 }
 """Methods of Table 1 by key (``--formulations`` takes these keys)."""
+
+DEFAULT_METHODS = tuple(k for k in METHODS if k != "template")
+"""The methods evaluated by default (the template refinement costs far more per frame: asked for with ``refine``)."""
 
 # The paper's Table 1 (means over ~3000 test images of unseen instances of its CAD datasets; translation
 # and line distance in object units, joint states in degrees or object units for drawers).
@@ -202,6 +211,8 @@ def fit_method(key: str, observation: Observation, corr: Correspondences, *, nao
 
     if key not in METHODS:
         raise ValueError(f"key: expected one of {list(METHODS)}, got {key!r}")
+    if key == "template":
+        raise ValueError("key: 'template' refines an exact_reduced fit; use ancsh.solvers.icp.category.refine_fit")
     m = METHODS[key]
     config = FitConfig.paper() if m.paper_config else FitConfig()
     if key == "naocs":
@@ -305,7 +316,7 @@ def evaluate_category(
     category: str,
     *,
     frames: int = 100,
-    methods=tuple(METHODS),
+    methods=DEFAULT_METHODS,
     seed: int = 0,
     weights=None,
     direct_weights=None,
@@ -313,6 +324,7 @@ def evaluate_category(
     num_threads: int = 1,
     progress: bool = True,
     real: str | None = None,
+    refine: str | None = None,
 ) -> dict:
     """Run the network and every method on ``frames`` rendered test frames of ``category``.
 
@@ -335,6 +347,9 @@ def evaluate_category(
     real : str, optional
         A catalog of imported real objects (``"builtin"`` = the shipped one): render its *test*
         objects of ``category`` instead of the procedural test instances (the real test split).
+    refine : str, optional
+        ``"template"``: add the ``template`` method (the ``exact_reduced`` fit refined against the
+        category's template library, :func:`ancsh.data.templates.load_template_library`).
 
     Returns
     -------
@@ -352,6 +367,10 @@ def evaluate_category(
     from .weights import available_weights, weights_path
 
     methods = tuple(methods)
+    if refine not in (None, "template"):
+        raise ValueError(f"refine: expected None or 'template', got {refine!r}")
+    if refine == "template" and "template" not in methods:
+        methods = methods + ("template",)
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:
         raise ValueError(f"methods: expected keys of {list(METHODS)}, got {list(methods)}")
@@ -375,6 +394,11 @@ def evaluate_category(
     elif weights_path(category, "direct_voting").is_file():
         voter = DirectVotingPredictor(category, seed=seed)
 
+    library = None
+    if "template" in methods:
+        from ..data.templates import load_template_library
+
+        library = load_template_library(category)
     records = []
     start = time.perf_counter()
     bar = None
@@ -401,11 +425,25 @@ def evaluate_category(
             "naocs_joints": _naocs_joint_errors(corr, fr.gt),
             "budget": npcs_error_budget(inference.prediction, fr.gt),
         }
+        fits = {}
         for key in methods:
-            r = fit_method(key, obs, corr, naocs=naocs, rng=seed + i)
+            if key == "template":
+                continue
+            r = fits[key] = fit_method(key, obs, corr, naocs=naocs, rng=seed + i)
             ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
             ev["fit_ms"] = 1e3 * r.time_s
             rec["methods"][key] = ev
+        if library is not None:
+            from ..solvers.icp.category import refine_fit
+
+            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=seed + i)
+            ref = refine_fit(obs, base, corr, library, rng=seed + i)
+            ev = evaluate_fit(ref.result, fr.gt, fr.part_names, fr.joint_names).to_dict()
+            ev["fit_ms"] = 1e3 * ref.result.time_s if ref.accepted else 1e3 * (base.time_s + ref.time_s)
+            ev["refine"] = {"accepted": ref.accepted, "choice": ref.choice, "scale": ref.scale, "template": ref.template,
+                            "refine_ms": 1e3 * ref.time_s, "score_input": ref.score_input,
+                            "score_refined": ref.score_refined}
+            rec["methods"]["template"] = ev
         if voter is not None:
             t0 = time.perf_counter()
             axes, pivots, _ = voter.joints(obs)
@@ -432,7 +470,7 @@ def evaluate_category(
             "num_points": gen.config.num_points,
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
-            "time_limit_s": time_limit_s,
+            "time_limit_s": time_limit_s, "refine": refine,
         },
         "timing": {"wall_s": time.perf_counter() - start},
     }
@@ -472,6 +510,17 @@ def summarize(evaluation: dict) -> dict:
             row[name] = _stats(np.array([[j[name] for j in e["joints"]] for e in ok]).reshape(-1, K))
         fit_ms = [r["methods"][key]["fit_ms"] for r in recs]
         row["fit_ms"] = {"mean": float(np.mean(fit_ms)), "median": float(np.median(fit_ms))} if fit_ms else None
+        refs = [r["methods"][key]["refine"] for r in recs if "refine" in r["methods"][key]]
+        if refs:
+            choices = [x["choice"] for x in refs]
+            ms = [x["refine_ms"] for x in refs]
+            row["refine"] = {
+                "frames": len(refs), "accepted": int(sum(x["accepted"] for x in refs)),
+                "choices": {c: choices.count(c) for c in ("input", "articulated", "base")},
+                "scales": {str(sc): sum(1 for x in refs if x["accepted"] and x["scale"] == sc)
+                           for sc in sorted({x["scale"] for x in refs if x["accepted"]})},
+                "refine_ms": {"mean": float(np.mean(ms)), "median": float(np.median(ms))},
+            }
         out["methods"][key] = row
     nj = [r["naocs_joints"] for r in recs if "naocs_joints" in r]
     if nj:
@@ -621,7 +670,7 @@ def _budget_section(summary: dict, settings: dict) -> list[str]:
     if "budget" not in summary:
         return []
     b = summary["budget"]
-    fitted = [key for key in ("per_part", "exact_reduced") if key in summary["methods"]]
+    fitted = [key for key in ("per_part", "exact_reduced", "template") if key in summary["methods"]]
     head = "| Part | NPCS head: raw error | NPCS head: orientation error (°) | residual after the similarity |"
     head += "".join(f" {METHODS[k].label}: rotation error (°) |" for k in fitted)
     lines = [
@@ -645,6 +694,22 @@ def _budget_section(summary: dict, settings: dict) -> list[str]:
         row += "".join(f" {_fmt([summary['methods'][k]['rot_deg']['mean'][j]], '.2f')} |" for k in fitted)
         lines.append(row)
     return lines
+
+
+def refine_summary_line(row: dict) -> str:
+    """One sentence on a ``template`` row's refinements: how many were kept, which kind, their cost."""
+    r = row["refine"]
+    scales = ", ".join(f"{k}: {v}" for k, v in r["scales"].items()) or "none"
+    return (f"kept on {r['accepted']}/{r['frames']} frames (articulated {r['choices']['articulated']}, base-only "
+            f"{r['choices']['base']}; scales of the kept ones {scales}); the refinement alone costs mean "
+            f"{r['refine_ms']['mean']:.0f} ms, median {r['refine_ms']['median']:.0f} ms per frame")
+
+
+def _refine_lines(summary: dict) -> list[str]:
+    row = summary["methods"].get("template")
+    if row is None or "refine" not in row:
+        return []
+    return [f"- category-template refinement: {refine_summary_line(row)} (included in its fit time above)"]
 
 
 def _per_frame(evaluation: dict) -> dict:
@@ -872,7 +937,7 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str) -> d
         md.append(f"| ANCSH network: voted joints in NAOCS, before fitting | {_fmt(nv['axis_deg']['mean'], '.2f')} "
                   f"| {_fmt(nv['line_dist']['mean'], '.3f')} |")
     for key, row in summary["methods"].items():
-        if key in ("soft", "exact_reduced", "exact_maximal"):
+        if key in ("soft", "exact_reduced", "exact_maximal", "template"):
             md.append(f"| {METHODS[key].label} | {_fmt(row['axis_deg']['mean'], '.2f')} | {_fmt(row['line_dist']['mean'], '.3f')} |")
     for name, row in (paper2 or {}).items():
         label = "PointNet++ (direct voting)" if name == "direct_voting" else name
@@ -902,6 +967,7 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str) -> d
         md.append(f"- fit {METHODS[key].label}: mean {row['fit_ms']['mean']:.1f} ms, median {row['fit_ms']['median']:.1f} ms")
     if "direct_voting_network_ms" in t:
         md.append(f"- direct-voting network + voting: mean {t['direct_voting_network_ms']:.1f} ms")
+    md += _refine_lines(summary)
     md += [
         f"- frame rendering (not part of the pipeline): mean {t['generate_ms']['mean']:.1f} ms",
         f"- whole evaluation: {t['wall_s']:.0f} s wall",

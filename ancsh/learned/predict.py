@@ -230,7 +230,7 @@ class DepthPrediction:
 
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
-                  seed: int = 0, isolate: bool = True, hint=None) -> DepthPrediction:
+                  seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider") -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is isolated first (:func:`ancsh.data.isolate.isolate_object`:
@@ -263,6 +263,10 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         Isolate the object when no ``mask`` is given (default). ``False`` uses every valid pixel.
     hint : ObjectHint, optional
         A pixel or box on the object, for isolation.
+    refine : str or None
+        Category-template refinement of the fit (:meth:`LearnedProvider.refine`): ``"template"``,
+        ``"auto"`` (where measured to help), ``None`` / ``"none"`` (off); default: the provider's
+        option (a provider made here: ``"auto"``).
 
     Raises
     ------
@@ -285,7 +289,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
             from .evaluate import missing_weights_error
 
             raise missing_weights_error(category)
-        provider = LearnedProvider(category if weights is None else weights, seed=seed)
+        provider = LearnedProvider(category if weights is None else weights, seed=seed, refine="auto")
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
@@ -330,6 +334,12 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         corr, raw = infer(provider, obs)
         t_net = time.perf_counter() - t0
         result = fit(obs, corr, formulation, rng=seed)
+        if result.ok and formulation != "per_part":
+            refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
+            if refined is not None:
+                result = refined.result
+                notes.append(f"category-template refinement: {'kept' if refined.accepted else 'not kept'} "
+                             f"({refined.reason}; template {refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")
         labels = np.asarray(corr.part_labels)
         quality = part_quality(result, pts, corr, raw)
         result = check_plausibility(result, labels, category, quality)

@@ -28,7 +28,10 @@ from ..model.articulated import JointType
 from ..solvers.types import Correspondences, Observation
 from .voting import JointVote, vote_joints
 
-__all__ = ["Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
+__all__ = ["REFINE_OPTIONS", "Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
+
+REFINE_OPTIONS = (None, "none", "template", "auto")
+"""Values of ``LearnedProvider(refine=...)``."""
 
 
 @dataclass(frozen=True)
@@ -150,9 +153,16 @@ class LearnedProvider:
         torch intra-op threads (default: leave torch's setting).
     min_votes : int
         Least voters per joint.
+    refine : str or None
+        What :meth:`refine` does with a fit of these correspondences: ``"template"`` refines it against
+        the category template (:func:`ancsh.solvers.icp.category.refine_fit`, the nearest training
+        instance of the network's category; kept only where its score on the observed points beats the
+        fit's), ``None`` / ``"none"`` leaves it, ``"auto"`` refines where it was measured to help
+        (:func:`ancsh.data.templates.refine_default`).
     """
 
-    def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5):
+    def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
+                 refine: str | None = None):
         from .weights import LoadedNetwork, load_network
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source)
@@ -165,6 +175,53 @@ class LearnedProvider:
         self.seed = int(seed)
         self.min_votes = int(min_votes)
         self.joint_types = tuple(JointType.REVOLUTE if r else JointType.PRISMATIC for r in self.network.revolute)
+        if refine not in REFINE_OPTIONS:
+            raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {refine!r}")
+        self.refine_option = None if refine == "none" else refine
+
+    @property
+    def category(self) -> str | None:
+        """The network's category (from its training config)."""
+        return getattr(self.network.config, "category", None)
+
+    def refines(self, refine: str | None = "provider") -> bool:
+        """Whether :meth:`refine` refines (``refine``: an override of the provider's option, as there)."""
+        from ..data.templates import refine_default
+
+        option = self.refine_option if refine == "provider" else refine
+        if option not in REFINE_OPTIONS:
+            raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {option!r}")
+        if option == "auto":
+            return self.category is not None and refine_default(self.category)
+        return option == "template"
+
+    def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0):
+        """A fit of this provider's correspondences, refined against the category template when enabled.
+
+        Parameters
+        ----------
+        observation : Observation
+        corr : Correspondences
+            What :meth:`correspond` gave for ``observation``.
+        fit : FitResult
+            Their fit (an articulated formulation, e.g. ``exact_reduced``).
+        refine : str or None
+            Overrides the provider's ``refine`` option (default: use it).
+        rng : numpy.random.Generator or int
+
+        Returns
+        -------
+        TemplateRefinement or None
+            ``None`` when refinement is off; else its outcome (``.result`` is the fit to use).
+        """
+        if not self.refines(refine):
+            return None
+        from ..data.templates import load_template_library
+        from ..solvers.icp.category import refine_fit
+
+        if self.category is None:
+            raise ValueError("refine: the network's config names no category, so there is no template library")
+        return refine_fit(observation, fit, corr, load_template_library(self.category), rng=rng)
 
     @property
     def num_parts(self) -> int:

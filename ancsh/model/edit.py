@@ -15,7 +15,7 @@ from ..geometry._checks import as_rotation
 from ..geometry.transforms import Sim3
 from .articulated import ArticulatedModel, Joint, Part
 
-__all__ = ["reparameterized", "restructured", "scaled", "with_orientation"]
+__all__ = ["reparameterized", "restructured", "scaled", "simplified", "with_orientation"]
 
 
 def _model(model: ArticulatedModel, parts, joints, **kw) -> ArticulatedModel:
@@ -50,6 +50,34 @@ def scaled(model: ArticulatedModel, factor: float) -> ArticulatedModel:
         origin = Sim3(j.origin.rotation, factor * j.origin.translation)
         joints.append(replace(j, pivot=factor * j.pivot, origin=origin, lower=s * j.lower, upper=s * j.upper, rest=s * j.rest))
     return _model(model, parts, joints)
+
+
+def simplified(model: ArticulatedModel, max_faces: int) -> ArticulatedModel:
+    """The model with every part mesh of more than ``max_faces`` triangles decimated to about that
+    many (open3d quadric decimation); joints unchanged, smaller meshes kept as they are.
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    max_faces : int
+        Triangle budget per part, ``>= 4``.
+    """
+    import open3d as o3d
+    import trimesh
+
+    if isinstance(max_faces, bool) or int(max_faces) != max_faces or max_faces < 4:
+        raise ValueError(f"max_faces: expected an integer >= 4, got {max_faces!r}")
+    parts = []
+    for p in model.parts:
+        if p.mesh is None or len(p.mesh.faces) <= max_faces:
+            parts.append(p)
+            continue
+        m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.asarray(p.mesh.vertices, dtype=np.float64)),
+                                      o3d.utility.Vector3iVector(np.asarray(p.mesh.faces, dtype=np.int32)))
+        m = m.simplify_quadric_decimation(int(max_faces))
+        mesh = trimesh.Trimesh(np.asarray(m.vertices), np.asarray(m.triangles), process=False)
+        parts.append(Part(p.name, mesh))
+    return _model(model, parts, model.joints)
 
 
 def reparameterized(model: ArticulatedModel, k: int, *, zero: float, sign: int = 1, rest: float | None = None,

@@ -126,11 +126,13 @@ def test_report_json_reads_back_with_one_line_per_frame_entry(tmp_path):
 
 
 def test_quick_evaluation_writes_the_report(tmp_path):
-    code = main(["evaluate", "--category", "laptop", "--quick", "--frames", "2", "--out", str(tmp_path), "--no-progress"])
+    code = main(["evaluate", "--category", "laptop", "--quick", "--frames", "2", "--out", str(tmp_path), "--no-progress",
+                 "--refine", "template"])
     assert code == 0
     md = (tmp_path / "laptop.md").read_text()
     for label in [m.label for m in ev.METHODS.values()] + ["paper: NPCS", "paper: NAOCS", "paper: ANCSH",
-                                                           "Table 2", "Direct voting", "voted joints in NAOCS", "--frames 2"]:
+                                                           "Table 2", "Direct voting", "voted joints in NAOCS", "--frames 2",
+                                                           "--refine template", "category-template refinement: kept on"]:
         assert label in md
     data = json.loads((tmp_path / "laptop.json").read_text())
     assert data["settings"]["frames"] == 2 and set(data["summary"]["methods"]) == set(ev.METHODS)

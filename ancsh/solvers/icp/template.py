@@ -201,8 +201,10 @@ class ModelSurface:
             table[int(gid)] = j
         return scene, table
 
-    def visible_samples(self, T_cam_parts, samples_part, labels, normals_part=None, *, min_cos: float = 0.3) -> np.ndarray:
-        """The camera-frame positions ``(V, 3)`` of surface samples the camera sees.
+    def visible_samples(self, T_cam_parts, samples_part, labels, normals_part=None, *, min_cos: float = 0.3,
+                        return_labels: bool = False):
+        """The camera-frame positions ``(V, 3)`` of surface samples the camera sees (and their part
+        labels ``(V,)`` when ``return_labels``).
 
         Parameters
         ----------
@@ -230,7 +232,7 @@ class ModelSurface:
         scene, _ = self.posed_scene(T_cam_parts)
         ok = np.zeros(len(pts), dtype=bool)
         ok[front] = _seen(scene, pts[front])
-        return pts[ok]
+        return (pts[ok], np.asarray(labels)[ok]) if return_labels else pts[ok]
 
     def sample(self, count: int, rng, *, normals: bool = False):
         """``count`` surface samples per part in the part frames: ``(points (M*count, 3), labels)``,
