@@ -339,7 +339,8 @@ class FitResult:
     uncertainty : FitUncertainty or None
         Covariances and standard deviations of the part poses, object pose and joints
         (:mod:`ancsh.solvers.uncertainty`; raw Jacobian values unless a caller inflated them);
-        ``None`` for a fit without an estimate or with ``FitConfig(uncertainty=False)``.
+        ``None`` for a fit without an estimate, with ``FitConfig(uncertainty=False)``, or refined
+        afterwards by a category template (:func:`ancsh.solvers.icp.category.refine_fit`).
     """
 
     formulation: str

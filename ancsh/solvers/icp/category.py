@@ -506,6 +506,6 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
                                   f"part {j} worse by {worse[j]:.4f} (tolerance {config.part_tolerance:g})", **common)
     result = dataclasses.replace(best.result, message=(fit.message + "; " if fit.message else "")
                                  + f"refined by the category template {best.template} ({best.choice}, scale {best.scale:g})",
-                                 time_s=fit.time_s + dt)
+                                 time_s=fit.time_s + dt, uncertainty=None)  # the fit's covariance was of other poses
     return TemplateRefinement(result, True, best.choice, f"score {best.score.score:.4f} < input {s_in.score:.4f}",
                               scale=best.scale, **common)

@@ -41,6 +41,7 @@ def test_true_instance_template_recovers_the_pose_at_least_as_well(scene):
     before, after = _rot(scene["fit"], scene["frame"].gt), _rot(ref.result, scene["frame"].gt)
     assert ref.accepted and ref.result.ok
     assert ref.score_refined < ref.score_input
+    assert scene["fit"].uncertainty is not None and ref.result.uncertainty is None  # no covariance of the moved poses
     assert np.all(after <= before + 1e-6), (before, after)
     assert after.max() < 1.0  # the template is the object: ICP lands near the truth (input: ~2 degrees)
 
