@@ -228,7 +228,7 @@ class DepthPrediction:
 
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
-                  seed: int = 0, isolate: bool = True, hint=None) -> DepthPrediction:
+                  seed: int = 0, isolate: bool = True, hint=None, device="cpu") -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is isolated first (:func:`ancsh.data.isolate.isolate_object`:
@@ -261,6 +261,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         Isolate the object when no ``mask`` is given (default). ``False`` uses every valid pixel.
     hint : ObjectHint, optional
         A pixel or box on the object, for isolation.
+    device : str
+        Where the network runs without a ``provider``: ``"cpu"`` (default), ``"cuda"`` or ``"auto"``.
 
     Raises
     ------
@@ -283,7 +285,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
             from .evaluate import missing_weights_error
 
             raise missing_weights_error(category)
-        provider = LearnedProvider(category if weights is None else weights, seed=seed)
+        provider = LearnedProvider(category if weights is None else weights, seed=seed, device=device)
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
