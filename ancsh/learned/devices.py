@@ -8,7 +8,7 @@ operations create their tensors on the device of their input, so the same code r
 
 from __future__ import annotations
 
-__all__ = ["DEVICES", "add_device_argument", "model_device", "resolve_device"]
+__all__ = ["DEVICES", "add_device_argument", "model_device", "move", "resolve_device"]
 
 DEVICES = ("auto", "cpu", "cuda")
 """The ``--device`` choices (a library call also takes ``"cuda:<index>"`` or a ``torch.device``)."""
@@ -62,6 +62,23 @@ def model_device(model):
     for p in model.parameters():
         return p.device
     return torch.device("cpu")
+
+
+def move(value, device):
+    """``value`` with every tensor on ``device``: a tensor, or tuples / lists / dataclasses of them
+    (e.g. ``(points, Targets)`` of a batch, :class:`~ancsh.learned.pointnet2.Neighbourhoods`)."""
+    import dataclasses
+
+    import torch
+
+    if isinstance(value, torch.Tensor):
+        return value.to(device, non_blocking=True)
+    if isinstance(value, (tuple, list)):
+        return type(value)(move(v, device) for v in value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.replace(value, **{f.name: move(getattr(value, f.name), device) for f in dataclasses.fields(value)
+                                             if f.init})
+    return value
 
 
 def add_device_argument(parser) -> None:
