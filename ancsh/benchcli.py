@@ -15,6 +15,8 @@ BENCH_MODULES = [
     "ancsh.data.cli:register_bench",
     "ancsh.solvers.bench",
     "ancsh.learned.bench",
+    "ancsh.learned.gpu_check:register_bench",
+    "ancsh.scaling:register_bench",
 ]
 
 
