@@ -17,7 +17,8 @@ from . import __version__
 # One example per command, shown at the end of its --help.
 EXAMPLES = {
     "demo": "ancsh demo --categories laptop,oven --out demo_out",
-    "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume",
+    "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume; "
+             "on 2 processes: torchrun --nproc_per_node 2 -m ancsh train ...",
     "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
     "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
     "weights": "ancsh weights --out weights.md",
@@ -31,6 +32,8 @@ EXAMPLES = {
     "bench learned-cost": "ancsh bench learned-cost --variants today new --repeats 6",
     "bench": "ancsh bench fit --quick",
     "bench render": "ancsh bench render --frames 20 --categories laptop",
+    "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
+    "bench gpu-check": "ancsh bench gpu-check --device cuda   # on a machine with a GPU: CUDA against the CPU",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",

@@ -15,7 +15,9 @@ def register(sub) -> None:
         "train",
         help="train the ANCSH network for a category (resumable, checkpoints, curves)",
         description="Train the ANCSH network (or the direct joint-voting baseline) on HDF5 shards made by "
-        "`ancsh data generate`. A run directory keeps config.json, last.pt, best.pt, history.csv, curves.png.",
+        "`ancsh data generate`. A run directory keeps config.json, last.pt, best.pt, history.csv, curves.png. "
+        "Distributed (DDP, one process per core or GPU): torchrun --nproc_per_node N -m ancsh train ...; the "
+        "config's batch_size is the global batch and must divide by N.",
     )
     p.add_argument("--category", required=True, help="object category, e.g. laptop")
     p.add_argument("--config", type=Path, help="TrainConfig JSON (unknown keys are an error)")
@@ -32,8 +34,6 @@ def register(sub) -> None:
     from .devices import add_device_argument
 
     add_device_argument(p)
-    p.epilog = ("Distributed (DDP, one process per core or GPU): torchrun --nproc_per_node N -m ancsh train ...; "
-                "--batch-size (the config's) is the global batch and must divide by the number of processes")
     p.set_defaults(func=run)
 
 

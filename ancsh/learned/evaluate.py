@@ -397,7 +397,7 @@ def evaluate_category(
         frame is a pure function of the settings and its index, so the records -- all but the
         :data:`TIMING_KEYS` -- do not depend on it.
     device : str or torch.device
-        Where the networks run (``"cpu"``, ``"cuda"``, ``"auto"``).
+        Where the networks run (``"cpu"``, ``"cuda"``, ``"auto"``); the CPU on Ray workers.
 
     Returns
     -------
@@ -425,6 +425,11 @@ def evaluate_category(
         executor = LocalExecutor(1)
     elif not isinstance(executor, (LocalExecutor, RayExecutor)):
         raise ValueError(f"executor: expected a LocalExecutor or RayExecutor, got {type(executor).__name__}")
+    if executor.kind == "ray":  # Ray workers reserve CPUs only
+        if device != "auto" and resolve_device(device).type != "cpu":
+            raise ValueError(f"device: the Ray workers reserve CPUs only; run the networks on the cpu (or auto) with "
+                             f"the ray executor, got {device!r}")
+        device = "cpu"
     device = str(resolve_device(device))
     if real is None:
         gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed)))
