@@ -296,6 +296,8 @@ def make_executor(kind: str = "local", workers: int = 1, *, address: str | None 
 
 def add_executor_arguments(parser, *, workers_default: int, workers_help: str) -> None:
     """Add ``--workers``, ``--executor`` and ``--ray-address`` to a command's parser."""
+    from .data.cli import _positive_int  # the command line's one positive-integer type (light: no heavy imports)
+
     parser.add_argument("--workers", type=_positive_int, default=workers_default, help=workers_help)
     parser.add_argument("--executor", choices=EXECUTORS, default="local",
                         help="where the workers run: local processes (default) or a Ray cluster "
@@ -313,14 +315,3 @@ def executor_from_args(args):
         raise ValueError(f"--executor ray: {RAY_MISSING}")
     return make_executor(args.executor, args.workers, address=args.ray_address)
 
-
-def _positive_int(text: str) -> int:
-    import argparse
-
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
-    return value

@@ -90,7 +90,8 @@ def test_executor_options_are_checked(monkeypatch, capsys):
         list(RayExecutor(1).imap(_FrameWorker, (config(),), [[0]]))
 
 
-def test_a_dead_local_worker_raises_and_keeps_complete_shards(tmp_path, monkeypatch):
+@pytest.mark.slow
+def test_a_dead_local_worker_raises_and_keeps_complete_shards(reference, tmp_path, monkeypatch):
     """A local worker process killed mid-run: WorkerLost (not a hang), complete shards kept, a rerun resumes."""
     monkeypatch.setattr("ancsh.data.generate._frame_worker", _dies_once(10, tmp_path / "killed"))
     out = tmp_path / "run"
@@ -101,11 +102,18 @@ def test_a_dead_local_worker_raises_and_keeps_complete_shards(tmp_path, monkeypa
     assert "laptop_train_00003.h5" not in kept  # the dead worker's shard
     report = generate_dataset(config(), 12, out, progress=False)  # the marker exists: no second death
     assert set(report.skipped) == {int(n[-8:-3]) for n in kept} and 3 in report.written
-    generate_dataset(config(), 12, tmp_path / "clean", progress=False)
-    assert_same_dataset(out, tmp_path / "clean")
+    assert_same_dataset(reference, out)
 
 
 # --- with Ray ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Path:
+    """The 12 frames of ``config()`` (4 shards) generated in this process: what every executor must write."""
+    out = tmp_path_factory.mktemp("reference")
+    generate_dataset(config(), 12, out, progress=False)
+    return out
+
+
 @pytest.fixture(scope="module")
 def ray_session():
     """One local Ray for the module (2 CPUs, no dashboard); its workers can import this test module."""
@@ -123,45 +131,43 @@ def ray_session():
             os.environ["PYTHONPATH"] = old
 
 
-def test_ray_generation_writes_the_same_shards_as_one_process(ray_session, tmp_path):
-    one = generate_dataset(config(), 8, tmp_path / "one", progress=False)
-    ray_run = generate_dataset(config(), 8, tmp_path / "ray", executor=RayExecutor(2), progress=False)
-    assert ray_run.written == one.written == (0, 1, 2) and ray_run.frames_generated == 8
-    assert_same_dataset(tmp_path / "one", tmp_path / "ray")
-
-
-def test_a_killed_ray_worker_is_restarted_and_its_shard_redone(ray_session, tmp_path, monkeypatch):
+@pytest.mark.slow
+def test_a_killed_ray_worker_is_restarted_and_its_shard_redone(ray_session, reference, tmp_path, monkeypatch):
     monkeypatch.setattr("ancsh.data.generate._frame_worker", _dies_once(7, tmp_path / "killed"))
-    generate_dataset(config(), 12, tmp_path / "ray", executor=RayExecutor(2, max_retries=2), progress=False)
+    report = generate_dataset(config(), 12, tmp_path / "ray", executor=RayExecutor(2, max_retries=2), progress=False)
     assert (tmp_path / "killed").exists()  # a worker did die (at frame 7, in shard 2)
-    monkeypatch.undo()
-    generate_dataset(config(), 12, tmp_path / "one", progress=False)
-    assert_same_dataset(tmp_path / "one", tmp_path / "ray")
+    assert report.written == (0, 1, 2, 3) and report.frames_generated == 12
+    assert_same_dataset(reference, tmp_path / "ray")
 
 
-def test_a_killed_ray_worker_without_retries_loses_no_complete_shard(ray_session, tmp_path, monkeypatch):
+@pytest.mark.slow
+def test_a_killed_ray_worker_without_retries_loses_no_complete_shard(ray_session, reference, tmp_path, monkeypatch):
     """Four one-task shards on two workers (0, 2 on the first; 1, 3 on the second): the second dies in
-    shard 3; shards 0-2 are complete and verified, the rerun only makes shard 3."""
+    shard 3. Shard 0 is always kept (the first worker never dies); shard 1 is too unless the dying
+    process took its result with it. Every kept shard is complete and verified; the rerun makes the rest."""
     monkeypatch.setattr("ancsh.data.generate._frame_worker", _dies_once(10, tmp_path / "killed"))
     out = tmp_path / "ray"
     with pytest.raises(WorkerLost, match="a Ray worker died"):
         generate_dataset(config(), 12, out, executor=RayExecutor(2, max_retries=0), progress=False)
-    assert sorted(p.name for p in out.glob("*.h5")) == [f"laptop_train_0000{s}.h5" for s in range(3)]
+    kept = sorted(int(p.name[-8:-3]) for p in out.glob("*.h5"))
+    assert kept[0] == 0 and 3 not in kept and kept == list(range(len(kept)))  # results are taken in task order
+    for s in kept:
+        ShardReader(out / f"laptop_train_{s:05d}.h5").arrays()  # every checksum verified
     assert not list(out.glob("*.tmp*"))
     report = generate_dataset(config(), 12, out, executor=RayExecutor(2), progress=False)
-    assert report.skipped == (0, 1, 2) and report.written == (3,) and report.replaced == ()
-    monkeypatch.undo()
-    generate_dataset(config(), 12, tmp_path / "one", progress=False)
-    assert_same_dataset(tmp_path / "one", out)
+    assert report.skipped == tuple(kept) and report.written == tuple(range(len(kept), 4)) and report.replaced == ()
+    assert_same_dataset(reference, out)
 
 
-def test_cli_generate_on_ray(ray_session, tmp_path, capsys):
-    args = ["data", "generate", "--category", "laptop", "--frames", "4", "--shard-size", "2", "--points", "64",
-            "--width", "160", "--height", "120", "--seed", "3", "--quiet"]
-    assert main([*args, "--workers", "1", "--out", str(tmp_path / "one")]) == 0
+@pytest.mark.slow
+def test_cli_generate_on_ray_writes_the_shards_of_one_process(ray_session, reference, tmp_path, capsys):
+    args = ["data", "generate", "--category", "laptop", "--frames", "12", "--shard-size", "3", "--points", "64",
+            "--width", "160", "--height", "120", "--min-part-pixels", "5", "--seed", "11", "--quiet"]
     assert main([*args, "--workers", "2", "--executor", "ray", "--out", str(tmp_path / "ray")]) == 0
-    assert "4 frames generated" in capsys.readouterr().out
-    assert_same_dataset(tmp_path / "one", tmp_path / "ray")
+    assert "4 shards, 12 frames generated" in capsys.readouterr().out
+    assert_same_dataset(reference, tmp_path / "ray")
+    assert main([*args, "--ray-address", "auto", "--out", str(tmp_path / "x")]) == 2
+    assert "--ray-address: only with --executor ray" in capsys.readouterr().err
 
 
 def _without_times(value):
@@ -175,6 +181,7 @@ def _without_times(value):
     return value
 
 
+@pytest.mark.slow
 def test_ray_evaluation_gives_the_same_tables_as_one_process(ray_session):
     pytest.importorskip("torch")
     from ancsh.learned.evaluate import evaluate_category, json_safe, summarize
@@ -201,6 +208,7 @@ def _assert_close(a, b, where="records"):
         assert a == b, where
 
 
+@pytest.mark.slow
 def test_ray_cad_evaluation_gives_the_same_records_as_one_process(ray_session):
     """Value for value up to the last bits: open3d's ICP itself differs in the last bits between two plain
     runs in two processes (measured: 1e-15 relative), so floats are compared to 1e-9; every AD verdict,
