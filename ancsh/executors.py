@@ -58,9 +58,13 @@ class LocalExecutor:
     ----------
     workers : int
         ``>= 1``.
+    in_process : bool
+        With one worker, run the tasks in this process (the default); ``False`` spawns one process
+        (what a benchmark compares with more workers).
     """
 
     workers: int = 1
+    in_process: bool = True
 
     def __post_init__(self):
         _check_workers(self.workers)
@@ -70,7 +74,9 @@ class LocalExecutor:
         return "local"
 
     def describe(self) -> str:
-        return "in this process" if self.workers == 1 else f"{self.workers} local processes"
+        if self.workers == 1:
+            return "in this process" if self.in_process else "1 local process"
+        return f"{self.workers} local processes"
 
     def session(self):
         """A context for several :meth:`imap` calls (nothing to set up for local processes)."""
@@ -90,7 +96,7 @@ class LocalExecutor:
         tasks = list(tasks)
         if not tasks:
             return
-        if self.workers == 1:
+        if self.workers == 1 and self.in_process:
             worker = make_worker(*args)
             for task in tasks:
                 yield worker(task)

@@ -33,7 +33,8 @@ class Run:
     job : str
         ``"generate"`` or ``"evaluate"``.
     executor : str
-        ``"local"`` or ``"ray"``.
+        ``"in-process"`` (the tasks in the benchmark's own process: the CPU cost per frame), ``"local"``
+        (spawned processes) or ``"ray"``.
     workers : int
     frames : int
     wall_s : float
@@ -101,7 +102,8 @@ def _timed(executor, make_worker, args, tasks, frames_of, job, in_process: bool)
             first_s, first_frames = time.perf_counter() - t0, n
             c0 = time.process_time()
     wall = time.perf_counter() - t0
-    return Run(job, executor.kind, executor.workers, frames, wall, first_s, first_frames,
+    kind = "in-process" if in_process else executor.kind
+    return Run(job, kind, executor.workers, frames, wall, first_s, first_frames,
                time.process_time() - c0 if in_process else None)
 
 
@@ -109,7 +111,7 @@ def measure_scaling(*, gen_frames: int = 64, chunk: int = 8, eval_frames: int = 
                     workers=(1, 2), executors=("local", "ray"), category: str = "laptop", progress=print) -> ScalingResult:
     """Time generation and evaluation on every executor and worker count (see the module docstring)."""
     from .data.generate import GenerationConfig, _FrameWorker
-    from .executors import import_ray, make_executor, start_ray
+    from .executors import LocalExecutor, import_ray, make_executor, start_ray
     from .learned.evaluate import METHODS, _FrameEvaluator
     from .learned.weights import weights_path
 
@@ -118,7 +120,7 @@ def measure_scaling(*, gen_frames: int = 64, chunk: int = 8, eval_frames: int = 
     gen_config = GenerationConfig(category=category, split="train", seed=0)
     gen_tasks = [list(range(i, min(i + chunk, gen_frames))) for i in range(0, gen_frames, chunk)]
     eval_args = (category, 0, None, str(weights_path(category)), None, 1, tuple(METHODS), "cpu")
-    configs = [(kind, n) for kind in executors for n in workers]
+    configs = [("in-process", 1)] + [(kind, n) for kind in executors for n in workers]
     load_before = os.getloadavg()
     runs = []
     ray_start = None
@@ -134,8 +136,9 @@ def measure_scaling(*, gen_frames: int = 64, chunk: int = 8, eval_frames: int = 
         for r in range(rounds):
             order = configs if r % 2 == 0 else configs[::-1]
             for kind, n in order:
-                executor = make_executor(kind, n)
-                in_process = kind == "local" and n == 1
+                in_process = kind == "in-process"
+                executor = LocalExecutor(1) if in_process else (
+                    LocalExecutor(n, in_process=False) if kind == "local" else make_executor(kind, n))
                 for job, make, args, tasks, count in (
                     ("generate", _FrameWorker, (gen_config,), gen_tasks, len),
                     ("evaluate", _FrameEvaluator, eval_args, list(range(eval_frames)), lambda _: 1),
@@ -173,32 +176,33 @@ def scaling_report(result: ScalingResult, *, command: str) -> str:
         f"of {s['chunk']} frames, the work of `ancsh data generate`; `evaluate` = {s['eval_frames']} held-out "
         f"`{s['category']}` frames, one per task: render, network, all five fitting methods, the work of `ancsh evaluate`. "
         f"Each configuration ran {s['rounds']} times, interleaved with the others (order reversed every other round); "
-        "medians. *Wall* includes starting the workers (processes or Ray actors, imports, models); *after the first "
-        "result* leaves that start-up out."
+        "medians. *local* = spawned worker processes (`--workers N`), *ray* = Ray actors on a local Ray, "
+        "*in-process* = the tasks in the benchmark's own process (what `--workers 1` does; after the first round its "
+        "imports and caches are warm, so only its rate after the first result compares). *Wall* includes starting "
+        "the workers (processes or Ray actors, imports, models); *after the first result* leaves that start-up out."
         + (f" Starting the local Ray itself took {result.ray_start_s:.1f} s (once per command, not in the table)."
            if result.ray_start_s is not None else ""),
         "",
         "| job | executor | workers | wall (s) | first result (s) | frames/s (wall) | frames/s after the first result "
-        "| speed-up after the first result (vs 1 local) | Ray / local wall |",
+        "| speed-up after the first result (vs 1 local process) | Ray / local wall |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for job in ("generate", "evaluate"):
         base = result.median(job, "local", 1, "steady_frames_per_s")
-        for kind in s["executors"]:
-            for n in s["workers"]:
-                wall = result.median(job, kind, n, "wall_s")
-                steady = result.median(job, kind, n, "steady_frames_per_s")
-                local_wall = result.median(job, "local", n, "wall_s")
-                ratio = f"{wall / local_wall:.2f}" if kind == "ray" and local_wall == local_wall else "-"
-                lines.append(
-                    f"| {job} | {kind} | {n} | {wall:.1f} | {result.median(job, kind, n, 'first_s'):.1f} | "
-                    f"{result.median(job, kind, n, 'frames_per_s'):.2f} | {steady:.2f} | {steady / base:.2f}x | {ratio} |")
+        for kind, n in [("in-process", 1)] + [(k, n) for k in s["executors"] for n in s["workers"]]:
+            wall = result.median(job, kind, n, "wall_s")
+            steady = result.median(job, kind, n, "steady_frames_per_s")
+            local_wall = result.median(job, "local", n, "wall_s")
+            ratio = f"{wall / local_wall:.2f}" if kind == "ray" else "-"
+            lines.append(
+                f"| {job} | {kind} | {n} | {wall:.1f} | {result.median(job, kind, n, 'first_s'):.1f} | "
+                f"{result.median(job, kind, n, 'frames_per_s'):.2f} | {steady:.2f} | {steady / base:.2f}x | {ratio} |")
     gen_cpu, eval_cpu = result.cpu_per_frame("generate"), result.cpu_per_frame("evaluate")
     lines += [
         "",
         "## Sizing: cores for N frames in T hours",
         "",
-        f"CPU cost per frame, measured in one process after its first result: generation {gen_cpu:.3f} CPU-s, "
+        f"CPU cost per frame, measured in the benchmark's process after its first result: generation {gen_cpu:.3f} CPU-s, "
         f"evaluation {eval_cpu:.3f} CPU-s (render, network and five fits). Frames are independent tasks, so "
         "the cores a job needs are N x cost / T, plus each worker's start-up (the first-result column: seconds, "
         "once per worker) and whatever share of the cores other jobs take; Ray adds its start-up once per command "
