@@ -17,7 +17,8 @@ from . import __version__
 # One example per command, shown at the end of its --help.
 EXAMPLES = {
     "demo": "ancsh demo --categories laptop,oven --out demo_out",
-    "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume",
+    "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume; "
+             "on 2 processes: torchrun --nproc_per_node 2 -m ancsh train ...",
     "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
     "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
     "weights": "ancsh weights --out weights.md",
@@ -32,6 +33,8 @@ EXAMPLES = {
     "bench template-refinement": "ancsh bench template-refinement --categories laptop --frames 20 --real-frames 0",
     "bench": "ancsh bench fit --quick",
     "bench render": "ancsh bench render --frames 20 --categories laptop",
+    "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
+    "bench gpu-check": "ancsh bench gpu-check --device cuda   # on a machine with a GPU: CUDA against the CPU",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
     "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~20 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",

@@ -49,7 +49,9 @@ def register(sub) -> None:
     g.add_argument("--real-fraction", type=float, default=0.5,
                    help="with --real: fraction of frames showing a real object (default 0.5; 1 = real only)")
     g.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
-    g.add_argument("--workers", type=_positive_int, default=2, help="worker processes (default 2)")
+    from ..executors import add_executor_arguments
+
+    add_executor_arguments(g, workers_default=2, workers_help="worker processes (default 2; 1 = in this process)")
     g.add_argument("--seed", type=_non_negative_int, default=0, help="base seed (default 0)")
     g.add_argument("--out", default=None, help="output directory (default data/<name>_<split>)")
     g.add_argument("--shard-size", type=_positive_int, default=500, help="frames per shard (default 500)")
@@ -102,10 +104,12 @@ def register(sub) -> None:
 def run_generate(args) -> int:
     from pathlib import Path
 
+    from ..executors import WorkerLost, executor_from_args
     from .generate import FrameRejected, GenerationConfig, generate_dataset
     from .noise import DepthNoise
     from .render import Intrinsics
 
+    executor = executor_from_args(args)
     config = GenerationConfig(
         category=args.category,
         split=args.split,
@@ -124,10 +128,14 @@ def run_generate(args) -> int:
     out = Path(args.out) if args.out else Path("data") / f"{config.name}_{split}"
     try:
         report = generate_dataset(
-            config, args.frames, out, workers=args.workers, progress=not args.quiet, overwrite=args.overwrite
+            config, args.frames, out, executor=executor, progress=not args.quiet, overwrite=args.overwrite
         )
     except FrameRejected as exc:
         print(f"ancsh data generate: error: {exc}; complete shards are kept in {out}", file=sys.stderr)
+        return 1
+    except WorkerLost as exc:
+        print(f"ancsh data generate: error: {exc}; complete shards are kept in {out}; run the same command again "
+              "to resume", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"\ninterrupted: complete shards are kept in {out}; run the same command again to resume",

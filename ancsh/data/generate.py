@@ -8,9 +8,10 @@ is (nearly) invisible and redraws state and view, applies sensor noise (:mod:`.n
 samples ``num_points`` back-projected pixels and computes the ANCSH ground truth.
 
 :func:`generate_dataset` writes the frames into HDF5 shards (:mod:`.dataset`) with a
-pool of worker processes. Shards are written atomically; running it again on the same
-directory verifies and skips complete shards, regenerates damaged or missing ones and
-produces identical frames, so an interrupted run resumes where it stopped.
+pool of workers (:mod:`ancsh.executors`: local processes or a Ray cluster; the frames do not
+depend on which). Shards are written atomically; running it again on the same directory
+verifies and skips complete shards, regenerates damaged or missing ones and produces
+identical frames, so an interrupted run resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -365,19 +366,17 @@ def _check_existing(path: Path, config_json: str, start: int, stop: int, overwri
     return None
 
 
-_WORKER: FrameGenerator | None = None
+class _FrameWorker:
+    """A worker of :func:`generate_dataset`: the frames of a task (a list of frame indices)."""
+
+    def __init__(self, config: GenerationConfig):
+        self.generator = FrameGenerator(config)
+
+    def __call__(self, indices: list) -> list:
+        return [self.generator.frame(i) for i in indices]
 
 
-def _init_worker(config: GenerationConfig) -> None:
-    global _WORKER
-    import os
-
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    _WORKER = FrameGenerator(config)
-
-
-def _work(indices: list) -> list:
-    return [_WORKER.frame(i) for i in indices]
+_frame_worker = _FrameWorker  # the worker factory handed to the executor (looked up at each run)
 
 
 def generate_dataset(
@@ -386,6 +385,7 @@ def generate_dataset(
     out_dir,
     *,
     workers: int = 1,
+    executor=None,
     progress: bool = True,
     overwrite: bool = False,
     on_shard=None,
@@ -400,7 +400,12 @@ def generate_dataset(
     out_dir : str or Path
         Created when missing.
     workers : int
-        Worker processes (``1`` = in this process).
+        Worker processes of this machine (``1`` = in this process); with ``executor``, leave it at 1.
+    executor : LocalExecutor or RayExecutor, optional
+        Where the frames are rendered (:mod:`ancsh.executors`; default ``LocalExecutor(workers)``).
+        The shards do not depend on it. A worker that dies loses only unfinished shards: complete
+        ones are on disk, and running again resumes (:class:`~ancsh.executors.WorkerLost` is raised
+        when the executor does not retry the task itself).
     progress : bool
         Show a tqdm progress bar (on stderr).
     overwrite : bool
@@ -421,6 +426,14 @@ def generate_dataset(
         raise ValueError(f"frames: expected a positive int, got {frames!r}")
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise ValueError(f"workers: expected an int >= 1, got {workers!r}")
+    from ..executors import LocalExecutor, RayExecutor
+
+    if executor is None:
+        executor = LocalExecutor(int(workers))
+    elif not isinstance(executor, (LocalExecutor, RayExecutor)):
+        raise ValueError(f"executor: expected a LocalExecutor or RayExecutor, got {type(executor).__name__}")
+    elif workers != 1:
+        raise ValueError(f"workers: give the worker count to the executor ({executor.describe()}), not both")
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -469,7 +482,7 @@ def generate_dataset(
             shard_of[i] = s
     generated = 0
     try:
-        for batch in _run(config, tasks, workers):
+        for batch in executor.imap(_frame_worker, (config,), tasks):
             for fr in batch:
                 s = shard_of[fr.frame_index]
                 pending[s].append(fr)
@@ -492,20 +505,3 @@ def generate_dataset(
         frames_generated=generated,
         seconds=time.perf_counter() - t0,
     )
-
-
-def _run(config: GenerationConfig, tasks: list, workers: int):
-    """Yield the frames of each task (a list of frame indices), in task order."""
-    if not tasks:
-        return
-    if workers == 1:
-        gen = FrameGenerator(config)
-        for t in tasks:
-            yield [gen.frame(i) for i in t]
-        return
-    import multiprocessing as mp
-
-    # "spawn": workers never inherit open3d/OpenMP thread state from the parent.
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(int(workers), initializer=_init_worker, initargs=(config,)) as pool:
-        yield from pool.imap(_work, tasks)

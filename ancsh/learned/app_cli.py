@@ -12,6 +12,9 @@ from pathlib import Path
 
 
 def register(sub) -> None:
+    from ..executors import add_executor_arguments
+    from .devices import add_device_argument
+
     p = sub.add_parser(
         "predict",
         help="one depth image -> per-part poses, amodal boxes, joint axes and states (learned ANCSH)",
@@ -40,6 +43,7 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
+    add_device_argument(p)
     p.set_defaults(func=run_predict)
     p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
 
@@ -63,7 +67,10 @@ def register(sub) -> None:
     e.add_argument("--seed", type=int, default=0, help="base seed of the test frames (default 0)")
     e.add_argument("--weights", type=Path, help="ANCSH weights file instead of the shipped ones")
     e.add_argument("--direct-weights", type=Path, help="direct-voting weights (default: shipped, if any)")
-    e.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    e.add_argument("--threads", type=int, default=1, help="torch threads per worker (default 1)")
+    add_device_argument(e)
+    add_executor_arguments(e, workers_default=1, workers_help="worker processes, each rendering, predicting and "
+                           "fitting whole frames (default 1: in this process); the tables do not depend on it")
     e.add_argument("--real", default=None, metavar="CATALOG",
                    help="also evaluate the real test split of a catalog ('builtin' = the shipped one) and write "
                         "<category>_real.md beside the procedural report")
@@ -186,6 +193,13 @@ def _command(argv_tail: list[str]) -> str:
     return "ancsh " + " ".join(shlex.quote(a) for a in argv_tail)
 
 
+def _device(args: argparse.Namespace):
+    """The torch device of ``--device`` (a clear error naming the option when CUDA is asked for but absent)."""
+    from .devices import resolve_device
+
+    return resolve_device(args.device, argument="--device")
+
+
 def run_predict(args: argparse.Namespace) -> int:
     from ..data.isolate import parse_hint
     from ..data.show import save_figure
@@ -194,6 +208,7 @@ def run_predict(args: argparse.Namespace) -> int:
 
     if args.points < 1:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
+    _device(args)  # a missing CUDA device is the first thing to hear about
     hint = parse_hint(args.pixel, args.box)
     intr = read_intrinsics(args.intrinsics)
     if args.depth.is_dir():
@@ -203,7 +218,7 @@ def run_predict(args: argparse.Namespace) -> int:
     rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
-                         isolate=not args.no_isolate, hint=hint, refine=args.refine)
+                         isolate=not args.no_isolate, hint=hint, refine=args.refine, device=_device(args))
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
                      "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed,
@@ -258,7 +273,8 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if args.png is not None:
         args.png.mkdir(parents=True, exist_ok=True)
-    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine)
+    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine,
+                               device=_device(args))
     statuses = {}
     for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
         try:
@@ -330,22 +346,27 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
+    from ..executors import executor_from_args
+
+    executor = executor_from_args(args)
     common = dict(
         frames=frames, methods=methods, seed=args.seed, weights=args.weights, direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
-        num_threads=args.threads, progress=not args.no_progress, refine=args.refine,
+        num_threads=args.threads, progress=not args.no_progress, refine=args.refine, executor=executor,
+        device=_device(args),
     )
-    ev = evaluate_category(args.category, **common)
-    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
-    summary = summarize(ev)
-    paths = write_report(ev, summary, out, command=_rebuild(args))
-    print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
-    if args.real:
-        from .evaluate import write_real_report
+    with executor.session():  # one Ray connection for both splits
+        ev = evaluate_category(args.category, **common)
+        out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
+        summary = summarize(ev)
+        paths = write_report(ev, summary, out, command=_rebuild(args))
+        print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
+        if args.real:
+            from .evaluate import write_real_report
 
-        real = evaluate_category(args.category, real=args.real, **common)
-        path = write_real_report(ev, summary, real, summarize(real), out, command=_rebuild(args))
-        print(f"{real['settings']['frames']} real frames; wrote {path}")
+            real = evaluate_category(args.category, real=args.real, **common)
+            path = write_real_report(ev, summary, real, summarize(real), out, command=_rebuild(args))
+            print(f"{real['settings']['frames']} real frames; wrote {path}")
     return 0
 
 
@@ -370,4 +391,10 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts += ["--seed", str(args.seed)]
     if args.threads != 1:
         parts += ["--threads", str(args.threads)]
+    if args.workers != 1:
+        parts += ["--workers", str(args.workers)]
+    if args.executor != "local":
+        parts += ["--executor", args.executor] + (["--ray-address", args.ray_address] if args.ray_address else [])
+    if args.device != "auto":
+        parts += ["--device", args.device]
     return _command(parts)

@@ -15,7 +15,9 @@ def register(sub) -> None:
         "train",
         help="train the ANCSH network for a category (resumable, checkpoints, curves)",
         description="Train the ANCSH network (or the direct joint-voting baseline) on HDF5 shards made by "
-        "`ancsh data generate`. A run directory keeps config.json, last.pt, best.pt, history.csv, curves.png.",
+        "`ancsh data generate`. A run directory keeps config.json, last.pt, best.pt, history.csv, curves.png. "
+        "Distributed (DDP, one process per core or GPU): torchrun --nproc_per_node N -m ancsh train ...; the "
+        "config's batch_size is the global batch and must divide by N.",
     )
     p.add_argument("--category", required=True, help="object category, e.g. laptop")
     p.add_argument("--config", type=Path, help="TrainConfig JSON (unknown keys are an error)")
@@ -29,13 +31,28 @@ def register(sub) -> None:
     p.add_argument("--export", type=Path, help="write compact weights of best.pt here after training, with the "
                    "run's config, history and curves beside it (<stem>_config.json, _history.csv, _curves.png)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from .devices import add_device_argument
+
+    add_device_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from .distributed import init_distributed, shutdown_distributed
+
+    context = init_distributed(args.device)  # a single process unless started by torchrun
+    try:
+        return _run(args, context)
+    finally:
+        shutdown_distributed(context)
+
+
+def _run(args: argparse.Namespace, context) -> int:
     import json
 
     from .config import TrainConfig
+
+    say = print if context.is_main else (lambda *a, **k: None)  # rank 0 speaks for a distributed run
 
     overrides = {"category": args.category, "kind": args.kind, "max_steps": args.max_steps}
     config = None if args.config is None else TrainConfig.from_json(args.config, **overrides)
@@ -69,10 +86,14 @@ def run(args: argparse.Namespace) -> int:
     shards = _check_shards(data, args.category)
     arrays = arrays_from_dataset(shards, config.num_points, seed=config.seed)
     train, val = split_by_instance(arrays, config.val_fraction, config.seed)
-    print(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "
-          f"({len(set(arrays.instance.tolist()))} instances) from {data}")
+    say(f"{len(train)} training frames, {0 if val is None else len(val)} validation frames "
+        f"({len(set(arrays.instance.tolist()))} instances) from {data}"
+        + (f"; {context.world_size} processes on {context.device.type}" if context.active else f" on {context.device}"))
+    if len(train) and config.batch_size % context.world_size:
+        raise ValueError(f"--config: batch_size {config.batch_size} does not split evenly over {context.world_size} "
+                         "processes; use a batch size divisible by the number of processes")
     pose_val = None
-    if config.pose_val_every and val is not None:
+    if config.pose_val_every and val is not None and context.is_main:
         import numpy as np
 
         from .train import PoseValidation
@@ -80,18 +101,21 @@ def run(args: argparse.Namespace) -> int:
         val_frames = np.flatnonzero(np.isin(arrays.instance, np.unique(val.instance)))
         picks = val_frames[np.linspace(0, len(val_frames) - 1, min(config.pose_val_frames, len(val_frames))).round().astype(int)]
         pose_val = PoseValidation.from_dataset(data, picks, seed=config.seed)
-        print(f"pose validation: {len(picks)} frames of the validation instances, every {config.pose_val_every} steps")
-    trainer = Trainer(config, train, val, out, progress=not args.no_progress, pose_val=pose_val)
+        say(f"pose validation: {len(picks)} frames of the validation instances, every {config.pose_val_every} steps")
+    trainer = Trainer(config, train, val, out, progress=not args.no_progress and context.is_main, pose_val=pose_val,
+                      distributed=context)
     if args.resume:
         trainer.load_checkpoint(last)
-        print(f"resumed {last} at step {trainer.step} ({trainer.elapsed_s / 60:.1f} min trained)")
+        say(f"resumed {last} at step {trainer.step} ({trainer.elapsed_s / 60:.1f} min trained)")
     time_limit = None if args.time_limit_min is None else 60.0 * args.time_limit_min
     try:
         trainer.fit(time_limit_s=time_limit)
     except KeyboardInterrupt:
-        print(f"\ninterrupted at step {trainer.step}: checkpoint {last} saved; run the same command with --resume "
-              "to continue", file=sys.stderr)
+        say(f"\ninterrupted at step {trainer.step}: checkpoint {last} saved; run the same command with --resume "
+            "to continue", file=sys.stderr)
         return 130
+    if not context.is_main:  # rank 0 evaluates and exports
+        return 0
     if trainer.history:
         row = trainer.history[-1]
         print("last:", ", ".join(f"{k}={v:.4g}" for k, v in row.items() if isinstance(v, float)))

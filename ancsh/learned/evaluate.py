@@ -51,6 +51,7 @@ __all__ = [
     "PAPER_TABLE1",
     "PAPER_TABLE2",
     "Method",
+    "TIMING_KEYS",
     "evaluate_category",
     "fit_method",
     "fit_naocs",
@@ -312,6 +313,79 @@ def missing_weights_error(category: str) -> FileNotFoundError:
     )
 
 
+class _FrameEvaluator:
+    """A worker of :func:`evaluate_category`: renders test frame ``i``, runs the networks once and fits every
+    method; ``worker(i)`` returns the frame's record (a pure function of the settings and ``i``)."""
+
+    def __init__(self, category: str, seed: int, real, weights: str, direct_weights, num_threads: int, methods: tuple,
+                 device="cpu"):
+        from ..data.generate import FrameGenerator, GenerationConfig
+        from .provider import DirectVotingPredictor, LearnedProvider
+
+        cfg = dict(category=category, split="test", seed=int(seed))
+        if real is not None:
+            cfg.update(real=real, real_fraction=1.0)
+        self.generator = FrameGenerator(GenerationConfig(**cfg))
+        self.provider = LearnedProvider(weights, seed=seed, num_threads=num_threads, device=device)
+        self.voter = None if direct_weights is None else DirectVotingPredictor(direct_weights, seed=seed, device=device)
+        self.seed, self.methods = int(seed), tuple(methods)
+        self.library = None
+        if "template" in self.methods:
+            from ..data.templates import load_template_library
+
+            self.library = load_template_library(category)
+
+    def __call__(self, i: int) -> dict:
+        from ..evaluation import evaluate_fit
+
+        t0 = time.perf_counter()
+        fr = self.generator.frame(i)
+        t_gen = time.perf_counter() - t0
+        self.provider.check_structure(fr.part_names, fr.gt.joint_types, where=f"test instance {fr.instance!r}")
+        obs = Observation(fr.points)
+        t0 = time.perf_counter()
+        inference = self.provider.infer(obs)
+        corr = inference.correspondences
+        t_net = time.perf_counter() - t0
+        naocs = per_point_naocs(inference.prediction, corr)
+        rec = {
+            "frame": i, "instance": fr.instance, "visibility": fr.visibility.tolist(),
+            "generate_ms": 1e3 * t_gen, "network_ms": 1e3 * t_net, "methods": {},
+            "naocs_joints": _naocs_joint_errors(corr, fr.gt),
+            "budget": npcs_error_budget(inference.prediction, fr.gt),
+        }
+        fits = {}
+        for key in self.methods:
+            if key == "template":
+                continue
+            r = fits[key] = fit_method(key, obs, corr, naocs=naocs, rng=self.seed + i)
+            ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
+            ev["fit_ms"] = 1e3 * r.time_s
+            rec["methods"][key] = ev
+        if self.library is not None:
+            from ..solvers.icp.category import refine_fit
+
+            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=self.seed + i)
+            ref = refine_fit(obs, base, corr, self.library, rng=self.seed + i)
+            ev = evaluate_fit(ref.result, fr.gt, fr.part_names, fr.joint_names).to_dict()
+            ev["fit_ms"] = 1e3 * ref.result.time_s if ref.accepted else 1e3 * (base.time_s + ref.time_s)
+            ev["refine"] = {"accepted": ref.accepted, "choice": ref.choice, "scale": ref.scale, "template": ref.template,
+                            "refine_ms": 1e3 * ref.time_s, "score_input": ref.score_input,
+                            "score_refined": ref.score_refined}
+            rec["methods"]["template"] = ev
+        if self.voter is not None:
+            t0 = time.perf_counter()
+            axes, pivots, _ = self.voter.joints(obs)
+            rec["direct_voting"] = {"joints": _direct_joint_errors(axes, pivots, fr.gt),
+                                    "network_ms": 1e3 * (time.perf_counter() - t0)}
+        return rec
+
+
+TIMING_KEYS = ("generate_ms", "network_ms", "fit_ms", "wall_s", "direct_voting_network_ms", "refine_ms")
+"""Keys of :func:`evaluate_category` records and :func:`summarize` output that hold measured times: everything
+else is a function of the settings alone (the same on any executor, with any number of workers)."""
+
+
 def evaluate_category(
     category: str,
     *,
@@ -325,6 +399,8 @@ def evaluate_category(
     progress: bool = True,
     real: str | None = None,
     refine: str | None = None,
+    executor=None,
+    device="cpu",
 ) -> dict:
     """Run the network and every method on ``frames`` rendered test frames of ``category``.
 
@@ -343,18 +419,25 @@ def evaluate_category(
     time_limit_s : float, optional
         Stop after this many seconds (the frames done so far are kept).
     num_threads : int
-        torch threads.
+        torch threads (per worker).
     real : str, optional
         A catalog of imported real objects (``"builtin"`` = the shipped one): render its *test*
         objects of ``category`` instead of the procedural test instances (the real test split).
     refine : str, optional
         ``"template"``: add the ``template`` method (the ``exact_reduced`` fit refined against the
         category's template library, :func:`ancsh.data.templates.load_template_library`).
+    executor : LocalExecutor or RayExecutor, optional
+        Where the frames are evaluated (:mod:`ancsh.executors`; default: in this process). Every
+        frame is a pure function of the settings and its index, so the records -- all but the
+        :data:`TIMING_KEYS` -- do not depend on it.
+    device : str or torch.device
+        Where the networks run (``"cpu"``, ``"cuda"``, ``"auto"``); the CPU on Ray workers.
 
     Returns
     -------
     dict
-        ``records`` (per frame), ``settings`` (``split`` is ``"procedural"`` or ``"real"``), ``timing``.
+        ``records`` (per frame, in frame order), ``settings`` (``split`` is ``"procedural"`` or
+        ``"real"``), ``timing``.
 
     Raises
     ------
@@ -362,9 +445,9 @@ def evaluate_category(
         When no weights are shipped for ``category`` (the message lists the available ones).
     """
     from ..data.generate import FrameGenerator, GenerationConfig
-    from ..evaluation import evaluate_fit
-    from .provider import DirectVotingPredictor, LearnedProvider
-    from .weights import available_weights, weights_path
+    from ..executors import LocalExecutor, RayExecutor
+    from .devices import resolve_device
+    from .weights import available_weights, load_network, weights_path
 
     methods = tuple(methods)
     if refine not in (None, "template"):
@@ -376,6 +459,16 @@ def evaluate_category(
         raise ValueError(f"methods: expected keys of {list(METHODS)}, got {list(methods)}")
     if isinstance(frames, bool) or int(frames) != frames or frames < 1:
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
+    if executor is None:
+        executor = LocalExecutor(1)
+    elif not isinstance(executor, (LocalExecutor, RayExecutor)):
+        raise ValueError(f"executor: expected a LocalExecutor or RayExecutor, got {type(executor).__name__}")
+    if executor.kind == "ray":  # Ray workers reserve CPUs only
+        if device != "auto" and resolve_device(device).type != "cpu":
+            raise ValueError(f"device: the Ray workers reserve CPUs only; run the networks on the cpu (or auto) with "
+                             f"the ray executor, got {device!r}")
+        device = "cpu"
+    device = str(resolve_device(device))
     if real is None:
         gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed)))
     else:
@@ -384,21 +477,15 @@ def evaluate_category(
             raise ValueError(f"real: the catalog {real!r} has no real test object of {category!r}")
     if weights is None and not weights_path(category).is_file():
         raise missing_weights_error(category)
-    provider = LearnedProvider(category if weights is None else weights, seed=seed, num_threads=num_threads)
-    from ..outputs import file_sha256
-
-    weights_sha = file_sha256(provider.network.source)  # at load time: the file may be replaced while we run
-    voter = None
+    network = load_network(category if weights is None else weights)  # its file and SHA-256 at load time
+    if network.kind != "ancsh":
+        raise ValueError(f"weights: expected an ANCSH network, got a {network.kind!r} network")
+    direct = None
     if direct_weights is not None:
-        voter = DirectVotingPredictor(direct_weights, seed=seed)
+        direct = str(load_network(direct_weights, kind="direct_voting").source)
     elif weights_path(category, "direct_voting").is_file():
-        voter = DirectVotingPredictor(category, seed=seed)
+        direct = str(weights_path(category, "direct_voting"))
 
-    library = None
-    if "template" in methods:
-        from ..data.templates import load_template_library
-
-        library = load_template_library(category)
     records = []
     start = time.perf_counter()
     bar = None
@@ -406,63 +493,28 @@ def evaluate_category(
         from tqdm import tqdm
 
         bar = tqdm(total=int(frames), desc=f"evaluate {category}", unit="frame")
-    for i in range(int(frames)):
-        if time_limit_s is not None and time.perf_counter() - start > time_limit_s:
-            break
-        t0 = time.perf_counter()
-        fr = gen.frame(i)
-        t_gen = time.perf_counter() - t0
-        provider.check_structure(fr.part_names, fr.gt.joint_types, where=f"test instance {fr.instance!r}")
-        obs = Observation(fr.points)
-        t0 = time.perf_counter()
-        inference = provider.infer(obs)
-        corr = inference.correspondences
-        t_net = time.perf_counter() - t0
-        naocs = per_point_naocs(inference.prediction, corr)
-        rec = {
-            "frame": i, "instance": fr.instance, "visibility": fr.visibility.tolist(),
-            "generate_ms": 1e3 * t_gen, "network_ms": 1e3 * t_net, "methods": {},
-            "naocs_joints": _naocs_joint_errors(corr, fr.gt),
-            "budget": npcs_error_budget(inference.prediction, fr.gt),
-        }
-        fits = {}
-        for key in methods:
-            if key == "template":
-                continue
-            r = fits[key] = fit_method(key, obs, corr, naocs=naocs, rng=seed + i)
-            ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
-            ev["fit_ms"] = 1e3 * r.time_s
-            rec["methods"][key] = ev
-        if library is not None:
-            from ..solvers.icp.category import refine_fit
-
-            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=seed + i)
-            ref = refine_fit(obs, base, corr, library, rng=seed + i)
-            ev = evaluate_fit(ref.result, fr.gt, fr.part_names, fr.joint_names).to_dict()
-            ev["fit_ms"] = 1e3 * ref.result.time_s if ref.accepted else 1e3 * (base.time_s + ref.time_s)
-            ev["refine"] = {"accepted": ref.accepted, "choice": ref.choice, "scale": ref.scale, "template": ref.template,
-                            "refine_ms": 1e3 * ref.time_s, "score_input": ref.score_input,
-                            "score_refined": ref.score_refined}
-            rec["methods"]["template"] = ev
-        if voter is not None:
-            t0 = time.perf_counter()
-            axes, pivots, _ = voter.joints(obs)
-            rec["direct_voting"] = {"joints": _direct_joint_errors(axes, pivots, fr.gt),
-                                    "network_ms": 1e3 * (time.perf_counter() - t0)}
-        records.append(rec)
+    worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device)
+    results = executor.imap(_FrameEvaluator, worker_args, range(int(frames)))
+    try:
+        for rec in results:
+            records.append(rec)
+            if bar is not None:
+                bar.update(1)
+            if time_limit_s is not None and time.perf_counter() - start > time_limit_s:
+                break
+    finally:
+        results.close()  # stops the workers (frames not started are not evaluated)
         if bar is not None:
-            bar.update(1)
-    if bar is not None:
-        bar.close()
+            bar.close()
     fr0 = gen.frame(0)
     return {
         "category": category,
         "records": records,
         "settings": {
             "frames_requested": int(frames), "frames": len(records), "seed": int(seed), "methods": list(methods),
-            "weights": provider.network.source, "weights_step": provider.network.step,
-            "weights_sha256": weights_sha,
-            "direct_weights": None if voter is None else voter.network.source,
+            "weights": network.source, "weights_step": network.step,
+            "weights_sha256": network.sha256,
+            "direct_weights": direct,
             "available_weights": available_weights(), "num_threads": int(num_threads), "machine": machine_facts(),
             "test_instances": len(gen.real_instances) if real is not None else gen.num_instances,
             "split": "procedural" if real is None else "real", "real_catalog": real,
@@ -471,6 +523,7 @@ def evaluate_category(
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
             "time_limit_s": time_limit_s, "refine": refine,
+            "executor": executor.describe(), "device": device,
         },
         "timing": {"wall_s": time.perf_counter() - start},
     }

@@ -9,6 +9,10 @@ Beside them, an optional pose-aware term (:func:`npcs_pose_loss`): per part, the
 differentiable weighted Procrustes fit of the predicted NPCS onto the true NPCS -- the
 orientation error that a pose fit of the part cannot remove (see
 :func:`ancsh.learned.evaluate.npcs_error_budget`).
+
+Every mean over the batch goes through :func:`~ancsh.learned.distributed.batch_mean` /
+:func:`~ancsh.learned.distributed.batch_ratio`: a plain mean in one process, the mean over the global
+batch in a distributed training step.
 """
 
 from __future__ import annotations
@@ -16,6 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 import torch
+
+from .distributed import batch_mean, batch_ratio
 
 __all__ = ["Targets", "relaxed_iou_loss", "ancsh_loss", "direct_voting_loss", "LOSS_NAMES", "procrustes_rotation",
            "npcs_pose_loss"]
@@ -80,17 +86,17 @@ def relaxed_iou_loss(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor
     union = p.sum(1) + g.sum(1) - inter
     present = g.sum(1) > 0
     iou = inter / union.clamp_min(1e-8)
-    return (1.0 - iou)[present].mean()
+    return batch_mean((1.0 - iou)[present])
 
 
 def _masked_sq(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
     """Squared error summed over the last axis, averaged over points (masked)."""
     sq = (pred - target).square()
     if mask is None:
-        return sq.sum(-1).mean()
+        return batch_mean(sq.sum(-1))
     sq = sq * mask
     points = (mask.amax(dim=-1) > 0).sum()
-    return sq.sum() / points.clamp_min(1)
+    return batch_ratio(sq.sum(), points)
 
 
 def _take_part(values: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
@@ -221,8 +227,7 @@ def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor,
     C = torch.where(valid[..., None, None], C, safe)
     R = procrustes_rotation(C)
     chordal = (R - eye).square().sum((-1, -2))
-    n = valid.sum()
-    return (chordal * valid).sum() / n.clamp_min(1)
+    return batch_ratio((chordal * valid).sum(), valid.sum())
 
 
 def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0
@@ -259,7 +264,7 @@ def direct_voting_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0,
     if pose_weight:
         raise ValueError(f"pose_weight: the direct-voting network predicts no NPCS, got {pose_weight}")
     s = outputs["cloud_scale"]
-    unit = torch.ones(7, dtype=s.dtype)
+    unit = torch.ones(7, dtype=s.dtype, device=s.device)
     pred = outputs["joint"] / torch.cat([unit[:6].expand(*s.shape[:-1], 6), s], dim=-1)
     target = targets.joint_cam / torch.cat([unit[:6].expand(*s.shape[:-1], 6), s], dim=-1)
     zero = pred.new_zeros(())

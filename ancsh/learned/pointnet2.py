@@ -227,7 +227,16 @@ class SharedMLP(nn.Sequential):
 
 
 def _batch_norm_rows(bn: nn.modules.batchnorm._BatchNorm, h: torch.Tensor) -> torch.Tensor:
-    """``bn`` applied to ``(P, C)`` rows with the semantics of ``bn.forward`` (train/eval, running stats)."""
+    """``bn`` applied to ``(P, C)`` rows with the semantics of ``bn.forward`` (train/eval, running stats).
+
+    In training inside :func:`ancsh.learned.distributed.global_batch` (several processes), the
+    statistics are those of every process's rows (:func:`~ancsh.learned.distributed.sync_batch_norm_rows`).
+    """
+    if bn.training:
+        from . import distributed
+
+        if distributed.syncing():
+            return distributed.sync_batch_norm_rows(bn, h)
     momentum = 0.0 if bn.momentum is None else bn.momentum
     use_batch = bn.training or not bn.track_running_stats
     if bn.training and bn.track_running_stats:
@@ -282,7 +291,7 @@ class Neighbourhoods:
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
-            out[f.name] = v.numpy().astype(np.float32 if v.is_floating_point() else np.int32)
+            out[f.name] = v.cpu().numpy().astype(np.float32 if v.is_floating_point() else np.int32)
         return out
 
     @classmethod

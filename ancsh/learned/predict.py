@@ -230,7 +230,8 @@ class DepthPrediction:
 
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
-                  seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider") -> DepthPrediction:
+                  seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
+                  device="cpu") -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is isolated first (:func:`ancsh.data.isolate.isolate_object`:
@@ -267,6 +268,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         Category-template refinement of the fit (:meth:`LearnedProvider.refine`): ``"template"``,
         ``"auto"`` (where measured to help), ``None`` / ``"none"`` (off); default: the provider's
         option (a provider made here: ``"auto"``).
+    device : str
+        Where the network runs without a ``provider``: ``"cpu"`` (default), ``"cuda"`` or ``"auto"``.
 
     Raises
     ------
@@ -289,7 +292,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
             from .evaluate import missing_weights_error
 
             raise missing_weights_error(category)
-        provider = LearnedProvider(category if weights is None else weights, seed=seed, refine="auto")
+        provider = LearnedProvider(category if weights is None else weights, seed=seed, refine="auto", device=device)
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:

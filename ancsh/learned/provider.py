@@ -65,7 +65,8 @@ def predict_points(model, points_cam: np.ndarray, num_points: int, rng) -> Predi
     """Run ``model`` over all ``(N, 3)`` camera-frame points in seeded chunks of ``num_points``.
 
     Points are shuffled and split into ``ceil(N / num_points)`` equal-size chunks, each padded
-    to ``num_points`` with random repeats of its cloud, and evaluated as one batch.
+    to ``num_points`` with random repeats of its cloud, and evaluated as one batch on the device
+    of the model's parameters.
     """
     import torch
 
@@ -80,10 +81,12 @@ def predict_points(model, points_cam: np.ndarray, num_points: int, rng) -> Predi
     for c, idx in enumerate(parts):
         pad = rng.choice(N, size=num_points - idx.size, replace=N < num_points - idx.size) if idx.size < num_points else []
         batch[c] = np.concatenate([idx, np.asarray(pad, dtype=np.int64)])
-    x = torch.from_numpy(points_cam[batch].astype(np.float32))
+    from .devices import model_device
+
+    x = torch.from_numpy(points_cam[batch].astype(np.float32)).to(model_device(model))
     model.eval()
     with torch.no_grad():
-        out = {k: v.double().numpy() for k, v in model(x).items()}
+        out = {k: v.double().cpu().numpy() for k, v in model(x).items()}
 
     def scatter(key, fn=None):
         if key not in out:
@@ -140,6 +143,14 @@ class Inference:
     votes: tuple
 
 
+def _place(network, device) -> None:
+    """Move a loaded network's model to ``device`` (``None``: leave it where it is)."""
+    if device is not None:
+        from .devices import resolve_device
+
+        network.model.to(resolve_device(device))
+
+
 class LearnedProvider:
     """Correspondences from the ANCSH network.
 
@@ -159,15 +170,19 @@ class LearnedProvider:
         instance of the network's category; kept only where its score on the observed points beats the
         fit's), ``None`` / ``"none"`` leaves it, ``"auto"`` refines where it was measured to help
         (:func:`ancsh.data.templates.refine_default`).
+    device : str or torch.device, optional
+        Where the network runs: ``"cpu"``, ``"cuda"``, ``"auto"`` (:func:`~ancsh.learned.devices.resolve_device`);
+        the network is moved there. Default: where it is (the CPU for a loaded file).
     """
 
     def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
-                 refine: str | None = None):
+                 refine: str | None = None, device=None):
         from .weights import LoadedNetwork, load_network
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source)
         if self.network.kind != "ancsh":
             raise ValueError(f"source: expected an ANCSH network, got a {self.network.kind!r} network")
+        _place(self.network, device)
         if num_threads is not None:
             import torch
 
@@ -311,14 +326,17 @@ class DirectVotingPredictor:
         Category name (looks up ``<category>_direct_voting.pt``) or a file.
     seed : int
     min_votes : int
+    device : str or torch.device, optional
+        As for :class:`LearnedProvider`.
     """
 
-    def __init__(self, source, *, seed: int = 0, min_votes: int = 5):
+    def __init__(self, source, *, seed: int = 0, min_votes: int = 5, device=None):
         from .weights import LoadedNetwork, load_network
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source, kind="direct_voting")
         if self.network.kind != "direct_voting":
             raise ValueError(f"source: expected a direct_voting network, got a {self.network.kind!r} network")
+        _place(self.network, device)
         self.seed = int(seed)
         self.min_votes = int(min_votes)
 

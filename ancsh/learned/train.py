@@ -34,6 +34,8 @@ import torch
 
 from .config import TrainConfig
 from .data import TrainingArrays
+from .devices import model_device, move
+from .distributed import DistributedContext, global_batch
 from .losses import LOSS_NAMES, ancsh_loss, direct_voting_loss
 from .network import build_network
 from .pointnet2 import Neighbourhoods
@@ -191,7 +193,7 @@ def evaluate_arrays(model, arrays: TrainingArrays, config: TrainConfig, batch_si
     try:
         for start in range(0, len(arrays), batch_size):
             idx = np.arange(start, min(start + batch_size, len(arrays)))
-            points, targets = arrays.batch(idx)
+            points, targets = move(arrays.batch(idx), model_device(model))
             out = model(points)
             total, parts = loss_fn(out, targets)
             pred = out["seg_logits"].argmax(-1)
@@ -307,13 +309,19 @@ class Trainer:
         Show a tqdm progress bar.
     pose_val : PoseValidation, optional
         Run every ``config.pose_val_every`` steps (and at the end); selects ``best.pt``.
+    device : str or torch.device
+        Where the network trains (``"cpu"``, ``"cuda"``, ``"auto"``); ignored with ``distributed``.
+    distributed : DistributedContext, optional
+        This process's rank in a ``torchrun`` launch (:mod:`ancsh.learned.distributed`): each rank runs
+        its share of every global batch, rank 0 writes the run directory and validates.
 
     The sampling / grouping indices of the training frames are computed once
     (:func:`neighbourhood_cache`) and fed to every step.
     """
 
     def __init__(self, config: TrainConfig, train: TrainingArrays, val: TrainingArrays | None = None, out_dir=None, *,
-                 progress: bool = True, pose_val: PoseValidation | None = None):
+                 progress: bool = True, pose_val: PoseValidation | None = None, device="cpu",
+                 distributed: DistributedContext | None = None):
         if not isinstance(config, TrainConfig):
             raise ValueError(f"config: expected a TrainConfig, got {type(config).__name__}")
         if len(train) == 0:
@@ -327,10 +335,14 @@ class Trainer:
         self.progress = progress
         torch.set_num_threads(config.num_threads)
         torch.manual_seed(config.seed)
+        self.dist = _distributed_context(distributed, device)
+        self.device = self.dist.device
         self.model = build_network(config.kind, train.num_parts, train.num_joints, **config.network_kwargs())
         self.init_sha256: str | None = None  # of config.init_weights, when given
         if config.init_weights:
             self._initialise_from(config.init_weights, train)
+        self.model = self.model.to(self.device)
+        self.step_model = self.dist.wrap(self.model)  # the model itself, or its DDP wrapper
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self.loss_fn = loss_function(config)
         if pose_val is not None and not isinstance(pose_val, PoseValidation):
@@ -343,11 +355,15 @@ class Trainer:
         self._acc: dict[str, float] = {}
         self._acc_n = 0
         self._saved_step = -1
-        if self.out_dir is not None:
+        if self.out_dir is not None and self.dist.is_main:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             config.to_json(self.out_dir / "config.json")
         cache_path = None if self.out_dir is None else self.out_dir / "neighbourhoods.npz"
-        self.neighbourhoods = neighbourhood_cache(self.model, train.points, path=cache_path)
+        if self.dist.is_main:
+            self.neighbourhoods = neighbourhood_cache(self.model, train.points, path=cache_path)
+        self.dist.barrier()  # the other ranks read rank 0's cache
+        if not self.dist.is_main:
+            self.neighbourhoods = neighbourhood_cache(self.model, train.points, path=cache_path)
 
     def _initialise_from(self, source: str, train: TrainingArrays) -> None:
         """Copy the parameters of ``source`` (``config.init_weights``) into the new model, refusing another structure."""
@@ -387,21 +403,23 @@ class Trainer:
 
     # --- one step ----------------------------------------------------------------------
     def train_step(self) -> dict[str, float]:
-        """One optimisation step; returns the loss components of this batch."""
+        """One optimisation step; returns the loss components of this batch (the global batch, in a distributed run)."""
         self.model.train()
         for g in self.optimizer.param_groups:
             g["lr"] = self.learning_rate(self.step)
-        idx = self.batch_indices(self.step)
-        points, targets = self.train_arrays.batch(idx)
-        out = self.model(points, Neighbourhoods.from_numpy(self.neighbourhoods, idx))
-        total, parts = self.loss_fn(out, targets, pose_weight=self.pose_weight(self.step))
-        if not torch.isfinite(total):
-            raise FloatingPointError(f"non-finite loss at step {self.step}: { {k: v.item() for k, v in parts.items()} }")
+        idx = self.dist.local_batch(self.batch_indices(self.step))  # all of it in a single process
+        points, targets = move(self.train_arrays.batch(idx), self.device)
+        with global_batch(self.dist):
+            out = self.step_model(points, move(Neighbourhoods.from_numpy(self.neighbourhoods, idx), self.device))
+            total, parts = self.loss_fn(out, targets, pose_weight=self.pose_weight(self.step))
+        values = self.dist.average(torch.stack([total.detach(), *(v.detach() for v in parts.values())])).tolist()
+        losses = dict(zip(("total", *parts), values))  # of the global batch
+        if not math.isfinite(losses["total"]):
+            raise FloatingPointError(f"non-finite loss at step {self.step}: { {k: v for k, v in losses.items()} }")
         self.optimizer.zero_grad(set_to_none=True)
-        total.backward()
+        total.backward()  # DDP averages the gradients over the ranks
         self.optimizer.step()
         self.step += 1
-        losses = {"total": total.item(), **{k: v.item() for k, v in parts.items()}}
         for k, v in losses.items():
             self._acc[k] = self._acc.get(k, 0.0) + v
         self._acc_n += 1
@@ -437,7 +455,7 @@ class Trainer:
                     self.record(pose=self.step == max_steps)
                 if self.out_dir is not None and (self.step % c.checkpoint_every == 0 or self.step == max_steps):
                     self.save_checkpoint(self.out_dir / "last.pt")
-                if time_limit_s is not None and now - t_start >= time_limit_s:
+                if time_limit_s is not None and self.dist.any(now - t_start >= time_limit_s):  # every rank stops
                     break
         except KeyboardInterrupt:  # Ctrl-C: keep the finished steps, then let the caller report it
             if self.out_dir is not None and self._saved_step != self.step:
@@ -493,6 +511,9 @@ class Trainer:
         ``best.pt`` follows the row's ``pose_score`` when there is a pose validation, else the
         validation loss. Returns the row as written (:meth:`HistoryRow.to_dict`).
         """
+        if not self.dist.is_main:  # rank 0 measures and writes; the others only drop their partial means
+            self._acc, self._acc_n = {}, 0
+            return {}
         row = self.measure(pose=pose)
         self.history.append(row.to_dict())
         if self.out_dir is not None:
@@ -526,8 +547,12 @@ class Trainer:
         }
 
     def save_checkpoint(self, path) -> Path:
-        """Write the full training state atomically (temporary file + rename)."""
+        """Write the full training state atomically (temporary file + rename); rank 0 only in a distributed run."""
         path = Path(path)
+        if not self.dist.is_main:
+            if path.name == "last.pt":
+                self._saved_step = self.step
+            return path
         tmp = path.with_suffix(path.suffix + ".tmp")
         try:
             torch.save(self.state(), tmp)
@@ -569,6 +594,17 @@ class Trainer:
         except (ValueError, TypeError, KeyError, IndexError, RuntimeError) as exc:
             raise ValueError(f"--resume: {path} is not a usable checkpoint: {str(exc).splitlines()[0][:200]}") from None
         self._saved_step = self.step
+
+
+def _distributed_context(distributed, device) -> DistributedContext:
+    """``distributed`` (checked), or a single-process context on ``device``."""
+    if distributed is None:
+        from .devices import resolve_device
+
+        return DistributedContext(device=resolve_device(device))
+    if not isinstance(distributed, DistributedContext):
+        raise ValueError(f"distributed: expected a DistributedContext, got {type(distributed).__name__}")
+    return distributed
 
 
 def plot_history(history: list[dict], path, title: str = "") -> None:

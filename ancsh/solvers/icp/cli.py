@@ -41,6 +41,10 @@ def register(sub) -> None:
     e.add_argument("--out", default=None, help="markdown report, a .json is written next to it "
                    "(default: a fresh ancsh_results/evaluate-cad-<time>/cad_fitting.md)")
     e.add_argument("--update-docs", action="store_true", help="write docs/results/cad_fitting.md (when --out is not given)")
+    from ...executors import add_executor_arguments
+
+    add_executor_arguments(e, workers_default=1, workers_help="worker processes, one object at a time each (default 1: "
+                           "in this process); the tables do not depend on it")
     e.set_defaults(func=run_evaluate)
 
 
@@ -174,10 +178,11 @@ def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None =
 def run_evaluate(args) -> int:
     from dataclasses import replace
 
+    from ...executors import executor_from_args
+    from ...outputs import report_path
     from .evaluate import EvalConfig, run_evaluation, write_report
 
-    from ...outputs import report_path
-
+    executor = executor_from_args(args)
     config = EvalConfig.quick() if args.quick else EvalConfig()
     if args.frames is not None:
         if args.frames < 1:
@@ -185,6 +190,9 @@ def run_evaluate(args) -> int:
         config = replace(config, frames=int(args.frames))
     command = "ancsh evaluate-cad" + (" --quick" if args.quick else "") + (f" --frames {args.frames}" if args.frames else "")
     command += f" --out {args.out}" if args.out is not None else " --update-docs" if args.update_docs else ""
+    command += f" --workers {args.workers}" if args.workers != 1 else ""
+    command += f" --executor {args.executor}" if args.executor != "local" else ""
+    command += f" --ray-address {args.ray_address}" if args.ray_address else ""
     out = report_path(args.out, update_docs=args.update_docs, docs_name="cad_fitting.md", command="evaluate-cad")
     t0 = time.perf_counter()
 
@@ -194,7 +202,7 @@ def run_evaluate(args) -> int:
         print(f"  {name:45s} noise={'yes' if noise else 'no ':3s} articulated ICP chain AD acc {100 * acc:5.1f}% "
               f"[{time.perf_counter() - t0:6.0f} s]", file=sys.stderr, flush=True)
 
-    records, meta = run_evaluation(config, progress=progress)
+    records, meta = run_evaluation(config, progress=progress, executor=executor)
     text = write_report(records, meta, out, command=command, wall_s=time.perf_counter() - t0)
     print(text)
     return 0

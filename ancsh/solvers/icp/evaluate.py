@@ -289,18 +289,24 @@ def ad_correct(part_points: PartPoints, T_est_parts, T_gt_parts, threshold: floa
 # --------------------------------------------------------------------------------------
 # run
 # --------------------------------------------------------------------------------------
-def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progress=None):
-    """Evaluate ``methods`` on every object and noise setting; returns ``(records, meta)``."""
-    from ...data.render import Intrinsics
-    from .articulated import articulated_icp
-    from ...data.render import object_extent
-    from .rigid import RigidIcpConfig, per_part_icp, whole_object_icp
-    from .template import ModelSurface
+class _ObjectEvaluator:
+    """A worker of :func:`run_evaluation`: ``worker(oi)`` -> the records of object ``oi`` (both noise settings),
+    a pure function of the configuration and ``oi`` (its random stream is seeded by ``(config.seed, oi)``)."""
 
-    objects, skipped = evaluation_objects(config)
-    intr = Intrinsics.kinect(*config.image_size)
-    records: list[FrameRecord] = []
-    for oi, (name, model) in enumerate(objects):
+    def __init__(self, config: EvalConfig, methods: tuple):
+        self.config, self.methods = config, tuple(methods)
+        self.objects, _ = evaluation_objects(config)
+
+    def __call__(self, oi: int) -> list:
+        from ...data.render import Intrinsics, object_extent
+        from .articulated import articulated_icp
+        from .rigid import RigidIcpConfig, per_part_icp, whole_object_icp
+        from .template import ModelSurface
+
+        config = self.config
+        name, model = self.objects[oi]
+        intr = Intrinsics.kinect(*config.image_size)
+        records: list[FrameRecord] = []
         rng = np.random.default_rng([config.seed, oi])
         q_seq = model.random_states(rng)
         part_points = PartPoints(model)
@@ -313,7 +319,7 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
             for fi, fr in enumerate(seq):
                 init = perturbed_init(model, fr.T_cam_base, rng)
                 gt_parts = [fr.T_cam_base @ T for T in model.forward_kinematics(fr.q)]
-                for method in methods:
+                for method in self.methods:
                     t0 = time.perf_counter()
                     if method == "articulated_icp":
                         res = articulated_icp(model, fr.points_cam, init, rng=fi, surface=surface)
@@ -321,10 +327,8 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
                         res = per_part_icp(model, fr.points_cam, init, config=rigid, rng=fi, surface=surface)
                     elif method == "per_part_icp_gt_labels":
                         res = per_part_icp(model, fr.points_cam, init, labels=fr.part_labels, config=rigid, rng=fi)
-                    elif method == "whole_object_icp":
+                    else:  # whole_object_icp (methods are checked by run_evaluation)
                         res = whole_object_icp(model, fr.points_cam, init, config=rigid, rng=fi)
-                    else:
-                        raise ValueError(f"methods: unknown method {method!r}; known: {METHODS}")
                     dt = time.perf_counter() - t0
                     ok, ratios = ad_correct(part_points, res.T_cam_parts, gt_parts)
                     jerr = [
@@ -335,8 +339,32 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
                     records.append(FrameRecord(name, noise, fi, method, ok.tolist(), bool(ok.all()), jerr, dt,
                                                str(res.status.value if hasattr(res.status, "value") else res.status),
                                                ratios.tolist()))
-            if progress is not None:
-                progress(name, noise, [r for r in records if r.object == name and r.noise == noise])
+        return records
+
+
+def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progress=None, executor=None):
+    """Evaluate ``methods`` on every object and noise setting; returns ``(records, meta)``.
+
+    ``executor`` (:mod:`ancsh.executors`; default: in this process) evaluates one object per task;
+    the records (all but ``time_s``) do not depend on it. ``progress(name, noise, records)`` is called
+    for each object and noise setting as its records arrive (in object order).
+    """
+    from ...executors import LocalExecutor, RayExecutor
+
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        raise ValueError(f"methods: unknown method(s) {bad}; known: {METHODS}")
+    if executor is None:
+        executor = LocalExecutor(1)
+    elif not isinstance(executor, (LocalExecutor, RayExecutor)):
+        raise ValueError(f"executor: expected a LocalExecutor or RayExecutor, got {type(executor).__name__}")
+    objects, skipped = evaluation_objects(config)
+    records: list[FrameRecord] = []
+    for (name, _), recs in zip(objects, executor.imap(_ObjectEvaluator, (config, tuple(methods)), range(len(objects)))):
+        records += recs
+        if progress is not None:
+            for noise in (False, True):
+                progress(name, noise, [r for r in recs if r.noise == noise])
     meta = {
         "machine": machine_facts(),
         "objects": [
