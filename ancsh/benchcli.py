@@ -15,6 +15,7 @@ BENCH_MODULES = [
     "ancsh.data.cli:register_bench",
     "ancsh.solvers.bench",
     "ancsh.learned.bench",
+    "ancsh.tracking.bench",
 ]
 
 
