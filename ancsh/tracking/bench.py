@@ -39,8 +39,8 @@ class BenchConfig:
         ``"learned"`` (shipped weights) and / or ``"oracle"`` (``realistic`` corruption).
     urdf : str or None
         A URDF object (instance-level tracking); ``None`` skips it.
-    sequences : int
-        Sequences per object.
+    sequences, urdf_sequences : int
+        Sequences per procedural object / of the URDF object (its cold per-frame baseline costs seconds a frame).
     length, urdf_length : int
         Frames per sequence (category level / URDF).
     gap : int
@@ -54,8 +54,9 @@ class BenchConfig:
     providers: tuple = ("learned", "oracle")
     urdf: str | None = None
     sequences: int = 2
+    urdf_sequences: int = 1
     length: int = 40
-    urdf_length: int = 24
+    urdf_length: int = 16
     gap: int = 3
     network_every: int = 3
     seed: int = 0
@@ -201,7 +202,7 @@ def _urdf_records(config: BenchConfig, say) -> list:
     part_points = PartPoints(model, 500, config.seed)
     icfg = InstanceTrackerConfig()
     records = []
-    for seq in range(config.sequences):
+    for seq in range(config.urdf_sequences):
         frames = _sequence_frames(gen, seq, config.urdf_length, config.gap)
         say(f"{name} (URDF) / sequence {seq}: {len(frames)} frames")
         tracker = InstanceTracker(model, icfg, rng=config.seed)
@@ -316,7 +317,8 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
         "measured interleaved, frame by frame, alternating which goes first). Times are per frame from the observed points "
         "(rendering, depth reading and object isolation excluded, identical for both sides); one torch thread.",
         "",
-        f"Sequences: {cfg['sequences']} per object, {cfg['length']} frames (URDF: {cfg['urdf_length']}) at 30 frames/s "
+        f"Sequences: {cfg['sequences']} per object, {cfg['length']} frames (URDF: {cfg['urdf_sequences']} of "
+        f"{cfg['urdf_length']}) at 30 frames/s "
         f"(`ancsh data generate --sequence-length`: joint open/close cycles within the limits, smooth camera drift, "
         f"Kinect-like noise), test instances, seed {cfg['seed']}; {cfg['gap']} blank frames (the object out of view) in "
         "each, after which the tracker must re-initialise. Errors are means over the in-view frames with an accepted fit "
@@ -353,7 +355,9 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
     write_bytes_atomically(path, text.encode())
     payload = {"command": command, "config": cfg, "tracker": report["tracker"], "machine": report["machine"],
                "summary": summary, "records": report["records"]}
-    write_bytes_atomically(path.with_suffix(".json"), json.dumps(_json_safe(payload), indent=1).encode())
+    from ..learned.evaluate import json_safe
+
+    write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), indent=1).encode())
     return text
 
 
@@ -380,20 +384,6 @@ def _targets(rows, cfg) -> list:
     return out
 
 
-def _json_safe(x):
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
-
-
 # ---------------------------------------------------------------------------------------------
 # command line
 # ---------------------------------------------------------------------------------------------
@@ -406,7 +396,8 @@ def register(sub) -> None:
                    help="URDF object for instance-level tracking ('default': the shared laptop_10101; 'none': skip)")
     p.add_argument("--sequences", type=int, default=2, help="sequences per object (default 2)")
     p.add_argument("--length", type=int, default=40, help="frames per sequence (default 40)")
-    p.add_argument("--urdf-length", type=int, default=24, help="frames per URDF sequence (default 24)")
+    p.add_argument("--urdf-length", type=int, default=16, help="frames per URDF sequence (default 16)")
+    p.add_argument("--urdf-sequences", type=int, default=1, help="URDF sequences (default 1)")
     p.add_argument("--gap", type=int, default=3, help="blank frames in the middle of each sequence (default 3)")
     p.add_argument("-k", "--network-every", type=int, default=3, help="network on every k-th tracked frame (default 3)")
     p.add_argument("--seed", type=int, default=0)
@@ -418,7 +409,7 @@ def register(sub) -> None:
 def _command(args) -> str:
     parts = ["ancsh bench tracking"]
     defaults = {"categories": "laptop,drawer,eyeglasses", "providers": "learned,oracle", "urdf": "default", "sequences": 2,
-                "length": 40, "urdf_length": 24, "gap": 3, "network_every": 3, "seed": 0}
+                "length": 40, "urdf_length": 16, "urdf_sequences": 1, "gap": 3, "network_every": 3, "seed": 0}
     for key, default in defaults.items():
         if getattr(args, key) != default:
             parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
@@ -440,7 +431,7 @@ def run(args) -> int:
         if p not in ("learned", "oracle"):
             raise ValueError(f"--providers: expected learned and/or oracle, got {p!r}")
     config = BenchConfig(categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), providers=providers,
-                         urdf=urdf, sequences=args.sequences, length=args.length, urdf_length=args.urdf_length, gap=args.gap,
+                         urdf=urdf, sequences=args.sequences, urdf_sequences=args.urdf_sequences, length=args.length, urdf_length=args.urdf_length, gap=args.gap,
                          network_every=args.network_every, seed=args.seed)
     command = _command(args)
     t0 = time.perf_counter()

@@ -47,7 +47,10 @@ class InstanceTrackerConfig:
     solver_iterations : int
         Backend iterations per ICP iteration.
     accept_inliers : float
-        Smallest share of points within the final gate for a frame to count as tracked, in ``(0, 1]``.
+        Smallest share of points within ``accept_gate`` of the fitted model for a frame to count as
+        tracked, in ``(0, 1]``.
+    accept_gate : float
+        That distance (diagonals; at least twice ``gate_floor``): a few times the sensor noise.
     temporal_weight, temporal_state_weight : float
         Weights of the temporal prior (pose, joint states); both 0 turns it off.
     velocity : float
@@ -66,6 +69,7 @@ class InstanceTrackerConfig:
     num_points: int = 400
     solver_iterations: int = 5
     accept_inliers: float = 0.6
+    accept_gate: float = 0.03
     temporal_weight: float = 0.01
     temporal_state_weight: float = 0.01
     velocity: float = 1.0
@@ -75,7 +79,7 @@ class InstanceTrackerConfig:
     def __post_init__(self):
         for name, lo in (("iterations", 1), ("num_points", 6), ("solver_iterations", 1), ("min_points", 6)):
             object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=lo))
-        for name in ("gate", "gate_floor", "tolerance"):
+        for name in ("gate", "gate_floor", "tolerance", "accept_gate"):
             check_positive(getattr(self, name), name)
         for name in ("gate_decay", "accept_inliers"):
             check_number(getattr(self, name), name, minimum=0.0, maximum=1.0, lower_open=True)
@@ -183,16 +187,17 @@ class InstanceTracker:
         prior = None
         if cfg.temporal_weight > 0 or cfg.temporal_state_weight > 0:
             prior = (prediction, cfg.temporal_weight, cfg.temporal_state_weight)
+        accept = max(cfg.accept_gate * self.diagonal, 2 * cfg.gate_floor)
         est = prediction
         status, iterations, ratio, rmse = FitStatus.MAX_ITER, 0, 0.0, float("inf")
         for i in range(cfg.iterations):
             gate = max(cfg.gate * self.diagonal * cfg.gate_decay**i, cfg.gate_floor)
             prov = self.provider.at(est, max_distance=gate)
             corr = prov.correspond(points)
-            inl = corr.weights > 0
+            inl = corr.distances <= accept
             ratio = float(inl.mean())
             rmse = float(np.sqrt(np.mean(corr.distances[inl] ** 2))) if inl.any() else float("inf")
-            if not inl.any():
+            if not np.any(corr.weights > 0):
                 break
             new, _ = reduced_step(prov, points, corr, solver="lsq", max_iterations=cfg.solver_iterations, prior=prior)
             iterations += 1
