@@ -357,7 +357,7 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
                "summary": summary, "records": report["records"]}
     from ..learned.evaluate import json_safe
 
-    write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), indent=1).encode())
+    write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), separators=(",", ":")).encode())
     return text
 
 
