@@ -19,6 +19,7 @@ BENCH_MODULES = [
     "ancsh.learned.refine_bench",
     "ancsh.learned.gpu_check:register_bench",
     "ancsh.scaling:register_bench",
+    "ancsh.tracking.bench",
 ]
 
 

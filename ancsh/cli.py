@@ -39,6 +39,8 @@ EXAMPLES = {
     "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~20 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
+    "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
+    "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
 }
 
 # Modules that contribute sub-commands, in help order.
@@ -49,6 +51,7 @@ COMMAND_MODULES = [
     "ancsh.data.cli",
     "ancsh.benchcli",
     "ancsh.solvers.icp.cli",
+    "ancsh.tracking.cli",
 ]
 
 

@@ -64,6 +64,10 @@ def register(sub) -> None:
                    help="reject views where a part shows on fewer pixels (default 30)")
     g.add_argument("--min-part-fraction", type=float, default=0.02,
                    help="reject views where a part shows on less than this fraction of the object's pixels (default 0.02)")
+    g.add_argument("--sequence-length", type=_positive_int, default=None, metavar="T",
+                   help="generate sequences of T frames (smooth camera motion, joint open/close cycles; "
+                        "--frames counts frames, T per sequence) instead of independent frames")
+    g.add_argument("--fps", type=float, default=30.0, help="frames per second of the sequences (default 30)")
     g.add_argument("--overwrite", action="store_true", help="replace shards made with other settings")
     g.add_argument("--quiet", action="store_true", help="no progress bar")
     g.set_defaults(func=run_generate)
@@ -108,6 +112,7 @@ def run_generate(args) -> int:
     from .generate import FrameRejected, GenerationConfig, generate_dataset
     from .noise import DepthNoise
     from .render import Intrinsics
+    from .sequences import SequenceMotion
 
     executor = executor_from_args(args)
     config = GenerationConfig(
@@ -123,6 +128,7 @@ def run_generate(args) -> int:
         noise=DepthNoise() if args.noise else DepthNoise.off(),
         min_part_pixels=args.min_part_pixels,
         min_part_fraction=args.min_part_fraction,
+        sequence=None if args.sequence_length is None else SequenceMotion(length=args.sequence_length, fps=args.fps),
     )
     split = config.split if config.urdf is None else "urdf"
     out = Path(args.out) if args.out else Path("data") / f"{config.name}_{split}"

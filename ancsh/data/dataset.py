@@ -44,7 +44,12 @@ instance_seed            () i8       the instance's generator seed (-1 for URDF 
 instance_name            () str      the model's name
 frame_index              () i8       index of the frame in the whole dataset
 frame_seed               () i8       seed of the frame's random stream
+sequence_index           () i8       sequence of the frame (-1: a single frame)
+time_index               () i8       time index within its sequence (-1: a single frame)
 =======================  ==========  ===========================================================
+
+``sequence_index`` and ``time_index`` are optional on reading: shards written before them hold
+single frames (both read as -1).
 
 Shard attributes: ``format_version``, ``category``, ``split``, ``source``, ``part_names``,
 ``joint_names``, ``joint_types``, ``joint_parents``, ``joint_children`` (JSON lists),
@@ -117,7 +122,12 @@ FIELDS = {
     "instance_name": ("str", ()),
     "frame_index": ("i8", ()),
     "frame_seed": ("i8", ()),
+    "sequence_index": ("i8", ()),
+    "time_index": ("i8", ()),
 }
+
+# Fields that shards written before them lack, with the value they read as.
+OPTIONAL_FIELDS = {"sequence_index": -1, "time_index": -1}
 
 _REQUIRED_ATTRS = (
     "format_version", "category", "split", "source", "part_names", "joint_names", "joint_types",
@@ -167,6 +177,10 @@ class Frame:
     depth : (H, W) float64 or None
         The noisy depth image the points were sampled from (metres, 0 = no return), when the
         frame was generated with ``keep_depth=True``; shards do not store it.
+    sequence_index : int
+        Sequence the frame belongs to (:mod:`.sequences`); -1 for a single frame.
+    time_index : int
+        Its time index within the sequence; -1 for a single frame.
     """
 
     points: np.ndarray
@@ -185,6 +199,8 @@ class Frame:
     part_names: tuple
     joint_names: tuple
     depth: np.ndarray | None = None
+    sequence_index: int = -1
+    time_index: int = -1
 
     @property
     def num_parts(self) -> int:
@@ -233,6 +249,8 @@ def frame_record(frame: Frame) -> dict:
         "instance_name": str(frame.instance),
         "frame_index": np.int64(frame.frame_index),
         "frame_seed": np.int64(frame.seed),
+        "sequence_index": np.int64(frame.sequence_index),
+        "time_index": np.int64(frame.time_index),
     }
     return rec
 
@@ -493,6 +511,8 @@ class ShardReader:
             seed=int(d["frame_seed"][i]),
             part_names=self.part_names,
             joint_names=self.joint_names,
+            sequence_index=int(d["sequence_index"][i]),
+            time_index=int(d["time_index"][i]),
         )
 
 
@@ -523,6 +543,9 @@ def _read_datasets(path: Path, keys: list, expected_len: int) -> dict:
     try:
         with h5py.File(path, "r") as f:
             for k in keys:
+                if k not in f and k in OPTIONAL_FIELDS:
+                    out[k] = np.full(expected_len, OPTIONAL_FIELDS[k], dtype=FIELDS[k][0])
+                    continue
                 if k not in f:
                     raise CorruptShardError(f"shard {path}: dataset {k!r} is missing")
                 data = f[k][()]

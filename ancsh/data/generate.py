@@ -28,6 +28,7 @@ from ..geometry.transforms import Sim3
 from .dataset import CorruptShardError, Frame, ShardReader, write_shard
 from .noise import DepthNoise, apply_noise
 from .render import VIEWPOINTS, Intrinsics, ModelRenderer, sample_points, sample_viewpoint, viewpoint_range
+from .sequences import SequenceMotion, SequencePlan, plan_sequence
 
 __all__ = [
     "FrameGenerator",
@@ -79,6 +80,9 @@ class GenerationConfig:
         ... or when its visible-area ratio is below this.
     max_attempts : int
         Redraws of joint state and view before :class:`FrameRejected`.
+    sequence : SequenceMotion or None
+        ``None``: independent frames. Otherwise frames form sequences of ``sequence.length``
+        (:mod:`.sequences`): frame ``i`` is time ``i % length`` of sequence ``i // length``.
     """
 
     category: str | None = None
@@ -95,8 +99,11 @@ class GenerationConfig:
     min_part_fraction: float = 0.02
     min_visibility: float = 0.0
     max_attempts: int = 100
+    sequence: SequenceMotion | None = None
 
     def __post_init__(self):
+        if self.sequence is not None and not isinstance(self.sequence, SequenceMotion):
+            raise ValueError(f"sequence: expected a SequenceMotion or None, got {type(self.sequence).__name__}")
         if (self.category is None) == (self.urdf is None):
             raise ValueError("category: give exactly one of a procedural category and a URDF path")
         if self.urdf is None:
@@ -138,6 +145,10 @@ class GenerationConfig:
         d = asdict(self)
         d["intrinsics"] = self.intrinsics.to_json()
         d["noise"] = json.loads(self.noise.to_json())
+        if self.sequence is None:  # single-frame datasets keep the settings they were written with
+            del d["sequence"]
+        else:
+            d["sequence"] = self.sequence.to_dict()
         if self.urdf is None:  # procedural shapes depend on the generators' version, not only the seed
             from .procedural import GENERATOR_VERSION
 
@@ -164,6 +175,7 @@ class FrameGenerator:
             raise ValueError(f"config: expected GenerationConfig, got {type(config).__name__}")
         self.config = config
         self._cache: dict = {}
+        self._plans: dict = {}
         self._real: tuple = ()
         if config.urdf is not None:
             self._seeds = (-1,)
@@ -235,34 +247,83 @@ class FrameGenerator:
         """Frame ``index`` of the dataset (deterministic).
 
         ``keep_depth=True`` also returns the noisy depth image the points were sampled from
-        (``Frame.depth``; the input of ``ancsh predict``), at no extra cost.
+        (``Frame.depth``; the input of ``ancsh predict``), at no extra cost. With
+        ``config.sequence`` the frame is time ``index % length`` of sequence ``index // length``
+        (:meth:`sequence_plan`).
         """
-        from ..model.canonical import ancsh_ground_truth
-
         cfg = self.config
         seed = frame_seed(cfg.seed, index)
         rng = np.random.default_rng(seed)
-        if self._real and cfg.real_fraction > 0:  # an extra draw only for mixed data: procedural frames stay as they were
-            if cfg.real_fraction >= 1.0 or rng.random() < cfg.real_fraction:
-                inst = self._num_procedural + int(rng.integers(len(self._real)))
-            else:
-                inst = int(rng.integers(self._num_procedural))
-        else:
-            inst = int(rng.integers(self._num_procedural))
+        if cfg.sequence is not None:
+            seq, t = cfg.sequence.split(index)
+            plan = self.sequence_plan(seq)
+            model, renderer = self.instance(plan.instance)
+            q, T_cam_base = plan.joint_states(t), plan.camera(t)
+            view = renderer.render(q, T_cam_base, cfg.intrinsics, visibility=True)
+            return self._finish(index, seed, rng, plan.instance, q, T_cam_base, view, keep_depth, seq, t)
+        inst = self._draw_instance(rng)
         model, renderer = self.instance(inst)
         vr = self._viewpoints(model)
         for _ in range(cfg.max_attempts):
             q = model.random_states(rng)
             T_cam_base = sample_viewpoint(vr, rng, model, q)
             view = renderer.render(q, T_cam_base, cfg.intrinsics, visibility=True)
-            pixels = view.part_pixels(model.num_parts)
-            if self.accept(pixels, view.visibility):
+            if self.accept(view.part_pixels(model.num_parts), view.visibility):
                 break
         else:
             raise FrameRejected(
                 f"frame {index}: no view of {model.name!r} showed every part within {cfg.max_attempts} attempts "
                 f"(min_part_pixels={cfg.min_part_pixels}, min_part_fraction={cfg.min_part_fraction})"
             )
+        return self._finish(index, seed, rng, inst, q, T_cam_base, view, keep_depth)
+
+    def _draw_instance(self, rng) -> int:
+        cfg = self.config
+        if self._real and cfg.real_fraction > 0:  # an extra draw only for mixed data: procedural frames stay as they were
+            if cfg.real_fraction >= 1.0 or rng.random() < cfg.real_fraction:
+                return self._num_procedural + int(rng.integers(len(self._real)))
+            return int(rng.integers(self._num_procedural))
+        return int(rng.integers(self._num_procedural))
+
+    def sequence_plan(self, sequence: int) -> SequencePlan:
+        """The motion of sequence ``sequence`` (cached; see :mod:`.sequences`).
+
+        Its stream is seeded by ``(config.seed, sequence)`` apart from the frames' streams; a plan
+        is drawn again until enough of its checked frames show every part.
+        """
+        cfg = self.config
+        motion = cfg.sequence
+        if motion is None:
+            raise ValueError("sequence: this configuration generates single frames (config.sequence is None)")
+        if sequence in self._plans:
+            return self._plans[sequence]
+        rng = np.random.default_rng(np.random.SeedSequence([int(cfg.seed), int(sequence), 0x5E0]))
+        inst = self._draw_instance(rng)
+        model, renderer = self.instance(inst)
+        vr = self._viewpoints(model)
+        times = np.unique(np.linspace(0, motion.length - 1, motion.checks).round().astype(int))
+        for _ in range(motion.max_attempts):
+            plan = plan_sequence(model, inst, vr, motion, rng)
+            ok = 0
+            for t in times:
+                view = renderer.render(plan.joint_states(t), plan.camera(t), cfg.intrinsics, visibility=True)
+                ok += self.accept(view.part_pixels(model.num_parts), view.visibility)
+            if ok >= motion.min_accepted * len(times):
+                break
+        else:
+            raise FrameRejected(f"sequence {sequence}: no camera path and joint cycles of {model.name!r} showed every "
+                                f"part in {motion.min_accepted:.0%} of the checked frames within {motion.max_attempts} draws")
+        if len(self._plans) > 8:
+            self._plans.clear()
+        self._plans[sequence] = plan
+        return plan
+
+    def _finish(self, index, seed, rng, inst, q, T_cam_base, view, keep_depth, sequence=-1, time_index=-1) -> Frame:
+        """Noise, point sampling and ground truth of a rendered view."""
+        from ..model.canonical import ancsh_ground_truth
+
+        cfg = self.config
+        model, _ = self.instance(inst)
         depth = apply_noise(view.depth, cfg.noise, rng)
         points, labels, _ = sample_points(depth, view.part_ids, cfg.intrinsics, cfg.num_points, rng)
         gt = ancsh_ground_truth(model, q, T_cam_base, points, labels)
@@ -272,7 +333,7 @@ class FrameGenerator:
             intrinsics=cfg.intrinsics,
             T_cam_base=Sim3(T_cam_base.rotation, T_cam_base.translation),
             visibility=view.visibility,
-            part_pixels=pixels,
+            part_pixels=view.part_pixels(model.num_parts),
             joint_states_abs=np.asarray(q, dtype=np.float64),
             category=self.config.category or (model.category or "urdf"),
             instance=model.name,
@@ -283,6 +344,8 @@ class FrameGenerator:
             part_names=tuple(model.part_names),
             joint_names=tuple(j.name for j in model.joints),
             depth=depth if keep_depth else None,
+            sequence_index=int(sequence),
+            time_index=int(time_index),
         )
 
 

@@ -57,6 +57,7 @@ __all__ = [
     "render_depth",
     "sample_points",
     "sample_viewpoint",
+    "viewpoint_pose",
     "viewpoint_range",
 ]
 
@@ -626,9 +627,27 @@ def sample_viewpoint(category, rng, model=None, q=None, *, center=None, diagonal
     el = rng.uniform(*vr.elevation)
     roll = rng.uniform(-vr.roll, vr.roll)
     jitter = rng.normal(0.0, vr.target_jitter * diag, size=3)
-    direction_canon = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-    target = c + jitter
-    eye = target + d * (R_canon_base.T @ direction_canon)
+    return viewpoint_pose(c + jitter, R_canon_base, distance=d, azimuth=az, elevation=el, roll=roll)
+
+
+def viewpoint_pose(target, R_canon_base, *, distance: float, azimuth: float, elevation: float, roll: float = 0.0) -> Sim3:
+    """Rigid ``T_cam_base`` of a camera placed as :class:`ViewpointRange` describes, from explicit values.
+
+    Parameters
+    ----------
+    target : (3,) float64
+        Look-at point in the base frame (metres).
+    R_canon_base : (3, 3) float64
+        Base frame -> canonical axes (``+y`` up, ``+z`` front) of the object.
+    distance : float
+        Camera distance from the target (metres).
+    azimuth, elevation, roll : float
+        Radians (see :class:`ViewpointRange`).
+    """
+    target = as_array(target, "target", (3,))
+    direction_canon = np.array([np.cos(elevation) * np.sin(azimuth), np.sin(elevation),
+                                np.cos(elevation) * np.cos(azimuth)])
+    eye = target + float(distance) * (R_canon_base.T @ direction_canon)
     T_cam_base = look_at(eye, target, R_canon_base.T @ np.array([0.0, 1.0, 0.0]))
     c_r, s_r = np.cos(roll), np.sin(roll)
     R_roll = np.array([[c_r, -s_r, 0.0], [s_r, c_r, 0.0], [0.0, 0.0, 1.0]])

@@ -39,7 +39,7 @@ from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .terms import (
     CanonicalParameters, CanonicalPriorTerm, CommonScaleTerm, DataTerm, ExactCommonScaleTerm, ExactJointTerm,
-    JointLimitTerm, ProgramInputs, ProgramStart, SoftJointTerm, TermWeights,
+    JointLimitTerm, PreviousSolution, ProgramInputs, ProgramStart, SoftJointTerm, TemporalPriorTerm, TermWeights,
 )
 from .types import Correspondences, FitResult, FitStatus, Observation
 
@@ -248,6 +248,9 @@ def fit(
     solver: str | None = None,
     config: FitConfig | None = None,
     rng=0,
+    *,
+    warm_start: FitResult | None = None,
+    previous: PreviousSolution | None = None,
 ) -> FitResult:
     """Fit the part poses and joints of an articulated object to one observation.
 
@@ -264,6 +267,14 @@ def fit(
     config : FitConfig, optional
     rng : numpy.random.Generator or int
         RANSAC randomness.
+    warm_start : FitResult, optional
+        A successful fit of the same object (e.g. the previous frame's, tracking): its part poses
+        replace RANSAC as the initialisation (the inliers are the points within
+        ``config.inlier_threshold`` of them; all of a part's points where fewer than 3 are) and
+        its object scale is kept.
+    previous : PreviousSolution, optional
+        Adds :class:`~ancsh.solvers.terms.TemporalPriorTerm` toward this prediction to the
+        program (formulations with a program; ``per_part`` refuses it).
 
     Returns
     -------
@@ -295,7 +306,24 @@ def fit(
     if not isinstance(config, FitConfig):
         raise ValueError(f"config: expected a FitConfig, got {type(config).__name__}")
     rng = check_generator(rng)
-    return _Fit(observation, correspondences, form, solver, config, rng, start).run()
+    if warm_start is not None:
+        if not isinstance(warm_start, FitResult):
+            raise ValueError(f"warm_start: expected a FitResult, got {type(warm_start).__name__}")
+        if not warm_start.ok or warm_start.num_parts != correspondences.num_parts:
+            raise ValueError(f"warm_start: expected a successful fit of {correspondences.num_parts} parts, got status "
+                             f"{warm_start.status.value} with {warm_start.num_parts} parts")
+    if (warm_start is not None or previous is not None) and form.parameterisation is None:
+        raise ValueError(f"warm_start, previous: formulation {formulation!r} has no program to warm-start or to add "
+                         "a temporal prior to")
+    if previous is not None:
+        if not isinstance(previous, PreviousSolution):
+            raise ValueError(f"previous: expected a PreviousSolution, got {type(previous).__name__}")
+        if len(previous.joint_states) != correspondences.num_joints:
+            raise ValueError(f"previous.joint_states: expected {correspondences.num_joints} states, "
+                             f"got {len(previous.joint_states)}")
+    fitter = _Fit(observation, correspondences, form, solver, config, rng, start)
+    fitter.warm_start, fitter.previous = warm_start, previous
+    return fitter.run()
 
 
 class _FitFailure(Exception):
@@ -339,6 +367,8 @@ class _Fit:
         self.term_weights = TermWeights(
             config.soft_weight, config.soft_mu, config.common_scale_weight, config.naocs_prior_weight,
         )
+        self.warm_start: FitResult | None = None
+        self.previous: PreviousSolution | None = None
 
     # -- results ---------------------------------------------------------------------------
     def run(self) -> FitResult:
@@ -362,9 +392,12 @@ class _Fit:
                 FitStatus.TOO_FEW_POINTS,
                 f"part(s) {short.tolist()} have fewer than {_MIN_POINTS} points (counts {counts[short].tolist()})",
             )
-        poses, inliers = self._initial_poses(active)
-        if self.config.scale_estimator != "umeyama":
-            poses = [self._rescale(j, T, inliers) for j, T in enumerate(poses)]
+        if self.warm_start is not None:
+            poses, inliers = self._warm_poses(active)
+        else:
+            poses, inliers = self._initial_poses(active)
+            if self.config.scale_estimator != "umeyama":
+                poses = [self._rescale(j, T, inliers) for j, T in enumerate(poses)]
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         if self.form.parameterisation is None:
             moments = self._moments(inliers, self.weights, L)
@@ -413,6 +446,18 @@ class _Fit:
         inliers[idx_active[inl]] = True
         return list(model), inliers
 
+    def _warm_poses(self, active: np.ndarray) -> tuple[list, np.ndarray]:
+        """The warm start's part poses and the inliers ``(N,)`` within the inlier threshold of them
+        (all of a part's active points where fewer than 3 are)."""
+        poses = list(self.warm_start.T_cam_npcs)
+        L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
+        inliers = active & (self._point_distances(poses) <= self.config.inlier_threshold * L)
+        for j in range(self.M):
+            sel = active & (self.labels == j)
+            if np.count_nonzero(inliers & sel) < _MIN_POINTS:
+                inliers |= sel
+        return poses, inliers
+
     def _rescale(self, j: int, T: Sim3, inliers: np.ndarray) -> Sim3:
         """``T`` with the RMS-spread-ratio (``symmetric``) or reverse-regression (``reverse``) scale of
         part ``j``'s inliers and the matching translation."""
@@ -440,7 +485,8 @@ class _Fit:
 
         cfg = self.config
         key = ProgramKey(
-            self.structure, self.form.parameterisation, bool(cfg.optimize_scale), self.form.terms(cfg, self.corr),
+            self.structure, self.form.parameterisation, bool(cfg.optimize_scale),
+            self.form.terms(cfg, self.corr) + ((TemporalPriorTerm,) if self.previous is not None else ()),
             free_canonical=cfg.naocs_prior_weight > 0,
         )
         prog = get_program(key)
@@ -464,7 +510,7 @@ class _Fit:
         for rescore in range(cfg.rescore_rounds + 1):
             for _ in range(rounds):
                 run.weights, run.moments = weights, self._moments(inliers, weights, L)
-                inputs = ProgramInputs(L, self.canonical, run.start, run.moments, self.term_weights)
+                inputs = ProgramInputs(L, self.canonical, run.start, run.moments, self.term_weights, self.previous)
                 run.p = prog.pack(inputs)
                 run.outcome = solve(self.solver, prog, run.p, run.x, run.bounds, opts)
                 run.iterations += run.outcome.iterations

@@ -239,7 +239,11 @@ class TermWeights:
 
 @dataclass(frozen=True)
 class PreviousSolution:
-    """A previous frame's solution, which :class:`TemporalPriorTerm` pulls a solve toward (tracking).
+    """A prediction from previous frames, which :class:`TemporalPriorTerm` pulls a solve toward (tracking).
+
+    Built directly (a zero-velocity prior: the last frame's solution) or by :meth:`constant_velocity`
+    from the last two solutions (a constant-velocity prior: the energy penalises the change of the
+    pose and joint-state velocities).
 
     Attributes
     ----------
@@ -250,18 +254,55 @@ class PreviousSolution:
         Joint states relative to rest (radians / metres; revolute ones within the window of
         :func:`joint_state_expr`).
     weight : float
-        Non-negative weight of the prior.
+        Non-negative weight of the pose part of the prior.
+    state_weight : float, optional
+        Non-negative weight of the joint-state part (default: ``weight``).
     """
 
     T_cam_naocs: Sim3
     joint_states: np.ndarray
     weight: float
+    state_weight: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.T_cam_naocs, Sim3):
             raise ValueError(f"T_cam_naocs: expected a Sim3, got {type(self.T_cam_naocs).__name__}")
         object.__setattr__(self, "joint_states", as_array(self.joint_states, "joint_states", (None,)))
         object.__setattr__(self, "weight", check_number(self.weight, "weight", minimum=0.0))
+        sw = self.weight if self.state_weight is None else self.state_weight
+        object.__setattr__(self, "state_weight", check_number(sw, "state_weight", minimum=0.0))
+
+    @classmethod
+    def constant_velocity(cls, last: "PreviousSolution", before: "PreviousSolution | None", *,
+                          damping: float = 1.0) -> "PreviousSolution":
+        """The prediction of a constant-velocity model from the last two solutions (weights of ``last``).
+
+        ``T_pred = dT^damping T_last`` with ``dT = T_last T_before^-1`` (camera-frame motion of the
+        object between the two frames; the rotation scaled along its geodesic, the scale kept), and
+        ``q_pred = q_last + damping (q_last - q_before)``. Without ``before`` it is ``last``
+        (zero velocity).
+
+        Parameters
+        ----------
+        last, before : PreviousSolution
+            The solutions of the last and the second-to-last frame.
+        damping : float
+            In ``[0, 1]``: 0 = zero-velocity prior, 1 = full constant velocity.
+        """
+        from ..geometry.rotations import exp_so3, log_so3
+
+        damping = check_number(damping, "damping", minimum=0.0, maximum=1.0)
+        if before is None or damping == 0.0:
+            return last
+        if len(before.joint_states) != len(last.joint_states):
+            raise ValueError(f"before.joint_states: expected {len(last.joint_states)} states, got {len(before.joint_states)}")
+        A, B = last.T_cam_naocs, before.T_cam_naocs
+        dR = exp_so3(damping * log_so3(A.rotation @ B.rotation.T))
+        # the object's NAOCS origin moves on by the same (damped) step, the rotation about it
+        t = A.translation + damping * (A.translation - B.translation)
+        T = Sim3.unchecked(dR @ A.rotation, t, A.scale)
+        q = last.joint_states + damping * (last.joint_states - before.joint_states)
+        return cls(T, q, last.weight, last.state_weight)
 
 
 @dataclass(frozen=True)
@@ -779,33 +820,39 @@ class CanonicalPriorTerm(EnergyTerm):
 
 @register_term
 class TemporalPriorTerm(EnergyTerm):
-    """Zero-velocity prior toward a previous solution (tracking): ``sqrt(w) [vec(R - R'); (o - o') / L;
-    (sigma - sigma') / L; dtheta_k]``.
+    """Prior toward a prediction from previous frames (tracking): ``[sqrt(w) vec(R - R'); sqrt(w) (o - o') / L;
+    sqrt(w) (sigma - sigma') / L; sqrt(w_q) dtheta_k]``.
 
     ``R``, ``o``, ``sigma``: the object pose seen through the root part (rotation, NAOCS origin in
-    the camera, metres per NAOCS unit); primes: the :class:`PreviousSolution`. ``dtheta_k`` is the
-    change of joint state ``k`` (:func:`joint_state_expr`): radians, or divided by ``L`` (prismatic).
-    Defined on the part poses, so it serves both parameterisations.
+    the camera, metres per NAOCS unit); primes: the :class:`PreviousSolution` (the last solution:
+    a zero-velocity prior; or its constant-velocity extrapolation, :meth:`PreviousSolution.constant_velocity`:
+    a prior on the change of pose and joint-state velocity). ``dtheta_k`` is the deviation of
+    joint state ``k`` (:func:`joint_state_expr`): radians, or divided by ``L`` (prismatic).
+    Weights ``w`` (pose, parameter ``temporal_weight``) and ``w_q`` (joint states,
+    ``temporal_state_weight``). Defined on the part poses, so it serves both parameterisations.
     """
 
     name = "temporal_prior"
 
     def expression(self, ctx: Context) -> ca.SX:
         st, r = ctx.structure, ctx.structure.root
-        out = [ca.vec(ctx.poses[r].R - ctx.params.get("prev_R", 3, 3)),
-               (ctx.naocs_to_cam(r, ca.DM.zeros(3)) - ctx.params.get("prev_origin", 3)) / ctx.L,
-               (ctx.object_scale(r) - ctx.params.get("prev_scale")) / ctx.L]
+        pose = [ca.vec(ctx.poses[r].R - ctx.params.get("prev_R", 3, 3)),
+                (ctx.naocs_to_cam(r, ca.DM.zeros(3)) - ctx.params.get("prev_origin", 3)) / ctx.L,
+                (ctx.object_scale(r) - ctx.params.get("prev_scale")) / ctx.L]
+        out = [ca.sqrt(ctx.params.get("temporal_weight")) * ca.vertcat(*pose)]
+        w_q = ca.sqrt(ctx.params.get("temporal_state_weight"))
         for k in range(st.num_joints):
             d = joint_state_expr(ctx, k) - ctx.params.get(f"prev_state{k}")
-            out.append(d if st.is_revolute(k) else d / ctx.L)
-        return ca.sqrt(ctx.params.get("temporal_weight")) * ca.vertcat(*out)
+            out.append(w_q * (d if st.is_revolute(k) else d / ctx.L))
+        return ca.vertcat(*out)
 
     def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
         prev = inputs.require("previous", self.name)
         if len(prev.joint_states) != structure.num_joints:
             raise ValueError(f"inputs.previous.joint_states: expected {structure.num_joints} states, got {len(prev.joint_states)}")
         T = prev.T_cam_naocs
-        return {"temporal_weight": prev.weight, "prev_R": T.rotation, "prev_origin": T.translation, "prev_scale": T.scale,
+        return {"temporal_weight": prev.weight, "temporal_state_weight": prev.state_weight, "prev_R": T.rotation,
+                "prev_origin": T.translation, "prev_scale": T.scale,
                 **{f"prev_state{k}": q for k, q in enumerate(prev.joint_states)}}
 
 

@@ -162,3 +162,24 @@ def test_temporal_prior_names_what_it_lacks():
         prog.pack(ProgramInputs(1.0, canonical, start, previous=PreviousSolution(Sim3.identity(), np.zeros(2), 1.0)))
     with pytest.raises(ValueError, match="weight"):
         PreviousSolution(Sim3.identity(), np.zeros(1), -1.0)
+
+
+def test_constant_velocity_prediction_continues_a_constant_motion():
+    """Scenario: object poses and joint states at three times of a constant screw motion and a constant joint
+    velocity: the prediction from the first two reproduces the third (to 1e-12); damping 0 keeps the last."""
+    from ancsh.solvers.terms import PreviousSolution
+
+    rng = np.random.default_rng(3)
+    R0, w, v = random_rotation(rng), np.array([0.02, -0.05, 0.03]), np.array([0.01, 0.0, -0.02])
+    poses = [Sim3(exp_so3(i * w) @ R0, np.array([0.1, 0.2, 1.5]) + i * v, 0.4) for i in range(3)]
+    states = [np.array([0.3 + 0.05 * i, -0.1 * i]) for i in range(3)]
+    a, b = (PreviousSolution(poses[i], states[i], 0.5, 0.2) for i in (1, 0))
+    pred = PreviousSolution.constant_velocity(a, b)
+    np.testing.assert_allclose(pred.T_cam_naocs.rotation, poses[2].rotation, atol=1e-12)
+    np.testing.assert_allclose(pred.T_cam_naocs.translation, poses[2].translation, atol=1e-12)
+    np.testing.assert_allclose(pred.joint_states, states[2], atol=1e-12)
+    assert (pred.weight, pred.state_weight) == (0.5, 0.2)
+    assert PreviousSolution.constant_velocity(a, b, damping=0.0) is a
+    assert PreviousSolution.constant_velocity(a, None) is a
+    with pytest.raises(ValueError, match="damping"):
+        PreviousSolution.constant_velocity(a, b, damping=2.0)

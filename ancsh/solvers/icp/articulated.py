@@ -172,22 +172,31 @@ class ArticulatedIcpConfig:
 class _Reduced:
     """The reduced-coordinate program of one model with its static inputs."""
 
-    def __init__(self, provider: TemplateProvider, point_to_plane: bool, point_data: bool = True):
+    def __init__(self, provider: TemplateProvider, point_to_plane: bool, point_data: bool = True, prior: bool = False):
         from ..backends import Bounds
         from ..program import ProgramKey, get_program
-        from ..terms import CanonicalParameters, DataTerm, KinematicStructure, PointToPlaneTerm
+        from ..terms import CanonicalParameters, DataTerm, KinematicStructure, PointToPlaneTerm, TemporalPriorTerm
 
         model, cs = provider.model, provider.canonical
         corr = provider.empty_correspondences()
         self.structure = KinematicStructure.from_correspondences(corr)
         terms = ((DataTerm,) if point_data else ()) + ((PointToPlaneTerm,) if point_to_plane else ())
+        terms += (TemporalPriorTerm,) if prior else ()
         self.program = get_program(ProgramKey(self.structure, "reduced", False, terms))
         self.model, self.cs = model, cs
         self.diagonal = 1.0 / cs.T_naocs_base.scale  # metres per NAOCS unit
         self.canonical = CanonicalParameters.of(cs)
         self.bounds = Bounds.of(self.program, corr.joint_limits)
 
-    def inputs(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool):
+    def previous(self, prediction: ArticulatedPose, weight: float, state_weight: float):
+        """The :class:`~ancsh.solvers.terms.PreviousSolution` of a predicted estimate (tracking)."""
+        from ..terms import PreviousSolution
+
+        T = prediction.T_cam_base @ self.cs.T_naocs_base.inverse()
+        return PreviousSolution(Sim3.unchecked(T.rotation, T.translation, self.diagonal),
+                                prediction.q - self.model.rest_states, weight, state_weight)
+
+    def inputs(self, estimate: ArticulatedPose, points, corr, point_weight: float, plane: bool, previous=None):
         """The program's inputs: the start at ``estimate`` and the moments of ``corr``."""
         from ..terms import PartMoments, ProgramInputs, ProgramStart, part_moments, plane_moments
 
@@ -208,7 +217,7 @@ class _Reduced:
             if plane:
                 Lp = np.sqrt(share) * plane_moments(points[sel], corr.npcs[sel], corr.normals_npcs[sel], w[sel], mom.pbar)
             moments.append(PartMoments(a * mom.Lm, a * mom.B, a * mom.sqrt_c0, mom.cbar, mom.pbar, Lp))
-        return ProgramInputs(self.diagonal, self.canonical, start, tuple(moments))
+        return ProgramInputs(self.diagonal, self.canonical, start, tuple(moments), previous=previous)
 
     def x0(self, estimate: ArticulatedPose) -> np.ndarray:
         return self.program.initial_x(estimate.q - self.model.rest_states)
@@ -221,7 +230,7 @@ class _Reduced:
 
 
 def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True, point_weight: float = 0.05,
-                 solver: str = "lsq", max_iterations: int = 20):
+                 solver: str = "lsq", max_iterations: int = 20, prior=None):
     """One reduced-coordinate solve on template correspondences, from ``provider.estimate``.
 
     Parameters
@@ -232,6 +241,9 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
         Observed points (metres, camera frame), aligned with ``corr``.
     corr : TemplateCorrespondences
         ``provider.correspond(points_cam)``.
+    prior : (ArticulatedPose, float, float), optional
+        ``(prediction, pose weight, joint-state weight)``: adds the
+        :class:`~ancsh.solvers.terms.TemporalPriorTerm` toward the predicted estimate (tracking).
 
     Returns
     -------
@@ -240,8 +252,10 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
     """
     from ..backends import SolverOptions, solve
 
-    red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane)
-    inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane)
+    red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane, prior is not None)
+    previous = None if prior is None else red.previous(*prior)
+    inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane,
+                        previous)
     p = red.program.pack(inputs)
     x0 = red.x0(provider.estimate)
     out = solve(solver, red.program, p, x0, red.bounds, SolverOptions(max_iterations, 1e-12))
@@ -253,13 +267,13 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
 _REDUCED_CACHE: dict = {}
 
 
-def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: bool = True) -> _Reduced:
-    key = (id(provider.template), point_to_plane, point_data)
+def _reduced_for(provider: TemplateProvider, point_to_plane: bool, point_data: bool = True, prior: bool = False) -> _Reduced:
+    key = (id(provider.template), point_to_plane, point_data, prior)
     hit = _REDUCED_CACHE.get(key)
     if hit is None or hit[0] is not provider.template:
         if len(_REDUCED_CACHE) > 64:
             _REDUCED_CACHE.clear()
-        hit = (provider.template, _Reduced(provider, point_to_plane, point_data))
+        hit = (provider.template, _Reduced(provider, point_to_plane, point_data, prior))
         _REDUCED_CACHE[key] = hit
     return hit[1]
 

@@ -1,0 +1,444 @@
+"""``ancsh bench tracking``: tracking vs independent per-frame fitting on generated sequences.
+
+For every object (procedural categories with the learned provider and the oracle, and one URDF
+object with articulated ICP) it generates seeded sequences (:mod:`ancsh.data.sequences`), blanks
+``gap`` frames in the middle of each (the object leaves the view and comes back: the tracker must
+report them ``lost`` and re-initialise), and runs, frame by frame and interleaved (alternating
+which goes first, so machine load hits both alike), the tracker and an independent fit of the
+same frame: :func:`~ancsh.tracking.tracker.fit_frame` (provider + RANSAC + fit) at the category
+level, the multi-start :func:`~ancsh.solvers.icp.articulated.articulated_icp` from
+:func:`~ancsh.solvers.icp.articulated.auto_init` for the URDF. Errors against the ground truth
+(the paper's rotation / translation per part, joint states; AD accuracy for the URDF object) over
+the frames the object is in view, and frames per second of each side.
+
+Measuring (:func:`run_benchmark`) and writing (:func:`write_report`) are separate.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+__all__ = ["BenchConfig", "register", "run_benchmark", "summarize", "write_report"]
+
+AD_THRESHOLD = 0.1
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """Size and settings of a tracking benchmark run.
+
+    Attributes
+    ----------
+    categories : tuple of str
+        Procedural categories (test instances).
+    providers : tuple of str
+        ``"learned"`` (shipped weights) and / or ``"oracle"`` (``realistic`` corruption).
+    urdf : str or None
+        A URDF object (instance-level tracking); ``None`` skips it.
+    sequences, urdf_sequences : int
+        Sequences per procedural object / of the URDF object (its cold per-frame baseline costs seconds a frame).
+    length, urdf_length : int
+        Frames per sequence (category level / URDF).
+    gap : int
+        Blank frames in the middle of each sequence (object out of view), ``>= 0``.
+    network_every : int
+        ``k``: the network runs on every ``k``-th tracked frame.
+    seed : int
+    """
+
+    categories: tuple = ("laptop", "drawer", "eyeglasses")
+    providers: tuple = ("learned", "oracle")
+    urdf: str | None = None
+    sequences: int = 2
+    urdf_sequences: int = 1
+    length: int = 40
+    urdf_length: int = 16
+    gap: int = 3
+    network_every: int = 3
+    seed: int = 0
+    tracker: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def default_urdf() -> str | None:
+    """The benchmark's URDF object: the shared PartNet-Mobility laptop 10101, where it exists."""
+    from ..data.paths import shared_data_dir
+
+    p = shared_data_dir() / "partnet_mobility" / "laptop_10101" / "mobility.urdf"
+    return str(p) if p.is_file() else None
+
+
+class _FrameOracle:
+    """The oracle provider of whichever frame is current (``realistic`` corruption, seeded by the frame)."""
+
+    def __init__(self, preset: str = "realistic"):
+        self.preset, self.frame = preset, None
+
+    @property
+    def num_joints(self) -> int:
+        return 0 if self.frame is None else self.frame.num_joints
+
+    def correspond(self, observation):
+        from ..solvers.providers.oracle import OracleProvider
+
+        return OracleProvider(self.frame, self.preset, rng=self.frame.seed).correspond(observation)
+
+
+def _sequence_frames(gen, seq: int, length: int, gap: int) -> list:
+    frames = [gen.frame(seq * length + t) for t in range(length)]
+    start = (length - gap) // 2 + length // 6
+    return [(fr, start <= fr.time_index < start + gap) for fr in frames]
+
+
+def _category_errors(result, frame) -> dict:
+    from ..evaluation import evaluate_fit
+
+    if result is None or not result.ok:
+        return {"ok": False}
+    e = evaluate_fit(result, frame.gt, frame.part_names, frame.joint_names)
+    return {"ok": True, "rot_deg": [p.rot_deg for p in e.parts], "trans": [p.trans for p in e.parts],
+            "state_err": [j.state_err for j in e.joints]}
+
+
+def _instance_errors(result, frame, model, part_points) -> dict:
+    from ..geometry.metrics import rotation_error_deg
+    from ..solvers.icp.evaluate import ad_correct
+
+    if result is None:
+        return {"ok": False}
+    gt_parts = [frame.T_cam_base @ T for T in model.forward_kinematics(frame.joint_states_abs)]
+    correct, ratio = ad_correct(part_points, result.T_cam_parts, gt_parts, AD_THRESHOLD)
+    diag = 1.0 / _diag_inverse(model)
+    state = []
+    for k, j in enumerate(model.joints):
+        d = float(result.q[k] - frame.joint_states_abs[k])
+        state.append(abs(np.degrees(d)) if j.type.value == "revolute" else abs(d) / diag)
+    return {"ok": True, "rot_deg": [rotation_error_deg(A.rotation, B.rotation) for A, B in zip(result.T_cam_parts, gt_parts)],
+            "trans": [float(np.linalg.norm(A.translation - B.translation)) / diag for A, B in zip(result.T_cam_parts, gt_parts)],
+            "state_err": state, "ad_correct": [bool(c) for c in correct], "ad_over_diameter": [float(r) for r in ratio]}
+
+
+def _diag_inverse(model) -> float:
+    from ..model.canonical import canonical_space
+
+    return canonical_space(model).T_naocs_base.scale
+
+
+def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
+    """Run the benchmark; returns ``{"config", "machine", "records"}`` (one record per frame and method)."""
+    from .._machine import machine_facts
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..data.sequences import SequenceMotion
+    from ..solvers.types import Observation
+    from .tracker import CategoryTracker, TrackerConfig, fit_frame
+
+    say = progress or (lambda s: None)
+    machine_start = machine_facts()
+    records = []
+    tcfg = TrackerConfig(network_every=config.network_every, **config.tracker)
+    for category in config.categories:
+        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=config.seed,
+                                              sequence=SequenceMotion(length=config.length)))
+        for provider_name in config.providers:
+            if provider_name == "learned":
+                from ..learned.provider import LearnedProvider
+
+                provider = LearnedProvider(category, num_threads=1)
+            else:
+                provider = _FrameOracle()
+            for seq in range(config.sequences):
+                frames = _sequence_frames(gen, seq, config.length, config.gap)
+                say(f"{category} / {provider_name} / sequence {seq}: {len(frames)} frames")
+                tracker = CategoryTracker(provider, tcfg, category=category, rng=config.seed)
+                for fr, blank in frames:
+                    if isinstance(provider, _FrameOracle):
+                        provider.frame = fr
+                    obs = Observation(np.zeros((0, 3)) if blank else fr.points)
+                    out = {}
+
+                    def run_tracking():
+                        t0 = time.perf_counter()
+                        tracked = tracker.step(obs)
+                        out["tracking"] = (tracked.result, time.perf_counter() - t0, tracked)
+
+                    def run_per_frame():
+                        t0 = time.perf_counter()
+                        result, _ = fit_frame(provider, obs, tcfg, category, config.seed)
+                        out["per_frame"] = (result, time.perf_counter() - t0, None)
+
+                    for run in ((run_tracking, run_per_frame) if fr.time_index % 2 == 0 else (run_per_frame, run_tracking)):
+                        run()
+                    for method, (result, dt, tracked) in out.items():
+                        rec = {"object": category, "provider": provider_name, "sequence": seq, "t": fr.time_index,
+                               "blank": blank, "method": method, "time_s": dt,
+                               "status": None if result is None else result.status.value,
+                               "track": None if tracked is None else tracked.status.value,
+                               "source": None if tracked is None else tracked.source,
+                               "iterations": None if result is None else int(result.iterations)}
+                        rec.update(_category_errors(result, fr) if not blank else {"ok": result is not None and result.ok})
+                        records.append(rec)
+    if config.urdf is not None:
+        records += _urdf_records(config, say)
+    return {"config": config.to_dict(), "tracker": asdict(tcfg) | {"fit": asdict(tcfg.fit)},
+            "machine": {"start": machine_start, "end": machine_facts()}, "records": records}
+
+
+def _urdf_records(config: BenchConfig, say) -> list:
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..data.sequences import SequenceMotion
+    from ..solvers.icp.articulated import articulated_icp, auto_init
+    from ..solvers.icp.evaluate import PartPoints
+    from .instance import InstanceTracker, InstanceTrackerConfig
+
+    gen = FrameGenerator(GenerationConfig(urdf=config.urdf, seed=config.seed, sequence=SequenceMotion(length=config.urdf_length)))
+    model, _ = gen.instance(0)
+    name = gen.config.name
+    part_points = PartPoints(model, 500, config.seed)
+    icfg = InstanceTrackerConfig()
+    records = []
+    for seq in range(config.urdf_sequences):
+        frames = _sequence_frames(gen, seq, config.urdf_length, config.gap)
+        say(f"{name} (URDF) / sequence {seq}: {len(frames)} frames")
+        tracker = InstanceTracker(model, icfg, rng=config.seed)
+        rng = np.random.default_rng(config.seed)
+        for fr, blank in frames:
+            pts = np.zeros((0, 3)) if blank else fr.points
+            out = {}
+
+            def run_tracking():
+                t0 = time.perf_counter()
+                tracked = tracker.step(pts)
+                out["tracking"] = (tracked.result, time.perf_counter() - t0, tracked)
+
+            def run_per_frame():
+                t0 = time.perf_counter()
+                result = None
+                if pts.shape[0] >= icfg.min_points:
+                    result = articulated_icp(model, pts, auto_init(model, pts), config=icfg.cold, rng=rng,
+                                             surface=tracker.template.surface)
+                out["per_frame"] = (result, time.perf_counter() - t0, None)
+
+            for run in ((run_tracking, run_per_frame) if fr.time_index % 2 == 0 else (run_per_frame, run_tracking)):
+                run()
+            for method, (result, dt, tracked) in out.items():
+                rec = {"object": name, "provider": "urdf", "sequence": seq, "t": fr.time_index, "blank": blank,
+                       "method": method, "time_s": dt, "status": None if result is None else result.status.value,
+                       "track": None if tracked is None else tracked.status.value,
+                       "source": None if tracked is None else tracked.source,
+                       "iterations": None if result is None else int(result.iterations)}
+                rec.update(_instance_errors(result, fr, model, part_points) if not blank else {"ok": result is not None})
+                records.append(rec)
+    return records
+
+
+# ---------------------------------------------------------------------------------------------
+# summary and report
+# ---------------------------------------------------------------------------------------------
+def _mean(values) -> float:
+    from ..evaluation import aggregate
+
+    return aggregate(values).mean
+
+
+def summarize(report: dict) -> dict:
+    """Per (object, provider): both methods' mean errors over the in-view frames, frames/s, ratios,
+    lost / re-initialised frames and whether every loss was recovered."""
+    rows = []
+    recs = report["records"]
+    keys = sorted({(r["object"], r["provider"]) for r in recs}, key=lambda k: (k[1] == "urdf", k[1], k[0]))
+    for obj, prov in keys:
+        row = {"object": obj, "provider": prov}
+        for method in ("tracking", "per_frame"):
+            sel = [r for r in recs if r["object"] == obj and r["provider"] == prov and r["method"] == method]
+            view = [r for r in sel if not r["blank"]]
+            good = [r for r in view if r["ok"]]
+            m = {"frames": len(sel), "in_view": len(view), "failed": len(view) - len(good),
+                 "fps": len(sel) / sum(r["time_s"] for r in sel),
+                 "rot_deg": _mean([np.mean(r["rot_deg"]) for r in good]),
+                 "trans": _mean([np.mean(r["trans"]) for r in good]),
+                 "state_err": _mean([np.mean(r["state_err"]) for r in good if r["state_err"]]),
+                 # failed in-view frames count as wrong
+                 "ad_accuracy": (sum(all(r["ad_correct"]) for r in good) / len(view)) if prov == "urdf" and view else None}
+            if method == "tracking":
+                m["lost"] = sum(r["track"] == "lost" for r in sel)
+                m["lost_in_view"] = sum(r["track"] == "lost" for r in view)
+                m["reinitialised"] = sum(r["track"] == "reinitialised" for r in sel)
+                m["network_frames"] = sum(r["source"] == "network" for r in sel)
+                m["recovered"] = _recovered(sel)
+            row[method] = m
+        t, p = row["tracking"], row["per_frame"]
+        row["ratio"] = {k: (t[k] / p[k] if p[k] else float("nan")) for k in ("rot_deg", "trans", "state_err")}
+        row["speedup"] = t["fps"] / p["fps"]
+        rows.append(row)
+    return {"rows": rows}
+
+
+def _recovered(records) -> bool:
+    """Every run of lost frames in a sequence is followed by a re-initialised frame (before the sequence ends)."""
+    for seq in {r["sequence"] for r in records}:
+        seq_recs = sorted((r for r in records if r["sequence"] == seq), key=lambda r: r["t"])
+        lost = False
+        for r in seq_recs:
+            if r["track"] == "lost":
+                lost = True
+            elif lost and r["track"] in ("reinitialised", "initialised"):
+                lost = False
+        if lost:
+            return False
+    return True
+
+
+def _fmt(v, digits=2) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "—"
+    return f"{v:.{digits}f}"
+
+
+def write_report(report: dict, summary: dict, path, *, command: str) -> str:
+    """Write the markdown table (and ``.json`` next to it: config, machine, summary, records); returns the markdown."""
+    from pathlib import Path
+
+    from .._machine import describe_machine
+
+    cfg, rows = report["config"], summary["rows"]
+    m0, m1 = report["machine"]["start"], report["machine"]["end"]
+    lines = [
+        "# Tracking vs independent per-frame fitting",
+        "",
+        f"Command: `{command}`",
+        "",
+        f"Machine: {describe_machine(m0)}, {m1.get('load_average_1min')} at the end (the machine is shared: both sides are "
+        "measured interleaved, frame by frame, alternating which goes first). Times are per frame from the observed points "
+        "(rendering, depth reading and object isolation excluded, identical for both sides); one torch thread.",
+        "",
+        f"Sequences: {cfg['sequences']} per object, {cfg['length']} frames (URDF: {cfg['urdf_sequences']} of "
+        f"{cfg['urdf_length']}) at 30 frames/s "
+        f"(`ancsh data generate --sequence-length`: joint open/close cycles within the limits, smooth camera drift, "
+        f"Kinect-like noise), test instances, seed {cfg['seed']}; {cfg['gap']} blank frames (the object out of view) in "
+        "each, after which the tracker must re-initialise. Errors are means over the in-view frames with an accepted fit "
+        "(rotation in degrees and translation in object diagonals, averaged over parts; joint state in degrees for "
+        "revolute joints, object diagonals for prismatic ones); `failed` counts in-view frames without one.",
+        "",
+        f"Tracking: category level -- network (or oracle) every k = {cfg['network_every']} frames, correspondences "
+        "carried by the previous fit in between, warm-started `exact_reduced` fits with the constant-velocity temporal "
+        "prior; per frame: provider + RANSAC + `exact_reduced` on every frame. URDF -- warm-started articulated ICP "
+        "(`InstanceTracker`); per frame: the multi-start cold articulated ICP from `auto_init` views. AD accuracy: every "
+        f"part's AD below {AD_THRESHOLD} of its diameter, failed frames counted wrong.",
+        "",
+        "| object | provider | method | frames/s | rot (deg) | trans | joint state | AD acc. | failed | lost / reinit. | recovered |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        for method in ("tracking", "per_frame"):
+            m = row[method]
+            lost = f"{m['lost']} / {m['reinitialised']}" if method == "tracking" else ""
+            rec = ("yes" if m["recovered"] else "**no**") if method == "tracking" else ""
+            lines.append(f"| {row['object']} | {row['provider']} | {method.replace('_', '-')} | {_fmt(m['fps'], 1)} | "
+                         f"{_fmt(m['rot_deg'])} | {_fmt(m['trans'], 3)} | {_fmt(m['state_err'], 2)} | "
+                         f"{_fmt(m['ad_accuracy'], 2)} | {m['failed']}/{m['in_view']} | {lost} | {rec} |")
+        r = row["ratio"]
+        lines.append(f"| {row['object']} | {row['provider']} | **tracking / per-frame** | {_fmt(row['speedup'], 1)}x | "
+                     f"{_fmt(r['rot_deg'])} | {_fmt(r['trans'])} | {_fmt(r['state_err'])} | | | | |")
+    lines += ["", "## Targets", ""]
+    lines += _targets(rows, cfg)
+    text = "\n".join(lines) + "\n"
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    from ..data.catalog import write_bytes_atomically
+
+    write_bytes_atomically(path, text.encode())
+    payload = {"command": command, "config": cfg, "tracker": report["tracker"], "machine": report["machine"],
+               "summary": summary, "records": report["records"]}
+    from ..learned.evaluate import json_safe
+
+    write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), separators=(",", ":")).encode())
+    return text
+
+
+def _targets(rows, cfg) -> list:
+    out = []
+    for row in rows:
+        t, p, r = row["tracking"], row["per_frame"], row["ratio"]
+        errs = {k: v for k, v in r.items() if np.isfinite(v)}
+        worst = max(errs, key=errs.get) if errs else None
+        err_ok = bool(errs) and all(v <= 0.8 for v in errs.values())
+        name = f"{row['object']} / {row['provider']}"
+        line = (f"- {name}: tracking error {'<=' if err_ok else '**not** <='} 0.8x per-frame "
+                f"(worst ratio {_fmt(errs.get(worst))} on {worst}); ")
+        if row["provider"] == "learned":
+            line += f"{_fmt(t['fps'], 1)} frames/s with the network every k = {cfg['network_every']} frames (target >= 25: " \
+                    f"{'met' if t['fps'] >= 25 else '**missed**'}); "
+        if row["provider"] == "urdf":
+            line += (f"{_fmt(t['fps'], 1)} frames/s warm vs {_fmt(p['fps'], 2)} cold (target >= 10: "
+                     f"{'met' if t['fps'] >= 10 else '**missed**'}); AD accuracy {_fmt(t['ad_accuracy'])} vs cold "
+                     f"{_fmt(p['ad_accuracy'])} ({'equal or better' if t['ad_accuracy'] >= p['ad_accuracy'] else '**worse**'}); ")
+        line += (f"{t['lost']} lost frames ({t['lost_in_view']} with the object in view), {t['reinitialised']} "
+                 f"re-initialisations, {'every loss recovered' if t['recovered'] else '**a loss not recovered**'}.")
+        out.append(line)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------------------------
+def register(sub) -> None:
+    """Add ``tracking`` to the ``ancsh bench`` sub-commands."""
+    p = sub.add_parser("tracking", help="tracking vs independent per-frame fitting on generated sequences")
+    p.add_argument("--categories", default="laptop,drawer,eyeglasses", help="procedural categories (comma-separated)")
+    p.add_argument("--providers", default="learned,oracle", help="learned and/or oracle (comma-separated)")
+    p.add_argument("--urdf", default="default",
+                   help="URDF object for instance-level tracking ('default': the shared laptop_10101; 'none': skip)")
+    p.add_argument("--sequences", type=int, default=2, help="sequences per object (default 2)")
+    p.add_argument("--length", type=int, default=40, help="frames per sequence (default 40)")
+    p.add_argument("--urdf-length", type=int, default=16, help="frames per URDF sequence (default 16)")
+    p.add_argument("--urdf-sequences", type=int, default=1, help="URDF sequences (default 1)")
+    p.add_argument("--gap", type=int, default=3, help="blank frames in the middle of each sequence (default 3)")
+    p.add_argument("-k", "--network-every", type=int, default=3, help="network on every k-th tracked frame (default 3)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=None, help="markdown report path (default: a fresh ancsh_results/bench-tracking-<time>/)")
+    p.add_argument("--update-docs", action="store_true", help="write docs/results/tracking.md (when --out is not given)")
+    p.set_defaults(func=run)
+
+
+def _command(args) -> str:
+    parts = ["ancsh bench tracking"]
+    defaults = {"categories": "laptop,drawer,eyeglasses", "providers": "learned,oracle", "urdf": "default", "sequences": 2,
+                "length": 40, "urdf_length": 16, "urdf_sequences": 1, "gap": 3, "network_every": 3, "seed": 0}
+    for key, default in defaults.items():
+        if getattr(args, key) != default:
+            parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
+    if args.out is not None:
+        parts.append(f"--out {args.out}")
+    elif args.update_docs:
+        parts.append("--update-docs")
+    return " ".join(parts)
+
+
+def run(args) -> int:
+    from ..outputs import report_path
+
+    urdf = default_urdf() if args.urdf == "default" else None if args.urdf == "none" else args.urdf
+    if args.urdf == "default" and urdf is None:
+        print("bench tracking: the shared laptop_10101 URDF is not available; the URDF rows are skipped")
+    providers = tuple(p.strip() for p in args.providers.split(",") if p.strip())
+    for p in providers:
+        if p not in ("learned", "oracle"):
+            raise ValueError(f"--providers: expected learned and/or oracle, got {p!r}")
+    config = BenchConfig(categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), providers=providers,
+                         urdf=urdf, sequences=args.sequences, urdf_sequences=args.urdf_sequences, length=args.length, urdf_length=args.urdf_length, gap=args.gap,
+                         network_every=args.network_every, seed=args.seed)
+    command = _command(args)
+    t0 = time.perf_counter()
+    report = run_benchmark(config, progress=lambda s: print(s, flush=True))
+    summary = summarize(report)
+    out = report_path(args.out, update_docs=args.update_docs, docs_name="tracking.md", command="bench-tracking")
+    text = write_report(report, summary, out, command=command)
+    print(text)
+    print(f"wrote {out} and {out.with_suffix('.json')} in {time.perf_counter() - t0:.0f} s")
+    return 0

@@ -1,0 +1,392 @@
+"""Category-level tracking over a depth sequence: warm starts, a temporal prior, carried correspondences.
+
+:class:`CategoryTracker` turns one observation after another into a :class:`TrackedFrame`:
+
+1. **Warm start**: the previous frame's fit replaces RANSAC as the start of the solve
+   (:func:`ancsh.solvers.fit` with ``warm_start=``), and the program gets the
+   :class:`~ancsh.solvers.terms.TemporalPriorTerm` toward the constant-velocity prediction of
+   the last two fits (:meth:`~ancsh.solvers.terms.PreviousSolution.constant_velocity`; pose and
+   joint-state weights in :class:`TrackerConfig`).
+2. **Correspondences**: the provider (the network) runs on every ``network_every``-th frame; in
+   between, correspondences are carried by the previous fit (:class:`~ancsh.tracking.carried.CarriedTemplate`:
+   nearest points of the last network frame's surface, in the fit's NPCS), re-matched
+   ``carried_iterations`` times.
+3. **Lost and re-initialised**: a warm fit that fails its solve or a plausibility check
+   (:func:`check_fit`: too few inliers -- the points no longer lie where the object was --,
+   the category's size range, a large residual) is retried cold on the same frame (network +
+   RANSAC, :func:`fit_frame`); a frame with fewer than ``min_points`` points, or whose cold fit
+   fails as well, is ``lost``, and the next frame starts cold.
+
+Per-frame statuses (:class:`TrackStatus`): ``initialised`` (the first cold fit), ``tracked``
+(a warm fit), ``reinitialised`` (a cold fit after the track was lost or a warm fit failed),
+``lost`` (no acceptable fit this frame).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from ..geometry._checks import check_choice, check_int, check_number
+from ..geometry.transforms import Sim3
+from ..solvers.fit import FORMULATIONS, FitConfig, fit
+from ..solvers.terms import PreviousSolution
+from ..solvers.types import FitResult, FitStatus, Observation
+
+__all__ = ["CategoryTracker", "TrackStatus", "TrackedFrame", "TrackerConfig", "check_fit", "fit_frame",
+           "joint_state_std", "predicted_fit", "previous_solution"]
+
+
+class TrackStatus(str, Enum):
+    """What the tracker did on a frame."""
+
+    INITIALISED = "initialised"  # the first successful (cold) fit of the sequence
+    TRACKED = "tracked"  # a warm-started fit from the previous frame
+    REINITIALISED = "reinitialised"  # a cold fit after a lost frame or a failed warm fit
+    LOST = "lost"  # no acceptable fit on this frame
+
+
+@dataclass(frozen=True)
+class TrackedFrame:
+    """The tracker's answer for one frame.
+
+    Attributes
+    ----------
+    index : int
+        Frame number in the sequence (0-based).
+    status : TrackStatus
+    message : str
+        Why (the failed check of a lost frame, the reason of a re-initialisation).
+    result : FitResult, CadFitResult or None
+        The accepted fit (``None`` when lost).
+    joint_states : (K,) float64
+        Joint states relative to rest (radians / metres); NaN when lost.
+    source : str
+        Where this frame's correspondences came from: ``"network"`` (the provider),
+        ``"carried"`` (the previous fit's template), ``"model"`` (a known URDF) or ``"none"``.
+    iterations : int
+        Solver iterations of the accepted fit (0 when lost).
+    time_s : float
+        Wall time of the whole step (seconds).
+    """
+
+    index: int
+    status: TrackStatus
+    message: str
+    result: object
+    joint_states: np.ndarray
+    source: str
+    iterations: int = 0
+    time_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """``True`` unless the frame is lost."""
+        return self.status != TrackStatus.LOST
+
+    def to_dict(self) -> dict:
+        """JSON-ready record of the frame (one line of ``ancsh track``'s output; NaN -> ``None``)."""
+        r = self.result
+        poses = []
+        if r is not None:
+            for T in getattr(r, "T_cam_npcs", None) or getattr(r, "T_cam_parts", ()):
+                poses.append({"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)})
+        sigma = joint_state_std(r)
+        return {
+            "frame": int(self.index), "status": self.status.value, "message": self.message, "source": self.source,
+            "fit_status": None if r is None else r.status.value,
+            "joint_states": [None if not np.isfinite(v) else float(v) for v in self.joint_states],
+            "joint_states_std": None if sigma is None else [None if not np.isfinite(v) else float(v) for v in sigma],
+            "part_poses": poses, "iterations": int(self.iterations), "time_ms": 1e3 * float(self.time_s),
+        }
+
+
+def joint_state_std(result) -> np.ndarray | None:
+    """Standard deviations ``(K,)`` of a fit's joint states, where the fit reports its uncertainty.
+
+    Reads ``result.uncertainty.joint_state_covariance`` (the fit covariances of
+    :mod:`ancsh.solvers.uncertainty`, where present); ``None`` for a result without them.
+    """
+    unc = getattr(result, "uncertainty", None)
+    cov = getattr(unc, "joint_state_covariance", None)
+    if cov is None:
+        return None
+    return np.sqrt(np.clip(np.diag(np.asarray(cov, dtype=np.float64)), 0.0, None))
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Settings of :class:`CategoryTracker` (validated on construction).
+
+    Attributes
+    ----------
+    network_every : int
+        Run the provider on every ``k``-th frame (1: every frame); frames in between use
+        correspondences carried by the previous fit.
+    formulation : str
+        A formulation with a program (:data:`ancsh.solvers.FORMULATIONS`).
+    solver : str or None
+        Its backend (default: the formulation's first).
+    temporal_weight : float
+        Weight of the pose part of the temporal prior (0: none), ``>= 0``.
+    temporal_state_weight : float
+        Weight of its joint-state part, ``>= 0``.
+    velocity : float
+        ``damping`` of the constant-velocity prediction, in ``[0, 1]`` (0: zero velocity).
+    carried_iterations : int
+        Closest-point matches and solves per frame on carried correspondences, ``>= 1``.
+    carried_gate : float
+        Matches farther than this many object diagonals get weight 0, ``> 0``.
+    min_points : int
+        Fewer observed points: the frame is lost (no fit is tried).
+    max_relative_residual : float
+        A part whose median point-to-fit distance exceeds this many object diagonals makes a fit
+        implausible (``large_residual``), ``> 0``.
+    fit : FitConfig
+        Settings of every fit (RANSAC settings apply to the cold ones).
+    """
+
+    network_every: int = 1
+    formulation: str = "exact_reduced"
+    solver: str | None = None
+    temporal_weight: float = 0.01
+    temporal_state_weight: float = 0.01
+    velocity: float = 1.0
+    carried_iterations: int = 3
+    carried_gate: float = 0.1
+    min_points: int = 100
+    max_relative_residual: float = 0.1
+    fit: FitConfig = field(default_factory=FitConfig)
+
+    def __post_init__(self):
+        for name, lo in (("network_every", 1), ("carried_iterations", 1), ("min_points", 3)):
+            object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=lo))
+        check_choice(self.formulation, "formulation", tuple(n for n, f in FORMULATIONS.items() if f.parameterisation))
+        if self.solver is not None:
+            check_choice(self.solver, "solver", FORMULATIONS[self.formulation].solvers)
+        for name in ("temporal_weight", "temporal_state_weight"):
+            check_number(getattr(self, name), name, minimum=0.0)
+        check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
+        for name in ("carried_gate", "max_relative_residual"):
+            check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
+        if not isinstance(self.fit, FitConfig):
+            raise ValueError(f"fit: expected a FitConfig, got {type(self.fit).__name__}")
+
+
+def previous_solution(result: FitResult, correspondences, weight: float, state_weight: float) -> PreviousSolution:
+    """The :class:`PreviousSolution` of a fit: its object pose through the root part and its joint states.
+
+    Parameters
+    ----------
+    result : FitResult
+        A successful fit.
+    correspondences : Correspondences
+        The correspondences it was fitted on (their NPCS -> NAOCS map of the root part).
+    """
+    r = correspondences.root_part
+    T = result.T_cam_npcs[r]
+    sigma = T.scale / float(correspondences.npcs_scale[r])
+    origin = T.translation - sigma * (T.rotation @ np.asarray(correspondences.npcs_translation[r]))
+    return PreviousSolution(Sim3.unchecked(T.rotation, origin, sigma), np.asarray(result.joint_states), weight, state_weight)
+
+
+def predicted_fit(result: FitResult, correspondences, prediction: PreviousSolution) -> FitResult:
+    """``result`` with its part poses moved to a predicted object pose and joint states (forward
+    kinematics of the reduced program with ``correspondences``' canonical parameters), as a warm start."""
+    import dataclasses
+
+    from ..solvers.program import ProgramKey, get_program
+    from ..solvers.terms import CanonicalParameters, KinematicStructure, ProgramInputs, ProgramStart
+
+    prog = get_program(ProgramKey(KinematicStructure.from_correspondences(correspondences), "reduced", False, ()))
+    canonical = CanonicalParameters.of(correspondences, correspondences.joint_limits)
+    T = prediction.T_cam_naocs
+    states = prediction.joint_states
+    if correspondences.joint_limits is not None:
+        states = np.clip(states, correspondences.joint_limits[:, 0], correspondences.joint_limits[:, 1])
+    p = prog.pack(ProgramInputs(T.scale, canonical, ProgramStart(T_cam_naocs=T)))
+    poses = prog.unpack(prog.initial_x(states), p).T_cam_npcs
+    return dataclasses.replace(result, T_cam_npcs=tuple(poses))
+
+
+def check_fit(result: FitResult, points_cam, correspondences, category: str | None, max_relative_residual: float) -> FitResult:
+    """The fit, or a copy with the failed status of the first plausibility check it fails.
+
+    The checks of ``ancsh predict`` (:func:`ancsh.learned.predict.check_plausibility`: inliers,
+    the category's size range, its residual limit), then a residual limit relative to the
+    fitted object: a part (with at least 20 points) whose median distance between its points and
+    their fitted NPCS exceeds ``max_relative_residual`` object diagonals is ``large_residual``.
+    """
+    import dataclasses
+
+    from ..learned.predict import check_plausibility, part_quality
+
+    if not result.ok:
+        return result
+    quality = part_quality(result, points_cam, correspondences)
+    checked = check_plausibility(result, correspondences.part_labels, category, quality)
+    if not checked.ok:
+        return checked
+    L = float(np.median([T.scale / g for T, g in zip(result.T_cam_npcs, correspondences.npcs_scale)]))
+    for j, q in enumerate(quality):
+        if q["points"] >= 20 and q["residual_m"] > max_relative_residual * L:
+            return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
+                f"check residual: part {j}'s points lie {q['residual_m'] / L:.3g} object diagonals (median) from the fit, "
+                f"above {max_relative_residual}"))
+    return result
+
+
+def fit_frame(provider, observation: Observation, config: TrackerConfig, category: str | None = None, rng=0):
+    """An independent (cold) fit of one frame: the provider, RANSAC + the formulation, the checks.
+
+    Returns ``(FitResult, Correspondences or None)``; fewer than ``config.min_points`` points give
+    ``too_few_points`` without calling the provider. This is the per-frame baseline of tracking
+    and the tracker's re-initialisation.
+    """
+    if observation.num_points < config.min_points:
+        return FitResult.failure(FitStatus.TOO_FEW_POINTS, f"{observation.num_points} points, at least {config.min_points} "
+                                 "are needed for a fit", formulation=config.formulation, solver="none",
+                                 num_points=observation.num_points), None
+    corr = provider.correspond(observation)
+    result = fit(observation, corr, config.formulation, config.solver, config.fit, rng=rng)
+    return check_fit(result, observation.points_cam, corr, category, config.max_relative_residual), corr
+
+
+@dataclass
+class _Track:
+    """What the tracker carries from frame to frame."""
+
+    result: FitResult
+    correspondences: object  # the Correspondences the result was fitted on
+    template: object  # CarriedTemplate of the last network frame
+    since_network: int
+    prior: PreviousSolution
+    before: PreviousSolution | None = None
+
+
+class CategoryTracker:
+    """Tracks a category-level articulated object through a sequence of observations.
+
+    Parameters
+    ----------
+    provider : CorrespondenceProvider
+        Turns an observation into correspondences (e.g. :class:`~ancsh.learned.provider.LearnedProvider`);
+        called on network frames and re-initialisations only.
+    config : TrackerConfig, optional
+    category : str, optional
+        A procedural category: its size range and residual limit join the plausibility checks.
+    rng : int or numpy.random.Generator
+        RANSAC randomness of the cold fits.
+
+    Examples
+    --------
+    >>> tracker = CategoryTracker(LearnedProvider("laptop"), TrackerConfig(network_every=2), category="laptop")
+    >>> for points in frames:                                  # doctest: +SKIP
+    ...     tracked = tracker.step(Observation(points))
+    ...     tracked.status, tracked.joint_states
+    """
+
+    def __init__(self, provider, config: TrackerConfig | None = None, *, category: str | None = None, rng=0):
+        from ..geometry._checks import check_generator
+
+        if not hasattr(provider, "correspond"):
+            raise ValueError(f"provider: expected a correspondence provider (with .correspond), got {type(provider).__name__}")
+        self.provider = provider
+        self.config = TrackerConfig() if config is None else config
+        if not isinstance(self.config, TrackerConfig):
+            raise ValueError(f"config: expected a TrackerConfig, got {type(self.config).__name__}")
+        self.category = category
+        self.rng = check_generator(rng)
+        self._track: _Track | None = None
+        self._index = 0
+        self._started = False
+        self._num_joints = int(getattr(provider, "num_joints", 0))
+
+    def reset(self) -> None:
+        """Forget the track (the next frame starts cold)."""
+        self._track = None
+
+    def step(self, observation: Observation) -> TrackedFrame:
+        """Track one more frame (see the module docstring)."""
+        if not isinstance(observation, Observation):
+            raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
+        t0 = time.perf_counter()
+        index = self._index
+        self._index += 1
+        cfg = self.config
+        if observation.num_points < cfg.min_points:
+            self._track = None
+            return self._lost(index, f"too_few_points: {observation.num_points} points, at least {cfg.min_points} are "
+                                     "needed (object out of view or an empty frame)", t0)
+        why = ""
+        if self._track is not None:
+            result, corr, source = self._warm(observation)
+            if result.ok:
+                self._advance(observation, result, corr, source == "network")
+                return self._frame(index, TrackStatus.TRACKED, result.message, result, source, t0)
+            why = f"warm fit failed ({result.status.value}: {result.message}); "
+        result, corr = fit_frame(self.provider, observation, cfg, self.category, self.rng)
+        if not result.ok:
+            self._track = None
+            return self._lost(index, f"{why}cold fit failed ({result.status.value}: {result.message})", t0)
+        status = TrackStatus.REINITIALISED if self._started else TrackStatus.INITIALISED
+        self._started = True
+        self._track = None
+        self._advance(observation, result, corr, True)
+        return self._frame(index, status, why + "cold fit (network + RANSAC)", result, "network", t0)
+
+    def _warm(self, observation: Observation):
+        """The warm fit of a frame: ``(result, correspondences, source)``."""
+        cfg, tr = self.config, self._track
+        prior = PreviousSolution.constant_velocity(tr.prior, tr.before, damping=cfg.velocity)
+        use_prior = cfg.temporal_weight > 0 or cfg.temporal_state_weight > 0
+        start = predicted_fit(tr.result, tr.correspondences, prior)
+        kwargs = dict(warm_start=start, previous=prior if use_prior else None)
+        if tr.since_network + 1 >= cfg.network_every:
+            corr = self.provider.correspond(observation)
+            result = fit(observation, corr, cfg.formulation, cfg.solver, cfg.fit, rng=self.rng, **kwargs)
+            return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "network"
+        result, corr = start, tr.correspondences
+        L = float(np.median([T.scale / g for T, g in zip(result.T_cam_npcs, corr.npcs_scale)]))
+        iterations = 0
+        for _ in range(cfg.carried_iterations):
+            corr = tr.template.correspond(observation.points_cam, result.T_cam_npcs, cfg.carried_gate * L)
+            if np.count_nonzero(corr.weights) < cfg.min_points:
+                return FitResult.failure(FitStatus.TOO_FEW_INLIERS, f"{np.count_nonzero(corr.weights)} points lie within "
+                                         f"{cfg.carried_gate} object diagonals of the tracked object", formulation=cfg.formulation,
+                                         solver="none", num_points=observation.num_points), corr, "carried"
+            result = fit(observation, corr, cfg.formulation, cfg.solver, cfg.fit, rng=self.rng,
+                         **{**kwargs, "warm_start": result})
+            iterations += result.iterations
+            if not result.ok:
+                break
+        if result.ok:
+            import dataclasses
+
+            result = dataclasses.replace(result, iterations=iterations)
+        return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "carried"
+
+    def _advance(self, observation, result: FitResult, corr, network: bool) -> None:
+        """Carry an accepted fit to the next frame."""
+        from .carried import CarriedTemplate
+
+        cfg = self.config
+        prior = previous_solution(result, corr, cfg.temporal_weight, cfg.temporal_state_weight)
+        tr = self._track
+        self._num_joints = len(result.joint_states)
+        if network or tr is None:
+            template, since = CarriedTemplate(observation.points_cam, corr, result), 0
+        else:
+            template, since = tr.template, tr.since_network + 1
+        self._track = _Track(result, corr, template, since, prior, None if tr is None else tr.prior)
+
+    def _frame(self, index, status, message, result, source, t0) -> TrackedFrame:
+        return TrackedFrame(index, status, message, result, np.asarray(result.joint_states, dtype=np.float64).copy(), source,
+                            int(result.iterations), time.perf_counter() - t0)
+
+    def _lost(self, index, message, t0) -> TrackedFrame:
+        return TrackedFrame(index, TrackStatus.LOST, message, None, np.full(self._num_joints, np.nan), "none", 0,
+                            time.perf_counter() - t0)

@@ -1,0 +1,331 @@
+"""Tracking: sequences with ground truth, the category and instance trackers, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from ancsh.data.generate import FrameGenerator, GenerationConfig
+from ancsh.data.noise import DepthNoise
+from ancsh.data.render import Intrinsics
+from ancsh.data.sequences import SequenceMotion
+from ancsh.solvers.types import Observation
+from ancsh.tracking import CategoryTracker, InstanceTracker, TrackerConfig, TrackStatus
+
+
+class FrameOracle:
+    """Exact (uncorrupted) correspondences of whichever frame is current."""
+
+    def __init__(self):
+        self.frame = None
+        self.calls = 0
+
+    @property
+    def num_joints(self):
+        return self.frame.num_joints
+
+    def correspond(self, observation):
+        from ancsh.solvers.providers.oracle import OracleProvider
+
+        self.calls += 1
+        return OracleProvider(self.frame, "none", rng=0).correspond(observation)
+
+
+def _generator(category="laptop", length=8, noise=False, seed=1, points=512):
+    return FrameGenerator(GenerationConfig(category=category, split="test", seed=seed, num_points=points,
+                                           noise=DepthNoise() if noise else DepthNoise.off(),
+                                           intrinsics=Intrinsics.kinect(320, 240),
+                                           sequence=SequenceMotion(length=length, checks=2)))
+
+
+def _errors(result, frame):
+    from ancsh.evaluation import evaluate_fit
+
+    e = evaluate_fit(result, frame.gt, frame.part_names, frame.joint_names)
+    return max(p.rot_deg for p in e.parts), max(p.trans for p in e.parts), max(j.state_err for j in e.joints)
+
+
+# --------------------------------------------------------------------------------------------
+# sequences
+# --------------------------------------------------------------------------------------------
+def test_sequence_frames_are_seeded_smooth_and_within_the_limits():
+    """Scenario: a laptop sequence of 6 frames: every frame is reproduced by a fresh generator, carries its
+    sequence and time index, the joint stays within its limits and moves by at most the cycle's top speed,
+    and the camera moves a little between frames."""
+    gen = _generator(length=6, points=128)
+    frames = [gen.frame(i) for i in range(7)]
+    assert [(f.sequence_index, f.time_index) for f in frames] == [(0, t) for t in range(6)] + [(1, 0)]
+    again = _generator(length=6, points=128).frame(4)
+    np.testing.assert_array_equal(again.points, frames[4].points)
+    model, _ = gen.instance(frames[0].instance_index)
+    assert len({f.instance for f in frames[:6]}) == 1
+    plan = gen.sequence_plan(0)
+    q = np.array([f.joint_states_abs for f in frames[:6]])
+    assert np.all(q >= model.lower_limits - 1e-12) and np.all(q <= model.upper_limits + 1e-12)
+    top_speed = np.pi * (plan.joint_high - plan.joint_low) / plan.joint_period / plan.fps  # per frame
+    assert np.all(np.abs(np.diff(q, axis=0)) <= top_speed + 1e-12)
+    assert np.any(np.abs(np.diff(q, axis=0)) > 0)
+    steps = [np.linalg.norm(a.T_cam_base.translation - b.T_cam_base.translation) for a, b in zip(frames[:5], frames[1:6])]
+    assert max(steps) < 0.05
+
+
+def test_sequence_dataset_roundtrip_and_older_shards_read_as_single_frames(tmp_path):
+    """Scenario: two sequences of 3 frames written in shards of 4 frames come back grouped and in time
+    order; a shard without the sequence fields (written before them) reads as single frames."""
+    import h5py
+
+    from ancsh.data.dataset import FrameDataset
+    from ancsh.data.generate import generate_dataset
+    from ancsh.data.sequences import read_sequences
+
+    cfg = GenerationConfig(category="laptop", split="test", num_points=64, shard_size=4, sequence=SequenceMotion(length=3))
+    generate_dataset(cfg, 6, tmp_path / "seq", progress=False)
+    seqs = read_sequences(tmp_path / "seq")
+    assert [[(f.sequence_index, f.time_index) for f in s] for s in seqs] == [[(0, 0), (0, 1), (0, 2)], [(1, 0), (1, 1), (1, 2)]]
+    shard = sorted((tmp_path / "seq").glob("*.h5"))[0]
+    with h5py.File(shard, "a") as f:
+        del f["sequence_index"], f["time_index"]
+    assert FrameDataset(shard)[0].sequence_index == -1
+    with pytest.raises(ValueError, match="single frames"):
+        read_sequences(shard)
+
+
+def test_single_frame_configuration_json_is_unchanged_by_the_sequence_option():
+    """Resuming a single-frame dataset written before sequences existed must not see other settings."""
+    assert "sequence" not in json.loads(GenerationConfig(category="laptop").to_json())
+    with pytest.raises(ValueError, match="sequence"):
+        GenerationConfig(category="laptop", sequence=5)
+    with pytest.raises(ValueError, match="length"):
+        SequenceMotion(length=1)
+
+
+# --------------------------------------------------------------------------------------------
+# category-level tracker
+# --------------------------------------------------------------------------------------------
+def test_tracker_recovers_the_ground_truth_of_a_seeded_sequence():
+    """Scenario: a noise-free laptop sequence with exact correspondences on network frames (k = 3) and
+    correspondences carried by the previous fit in between, no temporal prior: every frame is tracked
+    within a degree and a half, the provider runs on every third frame only."""
+    gen = _generator(length=8)
+    oracle = FrameOracle()
+    tracker = CategoryTracker(oracle, TrackerConfig(network_every=3, temporal_weight=0.0, temporal_state_weight=0.0),
+                              category="laptop")
+    statuses, sources = [], []
+    for i in range(8):
+        fr = gen.frame(i)
+        oracle.frame = fr
+        out = tracker.step(Observation(fr.points))
+        statuses.append(out.status)
+        sources.append(out.source)
+        rot, trans, state = _errors(out.result, fr)
+        assert rot < 1.5 and state < 1.5 and trans < 0.03, (i, rot, trans, state)
+    assert statuses == [TrackStatus.INITIALISED] + [TrackStatus.TRACKED] * 7
+    assert sources == ["network", "carried", "carried", "network", "carried", "carried", "network", "carried"]
+    assert oracle.calls == 3
+
+
+def test_warm_started_fit_reaches_the_cold_fit_without_ransac():
+    """Scenario: frame 2 of a noisy sequence with lightly corrupted correspondences, fitted cold (RANSAC +
+    solve) and warm-started from the constant-velocity prediction of frames 0 and 1: both land on the same
+    answer (within the inlier sets' difference); the warm fit skips RANSAC. (At the category level the backend
+    iterations are about equal -- RANSAC's per-part start on the frame itself is as close as the prediction;
+    the warm start saves RANSAC's time. Articulated ICP is where iterations drop: see the next test.)"""
+    from ancsh.solvers import fit
+    from ancsh.solvers.providers.oracle import OracleProvider
+    from ancsh.solvers.terms import PreviousSolution
+    from ancsh.tracking.tracker import predicted_fit, previous_solution
+
+    gen = _generator(length=4, noise=True)
+    frames = [gen.frame(i) for i in range(3)]
+    obs = [Observation(f.points) for f in frames]
+    corr = [OracleProvider(f, "low", rng=i).correspond(o) for i, (f, o) in enumerate(zip(frames, obs))]
+    r0 = fit(obs[0], corr[0])
+    r1 = fit(obs[1], corr[1], warm_start=r0)
+    pred = PreviousSolution.constant_velocity(previous_solution(r1, corr[1], 0.0, 0.0), previous_solution(r0, corr[0], 0.0, 0.0))
+    cold = fit(obs[2], corr[2])
+    warm = fit(obs[2], corr[2], warm_start=predicted_fit(r1, corr[1], pred))
+    assert cold.ok and warm.ok and warm.iterations > 0
+    np.testing.assert_allclose(warm.joint_states, cold.joint_states, atol=0.01)
+    for r in (cold, warm):
+        rot, trans, state = _errors(r, frames[2])
+        assert rot < 3 and state < 3
+    with pytest.raises(ValueError, match="warm_start"):
+        fit(obs[2], corr[2], "per_part", warm_start=r0)
+
+
+@pytest.mark.slow
+def test_warm_started_articulated_icp_uses_far_fewer_iterations_than_a_cold_fit():
+    """Scenario: frame 1 of a noisy procedural laptop sequence, fitted by the instance tracker warm from frame
+    0's true pose and by the multi-start cold articulated ICP from auto_init views: both AD-correct, the warm
+    fit in at most its configured iterations, fewer than a tenth of the cold fit's."""
+    from ancsh.solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, auto_init
+    from ancsh.solvers.icp.evaluate import PartPoints, ad_correct
+    from ancsh.solvers.icp.template import ArticulatedPose
+
+    gen = _generator(length=3, noise=True)
+    f0, f1 = gen.frame(0), gen.frame(1)
+    model, _ = gen.instance(f0.instance_index)
+    tracker = InstanceTracker(model, initial=ArticulatedPose(f0.T_cam_base, f0.joint_states_abs))
+    warm = tracker.step(f1.points)
+    cold = articulated_icp(model, f1.points, auto_init(model, f1.points), config=ArticulatedIcpConfig(num_points=400),
+                           surface=tracker.template.surface)
+    gt = [f1.T_cam_base @ T for T in model.forward_kinematics(f1.joint_states_abs)]
+    pp = PartPoints(model, 200)
+    assert ad_correct(pp, warm.result.T_cam_parts, gt)[0].all() and ad_correct(pp, cold.T_cam_parts, gt)[0].all()
+    assert 0 < warm.iterations <= tracker.config.iterations
+    assert 10 * warm.iterations < cold.iterations
+
+
+def test_tracker_reports_lost_frames_and_reinitialises_after_a_jump():
+    """Scenario: a tracked sequence in which the object leaves the view (two empty frames) and later jumps
+    by half a metre: the empty frames are lost, the next frame re-initialises; the jump fails the warm fit
+    (on a carried frame: no point lies near the tracked object) and is re-initialised on the same frame, at
+    the new place."""
+    import dataclasses
+
+    from ancsh.geometry.transforms import Sim3
+
+    gen = _generator(length=8)
+    oracle = FrameOracle()
+    tracker = CategoryTracker(oracle, TrackerConfig(network_every=2), category="laptop")
+    shift = np.array([0.5, 0.0, 0.3])
+    out = []
+    for i in range(8):
+        fr = gen.frame(i)
+        oracle.frame = fr
+        if i in (2, 3):
+            out.append(tracker.step(Observation(np.zeros((0, 3)))))
+            continue
+        points = fr.points + (shift if i >= 5 else 0.0)
+        if i >= 5:  # the oracle's truth moves with the object
+            moved = dataclasses.replace(fr.gt, T_cam_npcs=tuple(Sim3(T.rotation, T.translation + shift, T.scale)
+                                                                for T in fr.gt.T_cam_npcs))
+            oracle.frame = dataclasses.replace(fr, points=points, gt=moved)
+        out.append(tracker.step(Observation(points)))
+    statuses = [o.status for o in out]
+    assert statuses == [TrackStatus.INITIALISED, TrackStatus.TRACKED, TrackStatus.LOST, TrackStatus.LOST,
+                        TrackStatus.REINITIALISED, TrackStatus.REINITIALISED, TrackStatus.TRACKED, TrackStatus.TRACKED]
+    assert "too_few_points" in out[2].message and np.all(np.isnan(out[2].joint_states))
+    assert out[5].source == "network" and "warm fit failed" in out[5].message  # frame 5 would have been a carried one
+    np.testing.assert_allclose(out[7].result.T_cam_npcs[0].translation, oracle.frame.gt.T_cam_npcs[0].translation, atol=0.01)
+
+
+def test_tracked_frame_json_is_plain():
+    gen = _generator(length=2)
+    oracle = FrameOracle()
+    oracle.frame = gen.frame(0)
+    tracker = CategoryTracker(oracle, category="laptop")
+    rec = tracker.step(Observation(oracle.frame.points)).to_dict()
+    json.dumps(rec, allow_nan=False)
+    assert rec["status"] == "initialised" and len(rec["part_poses"]) == 2
+    lost = tracker.step(Observation(np.zeros((0, 3)))).to_dict()
+    assert lost["status"] == "lost" and lost["joint_states"] == [None]
+    with pytest.raises(ValueError, match="network_every"):
+        TrackerConfig(network_every=0)
+    with pytest.raises(ValueError, match="provider"):
+        CategoryTracker(object())
+
+
+# --------------------------------------------------------------------------------------------
+# instance-level tracker
+# --------------------------------------------------------------------------------------------
+def test_instance_tracker_follows_a_known_model_from_a_known_start():
+    """Scenario: a procedural laptop instance tracked (warm articulated ICP) from its true first pose through
+    a noisy 6-frame sequence: every frame is tracked with every part AD-correct (10% of its diameter)."""
+    from ancsh.solvers.icp.evaluate import PartPoints, ad_correct
+    from ancsh.solvers.icp.template import ArticulatedPose
+
+    gen = _generator(length=6, noise=True)
+    f0 = gen.frame(0)
+    model, _ = gen.instance(f0.instance_index)
+    tracker = InstanceTracker(model, initial=ArticulatedPose(f0.T_cam_base, f0.joint_states_abs))
+    pp = PartPoints(model, 200)
+    for i in range(6):
+        fr = gen.frame(i)
+        out = tracker.step(fr.points)
+        assert out.status == TrackStatus.TRACKED, out.message
+        gt = [fr.T_cam_base @ T for T in model.forward_kinematics(fr.joint_states_abs)]
+        correct, _ = ad_correct(pp, out.result.T_cam_parts, gt)
+        assert correct.all(), i
+    assert tracker.step(np.zeros((0, 3))).status == TrackStatus.LOST
+
+
+# --------------------------------------------------------------------------------------------
+# bad input through the depth-folder stream
+# --------------------------------------------------------------------------------------------
+@pytest.fixture
+def depth_folder(tmp_path):
+    """Five depth frames of a noise-free laptop sequence: 0, 1 fine, 2 unreadable, 3 empty, 4 fine."""
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=1, noise=DepthNoise.off(),
+                                          sequence=SequenceMotion(length=5)))
+    folder = tmp_path / "depth"
+    folder.mkdir()
+    for i in range(5):
+        d = gen.frame(i, keep_depth=True).depth
+        if i == 3:
+            d = np.zeros_like(d)
+        np.save(folder / f"frame_{i}.npy", d)
+    (folder / "frame_2.npy").write_bytes(b"not an array")
+    (tmp_path / "K.json").write_text(json.dumps(gen.config.intrinsics.to_json()))
+    return folder, tmp_path / "K.json"
+
+
+def test_stream_reports_unreadable_and_empty_frames_as_lost_and_recovers(depth_folder, tmp_path):
+    """Scenario: frames 2 (garbage bytes) and 3 (no depth) of a sequence: both are lost records naming the
+    problem, frame 4 re-initialises; the JSON lines are on disk as written and an existing output is kept."""
+    from ancsh.data.images import read_intrinsics
+    from ancsh.learned.provider import LearnedProvider
+    from ancsh.tracking.stream import JsonLinesWriter, depth_files, track_files
+
+    folder, K = depth_folder
+    files = depth_files(folder)
+    assert [f.name for f in files] == [f"frame_{i}.npy" for i in range(5)]
+    tracker = CategoryTracker(LearnedProvider("laptop", num_threads=1), TrackerConfig(network_every=1), category="laptop")
+    out = tmp_path / "out" / "track.jsonl"
+    with JsonLinesWriter(out) as w:
+        recs = track_files(files, read_intrinsics(K), tracker, w, isolate=False, num_points=512, num_joints=1)
+    assert [r["status"] for r in recs][2:] == ["lost", "lost", "reinitialised"]
+    assert "unreadable frame" in recs[2]["message"] and "frame_2.npy" in recs[2]["message"]
+    assert "too_few_points" in recs[3]["message"]
+    lines = out.read_text().splitlines()
+    assert [json.loads(s)["status"] for s in lines] == [r["status"] for r in recs]
+    with pytest.raises(ValueError, match="exists"):
+        JsonLinesWriter(out)
+
+
+def test_stream_keeps_what_was_written_when_interrupted(depth_folder, tmp_path):
+    from ancsh.data.images import read_intrinsics
+    from ancsh.tracking.stream import JsonLinesWriter, depth_files, track_files
+
+    folder, K = depth_folder
+    oracle = FrameOracle()  # never called: the interruption comes first
+    tracker = CategoryTracker(oracle, category="laptop")
+
+    def interrupt(rec):
+        if rec["frame"] == 1:
+            raise KeyboardInterrupt
+
+    files = depth_files(folder)[2:]  # unreadable, empty, ...
+    out = tmp_path / "t.jsonl"
+    with pytest.raises(KeyboardInterrupt), JsonLinesWriter(out) as w:
+        track_files(files, read_intrinsics(K), tracker, w, isolate=False, num_joints=1, progress=interrupt)
+    assert [json.loads(s)["status"] for s in out.read_text().splitlines()] == ["lost", "lost"]
+
+
+def test_track_command_refuses_mismatched_intrinsics_and_a_folder_without_frames(depth_folder, tmp_path, capsys):
+    from ancsh.cli import main
+
+    folder, K = depth_folder
+    data = json.loads(K.read_text())
+    bad = tmp_path / "K_small.json"
+    bad.write_text(json.dumps({**data, "width": 320, "height": 240}))
+    assert main(["track", "--depth", str(folder), "--intrinsics", str(bad), "--category", "laptop", "--no-isolate",
+                 "--out", str(tmp_path / "a.jsonl")]) == 2
+    assert "intrinsics: 320x240 pixels, but the frames are 640x480" in capsys.readouterr().err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["track", "--depth", str(empty), "--intrinsics", str(K), "--category", "laptop",
+                 "--out", str(tmp_path / "b.jsonl")]) == 2
+    assert "holds no depth frame" in capsys.readouterr().err
