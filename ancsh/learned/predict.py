@@ -346,7 +346,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         labels = np.asarray(corr.part_labels)
         quality = part_quality(result, pts, corr, raw)
         result = check_plausibility(result, labels, category, quality)
-        result = _inflate_uncertainty(result, category, provider)
+        result = inflate_uncertainty(result, category, provider)
         p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
@@ -365,9 +365,10 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     )
 
 
-def _inflate_uncertainty(result, category: str, provider):
+def inflate_uncertainty(result, category: str, provider):
     """The fit with its standard deviations inflated by the factors measured for these weights of
-    ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights."""
+    ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights.
+    ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits."""
     import dataclasses
 
     from ..solvers.uncertainty import inflation_for

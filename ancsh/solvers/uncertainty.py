@@ -245,6 +245,42 @@ class FitUncertainty:
                 joint_pivot_covariances=add("joint_pivot_covariances") * inflation.joint_pivot**2,
             )
 
+    def composed(self, T_cam_parts, T_parts_frames, T_cam_object, T_object_frame) -> "FitUncertainty":
+        """The covariances of the poses composed on the right with constant maps, ``T_cam_a @ T_a_b``.
+
+        A fit reports poses in the program's frames (NPCS, NAOCS); a known model's part frames are
+        fixed maps away (``T_cam_part = T_cam_npcs @ T_npcs_part``). The rotation tangent ``phi``
+        (camera frame) is unchanged; the translation moves by ``ds R t_ab + [phi] s R t_ab``
+        (``t_ab`` the translation of ``T_a_b``); the scale is multiplied by ``T_a_b``'s. Joint
+        quantities are camera-frame and stay as they are; so does an inflation already applied
+        (the raw, correlated and inflated covariances are all mapped).
+
+        Parameters
+        ----------
+        T_cam_parts : sequence of Sim3
+            ``(M,)`` the poses these covariances describe (``T_cam_a``, e.g. ``T_cam_npcs``).
+        T_parts_frames : sequence of Sim3
+            ``(M,)`` the constant maps ``T_a_b`` (e.g. ``T_npcs_part``).
+        T_cam_object, T_object_frame : Sim3
+            The same for the object pose (e.g. ``T_cam_naocs`` and ``T_naocs_base``).
+        """
+        M = self.part_covariances.shape[0]
+        if len(T_cam_parts) != M or len(T_parts_frames) != M:
+            raise ValueError(f"T_cam_parts, T_parts_frames: expected {M} poses each, got "
+                             f"{len(T_cam_parts)} and {len(T_parts_frames)}")
+        A_parts = [_composition_jacobian(T, C) for T, C in zip(T_cam_parts, T_parts_frames)]
+        A_obj = _composition_jacobian(T_cam_object, T_object_frame)
+
+        def mapped(u):
+            if u is None:
+                return None
+            return replace(u, part_covariances=np.stack([_propagate(c, A) for c, A in zip(u.part_covariances, A_parts)])
+                           if M else u.part_covariances,
+                           object_covariance=_propagate(u.object_covariance, A_obj),
+                           correlated=mapped(u.correlated), base=mapped(u.base))
+
+        return mapped(self)
+
     def raw(self) -> "FitUncertainty":
         """The raw Jacobian covariances (this object when no inflation was applied)."""
         return self if self.base is None else self.base
@@ -277,6 +313,33 @@ class FitUncertainty:
                 "joint_pivots": self.joint_pivot_covariances.tolist(),
             }
         return out
+
+
+def _composition_jacobian(T, C) -> np.ndarray:
+    """``(7, 7)``: ``[phi, t, s]`` of ``T @ C`` per unit of ``T``'s (``C`` constant; see :meth:`FitUncertainty.composed`)."""
+    v = T.rotation @ np.asarray(C.translation, dtype=np.float64)  # d(t') / ds
+    w = T.scale * v
+    A = np.eye(7)
+    A[3:6, 0:3] = -np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])  # [phi] w = -[w] phi
+    A[3:6, 6] = v
+    A[6, 6] = float(C.scale)
+    return A
+
+
+def _propagate(cov: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """``A cov A^T`` where an infinite variance (unbounded quantity) makes every output it reaches unbounded."""
+    inf = ~np.isfinite(np.diag(cov))
+    if not np.any(inf):
+        return A @ cov @ A.T
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    c[inf, :] = 0.0
+    c[:, inf] = 0.0
+    out = A @ c @ A.T
+    reach = np.any(A[:, inf] != 0.0, axis=1)
+    out[reach, :] = 0.0
+    out[:, reach] = 0.0
+    out[reach, reach] = np.inf
+    return out
 
 
 # ------------------------------------------------------------------------------------------------

@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry._checks import check_generator, check_int, check_number, check_positive
+from ..geometry._checks import check_bool, check_generator, check_int, check_number, check_positive
 from ..geometry.rotations import exp_so3, geodesic_angle, log_so3
 from ..geometry.transforms import Sim3
-from ..solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, auto_init, reduced_step
+from ..solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, auto_init, icp_uncertainty, reduced_step
 from ..solvers.icp.result import CadFitResult
 from ..solvers.icp.template import ArticulatedPose, ModelTemplate, TemplateProvider
 from ..solvers.types import FitStatus, Observation
@@ -59,6 +59,9 @@ class InstanceTrackerConfig:
         Fewer observed points: the frame is lost.
     cold : ArticulatedIcpConfig
         The re-initialisation's multi-start ICP.
+    uncertainty : bool
+        Report the covariances of each warm fit (:func:`~ancsh.solvers.icp.articulated.icp_uncertainty`,
+        one more closest-point match); the cold fits follow ``cold.uncertainty``.
     """
 
     iterations: int = 4
@@ -75,6 +78,7 @@ class InstanceTrackerConfig:
     velocity: float = 1.0
     min_points: int = 30
     cold: ArticulatedIcpConfig = field(default_factory=ArticulatedIcpConfig)
+    uncertainty: bool = True
 
     def __post_init__(self):
         for name, lo in (("iterations", 1), ("num_points", 6), ("solver_iterations", 1), ("min_points", 6)):
@@ -86,6 +90,7 @@ class InstanceTrackerConfig:
         for name in ("temporal_weight", "temporal_state_weight"):
             check_number(getattr(self, name), name, minimum=0.0)
         check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
+        check_bool(self.uncertainty, "uncertainty")
         if not isinstance(self.cold, ArticulatedIcpConfig):
             raise ValueError(f"cold: expected an ArticulatedIcpConfig, got {type(self.cold).__name__}")
 
@@ -208,8 +213,13 @@ class InstanceTracker:
                 status = FitStatus.SUCCESS
                 break
         message = "converged" if status == FitStatus.SUCCESS else f"stopped after {iterations} warm iterations"
+        uncertainty = None
+        if cfg.uncertainty and iterations:
+            prov = self.provider.at(est, max_distance=gate)
+            uncertainty = icp_uncertainty(prov, points, prov.correspond(points))
         return CadFitResult("articulated_icp_warm", tuple(est.part_poses(self.model)), est.q.copy(), est.T_cam_base, status,
-                            message, inlier_ratio=ratio, rmse=rmse, iterations=iterations, time_s=time.perf_counter() - t0)
+                            message, inlier_ratio=ratio, rmse=rmse, iterations=iterations, time_s=time.perf_counter() - t0,
+                            uncertainty=uncertainty)
 
     def _accept(self, result: CadFitResult) -> None:
         self._before = self._last

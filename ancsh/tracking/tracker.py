@@ -95,11 +95,15 @@ class TrackedFrame:
             for T in getattr(r, "T_cam_npcs", None) or getattr(r, "T_cam_parts", ()):
                 poses.append({"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)})
         sigma = joint_state_std(r)
+        unc = getattr(r, "uncertainty", None)
         return {
             "frame": int(self.index), "status": self.status.value, "message": self.message, "source": self.source,
             "fit_status": None if r is None else r.status.value,
             "joint_states": [None if not np.isfinite(v) else float(v) for v in self.joint_states],
             "joint_states_std": None if sigma is None else [None if not np.isfinite(v) else float(v) for v in sigma],
+            "part_poses_std": None if unc is None else [{k: float(v) if np.isfinite(v) else None for k, v in part.items()}
+                                                        for part in unc.summary()["parts"]],
+            "uncertainty": None if unc is None else {"status": unc.status, "inflation": unc.inflation.source},
             "part_poses": poses, "iterations": int(self.iterations), "time_ms": 1e3 * float(self.time_s),
         }
 
@@ -384,6 +388,10 @@ class CategoryTracker:
         self._track = _Track(result, corr, template, since, prior, None if tr is None else tr.prior)
 
     def _frame(self, index, status, message, result, source, t0) -> TrackedFrame:
+        if getattr(result, "uncertainty", None) is not None and self.category is not None and hasattr(self.provider, "network"):
+            from ..learned.predict import inflate_uncertainty  # as ancsh predict: the factors measured for these weights
+
+            result = inflate_uncertainty(result, self.category, self.provider)
         return TrackedFrame(index, status, message, result, np.asarray(result.joint_states, dtype=np.float64).copy(), source,
                             int(result.iterations), time.perf_counter() - t0)
 

@@ -220,12 +220,41 @@ def test_tracked_frame_json_is_plain():
     rec = tracker.step(Observation(oracle.frame.points)).to_dict()
     json.dumps(rec, allow_nan=False)
     assert rec["status"] == "initialised" and len(rec["part_poses"]) == 2
+    assert rec["uncertainty"] == {"status": "ok", "inflation": "raw"}  # an oracle provider: no measured inflation
+    assert len(rec["joint_states_std"]) == 1 and rec["joint_states_std"][0] >= 0
+    assert len(rec["part_poses_std"]) == 2 and all(p["rotation_rms_rad"] >= 0 for p in rec["part_poses_std"])
     lost = tracker.step(Observation(np.zeros((0, 3)))).to_dict()
     assert lost["status"] == "lost" and lost["joint_states"] == [None]
+    assert lost["joint_states_std"] is None and lost["part_poses_std"] is None and lost["uncertainty"] is None
     with pytest.raises(ValueError, match="network_every"):
         TrackerConfig(network_every=0)
     with pytest.raises(ValueError, match="provider"):
         CategoryTracker(object())
+
+
+def test_category_tracker_inflates_a_learned_providers_uncertainty_as_predict_does(tmp_path, monkeypatch):
+    """A provider with network weights gets the inflation measured for those weights (by SHA-256), as in
+    ``ancsh predict``; the raw covariances stay available."""
+    import types
+
+    import ancsh.solvers.uncertainty as unc
+
+    table = {"providers": {"learned": {"laptop": {"joint_state": 3.0, "rotation": 2.0, "weights_sha256": "abc"}}}}
+    (tmp_path / "inflation.json").write_text(json.dumps(table))
+    monkeypatch.setattr(unc, "INFLATION_PATH", tmp_path / "inflation.json")
+    gen = _generator(length=2, noise=True)
+    oracle = FrameOracle()
+    oracle.network = types.SimpleNamespace(sha256="abc")
+    oracle.frame = gen.frame(0)
+    out = CategoryTracker(oracle, category="laptop").step(Observation(oracle.frame.points))
+    u = out.result.uncertainty
+    assert u.inflation.source == "learned/laptop"
+    np.testing.assert_allclose(u.joint_state_std, 3.0 * u.raw().joint_state_std)
+    np.testing.assert_allclose(u.rotation_rms_rad, 2.0 * u.raw().rotation_rms_rad)
+    assert out.to_dict()["uncertainty"]["inflation"] == "learned/laptop"
+    oracle.network = types.SimpleNamespace(sha256="other weights")
+    out = CategoryTracker(oracle, category="laptop").step(Observation(oracle.frame.points))
+    assert out.result.uncertainty.inflation.source == "raw"
 
 
 # --------------------------------------------------------------------------------------------
@@ -249,6 +278,10 @@ def test_instance_tracker_follows_a_known_model_from_a_known_start():
         gt = [fr.T_cam_base @ T for T in model.forward_kinematics(fr.joint_states_abs)]
         correct, _ = ad_correct(pp, out.result.T_cam_parts, gt)
         assert correct.all(), i
+        rec = out.to_dict()  # the warm ICP fit's standard deviations (part frames), as JSON
+        json.dumps(rec, allow_nan=False)
+        assert out.result.uncertainty.status == "ok", out.result.uncertainty.message
+        assert 0 < rec["joint_states_std"][0] < 0.1 and len(rec["part_poses_std"]) == model.num_parts
     assert tracker.step(np.zeros((0, 3))).status == TrackStatus.LOST
 
 

@@ -56,7 +56,7 @@ from ..types import FitStatus, Observation
 from .result import CadFitResult, IcpIteration
 from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProvider
 
-__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "articulated_icp", "auto_init", "reduced_step"]
+__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "articulated_icp", "auto_init", "icp_uncertainty", "reduced_step"]
 
 
 @dataclass(frozen=True)
@@ -116,6 +116,9 @@ class ArticulatedIcpConfig:
         Backend of the reduced solve (``"lsq"`` or ``"ipopt"``).
     solver_iterations : int
         Backend iterations per ICP iteration.
+    uncertainty : bool
+        Compute :attr:`CadFitResult.uncertainty` at the result (:func:`icp_uncertainty`; one more
+        closest-point match and a linearisation).
     """
 
     max_iterations: int = 40
@@ -139,6 +142,7 @@ class ArticulatedIcpConfig:
     num_points: int | None = 1500
     solver: str = "lsq"
     solver_iterations: int = 8
+    uncertainty: bool = True
 
     def __post_init__(self):
         for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations", "candidates"):
@@ -152,7 +156,7 @@ class ArticulatedIcpConfig:
         check_number(self.accept_inliers, "accept_inliers", minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.gate_decay, "gate_decay", minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.point_weight, "point_weight", minimum=0.0)
-        for name in ("point_to_plane", "joint_restarts"):
+        for name in ("point_to_plane", "joint_restarts", "uncertainty"):
             check_bool(getattr(self, name), name)
         if not self.point_to_plane and self.point_weight == 0:
             raise ValueError("point_weight: must be positive without the point-to-plane term")
@@ -252,16 +256,66 @@ def reduced_step(provider: TemplateProvider, points_cam, corr, *, point_to_plane
     """
     from ..backends import SolverOptions, solve
 
-    red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane, prior is not None)
-    previous = None if prior is None else red.previous(*prior)
-    inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane,
-                        previous)
-    p = red.program.pack(inputs)
+    red, p = _program_at(provider, points_cam, corr, point_to_plane, point_weight, prior)
     x0 = red.x0(provider.estimate)
     out = solve(solver, red.program, p, x0, red.bounds, SolverOptions(max_iterations, 1e-12))
     if out.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or not np.all(np.isfinite(out.x)):
         return provider.estimate, out
     return red.estimate(out.x, p), out
+
+
+def _program_at(provider: TemplateProvider, points_cam, corr, point_to_plane: bool, point_weight: float, prior=None):
+    """``(_Reduced, p)``: the reduced program of :func:`reduced_step` and its parameters at ``provider.estimate``."""
+    red = _reduced_for(provider, point_to_plane, point_weight > 0 or not point_to_plane, prior is not None)
+    previous = None if prior is None else red.previous(*prior)
+    inputs = red.inputs(provider.estimate, points_cam, corr, point_weight if point_to_plane else 1.0, point_to_plane,
+                        previous)
+    return red, red.program.pack(inputs)
+
+
+def icp_uncertainty(provider: TemplateProvider, points_cam, corr, *, point_to_plane: bool = True,
+                    point_weight: float = 0.05):
+    """The covariance of an articulated ICP fit at ``provider.estimate``, in the model's part frames.
+
+    Gauss-Newton sandwich of :func:`ancsh.solvers.uncertainty.fit_covariance` on the reduced
+    program that :func:`reduced_step` solves (same residuals, same correspondences and robust
+    weights; no temporal prior, as for :func:`ancsh.solvers.fit`), with the object scale fixed (a
+    CAD model is metric): object pose and one state per joint. The part and object covariances
+    are mapped from the program's frames (NPCS, NAOCS) to the frames the ICP result reports
+    (``T_cam_parts``, ``T_cam_base``; :meth:`~ancsh.solvers.uncertainty.FitUncertainty.composed`).
+    ``noise_std_m`` is each part's weighted RMS closest-point distance (metres): the
+    point-to-plane residual, one component per point.
+
+    Parameters
+    ----------
+    provider : TemplateProvider
+        At the fitted estimate.
+    points_cam : (N, 3) float64
+        Observed points (metres, camera frame).
+    corr : TemplateCorrespondences
+        ``provider.correspond(points_cam)`` (the final gate).
+    point_to_plane, point_weight
+        The data terms of the fit (:class:`ArticulatedIcpConfig`).
+
+    Returns
+    -------
+    FitUncertainty
+        Status ``"singular"`` (infinite variances) where the data leave a direction free (a part
+        without points, a planar part sliding in its plane), ``"unavailable"`` without enough points.
+    """
+    from ..uncertainty import effective_points, fit_covariance
+
+    red, p = _program_at(provider, points_cam, corr, point_to_plane, 0.0 if point_to_plane else point_weight)
+    x = red.x0(provider.estimate)
+    w = np.asarray(corr.weights, dtype=np.float64)
+    M = red.model.num_parts
+    sel = [(corr.part_labels == j) & (w > 0) for j in range(M)]
+    unc = fit_covariance(red.program, x, p, [effective_points(w[s]) for s in sel])
+    d = np.asarray(corr.distances, dtype=np.float64)
+    noise = np.array([np.sqrt(np.sum(w[s] * d[s] ** 2) / np.sum(w[s])) if s.any() else np.nan for s in sel])
+    sol = red.program.unpack(x, p)
+    unc = unc.composed(sol.T_cam_npcs, provider.T_npcs_part, sol.T_cam_naocs, red.cs.T_naocs_base)
+    return replace(unc, noise_std_m=noise)
 
 
 _REDUCED_CACHE: dict = {}
@@ -702,8 +756,13 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
     est = final.estimate
     msg = "converged" if final.status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    uncertainty = None
+    if config.uncertainty:
+        prov = provider.at(est, max_distance=max(config.gate_end * diagonal, config.gate_floor))
+        uncertainty = icp_uncertainty(prov, points, prov.correspond(points), point_to_plane=config.point_to_plane,
+                                      point_weight=config.point_weight)
     return CadFitResult(
         method="articulated_icp", T_cam_parts=tuple(est.part_poses(model)), q=est.q.copy(), T_cam_base=est.T_cam_base,
         status=final.status, message=msg, inlier_ratio=final.inlier_ratio, rmse=final.rmse, iterations=iterations,
-        time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts),
+        time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts), uncertainty=uncertainty,
     )

@@ -9,7 +9,8 @@ fits a known URDF model to one depth image by articulated ICP:
   centres at integer coordinates).
 - ``INIT.json`` (optional): ``{"T_cam_base": 4x4 rigid matrix, "q": [absolute joint states]}``;
   ``q`` defaults to the rest state. Without it, :func:`auto_init` tries 8 upright views.
-- ``--out``: the result as JSON (part poses, joint states, status); ``--png``: the fitted
+- ``--out``: the result as JSON (part poses, joint states, status, their standard deviations:
+  ``uncertainty``, see ``docs/json_schema.md``); ``--png``: the fitted
   model drawn over the depth points.
 """
 
@@ -108,10 +109,11 @@ def run_fit(args) -> int:
     q_report = _wrapped_states(model, result.q)
     print(f"{model.name}: {result.status.value} ({result.message}) in {dt:.2f} s, {result.starts} starts, "
           f"{result.iterations} iterations, inliers {100 * result.inlier_ratio:.1f}%, rmse {result.rmse:.4g}")
+    sigma = result.uncertainty.joint_state_std if result.uncertainty is not None else np.full(model.num_joints, np.nan)
     for k, j in enumerate(model.joints):
-        v = q_report[k]
+        v, sd = q_report[k], sigma[k]
         print(f"  joint {j.name:24s} {j.type.value:9s} q = {np.degrees(v) if j.is_revolute else v:9.4f}"
-              f" {'deg' if j.is_revolute else 'units'}")
+              f" +- {np.degrees(sd) if j.is_revolute else sd:.4f} {'deg' if j.is_revolute else 'units'} (1 sigma)")
     for part, T in zip(model.parts, result.T_cam_parts):
         print(f"  part  {part.name:24s} {T}")
     if args.out:
@@ -121,8 +123,10 @@ def run_fit(args) -> int:
         payload["q_relative_to_rest"] = [float(v) for v in q_report - model.rest_states]
         payload["parts"] = model.part_names
         payload["joints"] = [j.name for j in model.joints]
+        from ...learned.evaluate import json_safe
+
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(payload, indent=1))
+        Path(args.out).write_text(json.dumps(json_safe(payload), indent=1, allow_nan=False))
         print(f"wrote {args.out}")
     if args.png:
         draw_fit(model, result, points, intr, args.png)

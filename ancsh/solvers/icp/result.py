@@ -72,6 +72,11 @@ class CadFitResult:
         Per-iteration estimates of the best start (empty for the baselines).
     starts : int
         Number of initial estimates tried.
+    uncertainty : FitUncertainty or None
+        Articulated ICP: covariances of the fitted part poses (in the part frames of
+        :attr:`T_cam_parts`; scale fixed), object pose (:attr:`T_cam_base`) and joint states
+        (:func:`~ancsh.solvers.icp.articulated.icp_uncertainty`); ``None`` for the baselines, a
+        failed fit, or ``ArticulatedIcpConfig(uncertainty=False)``.
     """
 
     method: str
@@ -86,9 +91,15 @@ class CadFitResult:
     time_s: float = 0.0
     history: tuple = field(default_factory=tuple)
     starts: int = 1
+    uncertainty: object = None
 
     def __post_init__(self):
         object.__setattr__(self, "status", FitStatus(self.status))
+        if self.uncertainty is not None:
+            from ..uncertainty import FitUncertainty
+
+            if not isinstance(self.uncertainty, FitUncertainty):
+                raise ValueError(f"uncertainty: expected a FitUncertainty or None, got {type(self.uncertainty).__name__}")
 
     @property
     def ok(self) -> bool:
@@ -113,6 +124,7 @@ class CadFitResult:
             "iterations": int(self.iterations),
             "time_s": float(self.time_s),
             "starts": int(self.starts),
+            "uncertainty": None if self.uncertainty is None else self.uncertainty.to_dict(),
         }
 
 
