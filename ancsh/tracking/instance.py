@@ -214,9 +214,8 @@ class InstanceTracker:
                 break
         message = "converged" if status == FitStatus.SUCCESS else f"stopped after {iterations} warm iterations"
         uncertainty = None
-        if cfg.uncertainty and iterations:
-            prov = self.provider.at(est, max_distance=gate)
-            uncertainty = icp_uncertainty(prov, points, prov.correspond(points))
+        if cfg.uncertainty and iterations:  # at the fit, on the last iteration's correspondences (model points: still valid)
+            uncertainty = icp_uncertainty(self.provider.at(est, max_distance=gate), points, corr)
         return CadFitResult("articulated_icp_warm", tuple(est.part_poses(self.model)), est.q.copy(), est.T_cam_base, status,
                             message, inlier_ratio=ratio, rmse=rmse, iterations=iterations, time_s=time.perf_counter() - t0,
                             uncertainty=uncertainty)

@@ -42,6 +42,10 @@ def test_fit_cad_writes_result_and_picture(scene, capsys):
     assert result["status"] == "success"
     np.testing.assert_allclose(result["q"], q, atol=1e-3)
     np.testing.assert_allclose(result["T_cam_base"]["translation"], T.translation, atol=1e-3)
+    u = result["uncertainty"]  # standard deviations of the fit (a noise-free rendering: small but not zero)
+    assert u["status"] == "ok" and u["inflation"]["source"] == "raw"
+    assert 0 < u["joints"][0]["state_std"] < 1e-3 and len(u["parts"]) == model.num_parts
+    assert all(p["scale_std"] == 0 for p in u["parts"])  # the model's scale is known
     assert (d / "v.png").stat().st_size > 0
 
 

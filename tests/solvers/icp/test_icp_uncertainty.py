@@ -71,6 +71,7 @@ def test_monte_carlo_spread_matches_the_predicted_standard_deviations(category):
         e, p = np.asarray(err[key], dtype=float), np.asarray(pred[key], dtype=float)  # (trials, items, dims), (trials, items)
         spread = np.sqrt(np.mean(np.sum((e - e.mean(axis=0)) ** 2, axis=2), axis=0) * trials / (trials - 1))
         ratio = spread / np.sqrt(np.mean(p**2, axis=0))
+        print(f"{category} {key}: observed / predicted = {np.round(ratio, 2)}")  # shown with pytest -s
         assert np.all((ratio > 0.6) & (ratio < 1.6)), f"{category} {key}: observed / predicted = {np.round(ratio, 2)}"
 
 
