@@ -30,6 +30,10 @@ camera-frame tangent ``phi`` (``R_true = exp([phi]) R_fit``, radians), the trans
 and the scale; the object pose (root part's rotation, NAOCS origin, metres per NAOCS unit); per
 joint the state (radians / metres), the camera axis (unit vector) and the pivot (metres).
 
+**Other frames.** :meth:`FitUncertainty.composed` maps the pose covariances to frames a constant
+map away (a known model's part frames: ``T_cam_part = T_cam_npcs @ T_npcs_part``), as articulated ICP
+reports them (:func:`ancsh.solvers.icp.articulated.icp_uncertainty`).
+
 A direction that the data do not determine (a degenerate part, collinear points) makes
 ``H`` singular: every quantity that moves along it gets an infinite variance and
 :attr:`FitUncertainty.status` is ``"singular"`` -- never an exception.

@@ -161,6 +161,56 @@ def test_collinear_part_is_singular_not_a_crash():
     assert few.status == "unavailable" and np.all(np.isinf(few.joint_state_std))
 
 
+def test_composition_jacobian_matches_finite_differences():
+    """``[phi, t, s]`` of ``T @ C`` per unit of ``T``'s (the map of :meth:`FitUncertainty.composed`)."""
+    from ancsh.geometry.rotations import exp_so3, log_so3
+    from ancsh.solvers.uncertainty import _composition_jacobian
+
+    rng = np.random.default_rng(0)
+    T = Sim3(exp_so3(rng.normal(size=3)), rng.normal(size=3), 0.7)
+    C = Sim3(exp_so3(rng.normal(size=3)), rng.normal(size=3), 1.3)
+    A = _composition_jacobian(T, C)
+    ref = T @ C
+    for _ in range(5):
+        d = 1e-6 * rng.normal(size=7)
+        out = Sim3(exp_so3(d[:3]) @ T.rotation, T.translation + d[3:6], T.scale + d[6]) @ C
+        got = np.concatenate([log_so3(out.rotation @ ref.rotation.T), out.translation - ref.translation, [out.scale - ref.scale]])
+        np.testing.assert_allclose(got, A @ d, atol=1e-11)
+
+
+def test_composed_maps_every_covariance_and_keeps_unbounded_ones_unbounded():
+    """A collinear part's free rotation makes its composed translation unbounded (lever arm); the other parts'
+    covariances are ``A C A^T``, the correlated ones too; joints are unchanged."""
+    from ancsh.geometry.rotations import exp_so3
+    from ancsh.solvers.uncertainty import _composition_jacobian
+
+    rng = np.random.default_rng(4)
+    prog = Program(ProgramKey(STRUCTURE, "maximal", True, (DataTerm,)))
+    poses = tuple(Sim3(random_rotation(rng), rng.normal(size=3), 0.5) for _ in range(3))
+    moments = []
+    for j, T in enumerate(poses):
+        c = rng.uniform(-0.5, 0.5, size=(30, 3))
+        if j == 2:
+            c = np.outer(np.linspace(-0.5, 0.5, 30), [1.0, 0.2, 0.1])
+        moments.append(part_moments(T.apply(c) + rng.normal(scale=0.01, size=c.shape), c, np.ones(30), 1.0))
+    canonical = CanonicalParameters(np.ones(3), np.zeros((3, 3)), np.eye(3)[:2], np.zeros((2, 3)), np.zeros(2))
+    p = prog.pack(ProgramInputs(1.0, canonical, ProgramStart(poses), tuple(moments)))
+    u = fit_covariance(prog, prog.initial_x(), p, [30, 30, 30])
+    offsets = [Sim3(exp_so3(rng.normal(size=3)), rng.normal(size=3), 2.0) for _ in range(3)]
+    T_obj, C_obj = poses[0], Sim3(np.eye(3), np.ones(3), 1.0)
+    v = u.composed(poses, offsets, T_obj, C_obj)
+    for j in range(2):
+        A = _composition_jacobian(poses[j], offsets[j])
+        np.testing.assert_allclose(v.part_covariances[j], A @ u.part_covariances[j] @ A.T)
+        np.testing.assert_allclose(v.correlated.part_covariances[j], A @ u.correlated.part_covariances[j] @ A.T)
+    np.testing.assert_allclose(v.part_covariances[0, 6, 6], 4.0 * u.part_covariances[0, 6, 6])
+    assert np.isinf(v.rotation_rms_rad[2]) and np.isinf(v.translation_rms_m[2]) and np.isfinite(u.translation_rms_m[2])
+    assert not np.any(np.isnan(v.part_covariances))
+    np.testing.assert_array_equal(v.joint_state_covariance, u.joint_state_covariance)
+    with pytest.raises(ValueError, match="T_cam_parts"):
+        u.composed(poses[:2], offsets[:2], T_obj, C_obj)
+
+
 def test_inflation_scales_the_sigmas_and_raw_recovers_them(fit_case, tmp_path):
     case, corr = _noisy_case(fit_case, 1, 0.01)
     u = fit(case.observation, corr, config=FitConfig(ransac=False)).uncertainty
