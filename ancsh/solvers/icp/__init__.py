@@ -5,8 +5,8 @@ are found by articulated ICP: alternate closest-visible-point correspondences on
 surface (:class:`TemplateProvider`, a :class:`~ancsh.solvers.types.CorrespondenceProvider`)
 and the solver core's constrained solve in reduced coordinates (object pose + joint states,
 limits as bounds), with multi-start (:func:`articulated_icp`; the covariance of its fit:
-:func:`icp_uncertainty`). Rigid per-part and whole-object ICP (:func:`per_part_icp`, :func:`whole_object_icp`) are the baselines;
-:mod:`.evaluate` measures all of them with the AD metric (``ancsh evaluate-cad``).
+:func:`icp_uncertainty`). Rigid per-part and whole-object ICP (:func:`per_part_icp`,
+:func:`whole_object_icp`) are the baselines; :mod:`.evaluate` measures all of them with the AD metric (``ancsh evaluate-cad``).
 
 Importing this package does not import open3d or CasADi; the first fit does.
 """
