@@ -6,7 +6,8 @@ surface (:class:`TemplateProvider`, a :class:`~ancsh.solvers.types.Correspondenc
 and the solver core's constrained solve in reduced coordinates (object pose + joint states,
 limits as bounds), with multi-start (:func:`articulated_icp`; the covariance of its fit:
 :func:`icp_uncertainty`). Rigid per-part and whole-object ICP (:func:`per_part_icp`,
-:func:`whole_object_icp`) are the baselines; :mod:`.evaluate` measures all of them with the AD metric (``ancsh evaluate-cad``).
+:func:`whole_object_icp`) are the baselines; :mod:`.evaluate` measures all of them with the AD
+metric (``ancsh evaluate-cad``).
 
 Importing this package does not import open3d or CasADi; the first fit does.
 """
