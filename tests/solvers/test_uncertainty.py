@@ -141,8 +141,8 @@ def test_noise_free_fit_has_zero_sigma_and_switching_it_off(fit_case):
         FitConfig(uncertainty="yes")
 
 
-def test_collinear_part_is_singular_not_a_crash():
-    """A part seen as a line cannot fix its rotation about that line: ``inf`` there, finite elsewhere."""
+def _collinear_case():
+    """A maximal program of three parts, the third seen as a line: ``(program, poses, p, rng)``."""
     rng = np.random.default_rng(4)
     prog = Program(ProgramKey(STRUCTURE, "maximal", True, (DataTerm,)))
     poses = tuple(Sim3(random_rotation(rng), rng.normal(size=3), 0.5) for _ in range(3))
@@ -154,6 +154,12 @@ def test_collinear_part_is_singular_not_a_crash():
         moments.append(part_moments(T.apply(c) + rng.normal(scale=0.01, size=c.shape), c, np.ones(30), 1.0))
     canonical = CanonicalParameters(np.ones(3), np.zeros((3, 3)), np.eye(3)[:2], np.zeros((2, 3)), np.zeros(2))
     p = prog.pack(ProgramInputs(1.0, canonical, ProgramStart(poses), tuple(moments)))
+    return prog, poses, p, rng
+
+
+def test_collinear_part_is_singular_not_a_crash():
+    """A part seen as a line cannot fix its rotation about that line: ``inf`` there, finite elsewhere."""
+    prog, _, p, _ = _collinear_case()
     u = fit_covariance(prog, prog.initial_x(), p, [30, 30, 30])
     assert u.status == "singular" and "undetermined" in u.message
     assert np.isinf(u.rotation_rms_rad[2]) and np.all(np.isfinite(u.rotation_rms_rad[:2]))
@@ -184,17 +190,7 @@ def test_composed_maps_every_covariance_and_keeps_unbounded_ones_unbounded():
     from ancsh.geometry.rotations import exp_so3
     from ancsh.solvers.uncertainty import _composition_jacobian
 
-    rng = np.random.default_rng(4)
-    prog = Program(ProgramKey(STRUCTURE, "maximal", True, (DataTerm,)))
-    poses = tuple(Sim3(random_rotation(rng), rng.normal(size=3), 0.5) for _ in range(3))
-    moments = []
-    for j, T in enumerate(poses):
-        c = rng.uniform(-0.5, 0.5, size=(30, 3))
-        if j == 2:
-            c = np.outer(np.linspace(-0.5, 0.5, 30), [1.0, 0.2, 0.1])
-        moments.append(part_moments(T.apply(c) + rng.normal(scale=0.01, size=c.shape), c, np.ones(30), 1.0))
-    canonical = CanonicalParameters(np.ones(3), np.zeros((3, 3)), np.eye(3)[:2], np.zeros((2, 3)), np.zeros(2))
-    p = prog.pack(ProgramInputs(1.0, canonical, ProgramStart(poses), tuple(moments)))
+    prog, poses, p, rng = _collinear_case()
     u = fit_covariance(prog, prog.initial_x(), p, [30, 30, 30])
     offsets = [Sim3(exp_so3(rng.normal(size=3)), rng.normal(size=3), 2.0) for _ in range(3)]
     T_obj, C_obj = poses[0], Sim3(np.eye(3), np.ones(3), 1.0)
