@@ -36,7 +36,8 @@ def _rms(a):
 def test_monte_carlo_spread_matches_the_predicted_standard_deviations(category):
     """iid point noise (2 mm per coordinate), 600 of the rendered points per trial: the spread of repeated fits
     (RMS deviation from their mean) of the joint states, the part poses (in the part frames ICP reports) and the
-    base pose against the RMS of the predicted standard deviations, within a factor 0.6-1.6.
+    base pose against the RMS of the predicted standard deviations, within a factor 0.6-2 (measured: 0.93-1.24 for
+    the drawer, 0.98-1.55 for the laptop; a point-to-point covariance at fixed matches was up to 6x over-confident).
 
     The spread is taken about the mean: closest-point matching of noisy points near a part's edges biases the
     fit slightly (the laptop's translation along its hinge by about its standard deviation), which a covariance
@@ -71,7 +72,7 @@ def test_monte_carlo_spread_matches_the_predicted_standard_deviations(category):
         spread = np.sqrt(np.mean(np.sum((e - e.mean(axis=0)) ** 2, axis=2), axis=0) * trials / (trials - 1))
         ratio = spread / np.sqrt(np.mean(p**2, axis=0))
         print(f"{category} {key}: observed / predicted = {np.round(ratio, 2)}")  # shown with pytest -s
-        assert np.all((ratio > 0.6) & (ratio < 1.6)), f"{category} {key}: observed / predicted = {np.round(ratio, 2)}"
+        assert np.all((ratio > 0.6) & (ratio < 2.0)), f"{category} {key}: observed / predicted = {np.round(ratio, 2)}"
 
 
 def test_a_part_without_points_is_singular_not_an_error():
