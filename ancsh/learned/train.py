@@ -616,7 +616,7 @@ def plot_history(history: list[dict], path, title: str = "") -> None:
 
     steps = [r["step"] for r in history]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for i, k in enumerate(("total", *LOSS_NAMES)):
+    for i, k in enumerate(("total", *LOSS_NAMES, "pose")):
         for prefix, style in (("train_", "-"), ("val_", "--")):  # one colour per loss: solid train, dashed val
             ys = [r.get(prefix + k, np.nan) for r in history]
             if np.any(np.isfinite(ys)) and np.nanmax(ys) > 0:
@@ -631,7 +631,8 @@ def plot_history(history: list[dict], path, title: str = "") -> None:
             axes[1].plot(steps, ys, label=k)
     axes[1].set_xlabel("step")
     axes[1].set_title("validation metrics")
-    axes[1].legend(fontsize=7)
+    if axes[1].lines:  # none without validation frames
+        axes[1].legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
