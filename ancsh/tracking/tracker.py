@@ -146,9 +146,9 @@ class TrackerConfig:
         Matches farther than this many object diagonals get weight 0, ``> 0``.
     carried_uncertainty : bool
         Compute the fit covariances (``FitConfig.uncertainty``) of carried frames (on their last
-        solve only; intermediate solves never do). Default ``False``: carried frames are the cheap
-        ones and their covariance (from carried, template-quantised correspondences) is not the
-        calibrated one; network frames keep ``fit.uncertainty``.
+        solve only; intermediate solves never do). Default ``False``: the covariance took about a
+        fifth of a carried frame's time here; network frames keep ``fit.uncertainty``, and carried
+        frames then report no ``joint_states_std``.
     predict_from : str
         Where the constant-velocity prediction (warm start and temporal prior) of a carried frame
         takes its *object pose*: ``"network"`` (default) from the last two network frames of the track,
