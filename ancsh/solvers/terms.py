@@ -274,13 +274,15 @@ class PreviousSolution:
 
     @classmethod
     def constant_velocity(cls, last: "PreviousSolution", before: "PreviousSolution | None", *,
-                          damping: float = 1.0) -> "PreviousSolution":
+                          damping: float = 1.0, ahead: float = 1.0) -> "PreviousSolution":
         """The prediction of a constant-velocity model from the last two solutions (weights of ``last``).
 
         ``T_pred = dT^damping T_last`` with ``dT = T_last T_before^-1`` (camera-frame motion of the
         object between the two frames; the rotation scaled along its geodesic, the scale kept), and
         ``q_pred = q_last + damping (q_last - q_before)``. Without ``before`` it is ``last``
-        (zero velocity).
+        (zero velocity). ``ahead`` predicts that many intervals ``before -> last`` past ``last``
+        (the exponent becomes ``damping * ahead``): e.g. ``2 / 3`` for the second frame after
+        ``last`` when ``before`` is 3 frames before ``last`` (tracking between network frames).
 
         Parameters
         ----------
@@ -288,10 +290,13 @@ class PreviousSolution:
             The solutions of the last and the second-to-last frame.
         damping : float
             In ``[0, 1]``: 0 = zero-velocity prior, 1 = full constant velocity.
+        ahead : float
+            Intervals ``before -> last`` to predict past ``last``, ``>= 0`` (default 1: the next
+            frame of an evenly spaced sequence).
         """
         from ..geometry.rotations import exp_so3, log_so3
 
-        damping = check_number(damping, "damping", minimum=0.0, maximum=1.0)
+        damping = check_number(damping, "damping", minimum=0.0, maximum=1.0) * check_number(ahead, "ahead", minimum=0.0)
         if before is None or damping == 0.0:
             return last
         if len(before.joint_states) != len(last.joint_states):

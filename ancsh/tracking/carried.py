@@ -55,6 +55,8 @@ class CarriedTemplate:
             keep_labels.append(np.full(int(sel.sum()), j, dtype=np.int64))
         self.npcs = np.concatenate(npcs)
         self.labels = np.concatenate(keep_labels)
+        # the template is grouped by part: part j is rows bounds[j]:bounds[j + 1]
+        self._bounds = np.concatenate([[0], np.cumsum([len(x) for x in keep_labels])])
 
     @property
     def num_points(self) -> int:
@@ -78,14 +80,14 @@ class CarriedTemplate:
         gate = check_positive(gate, "gate")
         if len(T_cam_npcs) != self.correspondences.num_parts:
             raise ValueError(f"T_cam_npcs: expected {self.correspondences.num_parts} part poses, got {len(T_cam_npcs)}")
-        posed = np.empty_like(self.npcs)
-        for j, T in enumerate(T_cam_npcs):
-            sel = self.labels == j
-            posed[sel] = T.apply(self.npcs[sel])
-        d, idx = cKDTree(posed).query(pts, k=1)
+        b = self._bounds
+        posed = np.concatenate([T.apply(self.npcs[b[j]:b[j + 1]]) for j, T in enumerate(T_cam_npcs)])
+        # one query per tree: the unbalanced, uncompacted build is the cheaper one here
+        d, idx = cKDTree(posed, balanced_tree=False, compact_nodes=False).query(pts, k=1)
+        labels, npcs = self.labels[idx], self.npcs[idx]
         c = self.correspondences
         return Correspondences(
-            part_labels=self.labels[idx], npcs=self.npcs[idx], npcs_scale=c.npcs_scale,
+            part_labels=labels, npcs=npcs, npcs_scale=c.npcs_scale,
             npcs_translation=c.npcs_translation, joint_types=c.joint_types, joint_parents=c.joint_parents,
             joint_children=c.joint_children, joint_axes_naocs=c.joint_axes_naocs, joint_pivots_naocs=c.joint_pivots_naocs,
             weights=(d <= gate).astype(np.float64), npcs_extents=c.npcs_extents, joint_limits=c.joint_limits,

@@ -10,7 +10,8 @@
 2. **Correspondences**: the provider (the network) runs on every ``network_every``-th frame; in
    between, correspondences are carried by the previous fit (:class:`~ancsh.tracking.carried.CarriedTemplate`:
    nearest points of the last network frame's surface, in the fit's NPCS), re-matched
-   ``carried_iterations`` times.
+   ``carried_iterations`` times (default once: one match and one warm solve, without the
+   covariances); their object pose is predicted from the network frames (``predict_from``).
 3. **Lost and re-initialised**: a warm fit that fails its solve or a plausibility check
    (:func:`check_fit`: too few inliers -- the points no longer lie where the object was --,
    the category's size range, a large residual) is retried cold on the same frame (network +
@@ -24,13 +25,14 @@ Per-frame statuses (:class:`TrackStatus`): ``initialised`` (the first cold fit),
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
 
-from ..geometry._checks import check_choice, check_int, check_number
+from ..geometry._checks import check_bool, check_choice, check_int, check_number
 from ..geometry.transforms import Sim3
 from ..solvers.fit import FORMULATIONS, FitConfig, fit
 from ..solvers.terms import PreviousSolution
@@ -141,9 +143,25 @@ class TrackerConfig:
     velocity : float
         ``damping`` of the constant-velocity prediction, in ``[0, 1]`` (0: zero velocity).
     carried_iterations : int
-        Closest-point matches and solves per frame on carried correspondences, ``>= 1``.
+        Closest-point matches and solves per frame on carried correspondences, ``>= 1`` (default
+        1: one match and one warm solve; 3 measured no more accurate on noisy frames at 3x the
+        cost, ``docs/results/tracking.md``).
     carried_gate : float
         Matches farther than this many object diagonals get weight 0, ``> 0``.
+    carried_uncertainty : bool
+        Compute the fit covariances (``FitConfig.uncertainty``) of carried frames (on their last
+        solve only; intermediate solves never do). Default ``False``: the covariance took about a
+        fifth of a carried frame's time here; network frames keep ``fit.uncertainty``, and carried
+        frames then report no ``joint_states_std``.
+    predict_from : str
+        Where the constant-velocity prediction (warm start and temporal prior) of a carried frame
+        takes its *object pose*: ``"network"`` (default) from the last two network frames of the track,
+        extrapolated by the frames since (``ahead`` of
+        :meth:`~ancsh.solvers.terms.PreviousSolution.constant_velocity`); ``"frames"`` from the last two
+        fits whatever their source. Joint states, and network frames, always use the last two fits.
+        (Measured on realistic oracle laptop frames: carried-frame translation error 0.015 vs 0.031
+        object diagonals; the carried ICP step hardly moves a thin part tangentially, so the prediction's
+        error stays, and two carried fits are a noisier velocity than two network fits.)
     min_points : int
         Fewer observed points: the frame is lost (no fit is tried).
     max_relative_residual : float
@@ -159,8 +177,10 @@ class TrackerConfig:
     temporal_weight: float = 0.01
     temporal_state_weight: float = 0.01
     velocity: float = 1.0
-    carried_iterations: int = 3
+    carried_iterations: int = 1
     carried_gate: float = 0.1
+    carried_uncertainty: bool = False
+    predict_from: str = "network"
     min_points: int = 100
     max_relative_residual: float = 0.1
     fit: FitConfig = field(default_factory=FitConfig)
@@ -174,6 +194,8 @@ class TrackerConfig:
         for name in ("temporal_weight", "temporal_state_weight"):
             check_number(getattr(self, name), name, minimum=0.0)
         check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
+        check_bool(self.carried_uncertainty, "carried_uncertainty")
+        check_choice(self.predict_from, "predict_from", ("network", "frames"))
         for name in ("carried_gate", "max_relative_residual"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
         if not isinstance(self.fit, FitConfig):
@@ -200,8 +222,6 @@ def previous_solution(result: FitResult, correspondences, weight: float, state_w
 def predicted_fit(result: FitResult, correspondences, prediction: PreviousSolution) -> FitResult:
     """``result`` with its part poses moved to a predicted object pose and joint states (forward
     kinematics of the reduced program with ``correspondences``' canonical parameters), as a warm start."""
-    import dataclasses
-
     from ..solvers.program import ProgramKey, get_program
     from ..solvers.terms import CanonicalParameters, KinematicStructure, ProgramInputs, ProgramStart
 
@@ -224,7 +244,6 @@ def check_fit(result: FitResult, points_cam, correspondences, category: str | No
     fitted object: a part (with at least 20 points) whose median distance between its points and
     their fitted NPCS exceeds ``max_relative_residual`` object diagonals is ``large_residual``.
     """
-    import dataclasses
 
     from ..learned.predict import check_plausibility, part_quality
 
@@ -269,6 +288,9 @@ class _Track:
     since_network: int
     prior: PreviousSolution
     before: PreviousSolution | None = None
+    anchor: PreviousSolution | None = None  # the solution of the last network frame
+    anchor_before: PreviousSolution | None = None  # and of the network frame before it (same track)
+    anchor_gap: int = 1  # frames between the two
 
 
 class CategoryTracker:
@@ -342,34 +364,47 @@ class CategoryTracker:
         self._advance(observation, result, corr, True)
         return self._frame(index, status, why + "cold fit (network + RANSAC)", result, "network", t0)
 
+    def _prediction(self) -> PreviousSolution:
+        """The constant-velocity prediction of the next frame (see ``TrackerConfig.predict_from``)."""
+        cfg, tr = self.config, self._track
+        prior = PreviousSolution.constant_velocity(tr.prior, tr.before, damping=cfg.velocity)
+        carried = tr.since_network + 1 < cfg.network_every
+        if cfg.predict_from == "network" and carried and tr.anchor_before is not None:
+            anchored = PreviousSolution.constant_velocity(tr.anchor, tr.anchor_before, damping=cfg.velocity,
+                                                          ahead=(tr.since_network + 1) / tr.anchor_gap)
+            prior = dataclasses.replace(prior, T_cam_naocs=anchored.T_cam_naocs)
+        return prior
+
     def _warm(self, observation: Observation):
         """The warm fit of a frame: ``(result, correspondences, source)``."""
         cfg, tr = self.config, self._track
-        prior = PreviousSolution.constant_velocity(tr.prior, tr.before, damping=cfg.velocity)
+        network = tr.since_network + 1 >= cfg.network_every
+        prior = self._prediction()
         use_prior = cfg.temporal_weight > 0 or cfg.temporal_state_weight > 0
         start = predicted_fit(tr.result, tr.correspondences, prior)
         kwargs = dict(warm_start=start, previous=prior if use_prior else None)
-        if tr.since_network + 1 >= cfg.network_every:
+        if network:
             corr = self.provider.correspond(observation)
             result = fit(observation, corr, cfg.formulation, cfg.solver, cfg.fit, rng=self.rng, **kwargs)
             return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "network"
         result, corr = start, tr.correspondences
         L = float(np.median([T.scale / g for T, g in zip(result.T_cam_npcs, corr.npcs_scale)]))
         iterations = 0
-        for _ in range(cfg.carried_iterations):
+        quick = dataclasses.replace(cfg.fit, uncertainty=False)
+        for i in range(cfg.carried_iterations):
             corr = tr.template.correspond(observation.points_cam, result.T_cam_npcs, cfg.carried_gate * L)
             if np.count_nonzero(corr.weights) < cfg.min_points:
                 return FitResult.failure(FitStatus.TOO_FEW_INLIERS, f"{np.count_nonzero(corr.weights)} points lie within "
                                          f"{cfg.carried_gate} object diagonals of the tracked object", formulation=cfg.formulation,
                                          solver="none", num_points=observation.num_points), corr, "carried"
-            result = fit(observation, corr, cfg.formulation, cfg.solver, cfg.fit, rng=self.rng,
+            last = i == cfg.carried_iterations - 1
+            result = fit(observation, corr, cfg.formulation, cfg.solver,
+                         cfg.fit if last and cfg.carried_uncertainty else quick, rng=self.rng,
                          **{**kwargs, "warm_start": result})
             iterations += result.iterations
             if not result.ok:
                 break
         if result.ok:
-            import dataclasses
-
             result = dataclasses.replace(result, iterations=iterations)
         return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "carried"
 
@@ -383,9 +418,12 @@ class CategoryTracker:
         self._num_joints = len(result.joint_states)
         if network or tr is None:
             template, since = CarriedTemplate(observation.points_cam, corr, result), 0
+            anchor, anchor_before, gap = prior, None if tr is None else tr.anchor, 1 if tr is None else tr.since_network + 1
         else:
             template, since = tr.template, tr.since_network + 1
-        self._track = _Track(result, corr, template, since, prior, None if tr is None else tr.prior)
+            anchor, anchor_before, gap = tr.anchor, tr.anchor_before, tr.anchor_gap
+        self._track = _Track(result, corr, template, since, prior, None if tr is None else tr.prior, anchor, anchor_before,
+                             gap)
 
     def _frame(self, index, status, message, result, source, t0) -> TrackedFrame:
         if getattr(result, "uncertainty", None) is not None and self.category is not None and hasattr(self.provider, "network"):

@@ -106,12 +106,13 @@ def test_single_frame_configuration_json_is_unchanged_by_the_sequence_option():
 # --------------------------------------------------------------------------------------------
 def test_tracker_recovers_the_ground_truth_of_a_seeded_sequence():
     """Scenario: a noise-free laptop sequence with exact correspondences on network frames (k = 3) and
-    correspondences carried by the previous fit in between, no temporal prior: every frame is tracked
-    within a degree and a half, the provider runs on every third frame only."""
+    correspondences carried by the previous fit in between (three matches per carried frame, the velocity of
+    the last two frames: exact data, where the carried ICP has to converge), no temporal prior: every frame is
+    tracked within a degree and a half, the provider runs on every third frame only."""
     gen = _generator(length=8)
     oracle = FrameOracle()
-    tracker = CategoryTracker(oracle, TrackerConfig(network_every=3, temporal_weight=0.0, temporal_state_weight=0.0),
-                              category="laptop")
+    tracker = CategoryTracker(oracle, TrackerConfig(network_every=3, temporal_weight=0.0, temporal_state_weight=0.0,
+                                                    carried_iterations=3, predict_from="frames"), category="laptop")
     statuses, sources = [], []
     for i in range(8):
         fr = gen.frame(i)
@@ -212,6 +213,67 @@ def test_tracker_reports_lost_frames_and_reinitialises_after_a_jump():
     np.testing.assert_allclose(out[7].result.T_cam_npcs[0].translation, oracle.frame.gt.T_cam_npcs[0].translation, atol=0.01)
 
 
+def test_carried_frames_are_one_cheap_solve_predicted_from_the_network_frames():
+    """Scenario: a noisy laptop sequence, exact correspondences every third frame, the default settings:
+    a carried frame is one match + one warm solve without covariances (network frames keep them, and
+    ``carried_uncertainty`` restores them), and the object pose of a carried frame is predicted from the
+    last two network frames (the anchors kept by the track, 3 frames apart)."""
+    from ancsh.solvers.terms import PreviousSolution
+
+    gen = _generator(length=8, noise=True)
+    oracle = FrameOracle()
+    tracker = CategoryTracker(oracle, TrackerConfig(network_every=3), category="laptop")
+    costly = CategoryTracker(FrameOracle(), TrackerConfig(network_every=3, carried_uncertainty=True), category="laptop")
+    network = []
+    for i in range(5):
+        fr = gen.frame(i)
+        oracle.frame = costly.provider.frame = fr
+        if i == 4:  # the prediction of the carried frame 4: network frames 0 and 3, one third of their interval ahead
+            tr = tracker._track
+            expected = PreviousSolution.constant_velocity(network[1], network[0], ahead=1 / 3).T_cam_naocs
+            assert tr.anchor_gap == 3 and tr.since_network == 0
+            predicted = tracker._prediction()
+            np.testing.assert_allclose(predicted.T_cam_naocs.translation, expected.translation, atol=1e-12)
+            np.testing.assert_allclose(predicted.T_cam_naocs.rotation, expected.rotation, atol=1e-12)
+        out, other = tracker.step(Observation(fr.points)), costly.step(Observation(fr.points))
+        assert out.status in (TrackStatus.INITIALISED, TrackStatus.TRACKED), out.message
+        if out.source == "network":
+            assert out.result.uncertainty is not None and other.result.uncertainty is not None
+            network.append(tracker._track.anchor)
+        else:
+            assert out.source == "carried" and out.result.uncertainty is None
+            assert other.result.uncertainty is not None
+        rot, trans, state = _errors(out.result, fr)
+        assert rot < 5 and trans < 0.05 and state < 5, (i, rot, trans, state)
+    assert [len(network), oracle.calls] == [2, 2]
+
+
+def test_constant_velocity_prediction_ahead_of_the_last_interval():
+    """Scenario: an object turning about a fixed axis at a constant rate and moving at a constant velocity:
+    the prediction ``ahead`` = 2 of the last interval is the pose two intervals on, ``ahead`` = 1/3 a third of
+    one; ``ahead`` = 0 is the last solution, a negative ``ahead`` is refused."""
+    from ancsh.geometry.rotations import exp_so3
+    from ancsh.geometry.transforms import Sim3
+    from ancsh.solvers.terms import PreviousSolution
+
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    v, w = np.array([0.01, 0.02, -0.005]), 0.05
+
+    def at(t):
+        return PreviousSolution(Sim3(exp_so3(w * t * axis), np.array([0.1, 0.0, 1.0]) + v * t, 0.4), np.array([0.2 + 0.01 * t]), 1.0)
+
+    for ahead in (2.0, 1.0 / 3.0):
+        pred = PreviousSolution.constant_velocity(at(3.0), at(0.0), ahead=ahead)
+        truth = at(3.0 + 3.0 * ahead)
+        np.testing.assert_allclose(pred.T_cam_naocs.rotation, truth.T_cam_naocs.rotation, atol=1e-12)
+        np.testing.assert_allclose(pred.T_cam_naocs.translation, truth.T_cam_naocs.translation, atol=1e-12)
+        np.testing.assert_allclose(pred.joint_states, truth.joint_states, atol=1e-12)
+    last = at(3.0)
+    assert PreviousSolution.constant_velocity(last, at(0.0), ahead=0.0) is last
+    with pytest.raises(ValueError, match="ahead"):
+        PreviousSolution.constant_velocity(at(3.0), at(0.0), ahead=-1.0)
+
+
 def test_tracked_frame_json_is_plain():
     gen = _generator(length=2)
     oracle = FrameOracle()
@@ -283,6 +345,32 @@ def test_instance_tracker_follows_a_known_model_from_a_known_start():
         assert out.result.uncertainty.status == "ok", out.result.uncertainty.message
         assert 0 < rec["joint_states_std"][0] < 0.1 and len(rec["part_poses_std"]) == model.num_parts
     assert tracker.step(np.zeros((0, 3))).status == TrackStatus.LOST
+
+
+def test_instance_tracker_adds_iterations_only_to_a_frame_it_does_not_yet_explain():
+    """Scenario: one warm frame of a known laptop from a start 2 cm off: with the default acceptance the
+    frame is explained after the ``iterations`` (2) and stops there; when no share of points is enough
+    (``accept_inliers`` = 1, with 4 stray points half a metre behind) it runs the ``extra_iterations`` as well
+    (a tolerance nothing meets: no frame stops as converged)."""
+    import time
+
+    from ancsh.solvers.icp.template import ArticulatedPose
+    from ancsh.tracking import InstanceTrackerConfig
+    from ancsh.geometry.transforms import Sim3
+
+    gen = _generator(length=2, noise=True)
+    fr = gen.frame(1)
+    model, _ = gen.instance(fr.instance_index)
+    T = fr.T_cam_base
+    start = ArticulatedPose(Sim3(T.rotation, T.translation + np.array([0.02, 0.0, 0.0])), fr.joint_states_abs)
+    used = []
+    for accept in (0.6, 1.0):
+        tracker = InstanceTracker(model, InstanceTrackerConfig(accept_inliers=accept, tolerance=1e-9))
+        points = np.concatenate([fr.points[:396], fr.points[:4] + [0.0, 0.0, 0.5]])
+        result = tracker._warm(points, start, time.perf_counter())
+        used.append(result.iterations)
+    cfg = InstanceTrackerConfig()
+    assert used == [cfg.iterations, cfg.iterations + cfg.extra_iterations]
 
 
 # --------------------------------------------------------------------------------------------
