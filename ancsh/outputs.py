@@ -58,6 +58,14 @@ def report_path(out, *, update_docs: bool, docs_name: str, command: str) -> Path
     return fresh_output_dir(command) / docs_name
 
 
+def output_flags(out, *, update_docs: bool) -> list[str]:
+    """The words of a reproducing command line that say where the report went (the inputs of
+    :func:`report_path`): ``["--out", out]``, ``["--update-docs"]`` or none."""
+    if out is not None:
+        return ["--out", str(out)]
+    return ["--update-docs"] if update_docs else []
+
+
 def file_sha256(path) -> str:
     """SHA-256 hex digest of a file's bytes."""
     import hashlib

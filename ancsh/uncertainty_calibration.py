@@ -46,6 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .outputs import output_flags
+
 __all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "coverage", "error_records",
            "fit_inflation", "measure", "normalised_errors", "register", "run", "summarize", "write_report"]
 
@@ -502,10 +504,7 @@ def _command(args) -> str:
         parts.append(f"--seed {args.seed}")
     if args.calibration_seed != 1001:
         parts.append(f"--calibration-seed {args.calibration_seed}")
-    if args.out is not None:
-        parts.append(f"--out {args.out}")
-    elif args.update_docs:
-        parts.append("--update-docs")
+    parts += output_flags(args.out, update_docs=args.update_docs)
     if args.install:
         parts.append("--install")
     return " ".join(parts)

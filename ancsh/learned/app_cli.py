@@ -10,6 +10,8 @@ import json
 import shlex
 from pathlib import Path
 
+from ..outputs import output_flags
+
 
 def register(sub) -> None:
     from ..executors import add_executor_arguments
@@ -321,7 +323,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
     parts = ["calibrate", "--category", args.category, "--frames", str(args.frames)]
     parts += ["--seed", str(args.seed)] if args.seed != 7 else []
-    parts += ["--out", str(args.out)] if args.out is not None else ["--update-docs"] if args.update_docs else []
+    parts += output_flags(args.out, update_docs=args.update_docs)
     parts += ["--install"] if args.install else []
     paths = write_report(args.category, calibration, rel, out, command=_command(parts))
     print(f"good fits {100 * rel['good_rate']:.0f}%, Brier {rel['brier']:.4f} (constant {rel['brier_constant']:.4f}); "

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import output_flags
+
 __all__ = ["defaults_from", "refinement_helps", "register", "refinement_rows", "run_template_refinement", "write_summary"]
 
 
@@ -51,10 +53,7 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--frames", str(args.frames)]
     if args.real_frames != 50:
         parts += ["--real-frames", str(args.real_frames)]
-    if args.out is not None:
-        parts += ["--out", str(args.out)]
-    elif args.update_docs:
-        parts.append("--update-docs")
+    parts += output_flags(args.out, update_docs=args.update_docs)
     if args.install_defaults:
         parts.append("--install-defaults")
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)

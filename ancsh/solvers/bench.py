@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry._checks import check_bool, check_int
+from ..outputs import output_flags
 
 __all__ = [
     "BenchConfig",
@@ -695,10 +696,7 @@ def _command(args) -> str:
             parts.append(f"--{flag.replace('_', '-')} {value}")
     if args.seed:
         parts.append(f"--seed {args.seed}")
-    if args.out is not None:
-        parts.append(f"--out {args.out}")
-    elif args.update_docs:
-        parts.append("--update-docs")
+    parts += output_flags(args.out, update_docs=args.update_docs)
     return " ".join(parts)
 
 

@@ -22,6 +22,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..outputs import output_flags
+
 __all__ = ["BenchConfig", "register", "run_benchmark", "summarize", "write_report"]
 
 AD_THRESHOLD = 0.1
@@ -436,10 +438,7 @@ def _command(args) -> str:
     for key, default in defaults.items():
         if getattr(args, key) != default:
             parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
-    if args.out is not None:
-        parts.append(f"--out {args.out}")
-    elif args.update_docs:
-        parts.append("--update-docs")
+    parts += output_flags(args.out, update_docs=args.update_docs)
     return " ".join(parts)
 
 
