@@ -111,7 +111,8 @@ class FitConfig:
         Backend tolerance.
     uncertainty : bool
         Compute :attr:`FitResult.uncertainty` (Gauss-Newton covariances from the program's
-        Jacobian at the solution, :mod:`ancsh.solvers.uncertainty`; well under a millisecond).
+        Jacobian at the solution, :mod:`ancsh.solvers.uncertainty`; about 5 ms on a ~50 ms fit,
+        ``docs/results/uncertainty_calibration.md``).
     """
 
     ransac: bool = True
