@@ -119,6 +119,11 @@ def run_weights(args: argparse.Namespace) -> int:
         return "-" if v is None or (isinstance(v, float) and v != v) else format(v, spec)
 
     rows = weights_summary()
+
+    def train_minutes(r):  # "parent + own" for a fine-tuned file
+        own = f(r["train_min"], ".0f")
+        return own if not r["parent_min"] else f"{r['parent_min']:.0f} + {own} (fine-tuned from step {r['parent_step']})"
+
     lines = [
         "| weights | kind | parts | size (MB) | step shipped / trained | training (min) | test frames | seg. acc. "
         "(majority) | NPCS error (all-zero) | assoc. acc. | joint-axis error (°) |",
@@ -127,7 +132,7 @@ def run_weights(args: argparse.Namespace) -> int:
     for r in rows:
         lines.append(
             f"| `{r['name']}.pt` | {r['kind']} | {r['parts']} | {r['size_mb']:.1f} | {f(r['step'], 'd')} / "
-            f"{f(r['trained_steps'], 'd')} | {f(r['train_min'], '.0f')} | {f(r['test_frames'], 'd')} | "
+            f"{f(r['trained_steps'], 'd')} | {train_minutes(r)} | {f(r['test_frames'], 'd')} | "
             f"{f(r['seg_acc'], '.3f')} ({f(r['seg_acc_majority'], '.3f')}) | {f(r['npcs_err'], '.4f')} "
             f"({f(r['npcs_err_zero'], '.3f')}) | {f(r['assoc_acc'], '.3f')} | {f(r['axis_err_deg'], '.2f')} |"
         )

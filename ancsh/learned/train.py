@@ -339,6 +339,7 @@ class Trainer:
         self.device = self.dist.device
         self.model = build_network(config.kind, train.num_parts, train.num_joints, **config.network_kwargs())
         self.init_sha256: str | None = None  # of config.init_weights, when given
+        self.init_record: dict | None = None  # weights.parent_record of config.init_weights, kept in checkpoints
         if config.init_weights:
             self._initialise_from(config.init_weights, train)
         self.model = self.model.to(self.device)
@@ -367,7 +368,7 @@ class Trainer:
 
     def _initialise_from(self, source: str, train: TrainingArrays) -> None:
         """Copy the parameters of ``source`` (``config.init_weights``) into the new model, refusing another structure."""
-        from .weights import load_network
+        from .weights import load_network, parent_record
 
         c = self.config
         loaded = load_network(c.category if source == "builtin" else source, kind=c.kind)
@@ -380,6 +381,7 @@ class Trainer:
                              f"{train.num_parts} parts and {['revolute' if r else 'prismatic' for r in train.revolute]}")
         self.model.load_state_dict(loaded.model.state_dict())
         self.init_sha256 = loaded.sha256
+        self.init_record = parent_record(loaded)
 
     # --- schedule ------------------------------------------------------------------
     def batch_indices(self, step: int) -> np.ndarray:
@@ -544,6 +546,7 @@ class Trainer:
             "revolute": self.train_arrays.revolute.tolist(),
             "joint_parents": self.train_arrays.joint_parents.tolist(),
             "joint_children": self.train_arrays.joint_children.tolist(),
+            "init": self.init_record,
         }
 
     def save_checkpoint(self, path) -> Path:
@@ -591,6 +594,9 @@ class Trainer:
             self.history = list(ck["history"])
             self.best_val = float(ck["best_val"])
             self._acc, self._acc_n = dict(ck["acc"][0]), int(ck["acc"][1])
+            if ck.get("init") is not None:  # the parent as it was when the run started, not today's file
+                self.init_record = dict(ck["init"])
+                self.init_sha256 = self.init_record.get("sha256")
         except (ValueError, TypeError, KeyError, IndexError, RuntimeError) as exc:
             raise ValueError(f"--resume: {path} is not a usable checkpoint: {str(exc).splitlines()[0][:200]}") from None
         self._saved_step = self.step

@@ -5,7 +5,12 @@ A weights file (``ancsh/weights/<category>.pt``, package data, nothing is downlo
 
     {"format": 1, "kind", "category", "config" (TrainConfig dict), "num_parts",
      "revolute" (K bools), "joint_parents", "joint_children", "state_dict",
-     "step", "metrics" (dict of held-out scores)}
+     "step", "metrics" (dict of held-out scores), "lineage"}
+
+``lineage`` is ``None`` for a network trained from scratch; for one fine-tuned from other weights
+(``TrainConfig.init_weights``) it is :func:`parent_record` of those weights: their SHA-256, step and
+training wall time (their own run plus their lineage's), so the time behind a shipped file stays
+known after the parent file is replaced.
 
 It omits the optimiser state, so it is a few MB. A full training checkpoint (``last.pt`` /
 ``best.pt`` of a run) is accepted too.
@@ -23,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
-           "learning_curve_fit", "weights_summary", "read_torch_file"]
+           "learning_curve_fit", "weights_summary", "read_torch_file", "parent_record", "training_seconds"]
 
 FORMAT = 1
 WEIGHTS_DIR = Path(__file__).resolve().parents[1] / "weights"
@@ -59,6 +64,7 @@ class LoadedNetwork:
     source: str
     step: int | None = None
     sha256: str | None = None
+    lineage: dict | None = None
 
     @property
     def kind(self) -> str:
@@ -151,6 +157,7 @@ def export_weights(checkpoint, out_path, *, metrics: dict | None = None) -> Path
         "state_dict": {k: v.clone() for k, v in ck["model"].items()},
         "step": int(ck["step"]),
         "metrics": dict(metrics or {}),
+        "lineage": _checkpoint_lineage(ck),
     }
     out = Path(out_path)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -158,6 +165,52 @@ def export_weights(checkpoint, out_path, *, metrics: dict | None = None) -> Path
     torch.save(data, tmp)
     tmp.replace(out)
     return out
+
+
+def training_seconds(path) -> float:
+    """Training wall time (s) behind a weights file: its run's history plus its lineage's.
+
+    The run's time is the last ``elapsed_s`` of ``<stem>_history.csv`` beside ``path`` (0 without
+    one); the lineage's is the ``train_s`` recorded in the file (:func:`parent_record`).
+    """
+    import csv
+
+    path = Path(path)
+    own = 0.0
+    history = path.with_name(path.stem + "_history.csv")
+    if history.is_file():
+        with open(history, newline="") as f:
+            rows = list(csv.DictReader(f))
+        own = float(rows[-1]["elapsed_s"]) if rows else 0.0
+    lineage = read_torch_file(path, argument="weights").get("lineage") or {}
+    return own + float(lineage.get("train_s", 0.0))
+
+
+def parent_record(loaded: "LoadedNetwork") -> dict:
+    """What a fine-tuned network keeps of the weights it started from (``TrainConfig.init_weights``).
+
+    Returns ``{"source": file name, "sha256", "step", "train_s"}``; ``train_s`` is
+    :func:`training_seconds` of the parent (its run plus its own lineage), in seconds of wall time.
+    """
+    return {"source": Path(loaded.source).name, "sha256": loaded.sha256, "step": loaded.step,
+            "train_s": training_seconds(loaded.source)}
+
+
+def _checkpoint_lineage(ck: dict) -> dict | None:
+    """The lineage of a checkpoint: its recorded parent, else (older checkpoints) one derived now.
+
+    A checkpoint of a run started from ``init_weights="builtin"`` before parents were recorded
+    gets the shipped weights of its category as they are at export (marked ``"derived_at_export"``):
+    right as long as those were not replaced since the run started.
+    """
+    if ck.get("init") is not None:
+        return dict(ck["init"])
+    source = ck["config"].get("init_weights", "")
+    if not source:
+        return None
+    cfg = ck["config"]
+    loaded = load_network(cfg["category"] if source == "builtin" else source, kind=cfg["kind"])
+    return {**parent_record(loaded), "derived_at_export": True}
 
 
 def _structure(ck: dict) -> tuple[list, list]:
@@ -225,6 +278,7 @@ def load_network(source, *, kind: str = "ancsh") -> LoadedNetwork:
         source=str(path),
         step=None if ck.get("step") is None else int(ck["step"]),
         sha256=file_sha256(path),
+        lineage=ck.get("lineage") or ck.get("init"),
     )
 
 
@@ -283,7 +337,8 @@ def weights_summary() -> list[dict]:
     """One row per shipped weights file: kind, category, size, training step and wall time, held-out scores.
 
     The training wall time is the last ``elapsed_s`` of the ``<name>_history.csv`` shipped beside
-    the weights (``nan`` without it); the scores are those stored in the file (held-out test frames,
+    the weights (``nan`` without it), ``parent_min`` that of the weights a fine-tuned file started from
+    (its lineage, 0 for a network trained from scratch); the scores are those stored in the file (held-out test frames,
     beside the trivial baselines: majority label, all-zero NPCS, mean axis). ``curve`` is
     :func:`learning_curve_fit` of the history's validation NPCS error (``None`` without one).
     ``num_threads``, ``batch_size`` and ``num_points`` are the training settings stored in the file's config.
@@ -306,10 +361,12 @@ def weights_summary() -> list[dict]:
                 except ValueError:  # too short a history to fit
                     curve = None
         m = net.metrics
+        parent_min = float((net.lineage or {}).get("train_s", 0.0)) / 60.0
         rows.append({
             "name": name, "kind": net.kind, "category": net.config.category, "parts": net.num_parts,
             "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": net.step,
-            "trained_steps": steps, "train_min": minutes, "test_frames": m.get("test_frames"), "curve": curve,
+            "trained_steps": steps, "train_min": minutes, "parent_min": parent_min,
+            "parent_step": (net.lineage or {}).get("step"), "test_frames": m.get("test_frames"), "curve": curve,
             "num_threads": net.config.num_threads, "batch_size": net.config.batch_size,
             "num_points": net.config.num_points,
             **{k: m.get(k, float("nan")) for k in (

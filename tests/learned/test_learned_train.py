@@ -126,6 +126,37 @@ def test_init_weights_starts_from_a_trained_network_and_refuses_another_structur
                 progress=False)
 
 
+def test_fine_tuned_weights_keep_their_parent_and_its_training_time(tmp_path, tiny_arrays, tiny_config):
+    from ancsh.learned.cli import copy_training_log
+    from ancsh.learned.weights import export_weights, load_network, training_seconds
+    from ancsh.outputs import file_sha256
+
+    cfg = dataclasses.replace(tiny_config, max_steps=3, checkpoint_every=3, val_every=3)
+    parent = Trainer(cfg, tiny_arrays, tiny_arrays, tmp_path / "a", progress=False)
+    parent.fit()
+    parent_file = export_weights(tmp_path / "a" / "last.pt", tmp_path / "w" / "parent.pt")
+    copy_training_log(tmp_path / "a", parent_file, {})
+    parent_sha = file_sha256(parent_file)
+    assert load_network(parent_file).lineage is None
+    assert training_seconds(parent_file) == pytest.approx(parent.elapsed_s, abs=0.1)
+
+    child_cfg = dataclasses.replace(cfg, init_weights=str(parent_file), max_steps=2, checkpoint_every=2)
+    child = Trainer(child_cfg, tiny_arrays, tiny_arrays, tmp_path / "b", progress=False)
+    child.fit()
+    # the parent file is replaced after the run started: a resumed run still names the original
+    export_weights(tmp_path / "b" / "last.pt", parent_file)
+    assert file_sha256(parent_file) != parent_sha
+    resumed = Trainer(dataclasses.replace(child_cfg, max_steps=4), tiny_arrays, tiny_arrays, tmp_path / "b", progress=False)
+    resumed.load_checkpoint(tmp_path / "b" / "last.pt")
+    resumed.fit()
+    child_file = export_weights(tmp_path / "b" / "last.pt", tmp_path / "w" / "child.pt")
+    copy_training_log(tmp_path / "b", child_file, {})
+    lineage = load_network(child_file).lineage
+    assert lineage["sha256"] == parent_sha and lineage["step"] == 3
+    assert lineage["train_s"] == pytest.approx(parent.elapsed_s, abs=0.1)
+    assert training_seconds(child_file) == pytest.approx(resumed.elapsed_s + parent.elapsed_s, abs=0.2)
+
+
 def test_checkpoint_round_trip_and_resume_repeat_the_same_steps(tmp_path, tiny_arrays, tiny_config):
     cfg = dataclasses.replace(tiny_config, max_steps=6, batch_size=2, checkpoint_every=3)
     straight = Trainer(cfg, tiny_arrays, tiny_arrays, tmp_path / "a", progress=False)
