@@ -366,14 +366,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
         ev = evaluate_category(args.category, **common)
         out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"evaluate-{args.category}")
         summary = summarize(ev)
-        paths = write_report(ev, summary, out, command=_rebuild(args))
+        real = None
+        if args.real:  # the real split is evaluated first so that <category>.md can show both splits
+            real_ev = evaluate_category(args.category, real=args.real, **common)
+            real = (real_ev, summarize(real_ev))
+        paths = write_report(ev, summary, out, command=_rebuild(args), real=real)
         print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
-        if args.real:
+        if real is not None:
             from .evaluate import write_real_report
 
-            real = evaluate_category(args.category, real=args.real, **common)
-            path = write_real_report(ev, summary, real, summarize(real), out, command=_rebuild(args))
-            print(f"{real['settings']['frames']} real frames; wrote {path}")
+            path = write_real_report(ev, summary, real[0], real[1], out, command=_rebuild(args))
+            print(f"{real[0]['settings']['frames']} real frames; wrote {path}")
     return 0
 
 

@@ -902,7 +902,7 @@ def write_real_report(procedural: dict, procedural_summary: dict, real: dict, re
     return path
 
 
-def write_report(evaluation: dict, summary: dict, out_dir, *, command: str) -> dict:
+def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real: tuple | None = None) -> dict:
     """Write ``<category>.md``, ``<category>.json`` and ``<category>_occlusion.png`` to ``out_dir``.
 
     Parameters
@@ -914,6 +914,10 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str) -> d
     out_dir : path
     command : str
         The command line that produced ``evaluation`` (quoted in the report).
+    real : (dict, dict), optional
+        ``(real_evaluation, summarize(real_evaluation))`` of the real test split from the same run:
+        the report then shows it beside the procedural split (:func:`split_comparison`) and points to
+        ``<category>_real.md`` (:func:`write_real_report`) for its full tables.
 
     Returns ``{"md", "json", "png"}`` paths. The JSON schema is in ``docs/REPORT_SCHEMAS.md``.
     """
@@ -1026,6 +1030,12 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str) -> d
         f"- whole evaluation: {t['wall_s']:.0f} s wall",
         "",
     ]
+    if real is not None:
+        md += ["## The real test split beside the procedural one (means)", "",
+               "The same network and fits on imported real objects of the category's test split, rendered with the "
+               "same renderer, noise, viewpoints and points; ratio = real / procedural (the goal: at most 1.25x per "
+               f"part). Full tables of the real split: `{category}_real.md`.", "",
+               *split_comparison(evaluation, summary, real[0], real[1]), ""]
     paths["md"].write_text("\n".join(md))
     from .. import __version__
 

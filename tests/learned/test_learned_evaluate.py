@@ -173,5 +173,10 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
     assert not {r["instance"] for r in proc["records"]} & {o.name for o in objs}
     text = ev.write_real_report(proc, ev.summarize(proc), real, ev.summarize(real), tmp_path / "out", command="test").read_text()
     assert "oven_0" in text and "| ANCSH-exact reduced (ours) | door |" in text and "x |" in text
+    both = ev.write_report(proc, ev.summarize(proc), tmp_path / "both", command="test",
+                           real=(real, ev.summarize(real)))["md"].read_text()
+    assert "## The real test split beside the procedural one" in both and "| ANCSH-exact reduced (ours) | door |" in both
+    alone = ev.write_report(proc, ev.summarize(proc), tmp_path / "alone", command="test")["md"].read_text()
+    assert "real test split" not in alone
     with pytest.raises(ValueError, match="no real test object"):
         ev.evaluate_category("laptop", real=str(catalog), **kw)
