@@ -405,7 +405,10 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
     dict
         ``rows``: per run and checkpoint, its step, the run's training steps and training wall time,
         and means of the ``exact_reduced`` fit's per-part rotation error, joint-axis and joint-state
-        errors and of the network's per-part NPCS orientation error (the error budget).
+        errors and of the network's per-part NPCS orientation error (the error budget). ``curves``:
+        per run, the pose validation of its history (``step``, ``pose_score`` = mean fitted rotation +
+        joint-axis error in degrees on the run's validation instances, ``val_npcs_err``), for an
+        equal-step comparison along training.
     """
     import csv
 
@@ -413,12 +416,15 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
     from .evaluate import evaluate_category, summarize
     from .weights import load_network
 
-    rows = []
+    rows, curves = [], {}
     for name, run in runs.items():
         run = Path(run)
         config = TrainConfig.from_json(run / "config.json")
         with open(run / "history.csv", newline="") as f:
             hist = list(csv.DictReader(f))
+        curves[name] = [{"step": int(float(h["step"])), "pose_score": float(h["pose_score"]),
+                         "val_npcs_err": float(h["val_npcs_err"]) if h.get("val_npcs_err") else None}
+                        for h in hist if h.get("pose_score")]
         for ck in checkpoints:
             if not (run / ck).is_file():
                 continue
@@ -428,6 +434,7 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
             m = sm["methods"]["exact_reduced"]
             rows.append({
                 "run": name, "run_dir": str(run), "checkpoint": ck, "pose_weight": config.pose_weight,
+                "pose_start_step": config.pose_start_step,
                 "category": config.category, "step": load_network(run / ck).step,
                 "trained_steps": int(float(hist[-1]["step"])), "train_wall_min": float(hist[-1]["elapsed_s"]) / 60,
                 "frames": m["frames"], "failures": m["failures"], "rot_deg": m["rot_deg"]["mean"],
@@ -435,7 +442,7 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
                 "npcs_rot_deg": sm["budget"]["npcs_rot_deg"]["mean"],
             })
             print(json.dumps(rows[-1]), flush=True)
-    return {"rows": rows, "frames": frames, "seed": seed}
+    return {"rows": rows, "curves": curves, "frames": frames, "seed": seed}
 
 
 def write_ablation_report(result: dict, path, *, command: str, commands=()) -> Path:
@@ -468,9 +475,36 @@ def write_ablation_report(result: dict, path, *, command: str, commands=()) -> P
             f"| {r['train_wall_min']:.1f} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "
             f"| {fmt(r['state_err'])} | {fmt(r['npcs_rot_deg'])} | {r['failures']}/{r['frames']} |")
     lines.append("")
+    lines += _curve_table(result.get("curves") or {}, {r["run"]: r for r in result["rows"]})
     path.write_text("\n".join(lines))
     path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
     return path
+
+
+def _curve_table(curves: dict, rows: dict) -> list[str]:
+    """Markdown: the runs' pose validation at equal steps (their histories), one column per run."""
+    steps = sorted({c["step"] for curve in curves.values() for c in curve})
+    if not steps:
+        return []
+    names = list(curves)
+
+    def label(n):
+        r = rows.get(n)
+        return n if r is None else f"{n} (pose weight {r['pose_weight']:g} from step {r.get('pose_start_step', 0)})"
+
+    lines = ["## Pose validation along training (equal steps)", "",
+             "From each run's history: the pose score (mean fitted rotation + joint-axis error, degrees, `exact_reduced`, "
+             "on frames of the run's own *validation* instances, the score that selects `best.pt`) and, in brackets, "
+             "the validation NPCS error; runs that share a start share their first rows.", "",
+             "| step | " + " | ".join(label(n) for n in names) + " |", "|---|" + "---|" * len(names)]
+    for st in steps:
+        cells = []
+        for n in names:
+            c = next((c for c in curves[n] if c["step"] == st), None)
+            cells.append("" if c is None else f"{c['pose_score']:.2f}" + (
+                "" if c["val_npcs_err"] is None else f" ({c['val_npcs_err']:.3f})"))
+        lines.append(f"| {st} | " + " | ".join(cells) + " |")
+    return lines + [""]
 
 
 def register(sub) -> None:

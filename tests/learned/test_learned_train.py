@@ -240,3 +240,20 @@ def test_best_checkpoint_follows_the_pose_score_not_the_validation_loss(tmp_path
         Trainer(cfg, tiny_arrays, progress=False, pose_val=[])
     with pytest.raises(ValueError, match="pose_val_every"):
         TrainConfig(pose_val_every=-1)
+
+
+def test_ablation_report_compares_pose_validation_at_equal_steps(tmp_path, tiny_config):
+    """`bench learned-ablation`: each run's pose-validation history, side by side by step."""
+    from ancsh.learned.bench import ablation, write_ablation_report
+
+    for name, scores in (("a", {500: 12.5, 1000: 10.25}), ("b", {500: 12.5, 1500: 30.0})):
+        run = tmp_path / name
+        run.mkdir()
+        dataclasses.replace(tiny_config, pose_weight=0.0 if name == "a" else 10.0).to_json(run / "config.json")
+        rows = [HistoryRow(step=s, elapsed_s=float(s), lr=1e-3, val={"npcs_err": 0.05}, pose={"pose_score": v}).to_dict()
+                for s, v in scores.items()]
+        write_history_csv(rows, run / "history.csv")
+    result = ablation({"a": tmp_path / "a", "b": tmp_path / "b"}, frames=1)  # no checkpoints: histories only
+    assert result["rows"] == [] and [c["step"] for c in result["curves"]["b"]] == [500, 1500]
+    text = write_ablation_report(result, tmp_path / "abl.md", command="test").read_text()
+    assert "| 1000 | 10.25 (0.050) |  |" in text and "| 1500 |  | 30.00 (0.050) |" in text
