@@ -162,6 +162,18 @@ class TrackerConfig:
         (Measured on realistic oracle laptop frames: carried-frame translation error 0.015 vs 0.031
         object diagonals; the carried ICP step hardly moves a thin part tangentially, so the prediction's
         error stays, and two carried fits are a noisier velocity than two network fits.)
+    warm_rescore_rounds : int
+        Warm fits (network and carried frames) re-select their inliers with the solved poses and solve
+        again, at most this many times (``FitConfig.rescore_rounds`` of warm fits; the larger of the
+        two applies), ``>= 0``. A warm start's inliers are the points near the *predicted* pose: where the
+        prediction is off (a swinging eyeglasses temple) a part keeps too few of them and the fit fails
+        the plausibility check. Measured with the network on every frame (learned provider, benchmark
+        sequences): eyeglasses re-initialisations 22 -> 0 with 2 rounds (default), errors unchanged or lower.
+    network_scale : bool
+        Warm network frames re-estimate the object scale (its log-scale a variable of the solve,
+        ``FitConfig.optimize_scale``), pulled toward the predicted scale by the temporal prior's scale
+        part; carried frames keep the last fit's scale. ``False``: the scale of the (re-)initialisation
+        is kept for the whole track (one frame's scale error on every frame). Default ``True``.
     min_points : int
         Fewer observed points: the frame is lost (no fit is tried).
     max_relative_residual : float
@@ -181,12 +193,14 @@ class TrackerConfig:
     carried_gate: float = 0.1
     carried_uncertainty: bool = False
     predict_from: str = "network"
+    warm_rescore_rounds: int = 2
+    network_scale: bool = True
     min_points: int = 100
     max_relative_residual: float = 0.1
     fit: FitConfig = field(default_factory=FitConfig)
 
     def __post_init__(self):
-        for name, lo in (("network_every", 1), ("carried_iterations", 1), ("min_points", 3)):
+        for name, lo in (("network_every", 1), ("carried_iterations", 1), ("min_points", 3), ("warm_rescore_rounds", 0)):
             object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=lo))
         check_choice(self.formulation, "formulation", tuple(n for n, f in FORMULATIONS.items() if f.parameterisation))
         if self.solver is not None:
@@ -195,6 +209,7 @@ class TrackerConfig:
             check_number(getattr(self, name), name, minimum=0.0)
         check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
         check_bool(self.carried_uncertainty, "carried_uncertainty")
+        check_bool(self.network_scale, "network_scale")
         check_choice(self.predict_from, "predict_from", ("network", "frames"))
         for name in ("carried_gate", "max_relative_residual"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
@@ -383,14 +398,17 @@ class CategoryTracker:
         use_prior = cfg.temporal_weight > 0 or cfg.temporal_state_weight > 0
         start = predicted_fit(tr.result, tr.correspondences, prior)
         kwargs = dict(warm_start=start, previous=prior if use_prior else None)
+        warm = dataclasses.replace(cfg.fit, rescore_rounds=max(cfg.fit.rescore_rounds, cfg.warm_rescore_rounds))
         if network:
             corr = self.provider.correspond(observation)
-            result = fit(observation, corr, cfg.formulation, cfg.solver, cfg.fit, rng=self.rng, **kwargs)
+            if cfg.network_scale:
+                warm = dataclasses.replace(warm, optimize_scale=True)
+            result = fit(observation, corr, cfg.formulation, cfg.solver, warm, rng=self.rng, **kwargs)
             return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "network"
         result, corr = start, tr.correspondences
         L = float(np.median([T.scale / g for T, g in zip(result.T_cam_npcs, corr.npcs_scale)]))
         iterations = 0
-        quick = dataclasses.replace(cfg.fit, uncertainty=False)
+        quick = dataclasses.replace(warm, uncertainty=False)
         for i in range(cfg.carried_iterations):
             corr = tr.template.correspond(observation.points_cam, result.T_cam_npcs, cfg.carried_gate * L)
             if np.count_nonzero(corr.weights) < cfg.min_points:
@@ -399,7 +417,7 @@ class CategoryTracker:
                                          solver="none", num_points=observation.num_points), corr, "carried"
             last = i == cfg.carried_iterations - 1
             result = fit(observation, corr, cfg.formulation, cfg.solver,
-                         cfg.fit if last and cfg.carried_uncertainty else quick, rng=self.rng,
+                         warm if last and cfg.carried_uncertainty else quick, rng=self.rng,
                          **{**kwargs, "warm_start": result})
             iterations += result.iterations
             if not result.ok:
