@@ -11,6 +11,10 @@ level, the multi-start :func:`~ancsh.solvers.icp.articulated.articulated_icp` fr
 (the paper's rotation / translation per part, joint states; AD accuracy for the URDF object) over
 the frames the object is in view, and frames per second of each side.
 
+The report adds how much temporal averaging could buy at all: the frame-to-frame correlation of
+the per-frame fits' signed errors and the ideal fusion bound (:mod:`.analysis`). ``--tracker`` sets
+:class:`~ancsh.tracking.tracker.TrackerConfig` fields of the tracking side (a JSON object).
+
 Measuring (:func:`run_benchmark`) and writing (:func:`write_report`) are separate.
 """
 
@@ -275,7 +279,7 @@ def summarize(report: dict) -> dict:
             m["ms_median"] = _median_ms(view)
             if method == "tracking":
                 # warm frames by where their correspondences came from (URDF: "model")
-                for source in ("network", "carried", "model"):
+                for source in ("network", "carried", "model", "template"):
                     m[f"ms_{source}"] = _median_ms([r for r in view if r["track"] == "tracked" and r["source"] == source])
                 m["lost"] = sum(r["track"] == "lost" for r in sel)
                 m["lost_in_view"] = sum(r["track"] == "lost" for r in view)
@@ -331,6 +335,8 @@ def _ms_cell(m: dict, method: str) -> str:
         return _fmt(m["ms_median"], 0)
     if m.get("ms_model") is not None:
         return f"warm {_fmt(m['ms_model'], 0)}"
+    if m.get("ms_template") is not None and m.get("ms_network") is None:
+        return f"template {_fmt(m['ms_template'], 0)}"
     return f"{_fmt(m.get('ms_network'), 0)} / {_fmt(m.get('ms_carried'), 0)}"
 
 
@@ -382,7 +388,10 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
         "",
         f"Tracking: category level -- network (or oracle) every k = {cfg['network_every']} frames, correspondences "
         "carried by the previous fit in between, warm-started `exact_reduced` fits with the constant-velocity temporal "
-        "prior; per frame: provider + RANSAC + `exact_reduced` on every frame. URDF -- warm-started articulated ICP "
+        f"prior; categories {', '.join(report['tracker'].get('template_categories') or ()) or 'none'} instead carry the "
+        "category template refined at every (re-)initialisation (`refine_fit`, seconds, once) by warm articulated ICP, the "
+        "network only re-initialising (median ms: template frames). Per frame: provider + RANSAC + `exact_reduced` on "
+        "every frame. URDF -- warm-started articulated ICP "
         "(`InstanceTracker`); per frame: the multi-start cold articulated ICP from `auto_init` views. AD accuracy: every "
         f"part's AD below {AD_THRESHOLD} of its diameter, failed frames counted wrong.",
         "",
