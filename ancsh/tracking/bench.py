@@ -11,6 +11,10 @@ level, the multi-start :func:`~ancsh.solvers.icp.articulated.articulated_icp` fr
 (the paper's rotation / translation per part, joint states; AD accuracy for the URDF object) over
 the frames the object is in view, and frames per second of each side.
 
+The report adds how much temporal averaging could buy at all: the frame-to-frame correlation of
+the per-frame fits' signed errors and the ideal fusion bound (:mod:`.analysis`). ``--tracker`` sets
+:class:`~ancsh.tracking.tracker.TrackerConfig` fields of the tracking side (a JSON object).
+
 Measuring (:func:`run_benchmark`) and writing (:func:`write_report`) are separate.
 """
 
@@ -99,13 +103,18 @@ def _sequence_frames(gen, seq: int, length: int, gap: int) -> list:
 
 
 def _category_errors(result, frame) -> dict:
+    """The paper's errors of a fit, and its signed error vectors (:func:`~ancsh.tracking.analysis.signed_errors`:
+    ``rot_vec`` (M, 3) degrees, ``trans_vec`` (M, 3) object diagonals, ``state_signed`` (K,))."""
     from ..evaluation import evaluate_fit
+    from .analysis import signed_errors
 
     if result is None or not result.ok:
         return {"ok": False}
     e = evaluate_fit(result, frame.gt, frame.part_names, frame.joint_names)
+    v = signed_errors(result, frame.gt)
     return {"ok": True, "rot_deg": [p.rot_deg for p in e.parts], "trans": [p.trans for p in e.parts],
-            "state_err": [j.state_err for j in e.joints]}
+            "state_err": [j.state_err for j in e.joints], "rot_vec": v["rot"].tolist(), "trans_vec": v["trans"].tolist(),
+            "state_signed": v["state"].tolist()}
 
 
 def _instance_errors(result, frame, model, part_points) -> dict:
@@ -270,7 +279,7 @@ def summarize(report: dict) -> dict:
             m["ms_median"] = _median_ms(view)
             if method == "tracking":
                 # warm frames by where their correspondences came from (URDF: "model")
-                for source in ("network", "carried", "model"):
+                for source in ("network", "carried", "model", "template"):
                     m[f"ms_{source}"] = _median_ms([r for r in view if r["track"] == "tracked" and r["source"] == source])
                 m["lost"] = sum(r["track"] == "lost" for r in sel)
                 m["lost_in_view"] = sum(r["track"] == "lost" for r in view)
@@ -281,8 +290,38 @@ def summarize(report: dict) -> dict:
         t, p = row["tracking"], row["per_frame"]
         row["ratio"] = {k: (t[k] / p[k] if p[k] else float("nan")) for k in ("rot_deg", "trans", "state_err")}
         row["speedup"] = t["fps"] / p["fps"]
+        if prov != "urdf":
+            row["correlation"] = {method: _correlation([r for r in recs if r["object"] == obj and r["provider"] == prov
+                                                        and r["method"] == method]) for method in ("per_frame", "tracking")}
         rows.append(row)
     return {"rows": rows}
+
+
+CORRELATION_KINDS = (("rot_vec", "rotation"), ("trans_vec", "translation"), ("state_signed", "joint state"))
+
+
+def _correlation(records) -> dict:
+    """Frame-to-frame correlation of the signed errors of one method's records
+    (:func:`~ancsh.tracking.analysis.error_correlation`): runs of consecutive in-view frames with a fit,
+    one run per part (joint) and sequence; ``{kind: CorrelationStudy.to_dict()}``."""
+    from .analysis import error_correlation
+
+    out = {}
+    for key, kind in CORRELATION_KINDS:
+        runs = []
+        for seq in sorted({r["sequence"] for r in records}):
+            current = []
+            for r in sorted((r for r in records if r["sequence"] == seq), key=lambda r: r["t"]) + [None]:
+                if r is not None and not r["blank"] and r["ok"] and key in r:
+                    current.append(np.asarray(r[key], dtype=np.float64).reshape(len(r[key]), -1))
+                    continue
+                if current:
+                    stack = np.stack(current)  # (T, parts or joints, d)
+                    runs += [stack[:, i, :] for i in range(stack.shape[1])]
+                current = []
+        if runs and sum(len(x) for x in runs):
+            out[kind] = error_correlation(runs).to_dict()
+    return out
 
 
 def _median_ms(records) -> float | None:
@@ -296,6 +335,8 @@ def _ms_cell(m: dict, method: str) -> str:
         return _fmt(m["ms_median"], 0)
     if m.get("ms_model") is not None:
         return f"warm {_fmt(m['ms_model'], 0)}"
+    if m.get("ms_template") is not None and m.get("ms_network") is None:
+        return f"template {_fmt(m['ms_template'], 0)}"
     return f"{_fmt(m.get('ms_network'), 0)} / {_fmt(m.get('ms_carried'), 0)}"
 
 
@@ -347,7 +388,10 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
         "",
         f"Tracking: category level -- network (or oracle) every k = {cfg['network_every']} frames, correspondences "
         "carried by the previous fit in between, warm-started `exact_reduced` fits with the constant-velocity temporal "
-        "prior; per frame: provider + RANSAC + `exact_reduced` on every frame. URDF -- warm-started articulated ICP "
+        f"prior; categories {', '.join(report['tracker'].get('template_categories') or ()) or 'none'} instead carry the "
+        "category template refined at every (re-)initialisation (`refine_fit`, seconds, once) by warm articulated ICP, the "
+        "network only re-initialising (median ms: template frames). Per frame: provider + RANSAC + `exact_reduced` on "
+        "every frame. URDF -- warm-started articulated ICP "
         "(`InstanceTracker`); per frame: the multi-start cold articulated ICP from `auto_init` views. AD accuracy: every "
         f"part's AD below {AD_THRESHOLD} of its diameter, failed frames counted wrong.",
         "",
@@ -370,6 +414,7 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
                      f"{_fmt(r['rot_deg'])} | {_fmt(r['trans'])} | {_fmt(r['state_err'])} | | | | |")
     lines += ["", "## Targets", ""]
     lines += _targets(rows, cfg)
+    lines += _correlation_table(rows)
     text = "\n".join(lines) + "\n"
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -382,6 +427,34 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
 
     write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), separators=(",", ":")).encode())
     return text
+
+
+def _correlation_table(rows) -> list:
+    """The markdown section of the per-frame errors' frame-to-frame correlation (see :mod:`.analysis`)."""
+    from .analysis import WINDOWS
+
+    have = [r for r in rows if r.get("correlation", {}).get("per_frame")]
+    if not have:
+        return []
+    lags = (1, 2, 3, 5, 10)
+    lines = ["", "## How much temporal averaging can buy: frame-to-frame correlation of the per-frame errors", "",
+             "Signed errors of the independent per-frame fits (per part the rotation error vector `log(R R_gt^T)` and "
+             "the translation error vector, per joint the signed joint-state error), over runs of consecutive in-view "
+             "frames. `rho(l)` = E[e_t . e_t+l] / E[|e_t|^2] (raw: a per-sequence bias counts as correlation; centred: "
+             "each run's mean removed). Ideal fusion N: mean |mean of the last N frames' errors| / mean |error| -- what "
+             "averaging the per-frame estimates over N frames would reach relative to per-frame fitting if the motion "
+             "between frames were known exactly (`all`: every frame so far); tracking on these providers' outputs cannot "
+             "beat it. (Averaging N frames of correlation rho leaves the variance fraction rho + (1 - rho) / N.)", "",
+             "| object | provider | error | raw rho " + "/".join(f"l{l}" for l in lags) + " | centred rho "
+             + "/".join(f"l{l}" for l in lags) + " | ideal fusion " + "/".join(f"N={n}" for n in WINDOWS) + "/all |",
+             "|---|---|---|---|---|---|"]
+    for row in have:
+        for kind, c in row["correlation"]["per_frame"].items():
+            raw = "/".join(_fmt(c["raw"][l - 1]) if l <= len(c["raw"]) else "—" for l in lags)
+            cen = "/".join(_fmt(c["centred"][l - 1]) if l <= len(c["centred"]) else "—" for l in lags)
+            fus = "/".join(_fmt(c["fusion"][str(n)]) for n in WINDOWS + ("all",))
+            lines.append(f"| {row['object']} | {row['provider']} | {kind} | {raw} | {cen} | {fus} |")
+    return lines
 
 
 def _targets(rows, cfg) -> list:
@@ -426,6 +499,9 @@ def register(sub) -> None:
     p.add_argument("--gap", type=int, default=3, help="blank frames in the middle of each sequence (default 3)")
     p.add_argument("-k", "--network-every", type=int, default=3, help="network on every k-th tracked frame (default 3)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--tracker", default=None, metavar="JSON",
+                   help="TrackerConfig settings of the tracking side, a JSON object, e.g. '{\"temporal_weight\": 0.1}' "
+                        "(default: TrackerConfig's defaults)")
     p.add_argument("--out", default=None, help="markdown report path (default: a fresh ancsh_results/bench-tracking-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/tracking.md (when --out is not given)")
     p.set_defaults(func=run)
@@ -438,8 +514,30 @@ def _command(args) -> str:
     for key, default in defaults.items():
         if getattr(args, key) != default:
             parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
+    if args.tracker:
+        parts.append(f"--tracker '{json.dumps(_tracker_settings(args.tracker), sort_keys=True)}'")
     parts += output_flags(args.out, update_docs=args.update_docs)
     return " ".join(parts)
+
+
+def _tracker_settings(text: str | None) -> dict:
+    """``--tracker``'s JSON object (``{}`` without it); unknown or invalid settings raise ``ValueError``."""
+    from .tracker import TrackerConfig
+
+    if not text:
+        return {}
+    try:
+        settings = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--tracker: expected a JSON object, got {text!r} ({exc})") from None
+    if not isinstance(settings, dict):
+        raise ValueError(f"--tracker: expected a JSON object, got {text!r}")
+    known = {f for f in TrackerConfig.__dataclass_fields__} - {"network_every", "fit"}
+    unknown = sorted(set(settings) - known)
+    if unknown:
+        raise ValueError(f"--tracker: unknown setting(s) {unknown} (known: {sorted(known)}; -k sets network_every)")
+    TrackerConfig(**settings)  # validates the values
+    return settings
 
 
 def run(args) -> int:
@@ -454,7 +552,7 @@ def run(args) -> int:
             raise ValueError(f"--providers: expected learned and/or oracle, got {p!r}")
     config = BenchConfig(categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), providers=providers,
                          urdf=urdf, sequences=args.sequences, urdf_sequences=args.urdf_sequences, length=args.length, urdf_length=args.urdf_length, gap=args.gap,
-                         network_every=args.network_every, seed=args.seed)
+                         network_every=args.network_every, seed=args.seed, tracker=_tracker_settings(args.tracker))
     command = _command(args)
     t0 = time.perf_counter()
     report = run_benchmark(config, progress=lambda s: print(s, flush=True))

@@ -18,6 +18,9 @@ def register(sub) -> None:
     p.add_argument("--out", default=None, help="JSON-lines output, one line a frame, written as it goes "
                                                "(default: a fresh ancsh_results/track-<time>/track.jsonl); never overwritten")
     p.add_argument("-k", "--network-every", type=int, default=3, help="run the network on every k-th frame (default 3)")
+    p.add_argument("--no-template", dest="template", action="store_false",
+                   help="never carry the category template (default: the categories of TrackerConfig.template_categories, "
+                        "the laptop, are refined against it at every (re-)initialisation, seconds, and tracked on it)")
     p.add_argument("--weights", default=None, help="a weights file instead of the shipped one (--category)")
     p.add_argument("--mask-dir", default=None, help="object masks named like the frames (skip isolation)")
     p.add_argument("--no-isolate", dest="isolate", action="store_false", help="use every valid pixel (no isolation)")
@@ -59,7 +62,9 @@ def run(args) -> int:
 
             raise missing_weights_error(category)
         provider = LearnedProvider(category if args.weights is None else args.weights, seed=args.seed)
-        tracker = CategoryTracker(provider, TrackerConfig(network_every=args.network_every), category=category, rng=args.seed)
+        settings = {} if args.template else {"template_categories": ()}
+        tracker = CategoryTracker(provider, TrackerConfig(network_every=args.network_every, **settings), category=category,
+                                  rng=args.seed)
         num_joints = provider.num_joints
     out = Path(args.out) if args.out else fresh_output_dir("track") / "track.jsonl"
 

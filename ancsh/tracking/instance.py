@@ -67,6 +67,10 @@ class InstanceTrackerConfig:
     uncertainty : bool
         Report the covariances of each warm fit (:func:`~ancsh.solvers.icp.articulated.icp_uncertainty`,
         one more closest-point match); the cold fits follow ``cold.uncertainty``.
+    reinitialise : bool
+        Fit a frame cold when the warm fit does not explain it (default); ``False``: that frame is
+        ``lost`` at once, for a caller that re-initialises by other means (the category tracker
+        carrying a category template, :class:`~ancsh.tracking.tracker.CategoryTracker`).
     """
 
     iterations: int = 2
@@ -85,6 +89,7 @@ class InstanceTrackerConfig:
     min_points: int = 30
     cold: ArticulatedIcpConfig = field(default_factory=ArticulatedIcpConfig)
     uncertainty: bool = True
+    reinitialise: bool = True
 
     def __post_init__(self):
         for name, lo in (("iterations", 1), ("extra_iterations", 0), ("num_points", 6), ("solver_iterations", 1),
@@ -98,6 +103,7 @@ class InstanceTrackerConfig:
             check_number(getattr(self, name), name, minimum=0.0)
         check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
         check_bool(self.uncertainty, "uncertainty")
+        check_bool(self.reinitialise, "reinitialise")
         if not isinstance(self.cold, ArticulatedIcpConfig):
             raise ValueError(f"cold: expected an ArticulatedIcpConfig, got {type(self.cold).__name__}")
 
@@ -181,6 +187,9 @@ class InstanceTracker:
                 self._accept(result)
                 return self._frame(index, TrackStatus.TRACKED, result.message, result, t0)
             why = f"warm fit lost the object ({result.inlier_ratio:.0%} of the points within the gate); "
+            if not cfg.reinitialise:
+                self.reset()
+                return self._lost(index, why + "no cold fit (reinitialise is off)", t0)
         inits = auto_init(self.model, points) + ([prediction] if prediction is not None else [])
         result = articulated_icp(self.model, points, inits, config=cfg.cold, rng=self.rng, surface=self.template.surface)
         if result.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or result.inlier_ratio < cfg.accept_inliers:

@@ -1,7 +1,9 @@
-"""Tracking: sequences with ground truth, the category and instance trackers, bad input."""
+"""Tracking: sequences with ground truth, the category and instance trackers, bad input, the correlation study
+of per-frame errors, the carried category template."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -12,7 +14,14 @@ from ancsh.data.noise import DepthNoise
 from ancsh.data.render import Intrinsics
 from ancsh.data.sequences import SequenceMotion
 from ancsh.solvers.types import Observation
-from ancsh.tracking import CategoryTracker, InstanceTracker, TrackerConfig, TrackStatus
+from ancsh.geometry.rotations import exp_so3
+from ancsh.geometry.transforms import Sim3
+from ancsh.tracking import CategoryTracker, InstanceTracker, InstanceTrackerConfig, TrackerConfig, TrackStatus
+from ancsh.tracking.analysis import WINDOWS, error_correlation, signed_errors
+
+
+NO_TEMPLATE = TrackerConfig(template_categories=())
+"""Default settings without the carried category template (these tests check the network / carried path)."""
 
 
 class FrameOracle:
@@ -112,7 +121,8 @@ def test_tracker_recovers_the_ground_truth_of_a_seeded_sequence():
     gen = _generator(length=8)
     oracle = FrameOracle()
     tracker = CategoryTracker(oracle, TrackerConfig(network_every=3, temporal_weight=0.0, temporal_state_weight=0.0,
-                                                    carried_iterations=3, predict_from="frames"), category="laptop")
+                                                    carried_iterations=3, predict_from="frames",
+                                                    template_categories=()), category="laptop")
     statuses, sources = [], []
     for i in range(8):
         fr = gen.frame(i)
@@ -184,13 +194,9 @@ def test_tracker_reports_lost_frames_and_reinitialises_after_a_jump():
     by half a metre: the empty frames are lost, the next frame re-initialises; the jump fails the warm fit
     (on a carried frame: no point lies near the tracked object) and is re-initialised on the same frame, at
     the new place."""
-    import dataclasses
-
-    from ancsh.geometry.transforms import Sim3
-
     gen = _generator(length=8)
     oracle = FrameOracle()
-    tracker = CategoryTracker(oracle, TrackerConfig(network_every=2), category="laptop")
+    tracker = CategoryTracker(oracle, TrackerConfig(network_every=2, template_categories=()), category="laptop")
     shift = np.array([0.5, 0.0, 0.3])
     out = []
     for i in range(8):
@@ -222,8 +228,9 @@ def test_carried_frames_are_one_cheap_solve_predicted_from_the_network_frames():
 
     gen = _generator(length=8, noise=True)
     oracle = FrameOracle()
-    tracker = CategoryTracker(oracle, TrackerConfig(network_every=3), category="laptop")
-    costly = CategoryTracker(FrameOracle(), TrackerConfig(network_every=3, carried_uncertainty=True), category="laptop")
+    tracker = CategoryTracker(oracle, TrackerConfig(network_every=3, template_categories=()), category="laptop")
+    costly = CategoryTracker(FrameOracle(), TrackerConfig(network_every=3, carried_uncertainty=True, template_categories=()),
+                             category="laptop")
     network = []
     for i in range(5):
         fr = gen.frame(i)
@@ -252,8 +259,6 @@ def test_constant_velocity_prediction_ahead_of_the_last_interval():
     """Scenario: an object turning about a fixed axis at a constant rate and moving at a constant velocity:
     the prediction ``ahead`` = 2 of the last interval is the pose two intervals on, ``ahead`` = 1/3 a third of
     one; ``ahead`` = 0 is the last solution, a negative ``ahead`` is refused."""
-    from ancsh.geometry.rotations import exp_so3
-    from ancsh.geometry.transforms import Sim3
     from ancsh.solvers.terms import PreviousSolution
 
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
@@ -278,7 +283,7 @@ def test_tracked_frame_json_is_plain():
     gen = _generator(length=2)
     oracle = FrameOracle()
     oracle.frame = gen.frame(0)
-    tracker = CategoryTracker(oracle, category="laptop")
+    tracker = CategoryTracker(oracle, TrackerConfig(template_categories=()), category="laptop")
     rec = tracker.step(Observation(oracle.frame.points)).to_dict()
     json.dumps(rec, allow_nan=False)
     assert rec["status"] == "initialised" and len(rec["part_poses"]) == 2
@@ -308,14 +313,14 @@ def test_category_tracker_inflates_a_learned_providers_uncertainty_as_predict_do
     oracle = FrameOracle()
     oracle.network = types.SimpleNamespace(sha256="abc")
     oracle.frame = gen.frame(0)
-    out = CategoryTracker(oracle, category="laptop").step(Observation(oracle.frame.points))
+    out = CategoryTracker(oracle, NO_TEMPLATE, category="laptop").step(Observation(oracle.frame.points))
     u = out.result.uncertainty
     assert u.inflation.source == "learned/laptop"
     np.testing.assert_allclose(u.joint_state_std, 3.0 * u.raw().joint_state_std)
     np.testing.assert_allclose(u.rotation_rms_rad, 2.0 * u.raw().rotation_rms_rad)
     assert out.to_dict()["uncertainty"]["inflation"] == "learned/laptop"
     oracle.network = types.SimpleNamespace(sha256="other weights")
-    out = CategoryTracker(oracle, category="laptop").step(Observation(oracle.frame.points))
+    out = CategoryTracker(oracle, NO_TEMPLATE, category="laptop").step(Observation(oracle.frame.points))
     assert out.result.uncertainty.inflation.source == "raw"
 
 
@@ -355,8 +360,6 @@ def test_instance_tracker_adds_iterations_only_to_a_frame_it_does_not_yet_explai
     import time
 
     from ancsh.solvers.icp.template import ArticulatedPose
-    from ancsh.tracking import InstanceTrackerConfig
-    from ancsh.geometry.transforms import Sim3
 
     gen = _generator(length=2, noise=True)
     fr = gen.frame(1)
@@ -403,7 +406,8 @@ def test_stream_reports_unreadable_and_empty_frames_as_lost_and_recovers(depth_f
     folder, K = depth_folder
     files = depth_files(folder)
     assert [f.name for f in files] == [f"frame_{i}.npy" for i in range(5)]
-    tracker = CategoryTracker(LearnedProvider("laptop", num_threads=1), TrackerConfig(network_every=1), category="laptop")
+    tracker = CategoryTracker(LearnedProvider("laptop", num_threads=1), TrackerConfig(network_every=1, template_categories=()),
+                              category="laptop")
     out = tmp_path / "out" / "track.jsonl"
     with JsonLinesWriter(out) as w:
         recs = track_files(files, read_intrinsics(K), tracker, w, isolate=False, num_points=512, num_joints=1)
@@ -450,3 +454,102 @@ def test_track_command_refuses_mismatched_intrinsics_and_a_folder_without_frames
     assert main(["track", "--depth", str(empty), "--intrinsics", str(K), "--category", "laptop",
                  "--out", str(tmp_path / "b.jsonl")]) == 2
     assert "holds no depth frame" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------------------
+# correlation of per-frame errors; the carried category template
+# --------------------------------------------------------------------------------------------
+
+def _ar1(rng, runs, length, rho, dim=3):
+    out = []
+    for _ in range(runs):
+        e = np.empty((length, dim))
+        e[0] = rng.normal(size=dim)
+        for t in range(1, length):
+            e[t] = rho * e[t - 1] + np.sqrt(1 - rho**2) * rng.normal(size=dim)
+        out.append(e)
+    return out
+
+
+def test_error_correlation_recovers_known_processes():
+    """AR(1) errors of correlation 0.8 give rho(l) = 0.8^l; independent errors give rho = 0 and an ideal fusion
+    ratio of 1 / sqrt(N) (the mean of N isotropic Gaussian vectors is one of scale 1 / sqrt(N)); a constant
+    error per run (a bias) is fully correlated and averages away not at all."""
+    rng = np.random.default_rng(0)
+    ar = error_correlation(_ar1(rng, 40, 400, 0.8), max_lag=3)
+    np.testing.assert_allclose(ar.raw, [0.8, 0.64, 0.512], atol=0.03)
+    np.testing.assert_allclose(ar.centred, ar.raw, atol=0.03)
+    white = error_correlation(_ar1(rng, 20, 500, 0.0), max_lag=2)
+    np.testing.assert_allclose(white.raw, 0.0, atol=0.03)
+    for n in WINDOWS:
+        assert white.fusion[n] == pytest.approx(1 / np.sqrt(n), abs=0.03), n
+    assert white.fusion["all"] < 0.1
+    assert ar.fusion[10] > white.fusion[10] + 0.2  # correlated errors average away less
+    bias = error_correlation([np.tile(rng.normal(size=3), (30, 1)) for _ in range(5)], max_lag=5)
+    np.testing.assert_allclose(bias.raw, 1.0)
+    assert all(v == pytest.approx(1.0) for v in bias.fusion.values())
+    assert bias.frames == 150 and bias.to_dict()["fusion"]["all"] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="runs"):
+        error_correlation([])
+    with pytest.raises(ValueError, match="sizes"):
+        error_correlation([np.zeros((3, 3)), np.zeros((3, 1))])
+
+
+def test_signed_errors_recover_a_known_perturbation():
+    """A fit built from the ground truth with every part turned by a known rotation vector (camera frame),
+    shifted by a known vector and the joint off by a known angle gives exactly those errors back."""
+    from ancsh.solvers.fit import fit
+    from ancsh.solvers.providers.oracle import OracleProvider
+
+    fr = _generator(length=2).frame(0)
+    result = fit(Observation(fr.points), OracleProvider(fr, "none", rng=0).correspond(Observation(fr.points)))
+    w, d, dq = np.array([0.02, -0.01, 0.03]), np.array([0.01, 0.0, -0.02]), 0.05
+    L = fr.gt.T_cam_naocs.scale
+    poses = tuple(Sim3(exp_so3(w) @ G.rotation, G.translation + L * d, G.scale) for G in fr.gt.T_cam_npcs)
+    moved = dataclasses.replace(result, T_cam_npcs=poses, joint_states=np.asarray(fr.gt.joint_states) + dq)
+    e = signed_errors(moved, fr.gt)
+    np.testing.assert_allclose(e["rot"], np.tile(np.degrees(w), (2, 1)), atol=1e-9)
+    np.testing.assert_allclose(e["trans"], np.tile(d, (2, 1)), atol=1e-12)
+    np.testing.assert_allclose(e["state"], [np.degrees(dq)], atol=1e-9)
+
+
+def test_tracker_carries_the_refined_category_template_and_reinitialises_it():
+    """Scenario: a noisy laptop sequence with the object out of view on frame 3, default settings (the laptop
+    carries its category template): frame 0 is a cold fit refined against the template, frames 1-2 and 5 are
+    warm ICP on the template without the provider, frame 3 is lost, frame 4 re-initialises (provider + refinement
+    again); every frame near the truth."""
+    gen = _generator(length=6, noise=True)
+    oracle = FrameOracle()
+    tracker = CategoryTracker(oracle, TrackerConfig(), category="laptop")
+    out = []
+    for i in range(6):
+        fr = gen.frame(i)
+        oracle.frame = fr
+        out.append(tracker.step(Observation(np.zeros((0, 3)) if i == 3 else fr.points)))
+        if i != 3:
+            rot, trans, state = _errors(out[-1].result, fr)
+            assert rot < 5 and trans < 0.03 and state < 5, (i, rot, trans, state)
+    assert [o.status for o in out] == [TrackStatus.INITIALISED, TrackStatus.TRACKED, TrackStatus.TRACKED, TrackStatus.LOST,
+                                       TrackStatus.REINITIALISED, TrackStatus.TRACKED]
+    assert [o.source for o in out] == ["network", "template", "template", "none", "network", "template"]
+    assert "carrying the category template" in out[0].message and "carrying the category template" in out[4].message
+    assert oracle.calls == 2
+    assert out[1].result.uncertainty is None and out[1].to_dict()["joint_states_std"] is None
+    with pytest.raises(ValueError, match="template_categories"):
+        TrackerConfig(template_categories="laptop")
+
+
+def test_instance_tracker_without_reinitialisation_reports_a_frame_it_cannot_explain_lost():
+    """From a start half a metre off, the warm ICP explains no point: with ``reinitialise=False`` the frame is
+    lost at once (no cold multi-start), and the next frame has no track to warm-start from."""
+    from ancsh.solvers.icp.template import ArticulatedPose
+
+    gen = _generator(length=2)
+    f0 = gen.frame(0)
+    model, _ = gen.instance(f0.instance_index)
+    T = f0.T_cam_base
+    far = ArticulatedPose(Sim3(T.rotation, T.translation + np.array([0.5, 0.0, 0.0])), f0.joint_states_abs)
+    tracker = InstanceTracker(model, InstanceTrackerConfig(reinitialise=False, uncertainty=False), initial=far)
+    out = tracker.step(f0.points)
+    assert out.status == TrackStatus.LOST and "reinitialise is off" in out.message
+    assert tracker.predict() is None

@@ -44,6 +44,7 @@ from .template import ArticulatedPose, ModelSurface
 
 __all__ = [
     "BOX_SCALINGS",
+    "CarriedTemplateFit",
     "FittedTemplate",
     "RefineConfig",
     "TemplateRefinement",
@@ -332,6 +333,9 @@ class TemplateRefinement:
         The input's and the best candidate's :attr:`FitScore.score` (NaN when not scored).
     time_s : float
         Wall time of the refinement alone (seconds).
+    carried : CarriedTemplateFit or None
+        When :attr:`accepted`: the template (reshaped to the fit and scaled) and its articulated ICP
+        estimate at the chosen scale, for tracking the object on with it (:meth:`CarriedTemplateFit.fit_of`).
     """
 
     result: FitResult
@@ -343,6 +347,37 @@ class TemplateRefinement:
     score_input: float = float("nan")
     score_refined: float = float("nan")
     time_s: float = 0.0
+    carried: "CarriedTemplateFit | None" = None
+
+
+@dataclass(frozen=True)
+class CarriedTemplateFit:
+    """A category template fitted to one frame, to be tracked on (instance-level warm ICP).
+
+    Attributes
+    ----------
+    model : ArticulatedModel
+        The template reshaped to the fitted object box and scaled by ``scale`` (metres).
+    pose : ArticulatedPose
+        Its articulated ICP estimate on the refined frame (camera frame, absolute joint states).
+    layout : FittedLayout
+        The input fit's layout (the NPCS frames of the parts relative to the template's base).
+    scale : float
+        The global scale factor of the template (1 = the fitted object size).
+    fit : FitResult
+        The input fit (its structure, boxes' NPCS extents and message are reused).
+    """
+
+    model: ArticulatedModel
+    pose: ArticulatedPose
+    layout: "FittedLayout"
+    scale: float
+    fit: FitResult
+
+    def fit_of(self, pose: ArticulatedPose) -> FitResult:
+        """The category-level fit (NPCS part poses, joints, boxes) of the template at ``pose`` (no covariances:
+        the input fit's were of other poses)."""
+        return dataclasses.replace(_articulated(self.fit, self.model, self.layout, self.scale, pose), uncertainty=None)
 
 
 @dataclass(frozen=True)
@@ -355,6 +390,8 @@ class _Candidate:
     score: FitScore
     baseline: FitScore
     template: str
+    model: ArticulatedModel | None = None  # the scaled template and its ICP estimate
+    pose: ArticulatedPose | None = None
 
 
 def _scaled(model: ArticulatedModel, factor: float) -> ArticulatedModel:
@@ -484,11 +521,12 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
                 start, start_f = est, f
             if "articulated" in config.candidates:
                 r = _articulated(fit, m_f, layout, f, est)
-                cands.append(_Candidate("articulated", f, r, _score(scorer, surface, r, layout, f, gate), s_in, ft.source))
+                cands.append(_Candidate("articulated", f, r, _score(scorer, surface, r, layout, f, gate), s_in, ft.source,
+                                        m_f, est))
             if "base" in config.candidates:
                 G = est.T_cam_base @ Sim3(np.eye(3), np.zeros(3), f) @ layout.T_cam_B.inverse()
                 r = _moved(fit, G, f, corr)
-                cands.append(_Candidate("base", f, r, _score(scorer, surface, r, layout, f, gate), s_in, ft.source))
+                cands.append(_Candidate("base", f, r, _score(scorer, surface, r, layout, f, gate), s_in, ft.source, m_f, est))
     if not cands:
         return TemplateRefinement(fit, False, "input", "articulated ICP lost the points at every scale", name,
                                   score_input=s_first.score, time_s=time.perf_counter() - t0)
@@ -507,5 +545,6 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
     result = dataclasses.replace(best.result, message=(fit.message + "; " if fit.message else "")
                                  + f"refined by the category template {best.template} ({best.choice}, scale {best.scale:g})",
                                  time_s=fit.time_s + dt, uncertainty=None)  # the fit's covariance was of other poses
+    carried = CarriedTemplateFit(best.model, best.pose, layout, best.scale, fit)
     return TemplateRefinement(result, True, best.choice, f"score {best.score.score:.4f} < input {s_in.score:.4f}",
-                              scale=best.scale, **common)
+                              scale=best.scale, carried=carried, **common)
