@@ -117,10 +117,43 @@ def _perp_basis(a: np.ndarray) -> np.ndarray:
     return np.stack([u, v], axis=1)
 
 
+@dataclass(frozen=True)
+class ErrorRecord:
+    """One fitted quantity's error against the ground truth, with what its inflation needs.
+
+    Attributes
+    ----------
+    error : (dof,) float64
+        The error in the quantity's coordinates (see the module docstring; radians, metres).
+    covariance : (dof, dof) float64
+        Its raw covariance, same coordinates.
+    correlated : (dof, dof) float64
+        The covariance added per unit within-part correlation
+        (:attr:`~ancsh.solvers.uncertainty.FitUncertainty.correlated`).
+    variance, correlated_variance : float
+        The squared :func:`~ancsh.solvers.uncertainty.block_sigma` of the quantity's block as the fit
+        stores it (raw, and per unit correlation): the raw ``sigma`` that
+        :meth:`~ancsh.solvers.uncertainty.FitUncertainty.inflated` maps is
+        ``sqrt(variance + rho correlated_variance)``.
+    """
+
+    error: np.ndarray
+    covariance: np.ndarray
+    correlated: np.ndarray
+    variance: float
+    correlated_variance: float
+
+
+def _record(e, C, Cc, block, block_corr) -> ErrorRecord:
+    from .solvers.uncertainty import block_sigma
+
+    return ErrorRecord(np.asarray(e, dtype=np.float64), C, Cc, float(block_sigma(block) ** 2), float(block_sigma(block_corr) ** 2))
+
+
 def error_records(result, gt) -> dict:
-    """``{quantity: [(e, C, C_corr), ...]}`` of one fit against its ground truth: each error vector
-    ``e`` (``dof``,) with its raw covariance ``C`` and the covariance per unit within-part correlation
-    ``C_corr`` (:attr:`~ancsh.solvers.uncertainty.FitUncertainty.correlated`), in the same coordinates.
+    """``{quantity: [ErrorRecord, ...]}`` of one fit against its ground truth: each error vector
+    (``dof``,) with its raw covariance and the covariance per unit within-part correlation, in the
+    same coordinates, and the block variances the inflation maps.
 
     Parameters
     ----------
@@ -138,32 +171,42 @@ def error_records(result, gt) -> dict:
         for q, e, sl in (("rotation", log_so3(G.rotation @ T.rotation.T), slice(0, 3)),
                          ("translation", G.translation - T.translation, slice(3, 6)),
                          ("scale", np.array([G.scale - T.scale]), slice(6, 7))):
-            out[q].append((e, C[sl, sl], Cc[sl, sl]))
+            out[q].append(_record(e, C[sl, sl], Cc[sl, sl], C[sl, sl], Cc[sl, sl]))
     for k in range(len(result.joint_states)):
         revolute = str(getattr(gt.joint_types[k], "value", gt.joint_types[k])) == "revolute"
         d = float(gt.joint_states[k] - result.joint_states[k])
         if revolute:
             d = (d + np.pi) % (2 * np.pi) - np.pi
         sl = slice(k, k + 1)
-        out["joint_state"].append((np.array([d]), u.joint_state_covariance[sl, sl], c.joint_state_covariance[sl, sl]))
+        Cs, Css = u.joint_state_covariance[sl, sl], c.joint_state_covariance[sl, sl]
+        out["joint_state"].append(_record([d], Cs, Css, Cs, Css))
         a = result.joint_axes_cam[k]
         if not np.all(np.isfinite(a)):
             continue
         P = _perp_basis(a)
         g = np.asarray(gt.joint_axes_cam[k], dtype=np.float64)
         g = g if g @ a >= 0 else -g
-        out["joint_axis"].append((P.T @ (g - a), P.T @ u.joint_axis_covariances[k] @ P,
-                                  P.T @ c.joint_axis_covariances[k] @ P))
+        Ca, Cca = u.joint_axis_covariances[k], c.joint_axis_covariances[k]
+        out["joint_axis"].append(_record(P.T @ (g - a), P.T @ Ca @ P, P.T @ Cca @ P, Ca, Cca))
         if revolute:
             e = np.asarray(gt.joint_pivots_cam[k]) - result.joint_pivots_cam[k]
-            out["joint_pivot"].append((P.T @ e, P.T @ u.joint_pivot_covariances[k] @ P, P.T @ c.joint_pivot_covariances[k] @ P))
+            Cp, Ccp = u.joint_pivot_covariances[k], c.joint_pivot_covariances[k]
+            out["joint_pivot"].append(_record(P.T @ e, P.T @ Cp @ P, P.T @ Ccp @ P, Cp, Ccp))
     return out
 
 
 def normalised_errors(records, correlation: float = 0.0) -> np.ndarray:
-    """Squared Mahalanobis distances ``e^T (C + rho C_corr)^-1 e`` of :func:`error_records` entries
+    """Squared Mahalanobis distances ``e^T (C + rho C_corr)^-1 e`` of :class:`ErrorRecord` s
     (``nan`` where the covariance is infinite or degenerate)."""
-    return np.array([_mahalanobis2(e, C + correlation * Cc if correlation > 0 else C) for e, C, Cc in records])
+    return np.array([_mahalanobis2(r.error, r.covariance + correlation * r.correlated if correlation > 0 else r.covariance)
+                     for r in records])
+
+
+def raw_sigmas(records, correlation: float = 0.0) -> np.ndarray:
+    """The raw ``sigma`` (:func:`~ancsh.solvers.uncertainty.block_sigma`, after the correlation) of each
+    :class:`ErrorRecord`: what a :class:`~ancsh.solvers.uncertainty.SigmaMap` maps (the quantity's unit)."""
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.array([r.variance + correlation * r.correlated_variance for r in records], dtype=np.float64))
 
 
 def _thresholds(quantity: str, probs=COVERAGE_TARGETS) -> np.ndarray:
@@ -182,16 +225,126 @@ def coverage(d2, quantity: str, factor: float = 1.0, probs=COVERAGE_TARGETS) -> 
     return np.mean(d2[:, None] / factor**2 <= q[None, :], axis=0)
 
 
-def fit_inflation(d2, quantity: str) -> float:
-    """The factor (on a log grid, 0.25..200) minimising the larger gap of the 1 and 2 sigma coverages to their targets."""
+def _finite(d2, sigma=None):
     d2 = np.asarray(d2, dtype=np.float64)
-    d2 = d2[np.isfinite(d2)]
-    if not d2.size:
-        return float("nan")
+    keep = np.isfinite(d2)
+    if sigma is None:
+        return d2[keep]
+    sigma = np.asarray(sigma, dtype=np.float64)
+    if sigma.shape != d2.shape:
+        raise ValueError(f"sigma: expected the shape of d2 {d2.shape}, got {sigma.shape}")
+    keep &= np.isfinite(sigma) & (sigma > 0)
+    return d2[keep], sigma[keep]
+
+
+def _gaps(cov: np.ndarray) -> np.ndarray:
+    """``(...)`` the larger gap of ``(..., 2)`` coverages to :data:`COVERAGE_TARGETS`."""
+    return np.max(np.abs(cov - np.asarray(COVERAGE_TARGETS)), axis=-1)
+
+
+def _factor_scan(d2: np.ndarray, quantity: str) -> tuple:
+    """``(factor, gap)``: the factor of :data:`_FACTOR_GRID` minimising the larger gap (the smallest such)."""
     q = _thresholds(quantity)
     cov = np.mean(d2[None, :, None] / _FACTOR_GRID[:, None, None] ** 2 <= q[None, None, :], axis=1)  # (F, 2)
-    gap = np.max(np.abs(cov - np.asarray(COVERAGE_TARGETS)[None, :]), axis=1)
-    return float(_FACTOR_GRID[int(np.argmin(gap))])
+    gap = _gaps(cov)
+    i = int(np.argmin(gap))
+    return float(_FACTOR_GRID[i]), float(gap[i])
+
+
+def fit_inflation(d2, quantity: str) -> float:
+    """The factor (on a log grid, 0.25..200) minimising the larger gap of the 1 and 2 sigma coverages to their targets."""
+    d2 = _finite(d2)
+    if not d2.size:
+        return float("nan")
+    return _factor_scan(d2, quantity)[0]
+
+
+#: Powers ``p`` of :class:`~ancsh.solvers.uncertainty.SigmaMap` tried (1: the single factor).
+POWER_GRID = tuple(float(v) for v in np.round(np.linspace(0.0, 1.5, 31), 3))
+#: Floors ``b`` tried, as multiples of the reference ``s`` (the calibration frames' median raw sigma).
+FLOOR_GRID = tuple(float(v) for v in np.exp(np.linspace(np.log(0.05), np.log(20.0), 41)))
+#: A two-parameter map replaces the single factor only where it lowers the larger calibration gap by this much.
+MIN_GAIN = 0.02
+#: Among two-parameter maps within this much of the best calibration gap, the one nearest the single factor is kept.
+GAP_TOLERANCE = 0.01
+INFLATION_FORMS = ("factor", "power", "floor")
+
+
+def fit_sigma_map(d2, sigma, quantity: str, forms=INFLATION_FORMS):
+    """The :class:`~ancsh.solvers.uncertainty.SigmaMap` that brings the 1 and 2 sigma coverages of
+    calibration errors nearest their targets.
+
+    Each form is fitted on grids: ``"factor"`` (``k`` alone, :func:`fit_inflation`), ``"power"``
+    (``p`` of :data:`POWER_GRID` with ``s`` the median raw ``sigma``, then ``k``) and ``"floor"``
+    (``b / s`` of :data:`FLOOR_GRID`, then ``k``), each minimising the larger of the two gaps. A
+    two-parameter form is kept only when its gap is at least :data:`MIN_GAIN` below the single
+    factor's; among its parameters within :data:`GAP_TOLERANCE` of its best gap, the one nearest the
+    single factor (``p`` nearest 1, the smallest floor) -- two levels can always be matched on the
+    calibration frames, so the extra parameter must earn its place.
+
+    Parameters
+    ----------
+    d2 : (N,) float64
+        Squared Mahalanobis distances of the errors under the raw covariances (after the correlation).
+    sigma : (N,) float64
+        The fits' raw ``sigma`` (:func:`raw_sigmas`, the quantity's unit).
+    quantity : str
+        From :data:`QUANTITIES` (its degrees of freedom).
+    forms : tuple of str
+        From :data:`INFLATION_FORMS`; ``"factor"`` is always tried.
+
+    Returns
+    -------
+    (SigmaMap, str, dict)
+        The map, its form, and ``{form: calibration gap}`` of every form tried; ``(None, None, {})``
+        without finite errors.
+    """
+    from .solvers.uncertainty import SigmaMap
+
+    unknown = [f for f in forms if f not in INFLATION_FORMS]
+    if unknown:
+        raise ValueError(f"forms: unknown {unknown}; known: {list(INFLATION_FORMS)}")
+    d2, sigma = _finite(d2, sigma)
+    if not d2.size:
+        return None, None, {}
+    k, gap = _factor_scan(d2, quantity)
+    best = (SigmaMap(factor=k), "factor", gap)
+    gaps = {"factor": gap}
+    s = float(np.exp(np.median(np.log(sigma))))
+    x2 = (sigma / s) ** 2
+    q = _thresholds(quantity)
+    if "power" in forms:
+        cands = []
+        for p in POWER_GRID:
+            kp, g = _factor_scan(d2 * x2 ** (1.0 - p), quantity)  # d2 / ratio^2 = d2 x^(2 - 2p) / k^2
+            cands.append((g, abs(p - 1.0), SigmaMap(factor=kp, power=p, reference=s)))
+        best = _keep(best, cands, "power", gaps)
+    if "floor" in forms:
+        cands = []
+        k2 = _FACTOR_GRID[:, None] ** 2
+        for beta in FLOOR_GRID:  # d2 / ratio^2 = d2 x^2 / (k^2 x^2 + beta^2)
+            u = d2[None, :] * x2[None, :] / (k2 * x2[None, :] + beta**2)  # (F, N)
+            cov = np.mean(u[:, :, None] <= q[None, None, :], axis=1)
+            g = _gaps(cov)
+            i = int(np.argmin(g))
+            cands.append((float(g[i]), beta, SigmaMap(factor=float(_FACTOR_GRID[i]), reference=s, floor=beta * s)))
+        best = _keep(best, cands, "floor", gaps)
+    return best[0], best[1], gaps
+
+
+def _keep(best: tuple, cands: list, form: str, gaps: dict) -> tuple:
+    """``best`` or the candidate of ``form`` (``(gap, distance from the single factor, map)``) that replaces it."""
+    g_min = min(c[0] for c in cands)
+    gaps[form] = g_min
+    g, _, m = min((c for c in cands if c[0] <= g_min + GAP_TOLERANCE), key=lambda c: (c[1], c[0]))
+    if g <= gaps["factor"] - MIN_GAIN and g < best[2]:
+        return m, form, g
+    return best
+
+
+def inflated_errors(d2, sigma, sigma_map) -> np.ndarray:
+    """``d2`` under the covariances inflated by ``sigma_map`` (:meth:`SigmaMap.ratio` of each raw ``sigma``)."""
+    return np.asarray(d2, dtype=np.float64) / sigma_map.ratio(sigma) ** 2
 
 
 # ------------------------------------------------------------------------------------------------
@@ -269,23 +422,21 @@ CORRELATION_GRID = (0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1
 MAIN_QUANTITIES = ("rotation", "translation", "joint_state")
 
 
-def _gap(d2, quantity: str, factor: float) -> float:
-    return float(np.max(np.abs(coverage(d2, quantity, factor) - np.asarray(COVERAGE_TARGETS))))
+def summarize(measured: dict, forms=INFLATION_FORMS) -> dict:
+    """Per provider and category the within-part correlation and per quantity the inflation map, both
+    from the calibration frames, and the test coverage before (raw) and after them.
 
-
-def summarize(measured: dict) -> dict:
-    """Per provider and category the within-part correlation and per quantity the factor, both from the
-    calibration frames, and the test coverage before (raw) and after them.
-
-    The correlation is the one of :data:`CORRELATION_GRID` whose best factors leave the smallest
-    mean coverage gap over :data:`MAIN_QUANTITIES` on the calibration frames.
+    The correlation is the one of :data:`CORRELATION_GRID` whose single factors leave the smallest
+    mean coverage gap over :data:`MAIN_QUANTITIES` on the calibration frames; then per quantity
+    :func:`fit_sigma_map` chooses the map among ``forms``.
 
     Returns
     -------
     dict
-        ``{"rows": [{category, provider, quantity, n_calibration, n_test, correlation, factor, raw (2,),
-        inflated (2,), calibration_inflated (2,)}], "factors": {provider: {category: {quantity: factor,
-        "correlation": rho}}}, "d2": {category: {provider: {quantity: (raw test d2, inflated test d2)}}}}``.
+        ``{"rows": [{category, provider, quantity, n_calibration, n_test, correlation, form, factor,
+        sigma_map, calibration_gaps, raw (2,), inflated (2,), calibration_inflated (2,)}],
+        "factors": {provider: {category: {quantity: SigmaMap.to_json(), "correlation": rho}}},
+        "d2": {category: {provider: {quantity: (raw test d2, inflated test d2)}}}}``.
     """
     rows, factors, d2_out = [], {}, {}
     for cat, per_provider in measured["records"].items():
@@ -294,11 +445,8 @@ def summarize(measured: dict) -> dict:
             present = [q for q in QUANTITIES if cal[q] and test[q]]
             best = None
             for rho in CORRELATION_GRID:
-                gaps = []
-                for q in MAIN_QUANTITIES:
-                    if q in present:
-                        d2 = normalised_errors(cal[q], rho)
-                        gaps.append(_gap(d2, q, fit_inflation(d2, q)))
+                gaps = [_factor_scan(d2, q)[1] for q in MAIN_QUANTITIES if q in present
+                        for d2 in [_finite(normalised_errors(cal[q], rho))] if d2.size]
                 score = float(np.mean(gaps)) if gaps else 0.0
                 if best is None or score < best[0] - 1e-12:
                     best = (score, rho)
@@ -306,17 +454,20 @@ def summarize(measured: dict) -> dict:
             entry = factors.setdefault(p, {}).setdefault(cat, {"correlation": rho})
             for q in present:
                 d2_cal, d2_test = normalised_errors(cal[q], rho), normalised_errors(test[q], rho)
+                s_cal, s_test = raw_sigmas(cal[q], rho), raw_sigmas(test[q], rho)
                 raw_test = normalised_errors(test[q], 0.0)
-                f = fit_inflation(d2_cal, q)
-                if not np.isfinite(f):
+                m, form, cal_gaps = fit_sigma_map(d2_cal, s_cal, q, forms)
+                if m is None:
                     continue
-                entry[q] = round(f, 4)
-                d2_out.setdefault(cat, {}).setdefault(p, {})[q] = (raw_test, d2_test / f**2)
+                entry[q] = m.to_json()
+                inflated_test, inflated_cal = inflated_errors(d2_test, s_test, m), inflated_errors(d2_cal, s_cal, m)
+                d2_out.setdefault(cat, {}).setdefault(p, {})[q] = (raw_test, inflated_test)
                 rows.append({
                     "category": cat, "provider": p, "quantity": q, "n_calibration": int(np.isfinite(d2_cal).sum()),
-                    "n_test": int(np.isfinite(d2_test).sum()), "correlation": rho, "factor": f,
-                    "raw": coverage(raw_test, q).tolist(), "inflated": coverage(d2_test, q, f).tolist(),
-                    "calibration_inflated": coverage(d2_cal, q, f).tolist(),
+                    "n_test": int(np.isfinite(d2_test).sum()), "correlation": rho, "form": form, "factor": m.factor,
+                    "sigma_map": m.to_json(), "calibration_gaps": cal_gaps,
+                    "raw": coverage(raw_test, q).tolist(), "inflated": coverage(inflated_test, q).tolist(),
+                    "calibration_inflated": coverage(inflated_cal, q).tolist(),
                 })
     return {"rows": rows, "factors": factors, "d2": d2_out}
 
