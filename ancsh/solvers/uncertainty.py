@@ -164,53 +164,89 @@ class Inflation:
 
     Attributes
     ----------
-    rotation, translation, scale : SigmaMap
-        Part and object pose blocks (each block's covariance scales by its ratio; cross terms by the
-        products). A number ``k`` stands for ``SigmaMap(factor=k)``.
-    joint_state, joint_axis, joint_pivot : SigmaMap
-        Joint blocks (per joint).
+    rotation, translation, scale : SigmaMap or tuple of SigmaMap
+        Part pose blocks: one map for every part, or one per part (in the category's part order;
+        the parts of one object can be calibrated very differently, e.g. a washing machine's body
+        and door). Each block's covariance scales by its ratio squared, cross terms by the products
+        of ratios. The object pose (the root part's rotation, the NAOCS origin and scale) takes the
+        root part's maps. A number ``k`` stands for ``SigmaMap(factor=k)``.
+    joint_state, joint_axis, joint_pivot : SigmaMap or tuple of SigmaMap
+        Joint blocks: one map for every joint, or one per joint.
     correlation : float
         In ``[0, 1]``: the correlation ``rho`` of the residuals within a part, applied before the
-        factors. A part's ``n`` points then count as ``n / (1 + (n - 1) rho)`` independent ones (the
+        maps. A part's ``n`` points then count as ``n / (1 + (n - 1) rho)`` independent ones (the
         design effect of equicorrelated errors): with ``rho n >> 1`` its pose uncertainty no longer
         shrinks with more points, as for a network's spatially correlated NPCS errors.
     source : str
-        Where the factors come from (``"raw"``, ``"learned/laptop"``, ...).
+        Where the maps come from (``"raw"``, ``"learned/laptop"``, ...).
     """
 
-    rotation: SigmaMap = SigmaMap()
-    translation: SigmaMap = SigmaMap()
-    scale: SigmaMap = SigmaMap()
-    joint_state: SigmaMap = SigmaMap()
-    joint_axis: SigmaMap = SigmaMap()
-    joint_pivot: SigmaMap = SigmaMap()
+    rotation: SigmaMap | tuple = SigmaMap()
+    translation: SigmaMap | tuple = SigmaMap()
+    scale: SigmaMap | tuple = SigmaMap()
+    joint_state: SigmaMap | tuple = SigmaMap()
+    joint_axis: SigmaMap | tuple = SigmaMap()
+    joint_pivot: SigmaMap | tuple = SigmaMap()
     correlation: float = 0.0
     source: str = "raw"
 
     def __post_init__(self):
         for q in INFLATED_QUANTITIES:
-            object.__setattr__(self, q, SigmaMap.from_json(getattr(self, q), q))
+            v = getattr(self, q)
+            if isinstance(v, (list, tuple)):
+                if not v:
+                    raise ValueError(f"{q}: expected a map or a non-empty sequence of maps (one per part or joint)")
+                v = tuple(SigmaMap.from_json(m, f"{q}[{i}]") for i, m in enumerate(v))
+            else:
+                v = SigmaMap.from_json(v, q)
+            object.__setattr__(self, q, v)
         object.__setattr__(self, "correlation", check_number(self.correlation, "correlation", minimum=0.0, maximum=1.0))
 
     @property
     def is_identity(self) -> bool:
-        return self.correlation == 0.0 and all(getattr(self, q).is_identity for q in INFLATED_QUANTITIES)
+        return self.correlation == 0.0 and all(m.is_identity for q in INFLATED_QUANTITIES for m in self._all(q))
 
-    def maps(self) -> dict:
-        """``{quantity: SigmaMap}``."""
-        return {q: getattr(self, q) for q in INFLATED_QUANTITIES}
+    def _all(self, quantity: str) -> tuple:
+        v = getattr(self, quantity)
+        return v if isinstance(v, tuple) else (v,)
+
+    def map_for(self, quantity: str, index: int, count: int) -> SigmaMap:
+        """The map of ``quantity`` (from :data:`INFLATED_QUANTITIES`) for part or joint ``index`` of ``count``.
+
+        Raises
+        ------
+        ValueError
+            When per-part (per-joint) maps do not match ``count``.
+        """
+        v = getattr(self, quantity)
+        if not isinstance(v, tuple):
+            return v
+        if len(v) != count:
+            raise ValueError(f"inflation.{quantity}: {len(v)} per-part/joint maps ({self.source}) for {count} "
+                             f"{'parts' if quantity in ('rotation', 'translation', 'scale') else 'joints'}")
+        return v[index]
 
     def to_json(self) -> dict:
-        """``{quantity: number | {factor, power, reference, floor}, "correlation": rho, "source": str}``
-        (the stored form of :meth:`from_json`, with the source)."""
-        return {**{q: m.to_json() for q, m in self.maps().items()}, "correlation": self.correlation, "source": self.source}
+        """``{quantity: number | {factor, power, reference, floor} | [one of those per part or joint],
+        "correlation": rho, "source": str}`` (the stored form of :meth:`from_json`, with the source)."""
+        out = {}
+        for q in INFLATED_QUANTITIES:
+            v = getattr(self, q)
+            out[q] = [m.to_json() for m in v] if isinstance(v, tuple) else v.to_json()
+        return {**out, "correlation": self.correlation, "source": self.source}
 
     @classmethod
     def from_json(cls, entry: dict, source: str = "raw", *, name: str = "inflation") -> "Inflation":
-        """From a stored entry (``{quantity: number | mapping, "correlation": rho, ...}``; other keys ignored)."""
+        """From a stored entry (``{quantity: number | mapping | list, "correlation": rho, ...}``; other keys
+        ignored; a number is the single factor of the first stored tables)."""
         if not isinstance(entry, dict):
             raise ValueError(f"{name}: expected a mapping of quantities, got {type(entry).__name__}")
-        kw = {q: SigmaMap.from_json(entry[q], f"{name}.{q}") for q in INFLATED_QUANTITIES if q in entry}
+        kw = {}
+        for q in INFLATED_QUANTITIES:
+            if q in entry:
+                v = entry[q]
+                kw[q] = (tuple(SigmaMap.from_json(m, f"{name}.{q}[{i}]") for i, m in enumerate(v))
+                         if isinstance(v, list) else SigmaMap.from_json(v, f"{name}.{q}"))
         if "correlation" in entry:
             kw["correlation"] = float(entry["correlation"])
         return cls(**kw, source=source)
@@ -224,11 +260,11 @@ def block_sigma(cov: np.ndarray) -> np.ndarray:
         return np.sqrt(np.trace(cov, axis1=-2, axis2=-1) / cov.shape[-1])
 
 
-def _pose_ratios(inf: Inflation, cov: np.ndarray) -> np.ndarray:
-    """``(..., 7)`` ratios of the ``[phi, t, s]`` coordinates of ``(..., 7, 7)`` pose covariances."""
-    r = [inf.rotation.ratio(block_sigma(cov[..., 0:3, 0:3])), inf.translation.ratio(block_sigma(cov[..., 3:6, 3:6])),
-         inf.scale.ratio(block_sigma(cov[..., 6:7, 6:7]))]
-    return np.stack([r[0]] * 3 + [r[1]] * 3 + [r[2]], axis=-1)
+def _pose_ratios(inf: Inflation, cov: np.ndarray, index: int, count: int) -> np.ndarray:
+    """``(7,)`` ratios of the ``[phi, t, s]`` coordinates of a ``(7, 7)`` pose covariance of part ``index`` of ``count``."""
+    r = [inf.map_for(q, index, count).ratio(block_sigma(cov[sl, sl]))
+         for q, sl in (("rotation", slice(0, 3)), ("translation", slice(3, 6)), ("scale", slice(6, 7)))]
+    return np.array([r[0]] * 3 + [r[1]] * 3 + [r[2]])
 
 
 @dataclass(frozen=True)
@@ -354,16 +390,19 @@ class FitUncertainty:
 
         parts, obj = add("part_covariances"), add("object_covariance")
         states, axes, pivots = add("joint_state_covariance"), add("joint_axis_covariances"), add("joint_pivot_covariances")
-        d_parts, d_obj = _pose_ratios(inflation, parts), _pose_ratios(inflation, obj)
-        d_state = inflation.joint_state.ratio(np.sqrt(np.diag(states)))
-        d_axis, d_pivot = inflation.joint_axis.ratio(block_sigma(axes)), inflation.joint_pivot.ratio(block_sigma(pivots))
+        M, K = parts.shape[0], states.shape[0]
+        d_parts = np.array([_pose_ratios(inflation, parts[j], j, M) for j in range(M)]).reshape(M, 7)
+        d_obj = _pose_ratios(inflation, obj, 0, M) if M else np.ones(7)  # the object pose takes the root part's maps
         with np.errstate(invalid="ignore"):
+            d_state = np.array([inflation.map_for("joint_state", k, K).ratio(np.sqrt(states[k, k])) for k in range(K)])
+            d_axis = np.array([inflation.map_for("joint_axis", k, K).ratio(block_sigma(axes[k])) for k in range(K)])
+            d_pivot = np.array([inflation.map_for("joint_pivot", k, K).ratio(block_sigma(pivots[k])) for k in range(K)])
             return replace(
                 raw, inflation=inflation, base=raw, correlated=None,
                 part_covariances=parts * d_parts[:, :, None] * d_parts[:, None, :], object_covariance=obj * np.outer(d_obj, d_obj),
                 joint_state_covariance=states * np.outer(d_state, d_state),
-                joint_axis_covariances=axes * (d_axis**2)[:, None, None],
-                joint_pivot_covariances=pivots * (d_pivot**2)[:, None, None],
+                joint_axis_covariances=axes * (d_axis**2).reshape(K, 1, 1),
+                joint_pivot_covariances=pivots * (d_pivot**2).reshape(K, 1, 1),
             )
 
     def composed(self, T_cam_parts, T_parts_frames, T_cam_object, T_object_frame) -> "FitUncertainty":
