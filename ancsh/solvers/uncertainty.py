@@ -41,10 +41,13 @@ A direction that the data do not determine (a degenerate part, collinear points)
 **Inflation.** Jacobian covariances assume independent residuals; the errors of a network's
 NPCS predictions are correlated, so they are over-confident. :class:`Inflation` holds a measured
 within-part residual correlation (each raw result carries the covariance per unit of it,
-:attr:`FitUncertainty.correlated`: ``v_j (1 - 1 / n_j)`` in place of ``v_j / n_j``) and measured
-per-quantity factors on the standard deviations (``ancsh bench uncertainty``, stored in
-``ancsh/weights/uncertainty_inflation.json``, :func:`inflation_for`);
-:meth:`FitUncertainty.inflated` applies them, the raw covariances stay available.
+:attr:`FitUncertainty.correlated`: ``v_j (1 - 1 / n_j)`` in place of ``v_j / n_j``) and per
+quantity a measured :class:`SigmaMap` -- one for all parts (joints) or one per part (joint) -- of
+each block's raw standard deviation ``sigma`` (:func:`block_sigma`) to the reported one,
+``sigma' = sqrt((k sigma^p s^(1-p))^2 + b^2)``: a single factor ``k``, a power ``p`` about a
+reference ``s``, or a floor ``b`` (``ancsh bench uncertainty``, stored in
+``ancsh/weights/uncertainty_inflation.json``, :func:`inflation_for`; a number there is a single
+factor). :meth:`FitUncertainty.inflated` applies them, the raw covariances stay available.
 """
 
 from __future__ import annotations

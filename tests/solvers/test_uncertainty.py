@@ -378,8 +378,8 @@ def test_fit_sigma_map_recovers_a_known_inflation(form):
     assert np.max(np.abs(single - np.asarray(COVERAGE_TARGETS))) > 0.08  # heavy tails one factor cannot fit
     check = np.array([3e-3, 1e-2, 3e-2])  # the recovered map matches the true one across the raw range
     np.testing.assert_allclose(m.ratio(check), truth.ratio(check), rtol=0.15)
-    if form == "power":
-        assert m.power == pytest.approx(0.3, abs=0.1)
+    if form == "power":  # of the powers within GAP_TOLERANCE of the best, the one nearest 1 is kept
+        assert m.power == pytest.approx(0.3, abs=0.15)
     else:
         assert m.floor == pytest.approx(0.03, rel=0.2)
 
@@ -392,3 +392,60 @@ def test_fit_sigma_map_handles_empty_and_bad_input():
         fit_sigma_map(np.ones(3), np.ones(2), "rotation")
     with pytest.raises(ValueError, match="forms"):
         fit_sigma_map(np.ones(3), np.ones(3), "rotation", forms=("spline",))
+
+
+def test_per_part_maps_fit_parts_calibrated_differently(tmp_path):
+    """Two parts (4 : 1) whose errors are 2x and 20x their raw sigma: pooled they are a mixture of scales that
+    one factor misses at one level or the other; :func:`fit_quantity_inflation` fits one factor per
+    part, recovers both, and an :class:`Inflation` holding them inflates each part by its own; the
+    records survive :func:`save_records` / :func:`load_records`."""
+    from ancsh.uncertainty_calibration import (
+        COVERAGE_TARGETS, ErrorRecord, coverage, fit_quantity_inflation, inflated_errors, load_records, normalised_errors,
+        raw_sigmas, save_records,
+    )
+
+    rng = np.random.default_rng(3)
+
+    def records(n):
+        out = []
+        for i in range(n):
+            part, s = int(i % 5 == 4), float(np.exp(rng.uniform(np.log(1e-3), np.log(1e-2))))
+            C = s**2 * np.eye(3)
+            out.append(ErrorRecord(rng.normal(size=3) * s * (2.0, 20.0)[part], C, 0.5 * C, s**2, 0.5 * s**2, part))
+        return out
+
+    cal, test = records(1200), records(1200)
+    m, form, gaps = fit_quantity_inflation(cal, "translation", 0.0)
+    assert form == "per part: factor, factor" and gaps["per_index"] < gaps["pooled"] - 0.05
+    assert m[0].factor == pytest.approx(2.0, rel=0.08) and m[1].factor == pytest.approx(20.0, rel=0.12)
+    pooled, _, _ = fit_quantity_inflation(cal, "translation", 0.0, per_index="never")
+    index = [r.index for r in test]
+    d2, sig = normalised_errors(test), raw_sigmas(test)
+    np.testing.assert_allclose(coverage(inflated_errors(d2, sig, m, index), "translation"), COVERAGE_TARGETS, atol=0.03)
+    assert np.max(np.abs(coverage(inflated_errors(d2, sig, pooled), "translation") - COVERAGE_TARGETS)) > 0.06
+    inf = Inflation(translation=m)
+    assert inf.map_for("translation", 1, 2) == m[1] and Inflation.from_json(inf.to_json()) == replace(inf, source="raw")
+    with pytest.raises(ValueError, match="translation: 2 per-part"):
+        inf.map_for("translation", 0, 3)
+    # the correlation enters the raw sigma as the fit's inflated() adds it
+    np.testing.assert_allclose(raw_sigmas(test[:4], 0.5), np.sqrt([r.variance * 1.25 for r in test[:4]]))
+    path = save_records({"records": {"laptop": {"learned": {"calibration": {"translation": cal[:5], "rotation": []}}}},
+                         "counts": {}, "timing": {}}, tmp_path / "r.npz")
+    back = load_records(path)["records"]["laptop"]["learned"]["calibration"]
+    assert back["rotation"] == [] and [r.index for r in back["translation"]] == [r.index for r in cal[:5]]
+    np.testing.assert_array_equal(back["translation"][3].covariance, cal[3].covariance)
+    with pytest.raises(ValueError, match="nothing.npz"):
+        load_records(tmp_path / "nothing.npz")
+
+
+def test_per_part_inflation_applies_to_each_part(fit_case):
+    """A fit's parts take their own maps; the object pose the root part's."""
+    case, corr = _noisy_case(fit_case, 4, 0.01)
+    u = fit(case.observation, corr, config=FitConfig(ransac=False)).uncertainty
+    big = u.inflated(Inflation(rotation=(2.0, 3.0, 5.0), joint_state=(SigmaMap(factor=4.0), SigmaMap(factor=1.0))))
+    np.testing.assert_allclose(big.rotation_rms_rad, np.array([2.0, 3.0, 5.0]) * u.rotation_rms_rad)
+    np.testing.assert_allclose(big.joint_state_std, np.array([4.0, 1.0]) * u.joint_state_std)
+    np.testing.assert_allclose(big.object_covariance[:3, :3], 4.0 * u.object_covariance[:3, :3])
+    np.testing.assert_allclose(big.part_covariances[1, :3, 3:6], 3.0 * u.part_covariances[1, :3, 3:6])  # cross terms: k_rot k_t
+    with pytest.raises(ValueError, match="rotation: 2 per-part"):
+        u.inflated(Inflation(rotation=(2.0, 3.0)))
