@@ -551,7 +551,7 @@ def summarize(measured: dict, forms=INFLATION_FORMS, per_index: str = "auto") ->
     for cat, per_provider in measured["records"].items():
         for p, splits in per_provider.items():
             cal, test = splits["calibration"], splits["test"]
-            present = [q for q in QUANTITIES if cal[q] and test[q]]
+            present = [q for q in QUANTITIES if cal.get(q) and test.get(q)]
             best = None
             for rho in CORRELATION_GRID:
                 gaps = [_factor_scan(d2, q)[1] for q in MAIN_QUANTITIES if q in present
@@ -623,7 +623,8 @@ def reliability_plot(measured: dict, summary: dict, path) -> Path:
             ax.set_ylabel("observed coverage (test frames)")
             ax.set_xlim(0, 1)
             ax.set_ylim(0, 1)
-            ax.legend(fontsize=7, loc="upper left")
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Reliability of the fits' covariances (test frames): dashed raw, solid with the calibrated "
                  "correlation and inflation map")
     fig.tight_layout()

@@ -449,3 +449,34 @@ def test_per_part_inflation_applies_to_each_part(fit_case):
     np.testing.assert_allclose(big.part_covariances[1, :3, 3:6], 3.0 * u.part_covariances[1, :3, 3:6])  # cross terms: k_rot k_t
     with pytest.raises(ValueError, match="rotation: 2 per-part"):
         u.inflated(Inflation(rotation=(2.0, 3.0)))
+
+
+def test_report_names_the_maps_and_the_rows_that_miss(tmp_path):
+    """Synthetic records of one category: a per-part quantity and one the calibration frames
+    mis-state (test errors 3x larger) -- the report shows the per-part maps and names the miss."""
+    from ancsh.uncertainty_calibration import CalibrationConfig, ErrorRecord, summarize, write_report
+
+    rng = np.random.default_rng(11)
+
+    def recs(n, q, scales, dof):
+        out = []
+        for i in range(n):
+            s = float(np.exp(rng.uniform(np.log(1e-3), np.log(1e-2))))
+            C = s**2 * np.eye(dof)
+            out.append(ErrorRecord(rng.normal(size=dof) * s * scales[i % len(scales)], C, 0 * C, s**2, 0.0, i % len(scales)))
+        return out
+
+    split = lambda k: {"translation": recs(400, "translation", (2.0, 15.0), 3),  # noqa: E731
+                       "joint_state": recs(200, "joint_state", (k,), 1)}
+    measured = {"records": {"laptop": {"learned": {"calibration": split(2.0), "test": split(6.0)}}},
+                "counts": {"laptop": {"learned": {s: {"frames": 200, "failed": 0, "singular": 0} for s in ("calibration", "test")}}},
+                "timing": {"learned": {"fit_ms": [1.0], "fit_ms_without": [0.5], "covariance_ms": [0.2]}}}
+    summary = summarize(measured)
+    head = write_report(measured, summary, CalibrationConfig(categories=("laptop",), providers=("learned",)),
+                        tmp_path / "u.md", command="ancsh bench uncertainty --frames 150", elapsed_s=1.0)
+    text = (tmp_path / "u.md").read_text()
+    assert "| laptop | learned | translation |" in text and "per part: ×" in text
+    assert "- laptop / learned / joint_state:" in text and "the calibration frames met the target" in text
+    assert head["rows_within_all"] == 1 and head["rows_all"] == 2
+    stored = json.loads((tmp_path / "u.json").read_text())["summary"]["factors"]["learned"]["laptop"]
+    assert isinstance(stored["translation"], list) and len(stored["translation"]) == 2
