@@ -85,6 +85,10 @@ class SigmaMap:
     - ``p < 1``: a power that compresses the spread of the raw ``sigma`` across fits around the
       reference ``s`` (``sigma' = k s`` at ``sigma = s``): fits whose raw ``sigma`` is small get a
       larger factor, when the raw spread over-states how much the fits' accuracy differs;
+    - ``p > 1``: expands that spread -- the fits' errors differ more than their raw ``sigma`` say
+      (measured for several learned quantities, up to ``p`` near 3). A map is measured over the
+      calibration fits' range of raw ``sigma`` (for the learned provider about 3x between the 5th
+      and 95th percentiles); far outside it, a power is an extrapolation;
     - ``b > 0``: a floor ``b`` (the quantity's unit) that ``sigma'`` does not go below -- an error
       that more or better points do not remove.
 
