@@ -20,19 +20,23 @@ degrees of freedom:
 The inflation has two measured parts: a within-part residual correlation ``rho`` per provider
 and category (:attr:`ancsh.solvers.uncertainty.Inflation.correlation`: a part's ``n`` points count
 as ``n / (1 + (n - 1) rho)`` independent ones, since network and warp errors do not average out
-over points), chosen from :data:`CORRELATION_GRID`, and per quantity a factor on the standard deviations.
+over points), chosen from :data:`CORRELATION_GRID`, and per quantity an
+:class:`~ancsh.solvers.uncertainty.SigmaMap` of each fit's raw standard deviation (a single factor,
+a power about a reference, or a factor with a floor; one map for all parts or joints, or one per
+part or joint: :func:`fit_quantity_inflation`, :func:`fit_sigma_map`).
 
 The truth lies "within ``k`` sigma" when ``d^2 <= chi2_dof^-1(P(|z| <= k))`` (68.27 % for ``k = 1``,
 95.45 % for ``k = 2``): the one-dimensional ``k``-sigma probability carried to ``dof`` dimensions.
-A factor ``f`` on the standard deviations divides ``d^2`` by ``f^2``; per provider, category and
-quantity the factor minimising the larger of the two coverage gaps (and per provider and category
-the correlation whose factors leave the smallest mean gap) is measured on **calibration frames** (the held-out test instances, frame seed stream ``--calibration-seed``, never the test
+A map with ratio ``f = sigma' / sigma`` divides ``d^2`` by ``f^2``; per provider, category and
+quantity the map minimising the larger of the two coverage gaps (and per provider and category
+the correlation whose single factors leave the smallest mean gap) is measured on **calibration
+frames** (the held-out test instances, frame seed stream ``--calibration-seed``, never the test
 frames) and the coverage is then reported on the **test frames** (seed ``--seed``, the frames of
 ``ancsh evaluate``). Failed fits are counted, not scored; quantities the data left undetermined
 (infinite variance) are counted, not scored.
 
-``--install`` writes the factors to ``ancsh/weights/uncertainty_inflation.json``, which
-``ancsh predict`` applies (:func:`ancsh.solvers.uncertainty.inflation_for`).
+``--install`` writes the maps to ``ancsh/weights/uncertainty_inflation.json``, which
+``ancsh predict`` and ``ancsh track`` apply (:func:`ancsh.solvers.uncertainty.inflation_for`).
 """
 
 from __future__ import annotations
@@ -48,8 +52,9 @@ import numpy as np
 
 from .outputs import output_flags
 
-__all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "coverage", "error_records",
-           "fit_inflation", "measure", "normalised_errors", "register", "run", "summarize", "write_report"]
+__all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "ErrorRecord", "coverage", "error_records",
+           "fit_inflation", "fit_quantity_inflation", "fit_sigma_map", "inflated_errors", "measure", "normalised_errors",
+           "raw_sigmas", "register", "run", "summarize", "write_report"]
 
 #: Quantities and their degrees of freedom.
 QUANTITIES = {"rotation": 3, "translation": 3, "scale": 1, "joint_state": 1, "joint_axis": 2, "joint_pivot": 2}
@@ -117,10 +122,47 @@ def _perp_basis(a: np.ndarray) -> np.ndarray:
     return np.stack([u, v], axis=1)
 
 
+@dataclass(frozen=True)
+class ErrorRecord:
+    """One fitted quantity's error against the ground truth, with what its inflation needs.
+
+    Attributes
+    ----------
+    error : (dof,) float64
+        The error in the quantity's coordinates (see the module docstring; radians, metres).
+    covariance : (dof, dof) float64
+        Its raw covariance, same coordinates.
+    correlated : (dof, dof) float64
+        The covariance added per unit within-part correlation
+        (:attr:`~ancsh.solvers.uncertainty.FitUncertainty.correlated`).
+    index : int
+        The part (pose quantities) or joint (joint quantities) it belongs to.
+    variance, correlated_variance : float
+        The squared :func:`~ancsh.solvers.uncertainty.block_sigma` of the quantity's block as the fit
+        stores it (raw, and per unit correlation): the raw ``sigma`` that
+        :meth:`~ancsh.solvers.uncertainty.FitUncertainty.inflated` maps is
+        ``sqrt(variance + rho correlated_variance)``.
+    """
+
+    error: np.ndarray
+    covariance: np.ndarray
+    correlated: np.ndarray
+    variance: float
+    correlated_variance: float
+    index: int = 0
+
+
+def _record(index, e, C, Cc, block, block_corr) -> ErrorRecord:
+    from .solvers.uncertainty import block_sigma
+
+    return ErrorRecord(np.asarray(e, dtype=np.float64), C, Cc, float(block_sigma(block) ** 2), float(block_sigma(block_corr) ** 2),
+                       int(index))
+
+
 def error_records(result, gt) -> dict:
-    """``{quantity: [(e, C, C_corr), ...]}`` of one fit against its ground truth: each error vector
-    ``e`` (``dof``,) with its raw covariance ``C`` and the covariance per unit within-part correlation
-    ``C_corr`` (:attr:`~ancsh.solvers.uncertainty.FitUncertainty.correlated`), in the same coordinates.
+    """``{quantity: [ErrorRecord, ...]}`` of one fit against its ground truth: each error vector
+    (``dof``,) with its raw covariance and the covariance per unit within-part correlation, in the
+    same coordinates, and the block variances the inflation maps.
 
     Parameters
     ----------
@@ -138,32 +180,42 @@ def error_records(result, gt) -> dict:
         for q, e, sl in (("rotation", log_so3(G.rotation @ T.rotation.T), slice(0, 3)),
                          ("translation", G.translation - T.translation, slice(3, 6)),
                          ("scale", np.array([G.scale - T.scale]), slice(6, 7))):
-            out[q].append((e, C[sl, sl], Cc[sl, sl]))
+            out[q].append(_record(j, e, C[sl, sl], Cc[sl, sl], C[sl, sl], Cc[sl, sl]))
     for k in range(len(result.joint_states)):
         revolute = str(getattr(gt.joint_types[k], "value", gt.joint_types[k])) == "revolute"
         d = float(gt.joint_states[k] - result.joint_states[k])
         if revolute:
             d = (d + np.pi) % (2 * np.pi) - np.pi
         sl = slice(k, k + 1)
-        out["joint_state"].append((np.array([d]), u.joint_state_covariance[sl, sl], c.joint_state_covariance[sl, sl]))
+        Cs, Css = u.joint_state_covariance[sl, sl], c.joint_state_covariance[sl, sl]
+        out["joint_state"].append(_record(k, [d], Cs, Css, Cs, Css))
         a = result.joint_axes_cam[k]
         if not np.all(np.isfinite(a)):
             continue
         P = _perp_basis(a)
         g = np.asarray(gt.joint_axes_cam[k], dtype=np.float64)
         g = g if g @ a >= 0 else -g
-        out["joint_axis"].append((P.T @ (g - a), P.T @ u.joint_axis_covariances[k] @ P,
-                                  P.T @ c.joint_axis_covariances[k] @ P))
+        Ca, Cca = u.joint_axis_covariances[k], c.joint_axis_covariances[k]
+        out["joint_axis"].append(_record(k, P.T @ (g - a), P.T @ Ca @ P, P.T @ Cca @ P, Ca, Cca))
         if revolute:
             e = np.asarray(gt.joint_pivots_cam[k]) - result.joint_pivots_cam[k]
-            out["joint_pivot"].append((P.T @ e, P.T @ u.joint_pivot_covariances[k] @ P, P.T @ c.joint_pivot_covariances[k] @ P))
+            Cp, Ccp = u.joint_pivot_covariances[k], c.joint_pivot_covariances[k]
+            out["joint_pivot"].append(_record(k, P.T @ e, P.T @ Cp @ P, P.T @ Ccp @ P, Cp, Ccp))
     return out
 
 
 def normalised_errors(records, correlation: float = 0.0) -> np.ndarray:
-    """Squared Mahalanobis distances ``e^T (C + rho C_corr)^-1 e`` of :func:`error_records` entries
+    """Squared Mahalanobis distances ``e^T (C + rho C_corr)^-1 e`` of :class:`ErrorRecord` s
     (``nan`` where the covariance is infinite or degenerate)."""
-    return np.array([_mahalanobis2(e, C + correlation * Cc if correlation > 0 else C) for e, C, Cc in records])
+    return np.array([_mahalanobis2(r.error, r.covariance + correlation * r.correlated if correlation > 0 else r.covariance)
+                     for r in records])
+
+
+def raw_sigmas(records, correlation: float = 0.0) -> np.ndarray:
+    """The raw ``sigma`` (:func:`~ancsh.solvers.uncertainty.block_sigma`, after the correlation) of each
+    :class:`ErrorRecord`: what a :class:`~ancsh.solvers.uncertainty.SigmaMap` maps (the quantity's unit)."""
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.array([r.variance + correlation * r.correlated_variance for r in records], dtype=np.float64))
 
 
 def _thresholds(quantity: str, probs=COVERAGE_TARGETS) -> np.ndarray:
@@ -182,16 +234,177 @@ def coverage(d2, quantity: str, factor: float = 1.0, probs=COVERAGE_TARGETS) -> 
     return np.mean(d2[:, None] / factor**2 <= q[None, :], axis=0)
 
 
+def _finite(d2, sigma=None):
+    d2 = np.asarray(d2, dtype=np.float64)
+    keep = np.isfinite(d2)
+    if sigma is None:
+        return d2[keep]
+    sigma = np.asarray(sigma, dtype=np.float64)
+    if sigma.shape != d2.shape:
+        raise ValueError(f"sigma: expected the shape of d2 {d2.shape}, got {sigma.shape}")
+    keep &= np.isfinite(sigma) & (sigma > 0)
+    return d2[keep], sigma[keep]
+
+
+def _gaps(cov: np.ndarray) -> np.ndarray:
+    """``(...)`` the larger gap of ``(..., 2)`` coverages to :data:`COVERAGE_TARGETS`."""
+    return np.max(np.abs(cov - np.asarray(COVERAGE_TARGETS)), axis=-1)
+
+
+def _factor_scan(d2: np.ndarray, quantity: str) -> tuple:
+    """``(factor, gap)``: the factor of :data:`_FACTOR_GRID` minimising the larger gap (the smallest such)."""
+    q = _thresholds(quantity)
+    cov = np.searchsorted(np.sort(d2), q[None, :] * _FACTOR_GRID[:, None] ** 2, side="right") / d2.size  # (F, 2)
+    gap = _gaps(cov)
+    i = int(np.argmin(gap))
+    return float(_FACTOR_GRID[i]), float(gap[i])
+
+
 def fit_inflation(d2, quantity: str) -> float:
     """The factor (on a log grid, 0.25..200) minimising the larger gap of the 1 and 2 sigma coverages to their targets."""
-    d2 = np.asarray(d2, dtype=np.float64)
-    d2 = d2[np.isfinite(d2)]
+    d2 = _finite(d2)
     if not d2.size:
         return float("nan")
+    return _factor_scan(d2, quantity)[0]
+
+
+#: Powers ``p`` of :class:`~ancsh.solvers.uncertainty.SigmaMap` tried (1: the single factor).
+POWER_GRID = tuple(float(v) for v in np.round(np.linspace(0.0, 3.0, 61), 3))
+#: Floors ``b`` tried, as multiples of the reference ``s`` (the calibration frames' median raw sigma).
+FLOOR_GRID = tuple(float(v) for v in np.exp(np.linspace(np.log(0.05), np.log(20.0), 41)))
+#: A two-parameter map replaces the single factor only where it lowers the larger calibration gap by this much.
+MIN_GAIN = 0.02
+#: Among two-parameter maps within this much of the best calibration gap, the one nearest the single factor is kept.
+GAP_TOLERANCE = 0.01
+INFLATION_FORMS = ("factor", "power", "floor")
+
+
+def fit_sigma_map(d2, sigma, quantity: str, forms=INFLATION_FORMS):
+    """The :class:`~ancsh.solvers.uncertainty.SigmaMap` that brings the 1 and 2 sigma coverages of
+    calibration errors nearest their targets.
+
+    Each form is fitted on grids: ``"factor"`` (``k`` alone, :func:`fit_inflation`), ``"power"``
+    (``p`` of :data:`POWER_GRID` with ``s`` the median raw ``sigma``, then ``k``) and ``"floor"``
+    (``b / s`` of :data:`FLOOR_GRID`, then ``k``), each minimising the larger of the two gaps. A
+    two-parameter form is kept only when its gap is at least :data:`MIN_GAIN` below the single
+    factor's; among its parameters within :data:`GAP_TOLERANCE` of its best gap, the one nearest the
+    single factor (``p`` nearest 1, the smallest floor) -- two levels can always be matched on the
+    calibration frames, so the extra parameter must earn its place.
+
+    Parameters
+    ----------
+    d2 : (N,) float64
+        Squared Mahalanobis distances of the errors under the raw covariances (after the correlation).
+    sigma : (N,) float64
+        The fits' raw ``sigma`` (:func:`raw_sigmas`, the quantity's unit).
+    quantity : str
+        From :data:`QUANTITIES` (its degrees of freedom).
+    forms : tuple of str
+        From :data:`INFLATION_FORMS`; ``"factor"`` is always tried.
+
+    Returns
+    -------
+    (SigmaMap, str, dict)
+        The map, its form, and ``{form: calibration gap}`` of every form tried; ``(None, None, {})``
+        without finite errors.
+    """
+    from .solvers.uncertainty import SigmaMap
+
+    unknown = [f for f in forms if f not in INFLATION_FORMS]
+    if unknown:
+        raise ValueError(f"forms: unknown {unknown}; known: {list(INFLATION_FORMS)}")
+    d2, sigma = _finite(d2, sigma)
+    if not d2.size:
+        return None, None, {}
+    k, gap = _factor_scan(d2, quantity)
+    best = (SigmaMap(factor=k), "factor", gap)
+    gaps = {"factor": gap}
+    s = float(np.exp(np.median(np.log(sigma))))
+    x2 = (sigma / s) ** 2
     q = _thresholds(quantity)
-    cov = np.mean(d2[None, :, None] / _FACTOR_GRID[:, None, None] ** 2 <= q[None, None, :], axis=1)  # (F, 2)
-    gap = np.max(np.abs(cov - np.asarray(COVERAGE_TARGETS)[None, :]), axis=1)
-    return float(_FACTOR_GRID[int(np.argmin(gap))])
+    if "power" in forms:
+        cands = []
+        for p in POWER_GRID:
+            kp, g = _factor_scan(d2 * x2 ** (1.0 - p), quantity)  # d2 / ratio^2 = d2 x^(2 - 2p) / k^2
+            cands.append((g, abs(p - 1.0), SigmaMap(factor=kp, power=p, reference=s)))
+        best = _keep(best, cands, "power", gaps)
+    if "floor" in forms:
+        cands = []
+        k2 = _FACTOR_GRID**2
+        for beta in FLOOR_GRID:  # d2 / ratio^2 = d2 x^2 / (k^2 x^2 + beta^2) <= q  <=>  d2 / q - beta^2 / x^2 <= k^2
+            cov = np.stack([np.searchsorted(np.sort(d2 / ql - beta**2 / x2), k2, side="right") for ql in q], axis=1) / d2.size
+            g = _gaps(cov)
+            i = int(np.argmin(g))
+            cands.append((float(g[i]), beta, SigmaMap(factor=float(_FACTOR_GRID[i]), reference=s, floor=beta * s)))
+        best = _keep(best, cands, "floor", gaps)
+    return best[0], best[1], gaps
+
+
+def _keep(best: tuple, cands: list, form: str, gaps: dict) -> tuple:
+    """``best`` or the candidate of ``form`` (``(gap, distance from the single factor, map)``) that replaces it."""
+    g_min = min(c[0] for c in cands)
+    gaps[form] = g_min
+    g, _, m = min((c for c in cands if c[0] <= g_min + GAP_TOLERANCE), key=lambda c: (c[1], c[0]))
+    if g <= gaps["factor"] - MIN_GAIN and g < best[2]:
+        return m, form, g
+    return best
+
+
+def inflated_errors(d2, sigma, sigma_map, index=None) -> np.ndarray:
+    """``d2`` under the covariances inflated by ``sigma_map`` (:meth:`SigmaMap.ratio` of each raw ``sigma``);
+    a tuple of maps is indexed by each error's part or joint ``index`` (``(N,)`` ints)."""
+    d2, sigma = np.asarray(d2, dtype=np.float64), np.asarray(sigma, dtype=np.float64)
+    if not isinstance(sigma_map, tuple):
+        return d2 / sigma_map.ratio(sigma) ** 2
+    index = np.asarray(index, dtype=int)
+    ratio = np.ones_like(sigma)
+    for i, m in enumerate(sigma_map):
+        ratio[index == i] = m.ratio(sigma[index == i])
+    return d2 / ratio**2
+
+
+#: Per-part (per-joint) maps are fitted only where every part (joint) has at least this many calibration errors.
+MIN_RECORDS_PER_INDEX = 40
+
+
+def fit_quantity_inflation(records, quantity: str, correlation: float, forms=INFLATION_FORMS, per_index: str = "auto"):
+    """The inflation of one quantity from calibration :class:`ErrorRecord` s: one :class:`SigmaMap`
+    for all parts (joints), or one per part (joint).
+
+    The parts of an object can be calibrated very differently (the learned translations of a washing
+    machine's door are about eight times more over-confident than its body's), and pooling them makes
+    the normalised errors a mixture of scales that no single map fits at both levels. With
+    ``per_index="auto"`` a map per part (joint), each from :func:`fit_sigma_map`, replaces the pooled
+    one when every part has :data:`MIN_RECORDS_PER_INDEX` errors and the pooled calibration gap
+    drops by :data:`MIN_GAIN`; ``"always"`` / ``"never"`` force the choice (where possible).
+
+    Returns
+    -------
+    (SigmaMap or tuple of SigmaMap, str, dict)
+        The map(s) (``None`` without finite errors), the form(s) (``"power"``, ``"per part: factor, floor"``, ...)
+        and ``{"pooled": gap, "per_index": gap, form: gap, ...}`` on the calibration frames.
+    """
+    if per_index not in ("auto", "always", "never"):
+        raise ValueError(f"per_index: expected 'auto', 'always' or 'never', got {per_index!r}")
+    d2, sigma = normalised_errors(records, correlation), raw_sigmas(records, correlation)
+    index = np.array([r.index for r in records], dtype=int)
+    m, form, gaps = fit_sigma_map(d2, sigma, quantity, forms)
+    if m is None:
+        return None, None, {}
+    pooled = _gaps(coverage(inflated_errors(d2, sigma, m), quantity))
+    gaps = {**gaps, "pooled": float(pooled)}
+    count = int(index.max()) + 1 if index.size else 0
+    enough = count > 1 and all(np.sum(np.isfinite(d2[index == i])) >= MIN_RECORDS_PER_INDEX for i in range(count))
+    if per_index == "never" or not enough:
+        return m, form, gaps
+    fits = [fit_sigma_map(d2[index == i], sigma[index == i], quantity, forms) for i in range(count)]
+    maps = tuple(f[0] for f in fits)
+    split = float(_gaps(coverage(inflated_errors(d2, sigma, maps, index), quantity)))
+    gaps["per_index"] = split
+    if per_index == "always" or split <= pooled - MIN_GAIN:
+        label = "per joint" if quantity.startswith("joint") else "per part"
+        return maps, f"{label}: " + ", ".join(f[1] for f in fits), gaps
+    return m, form, gaps
 
 
 # ------------------------------------------------------------------------------------------------
@@ -263,60 +476,107 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
     return {"records": records, "counts": counts, "timing": timing}
 
 
+_RECORD_FIELDS = ("error", "covariance", "correlated", "variance", "correlated_variance", "index")
+
+
+def save_records(measured: dict, path) -> Path:
+    """Write :func:`measure`'s output to ``path`` (``.npz``: per category, provider, split and quantity the
+    arrays of its :class:`ErrorRecord` fields; counts and timing as JSON), so that inflation maps can be
+    compared without fitting the frames again (:func:`load_records`)."""
+    arrays = {"meta": np.array(json.dumps({"counts": measured["counts"], "timing": measured["timing"]}))}
+    for cat, per in measured["records"].items():
+        for p, splits in per.items():
+            for split, qs in splits.items():
+                for q, recs in qs.items():
+                    dof = QUANTITIES[q]
+                    for f in _RECORD_FIELDS:
+                        shape = {"error": (0, dof), "covariance": (0, dof, dof), "correlated": (0, dof, dof)}.get(f, (0,))
+                        v = np.array([getattr(r, f) for r in recs]) if recs else np.zeros(shape)
+                        arrays[f"{cat}/{p}/{split}/{q}/{f}"] = v
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    return path
+
+
+def load_records(path) -> dict:
+    """:func:`measure`'s output from :func:`save_records`' file.
+
+    Raises
+    ------
+    ValueError
+        When ``path`` is missing or not such a file (naming it).
+    """
+    try:
+        data = np.load(Path(path), allow_pickle=False)
+        meta = json.loads(str(data["meta"]))
+    except (OSError, KeyError, ValueError) as exc:
+        raise ValueError(f"{path}: not a records file of ancsh bench uncertainty --save-records ({exc})") from exc
+    records = {}
+    for key in data.files:
+        if key == "meta" or not key.endswith("/index"):
+            continue
+        cat, p, split, q, _ = key.split("/")
+        cols = [data[f"{cat}/{p}/{split}/{q}/{f}"] for f in _RECORD_FIELDS]
+        recs = [ErrorRecord(cols[0][i], cols[1][i], cols[2][i], float(cols[3][i]), float(cols[4][i]), int(cols[5][i]))
+                for i in range(len(cols[5]))]
+        records.setdefault(cat, {}).setdefault(p, {}).setdefault(split, {})[q] = recs
+    return {"records": records, "counts": meta["counts"], "timing": meta["timing"]}
+
+
 #: Within-part residual correlations tried (per provider and category).
 CORRELATION_GRID = (0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
 #: The quantities whose coverage chooses the correlation.
 MAIN_QUANTITIES = ("rotation", "translation", "joint_state")
 
 
-def _gap(d2, quantity: str, factor: float) -> float:
-    return float(np.max(np.abs(coverage(d2, quantity, factor) - np.asarray(COVERAGE_TARGETS))))
+def summarize(measured: dict, forms=INFLATION_FORMS, per_index: str = "auto") -> dict:
+    """Per provider and category the within-part correlation and per quantity the inflation map, both
+    from the calibration frames, and the test coverage before (raw) and after them.
 
-
-def summarize(measured: dict) -> dict:
-    """Per provider and category the within-part correlation and per quantity the factor, both from the
-    calibration frames, and the test coverage before (raw) and after them.
-
-    The correlation is the one of :data:`CORRELATION_GRID` whose best factors leave the smallest
-    mean coverage gap over :data:`MAIN_QUANTITIES` on the calibration frames.
+    The correlation is the one of :data:`CORRELATION_GRID` whose single factors leave the smallest
+    mean coverage gap over :data:`MAIN_QUANTITIES` on the calibration frames; then per quantity
+    :func:`fit_quantity_inflation` chooses the map(s) among ``forms`` (``per_index`` as there).
 
     Returns
     -------
     dict
-        ``{"rows": [{category, provider, quantity, n_calibration, n_test, correlation, factor, raw (2,),
-        inflated (2,), calibration_inflated (2,)}], "factors": {provider: {category: {quantity: factor,
-        "correlation": rho}}}, "d2": {category: {provider: {quantity: (raw test d2, inflated test d2)}}}}``.
+        ``{"rows": [{category, provider, quantity, n_calibration, n_test, correlation, form, sigma_map,
+        calibration_gaps, raw (2,), inflated (2,), calibration_inflated (2,)}], "factors": {provider:
+        {category: {quantity: SigmaMap.to_json() or a list of them per part / joint, "correlation": rho}}},
+        "d2": {category: {provider: {quantity: (raw test d2, inflated test d2)}}}}``.
     """
     rows, factors, d2_out = [], {}, {}
     for cat, per_provider in measured["records"].items():
         for p, splits in per_provider.items():
             cal, test = splits["calibration"], splits["test"]
-            present = [q for q in QUANTITIES if cal[q] and test[q]]
+            present = [q for q in QUANTITIES if cal.get(q) and test.get(q)]
             best = None
             for rho in CORRELATION_GRID:
-                gaps = []
-                for q in MAIN_QUANTITIES:
-                    if q in present:
-                        d2 = normalised_errors(cal[q], rho)
-                        gaps.append(_gap(d2, q, fit_inflation(d2, q)))
+                gaps = [_factor_scan(d2, q)[1] for q in MAIN_QUANTITIES if q in present
+                        for d2 in [_finite(normalised_errors(cal[q], rho))] if d2.size]
                 score = float(np.mean(gaps)) if gaps else 0.0
                 if best is None or score < best[0] - 1e-12:
                     best = (score, rho)
             rho = best[1]
             entry = factors.setdefault(p, {}).setdefault(cat, {"correlation": rho})
             for q in present:
+                m, form, cal_gaps = fit_quantity_inflation(cal[q], q, rho, forms, per_index)
+                if m is None:
+                    continue
+                entry[q] = [v.to_json() for v in m] if isinstance(m, tuple) else m.to_json()
                 d2_cal, d2_test = normalised_errors(cal[q], rho), normalised_errors(test[q], rho)
                 raw_test = normalised_errors(test[q], 0.0)
-                f = fit_inflation(d2_cal, q)
-                if not np.isfinite(f):
-                    continue
-                entry[q] = round(f, 4)
-                d2_out.setdefault(cat, {}).setdefault(p, {})[q] = (raw_test, d2_test / f**2)
+                inflated_test = inflated_errors(d2_test, raw_sigmas(test[q], rho), m, [r.index for r in test[q]])
+                inflated_cal = inflated_errors(d2_cal, raw_sigmas(cal[q], rho), m, [r.index for r in cal[q]])
+                d2_out.setdefault(cat, {}).setdefault(p, {})[q] = (raw_test, inflated_test)
                 rows.append({
                     "category": cat, "provider": p, "quantity": q, "n_calibration": int(np.isfinite(d2_cal).sum()),
-                    "n_test": int(np.isfinite(d2_test).sum()), "correlation": rho, "factor": f,
-                    "raw": coverage(raw_test, q).tolist(), "inflated": coverage(d2_test, q, f).tolist(),
-                    "calibration_inflated": coverage(d2_cal, q, f).tolist(),
+                    "n_test": int(np.isfinite(d2_test).sum()), "correlation": rho, "form": form,
+                    "sigma_map": entry[q], "calibration_gaps": cal_gaps,
+                    "raw": coverage(raw_test, q).tolist(), "inflated": coverage(inflated_test, q).tolist(),
+                    "calibration_inflated": coverage(inflated_cal, q).tolist(),
                 })
     return {"rows": rows, "factors": factors, "d2": d2_out}
 
@@ -355,7 +615,7 @@ def reliability_plot(measured: dict, summary: dict, path) -> Path:
                 col = colours[c % len(colours)]
                 ax.plot(probs, coverage(raw, q, 1.0, probs), "--", color=col, lw=1)
                 ax.plot(probs, coverage(inflated, q, 1.0, probs), "-", color=col, lw=1.5,
-                        label=f"{cat} (rho {ent['correlation']:g}, x{ent[q]:.2g})")
+                        label=f"{cat} (rho {ent['correlation']:g}, {_describe(ent[q])})"[:60])
             for t in COVERAGE_TARGETS:
                 ax.axvline(t, color="0.85", lw=0.8)
             ax.set_title(f"{p}: {q.replace('_', ' ')}")
@@ -363,14 +623,44 @@ def reliability_plot(measured: dict, summary: dict, path) -> Path:
             ax.set_ylabel("observed coverage (test frames)")
             ax.set_xlim(0, 1)
             ax.set_ylim(0, 1)
-            ax.legend(fontsize=7, loc="upper left")
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Reliability of the fits' covariances (test frames): dashed raw, solid with the calibrated "
-                 "correlation and factor")
+                 "correlation and inflation map")
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return path
+
+
+def _describe(stored, per: str = "per part") -> str:
+    """A stored map (:meth:`SigmaMap.to_json`, or a list of them ``per`` part / joint) in a few characters."""
+    if isinstance(stored, list):
+        return f"{per}: " + "; ".join(_describe(v) for v in stored)
+    if not isinstance(stored, dict):
+        return f"×{stored:.3g}"
+    out = f"×{stored['factor']:.3g}"
+    if stored["power"] != 1.0:
+        out += f", p {stored['power']:g} (s {stored['reference']:.2g})"
+    if stored["floor"] > 0.0:
+        out += f", floor {stored['floor']:.2g}"
+    return out
+
+
+def _misses(rows) -> list:
+    """Lines naming the rows that miss the target and whether the calibration frames met it."""
+    miss = [r for r in rows if not _within(r["inflated"])]
+    if not miss:
+        return []
+    out = ["Rows that miss it (calibration-frame coverage after the same inflation beside the test-frame one):", ""]
+    for r in miss:
+        cal = r["calibration_inflated"]
+        why = ("the calibration frames met the target, the test frames differ from them" if _within(cal) else
+               "no map form fits the calibration frames at both levels either")
+        out.append(f"- {r['category']} / {r['provider']} / {r['quantity']}: test {_pct(r['inflated'][0])} / "
+                   f"{_pct(r['inflated'][1])} %, calibration {_pct(cal[0])} / {_pct(cal[1])} % ({why}).")
+    return out + [""]
 
 
 def _pct(v) -> str:
@@ -403,19 +693,30 @@ def write_report(measured: dict, summary: dict, config: CalibrationConfig, out_m
         "probability 68.3 % / 95.4 % (chi-square with the quantity's degrees of freedom). The inflation has two "
         "parts, both measured on the calibration frames only, then applied to the test frames: a within-part "
         "residual correlation `rho` per provider and category (a part's `n` points count as `n / (1 + (n - 1) rho)` "
-        "independent ones: network and warp errors do not average out over points), and per quantity a factor on "
-        "the standard deviations (the one that minimises the larger of the two gaps).",
+        "independent ones: network and warp errors do not average out over points), and per quantity a map of each "
+        "fit's raw standard deviation `σ` (the RMS per coordinate of the quantity's covariance block) to the reported "
+        "one, `σ' = sqrt((k σ^p s^(1-p))² + b²)` (`ancsh.solvers.uncertainty.SigmaMap`; the block keeps its shape). "
+        "Three forms are fitted, each minimising the larger of the two coverage gaps: a single factor `k` (`×k`); "
+        "a power `p` about the calibration frames' median raw `σ`, `s` (`p > 1`: the fits' errors differ more than "
+        "their raw `σ` say); a floor `b` (the quantity's unit). A two-parameter form replaces the factor only where "
+        f"it lowers the larger calibration gap by {100 * MIN_GAIN:g} points (of its parameters within "
+        f"{100 * GAP_TOLERANCE:g} point of its best, the one nearest the plain factor). Maps per part (per joint) "
+        f"replace the pooled one where every part has ≥ {MIN_RECORDS_PER_INDEX} calibration errors and they lower the "
+        f"pooled calibration gap by {100 * MIN_GAIN:g} points: parts of one object can be calibrated very differently, "
+        "and pooled they give a mixture of scales that no single map fits at both levels.",
         "",
         f"**Target (issue 15): after inflation, 1σ / 2σ coverage within 10 points of 68 / 95 %.** Rotation, translation "
         f"and joint state: {ok_main} of {len(main)} category × provider rows meet it; all quantities: {ok_all} of {len(rows)}.",
         "",
-        "| category | provider | quantity | n cal / test | raw 1σ / 2σ (%) | rho | factor | inflated 1σ / 2σ (%) | within 10 pts |",
+        *_misses(rows),
+        "| category | provider | quantity | n cal / test | raw 1σ / 2σ (%) | rho | inflation | inflated 1σ / 2σ (%) | within 10 pts |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['category']} | {r['provider']} | {r['quantity']} | {r['n_calibration']} / {r['n_test']} | "
-            f"{_pct(r['raw'][0])} / {_pct(r['raw'][1])} | {r['correlation']:g} | {r['factor']:.3g} | "
+            f"{_pct(r['raw'][0])} / {_pct(r['raw'][1])} | {r['correlation']:g} | "
+            f"{_describe(r['sigma_map'], 'per joint' if r['quantity'].startswith('joint') else 'per part')} | "
             f"{_pct(r['inflated'][0])} / {_pct(r['inflated'][1])} | {'yes' if _within(r['inflated']) else '**no**'} |")
     lines += ["", "Fits per split (failed: no estimate or a failed plausibility check, not scored; singular: some "
               "quantity undetermined, its errors not scored):", "",
@@ -432,10 +733,12 @@ def write_report(measured: dict, summary: dict, config: CalibrationConfig, out_m
     for p, v in t.items():
         lines.append(f"| {p} | {np.mean(v['fit_ms']):.1f} | {np.mean(v['fit_ms_without']):.1f} | "
                      f"{np.mean(v['covariance_ms']):.2f} |")
-    lines += ["", "## Inflation factors", "",
+    lines += ["", "## Inflation maps", "",
               "Stored in `ancsh/weights/uncertainty_inflation.json` (written by this command with `--install`); "
-              "`ancsh predict` applies the `learned` ones to the shipped weights' fits "
-              "(`ancsh.solvers.uncertainty.inflation_for`). Joint axis and pivot factors are measured the same way.", "",
+              "`ancsh predict` and `ancsh track` apply the `learned` ones to the shipped weights' fits "
+              "(`ancsh.solvers.uncertainty.inflation_for`). Per quantity: a number is the single factor `k`; "
+              "`{factor, power, reference, floor}` is `k, p, s, b` of the map above; a list holds one map per part "
+              "(pose quantities, in the category's part order; the object pose takes the root part's) or per joint.", "",
               "```json", json.dumps(summary["factors"], indent=1, sort_keys=True), "```", "",
               f"Reliability plot: [{png.name}]({png.name})", "", f"![reliability]({png.name})", ""]
     out_md.write_text("\n".join(lines))
@@ -457,7 +760,7 @@ def _json_default(o):
 
 
 def install(summary: dict, config: CalibrationConfig, command: str, path=None) -> Path:
-    """Write the measured factors (merged per provider and category into an existing table)."""
+    """Write the measured maps (merged per provider and category into an existing table)."""
     from .solvers.uncertainty import INFLATION_PATH, load_inflation_table
 
     path = INFLATION_PATH if path is None else Path(path)
@@ -472,8 +775,9 @@ def install(summary: dict, config: CalibrationConfig, command: str, path=None) -
     table["formulation"] = config.formulation
     table["command"] = command
     table["date"] = datetime.date.today().isoformat()
-    table["meaning"] = ("factors on the raw Jacobian standard deviations of ancsh.solvers.uncertainty, per provider, "
-                        "category and quantity, measured on calibration frames by ancsh bench uncertainty")
+    table["meaning"] = ("maps of the raw Jacobian standard deviations of ancsh.solvers.uncertainty (SigmaMap: a number is "
+                        "a single factor; a list holds one map per part or joint), per provider, category and quantity, "
+                        "measured on calibration frames by ancsh bench uncertainty")
     path.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
     return path
 
@@ -491,7 +795,11 @@ def register(sub) -> None:
     p.add_argument("--calibration-seed", type=int, default=1001)
     p.add_argument("--out", default=None, help="markdown path (default: a fresh ancsh_results/bench-uncertainty-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/uncertainty_calibration.md")
-    p.add_argument("--install", action="store_true", help="write the factors to ancsh/weights/uncertainty_inflation.json")
+    p.add_argument("--install", action="store_true", help="write the maps to ancsh/weights/uncertainty_inflation.json")
+    p.add_argument("--save-records", default=None, metavar="NPZ",
+                   help="also write every frame's errors and raw covariances (to compare inflation maps offline)")
+    p.add_argument("--records", default=None, metavar="NPZ",
+                   help="reuse the errors of --save-records instead of fitting the frames (the same --frames and seeds)")
     p.set_defaults(func=run)
 
 
@@ -507,6 +815,9 @@ def _command(args) -> str:
     parts += output_flags(args.out, update_docs=args.update_docs)
     if args.install:
         parts.append("--install")
+    for flag in ("save_records", "records"):
+        if getattr(args, flag, None):
+            parts.append(f"--{flag.replace('_', '-')} {getattr(args, flag)}")
     return " ".join(parts)
 
 
@@ -521,7 +832,15 @@ def run(args) -> int:
     config = CalibrationConfig(**kw)
     command = _command(args)
     t0 = time.perf_counter()
-    measured = measure(config, progress=lambda s: print(s, flush=True))
+    if getattr(args, "records", None):
+        measured = load_records(args.records)
+        if sorted(measured["records"]) != sorted(config.categories):
+            raise ValueError(f"--records: {args.records} holds categories {sorted(measured['records'])}, "
+                             f"not {sorted(config.categories)}")
+    else:
+        measured = measure(config, progress=lambda s: print(s, flush=True))
+    if getattr(args, "save_records", None):
+        print(f"wrote {save_records(measured, args.save_records)}")
     summary = summarize(measured)
     out_md = report_path(args.out, update_docs=args.update_docs, docs_name="uncertainty_calibration.md",
                          command="bench-uncertainty")
@@ -529,5 +848,5 @@ def run(args) -> int:
     print(f"wrote {out_md}; rotation/translation/state rows within 10 points after inflation: "
           f"{head['rows_within_main']} of {head['rows_main']} (all quantities {head['rows_within_all']} of {head['rows_all']})")
     if args.install:
-        print(f"installed the factors in {install(summary, config, command)}")
+        print(f"installed the maps in {install(summary, config, command)}")
     return 0

@@ -41,25 +41,28 @@ A direction that the data do not determine (a degenerate part, collinear points)
 **Inflation.** Jacobian covariances assume independent residuals; the errors of a network's
 NPCS predictions are correlated, so they are over-confident. :class:`Inflation` holds a measured
 within-part residual correlation (each raw result carries the covariance per unit of it,
-:attr:`FitUncertainty.correlated`: ``v_j (1 - 1 / n_j)`` in place of ``v_j / n_j``) and measured
-per-quantity factors on the standard deviations (``ancsh bench uncertainty``, stored in
-``ancsh/weights/uncertainty_inflation.json``, :func:`inflation_for`);
-:meth:`FitUncertainty.inflated` applies them, the raw covariances stay available.
+:attr:`FitUncertainty.correlated`: ``v_j (1 - 1 / n_j)`` in place of ``v_j / n_j``) and per
+quantity a measured :class:`SigmaMap` -- one for all parts (joints) or one per part (joint) -- of
+each block's raw standard deviation ``sigma`` (:func:`block_sigma`) to the reported one,
+``sigma' = sqrt((k sigma^p s^(1-p))^2 + b^2)``: a single factor ``k``, a power ``p`` about a
+reference ``s``, or a floor ``b`` (``ancsh bench uncertainty``, stored in
+``ancsh/weights/uncertainty_inflation.json``, :func:`inflation_for`; a number there is a single
+factor). :meth:`FitUncertainty.inflated` applies them, the raw covariances stay available.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..geometry._checks import check_number
 
-__all__ = ["FitUncertainty", "Inflation", "INFLATION_PATH", "UNCERTAINTY_STATUSES", "effective_points", "fit_covariance",
-           "inflation_for", "load_inflation_table"]
+__all__ = ["FitUncertainty", "INFLATED_QUANTITIES", "Inflation", "INFLATION_PATH", "SigmaMap", "UNCERTAINTY_STATUSES",
+           "block_sigma", "effective_points", "fit_covariance", "inflation_for", "load_inflation_table"]
 
 UNCERTAINTY_STATUSES = ("ok", "singular", "unavailable")
 
@@ -71,50 +74,204 @@ _NULL_LEAK = 1e-6  # a quantity whose gradient has this share along an undetermi
 
 
 @dataclass(frozen=True)
-class Inflation:
-    """Factors on the standard deviations of each kind of quantity (``>= 0``; 1 = raw).
+class SigmaMap:
+    """How one quantity's raw standard deviation becomes the reported one.
+
+    ``sigma' = sqrt((k * sigma**p * s**(1 - p))**2 + b**2)``, where ``sigma`` is the block's raw
+    RMS standard deviation per coordinate (:func:`block_sigma`, after the within-part correlation)
+    and the block's covariance is multiplied by ``(sigma' / sigma)**2`` (its shape is kept).
+
+    - ``p = 1, b = 0``: a single factor ``k`` on the standard deviations;
+    - ``p < 1``: a power that compresses the spread of the raw ``sigma`` across fits around the
+      reference ``s`` (``sigma' = k s`` at ``sigma = s``): fits whose raw ``sigma`` is small get a
+      larger factor, when the raw spread over-states how much the fits' accuracy differs;
+    - ``p > 1``: expands that spread -- the fits' errors differ more than their raw ``sigma`` say
+      (measured for several learned quantities, up to ``p`` near 3). A map is measured over the
+      calibration fits' range of raw ``sigma`` (for the learned provider about 3x between the 5th
+      and 95th percentiles); far outside it, a power is an extrapolation;
+    - ``b > 0``: a floor ``b`` (the quantity's unit) that ``sigma'`` does not go below -- an error
+      that more or better points do not remove.
 
     Attributes
     ----------
-    rotation, translation, scale : float
-        Part and object pose blocks (the covariance blocks scale by the products of factors).
-    joint_state, joint_axis, joint_pivot : float
-        Joint blocks.
+    factor : float
+        ``k >= 0``.
+    power : float
+        ``p`` in ``[0, 4]``.
+    reference : float
+        ``s > 0``, the quantity's unit (radians, metres, metres per NPCS unit; a joint state's unit);
+        matters only when ``p != 1``.
+    floor : float
+        ``b >= 0``, the quantity's unit.
+    """
+
+    factor: float = 1.0
+    power: float = 1.0
+    reference: float = 1.0
+    floor: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "factor", check_number(self.factor, "factor", minimum=0.0))
+        object.__setattr__(self, "power", check_number(self.power, "power", minimum=0.0, maximum=4.0))
+        object.__setattr__(self, "reference", check_number(self.reference, "reference", minimum=0.0, lower_open=True))
+        object.__setattr__(self, "floor", check_number(self.floor, "floor", minimum=0.0))
+
+    @property
+    def is_factor(self) -> bool:
+        """Only the factor (``p = 1``, ``b = 0``)."""
+        return self.power == 1.0 and self.floor == 0.0
+
+    @property
+    def is_identity(self) -> bool:
+        return self.is_factor and self.factor == 1.0
+
+    def ratio(self, sigma) -> np.ndarray:
+        """``sigma' / sigma`` for raw standard deviations ``sigma`` (array, the quantity's unit).
+
+        Where ``sigma`` is ``0`` or not finite (an exactly determined or an unbounded quantity) the
+        ratio is ``k``: a zero variance stays zero and an infinite one infinite."""
+        sigma = np.asarray(sigma, dtype=np.float64)
+        if self.is_factor:
+            return np.full(sigma.shape, self.factor)
+        usable = np.isfinite(sigma) & (sigma > 0.0)
+        x = np.where(usable, sigma, self.reference) / self.reference
+        r = self.factor * x ** (self.power - 1.0)
+        if self.floor > 0.0:
+            r = np.sqrt(r**2 + (self.floor / (x * self.reference)) ** 2)
+        return np.where(usable, r, self.factor)
+
+    def to_json(self):
+        """The stored form: a plain number for a single factor, else ``{factor, power, reference, floor}``."""
+        if self.is_factor:
+            return self.factor
+        return {"factor": self.factor, "power": self.power, "reference": self.reference, "floor": self.floor}
+
+    @classmethod
+    def from_json(cls, value, name: str = "value") -> "SigmaMap":
+        """From :meth:`to_json`'s forms (a number: the old single-factor entries)."""
+        if isinstance(value, SigmaMap):
+            return value
+        if isinstance(value, dict):
+            unknown = set(value) - {"factor", "power", "reference", "floor"}
+            if unknown:
+                raise ValueError(f"{name}: unknown keys {sorted(unknown)} (known: factor, power, reference, floor)")
+            return cls(**{k: float(v) for k, v in value.items()})
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise ValueError(f"{name}: expected a factor or a mapping of factor, power, reference, floor; got {value!r}")
+        return cls(factor=float(value))
+
+
+#: The quantities an :class:`Inflation` maps (the :class:`SigmaMap` fields).
+INFLATED_QUANTITIES = ("rotation", "translation", "scale", "joint_state", "joint_axis", "joint_pivot")
+
+
+@dataclass(frozen=True)
+class Inflation:
+    """How the raw standard deviations of each kind of quantity are inflated (identity = raw).
+
+    Attributes
+    ----------
+    rotation, translation, scale : SigmaMap or tuple of SigmaMap
+        Part pose blocks: one map for every part, or one per part (in the category's part order;
+        the parts of one object can be calibrated very differently, e.g. a washing machine's body
+        and door). Each block's covariance scales by its ratio squared, cross terms by the products
+        of ratios. The object pose (the root part's rotation, the NAOCS origin and scale) takes the
+        root part's maps. A number ``k`` stands for ``SigmaMap(factor=k)``.
+    joint_state, joint_axis, joint_pivot : SigmaMap or tuple of SigmaMap
+        Joint blocks: one map for every joint, or one per joint.
     correlation : float
         In ``[0, 1]``: the correlation ``rho`` of the residuals within a part, applied before the
-        factors. A part's ``n`` points then count as ``n / (1 + (n - 1) rho)`` independent ones (the
+        maps. A part's ``n`` points then count as ``n / (1 + (n - 1) rho)`` independent ones (the
         design effect of equicorrelated errors): with ``rho n >> 1`` its pose uncertainty no longer
         shrinks with more points, as for a network's spatially correlated NPCS errors.
     source : str
-        Where the factors come from (``"raw"``, ``"learned/laptop"``, ...).
+        Where the maps come from (``"raw"``, ``"learned/laptop"``, ...).
     """
 
-    rotation: float = 1.0
-    translation: float = 1.0
-    scale: float = 1.0
-    joint_state: float = 1.0
-    joint_axis: float = 1.0
-    joint_pivot: float = 1.0
+    rotation: SigmaMap | tuple = SigmaMap()
+    translation: SigmaMap | tuple = SigmaMap()
+    scale: SigmaMap | tuple = SigmaMap()
+    joint_state: SigmaMap | tuple = SigmaMap()
+    joint_axis: SigmaMap | tuple = SigmaMap()
+    joint_pivot: SigmaMap | tuple = SigmaMap()
     correlation: float = 0.0
     source: str = "raw"
 
     def __post_init__(self):
-        for f in fields(self):
-            if f.name != "source":
-                top = 1.0 if f.name == "correlation" else None
-                object.__setattr__(self, f.name, check_number(getattr(self, f.name), f.name, minimum=0.0, maximum=top))
+        for q in INFLATED_QUANTITIES:
+            v = getattr(self, q)
+            if isinstance(v, (list, tuple)):
+                if not v:
+                    raise ValueError(f"{q}: expected a map or a non-empty sequence of maps (one per part or joint)")
+                v = tuple(SigmaMap.from_json(m, f"{q}[{i}]") for i, m in enumerate(v))
+            else:
+                v = SigmaMap.from_json(v, q)
+            object.__setattr__(self, q, v)
+        object.__setattr__(self, "correlation", check_number(self.correlation, "correlation", minimum=0.0, maximum=1.0))
 
     @property
     def is_identity(self) -> bool:
-        return self.correlation == 0.0 and all(v == 1.0 for k, v in self.factors().items() if k != "correlation")
+        return self.correlation == 0.0 and all(m.is_identity for q in INFLATED_QUANTITIES for m in self._all(q))
 
-    def factors(self) -> dict:
-        """``{quantity: factor}`` without the source."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "source"}
+    def _all(self, quantity: str) -> tuple:
+        v = getattr(self, quantity)
+        return v if isinstance(v, tuple) else (v,)
+
+    def map_for(self, quantity: str, index: int, count: int) -> SigmaMap:
+        """The map of ``quantity`` (from :data:`INFLATED_QUANTITIES`) for part or joint ``index`` of ``count``.
+
+        Raises
+        ------
+        ValueError
+            When per-part (per-joint) maps do not match ``count``.
+        """
+        v = getattr(self, quantity)
+        if not isinstance(v, tuple):
+            return v
+        if len(v) != count:
+            raise ValueError(f"inflation.{quantity}: {len(v)} per-part/joint maps ({self.source}) for {count} "
+                             f"{'parts' if quantity in ('rotation', 'translation', 'scale') else 'joints'}")
+        return v[index]
+
+    def to_json(self) -> dict:
+        """``{quantity: number | {factor, power, reference, floor} | [one of those per part or joint],
+        "correlation": rho, "source": str}`` (the stored form of :meth:`from_json`, with the source)."""
+        out = {}
+        for q in INFLATED_QUANTITIES:
+            v = getattr(self, q)
+            out[q] = [m.to_json() for m in v] if isinstance(v, tuple) else v.to_json()
+        return {**out, "correlation": self.correlation, "source": self.source}
+
+    @classmethod
+    def from_json(cls, entry: dict, source: str = "raw", *, name: str = "inflation") -> "Inflation":
+        """From a stored entry (``{quantity: number | mapping | list, "correlation": rho, ...}``; other keys
+        ignored; a number is the single factor of the first stored tables)."""
+        if not isinstance(entry, dict):
+            raise ValueError(f"{name}: expected a mapping of quantities, got {type(entry).__name__}")
+        kw = {}
+        for q in INFLATED_QUANTITIES:
+            if q in entry:
+                v = entry[q]
+                kw[q] = (tuple(SigmaMap.from_json(m, f"{name}.{q}[{i}]") for i, m in enumerate(v))
+                         if isinstance(v, list) else SigmaMap.from_json(v, f"{name}.{q}"))
+        if "correlation" in entry:
+            kw["correlation"] = float(entry["correlation"])
+        return cls(**kw, source=source)
 
 
-def _pose_factors(inf: Inflation) -> np.ndarray:
-    return np.array([inf.rotation] * 3 + [inf.translation] * 3 + [inf.scale])
+def block_sigma(cov: np.ndarray) -> np.ndarray:
+    """The RMS standard deviation per coordinate, ``sqrt(tr(C) / n)``, of ``(..., n, n)`` covariance blocks
+    (``(...)``, their unit): the raw ``sigma`` a :class:`SigmaMap` maps."""
+    cov = np.asarray(cov, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.trace(cov, axis1=-2, axis2=-1) / cov.shape[-1])
+
+
+def _pose_ratios(inf: Inflation, cov: np.ndarray, index: int, count: int) -> np.ndarray:
+    """``(7,)`` ratios of the ``[phi, t, s]`` coordinates of a ``(7, 7)`` pose covariance of part ``index`` of ``count``."""
+    r = [inf.map_for(q, index, count).ratio(block_sigma(cov[sl, sl]))
+         for q, sl in (("rotation", slice(0, 3)), ("translation", slice(3, 6)), ("scale", slice(6, 7)))]
+    return np.array([r[0]] * 3 + [r[1]] * 3 + [r[2]])
 
 
 @dataclass(frozen=True)
@@ -238,15 +395,21 @@ class FitUncertainty:
             a = getattr(raw, name)
             return a + rho * getattr(corr, name) if rho > 0 and corr is not None else a
 
-        d = _pose_factors(inflation)
-        D = np.outer(d, d)
+        parts, obj = add("part_covariances"), add("object_covariance")
+        states, axes, pivots = add("joint_state_covariance"), add("joint_axis_covariances"), add("joint_pivot_covariances")
+        M, K = parts.shape[0], states.shape[0]
+        d_parts = np.array([_pose_ratios(inflation, parts[j], j, M) for j in range(M)]).reshape(M, 7)
+        d_obj = _pose_ratios(inflation, obj, 0, M) if M else np.ones(7)  # the object pose takes the root part's maps
         with np.errstate(invalid="ignore"):
+            d_state = np.array([inflation.map_for("joint_state", k, K).ratio(np.sqrt(states[k, k])) for k in range(K)])
+            d_axis = np.array([inflation.map_for("joint_axis", k, K).ratio(block_sigma(axes[k])) for k in range(K)])
+            d_pivot = np.array([inflation.map_for("joint_pivot", k, K).ratio(block_sigma(pivots[k])) for k in range(K)])
             return replace(
                 raw, inflation=inflation, base=raw, correlated=None,
-                part_covariances=add("part_covariances") * D, object_covariance=add("object_covariance") * D,
-                joint_state_covariance=add("joint_state_covariance") * inflation.joint_state**2,
-                joint_axis_covariances=add("joint_axis_covariances") * inflation.joint_axis**2,
-                joint_pivot_covariances=add("joint_pivot_covariances") * inflation.joint_pivot**2,
+                part_covariances=parts * d_parts[:, :, None] * d_parts[:, None, :], object_covariance=obj * np.outer(d_obj, d_obj),
+                joint_state_covariance=states * np.outer(d_state, d_state),
+                joint_axis_covariances=axes * (d_axis**2).reshape(K, 1, 1),
+                joint_pivot_covariances=pivots * (d_pivot**2).reshape(K, 1, 1),
             )
 
     def composed(self, T_cam_parts, T_parts_frames, T_cam_object, T_object_frame) -> "FitUncertainty":
@@ -307,7 +470,7 @@ class FitUncertainty:
         (``raw``), the noise estimate; with ``covariances`` also the full matrices. Infinite values
         stay ``inf`` here (JSON writers turn them into ``null``)."""
         out = {"status": self.status, "message": self.message,
-               "inflation": {**self.inflation.factors(), "source": self.inflation.source},
+               "inflation": self.inflation.to_json(),
                **self.summary(), "raw": self.raw().summary(),
                "noise_std_m": self.noise_std_m.tolist(), "points": self.points.tolist(), "time_ms": 1e3 * self.time_s}
         if covariances:
@@ -511,5 +674,4 @@ def inflation_for(provider: str, category: str, *, weights_sha256: str | None = 
     entry = load_inflation_table(path)["providers"].get(provider, {}).get(category)
     if entry is None or ("weights_sha256" in entry and entry["weights_sha256"] != weights_sha256):
         return Inflation()
-    known = {f.name for f in fields(Inflation)} - {"source"}
-    return Inflation(**{k: float(v) for k, v in entry.items() if k in known}, source=f"{provider}/{category}")
+    return Inflation.from_json(entry, source=f"{provider}/{category}", name=f"{path or INFLATION_PATH}: {provider}.{category}")
