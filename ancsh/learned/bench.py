@@ -218,6 +218,9 @@ class StepVariant:
         torch intra-op threads.
     bf16 : bool
         ``torch.autocast("cpu", torch.bfloat16)`` around the forward pass and the loss.
+    compiled : bool
+        The network compiled by ``torch.compile`` (:func:`ancsh.learned.compiled.compile_network`,
+        as ``TrainConfig.compile``); the compilation is timed apart, before the timed repetitions.
     """
 
     name: str
@@ -227,6 +230,7 @@ class StepVariant:
     batch: int = 16
     threads: int = 1
     bf16: bool = False
+    compiled: bool = False
 
 
 STEP_VARIANTS = {
@@ -239,6 +243,7 @@ STEP_VARIANTS = {
         StepVariant("new_b32", "new step, batch 32", True, True, batch=32),
         StepVariant("new_2threads", "new step, 2 threads", True, True, threads=2),
         StepVariant("new_bf16", "new step, bf16 autocast", True, True, bf16=True),
+        StepVariant("new_compiled", "new step, torch.compile (inductor C++ kernels)", True, True, compiled=True),
     )
 }
 """Step variants of ``ancsh bench learned-cost`` by name; ``today`` is the reference, ``new`` the default step."""
@@ -257,14 +262,16 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
     -------
     dict
         ``rows`` (one per variant: ``frames_per_cpu_s``, ``frames_per_wall_s``, medians of
-        ``step_cpu_s`` / ``step_wall_s``, ``first_loss``), ``cache_ms_per_frame`` (CPU time to compute
-        the neighbourhoods of one frame, once per frame), ``forward_ms`` (one frame, one thread, eval
-        mode, per layout: min CPU time) and the settings.
+        ``step_cpu_s`` / ``step_wall_s``, ``first_loss``; compiled variants also ``compile_cpu_s`` /
+        ``compile_wall_s``, the first step's time, compilation included), ``cache_ms_per_frame`` (CPU
+        time to compute the neighbourhoods of one frame, once per frame), ``forward_ms`` (one frame,
+        one thread, eval mode, per layout: min CPU time) and the settings.
     """
     import torch
 
     from .config import TrainConfig
     from .losses import Targets, ancsh_loss
+    from .compiled import compile_network
     from .network import build_network
     from .pointnet2 import Neighbourhoods
 
@@ -292,26 +299,33 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
     for v in variants:
         net = copy.deepcopy(base)
         net.backbone.channels_last = v.channels_last
-        states[v.name] = (net, torch.optim.Adam(net.parameters(), lr=cfg.lr))
+        states[v.name] = (compile_network(net) if v.compiled else net, torch.optim.Adam(net.parameters(), lr=cfg.lr))
     times: dict[str, list] = {v.name: [] for v in variants}
-    first_loss = {}
+    first_loss, compile_s = {}, {}
+
+    def step(v):
+        net, opt = states[v.name]
+        torch.set_num_threads(v.threads)
+        idx = slice(0, v.batch)
+        nb = None
+        if v.cached:
+            nb = Neighbourhoods(**{k: getattr(cache, k)[idx] for k in asdict(cache)})
+        t_wall, t_cpu = time.perf_counter(), time.process_time()
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=v.bf16):
+            loss, _ = ancsh_loss(net(x[idx], nb), targets[idx])
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        first_loss.setdefault(v.name, loss.item())
+        return time.process_time() - t_cpu, time.perf_counter() - t_wall
+
     try:
+        for v in variants:
+            if v.compiled:  # the one-off compilation, apart from the timed steps
+                compile_s[v.name] = step(v)
         for _ in range(repeats):
             for v in variants:
-                net, opt = states[v.name]
-                torch.set_num_threads(v.threads)
-                idx = slice(0, v.batch)
-                nb = None
-                if v.cached:
-                    nb = Neighbourhoods(**{k: getattr(cache, k)[idx] for k in asdict(cache)})
-                t_wall, t_cpu = time.perf_counter(), time.process_time()
-                with torch.autocast("cpu", dtype=torch.bfloat16, enabled=v.bf16):
-                    loss, _ = ancsh_loss(net(x[idx], nb), targets[idx])
-                opt.zero_grad(set_to_none=True)
-                loss.backward()
-                opt.step()
-                times[v.name].append((time.process_time() - t_cpu, time.perf_counter() - t_wall))
-                first_loss.setdefault(v.name, loss.item())
+                times[v.name].append(step(v))
         forward = {}
         torch.set_num_threads(1)
         for layout, channels_last in (("reference", False), ("channels_last", True)):
@@ -332,6 +346,8 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
         wall = float(np.median([t[1] for t in times[v.name][1:]]))
         rows.append({**asdict(v), "step_cpu_s": cpu, "step_wall_s": wall, "frames_per_cpu_s": v.batch / cpu,
                      "frames_per_wall_s": v.batch / wall, "first_loss": first_loss[v.name]})
+        if v.name in compile_s:
+            rows[-1]["compile_cpu_s"], rows[-1]["compile_wall_s"] = compile_s[v.name]
     ref = next((r for r in rows if r["name"] == "today"), rows[0])
     for r in rows:
         r["speedup_cpu"] = r["frames_per_cpu_s"] / ref["frames_per_cpu_s"]

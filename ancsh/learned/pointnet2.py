@@ -365,9 +365,9 @@ class SetAbstraction(nn.Module):
         if centre_idx is None or group_idx is None:
             centre_idx, group_idx = self.sample_and_group(xyz)
         centres = gather_points(xyz, centre_idx)
-        grouped = gather_points(xyz if features is None else torch.cat([xyz, features], dim=-1), group_idx)
-        rel = grouped[..., :3] - centres.unsqueeze(2)
-        grouped = rel if features is None else torch.cat([rel, grouped[..., 3:]], dim=-1)  # (B, S, K, 3 + C)
+        rel = gather_points(xyz, group_idx) - centres.unsqueeze(2)
+        # Coordinates and features gathered apart: the backward scatters only the features' gradient.
+        grouped = rel if features is None else torch.cat([rel, gather_points(features, group_idx)], dim=-1)  # (B, S, K, 3 + C)
         return centres, _max_pool(self.mlp.forward_last(grouped), dim=2)
 
 
