@@ -96,6 +96,21 @@ def test_trainer_with_compile_trains_checkpoints_and_resumes(tmp_path, tiny_arra
     assert uncompiled.step == 5 and uncompiled.step_model is uncompiled.model
 
 
+def test_cost_benchmark_times_the_compilation_apart(tmp_path, monkeypatch):
+    """``bench learned-cost`` with the compiled variant (dynamo's ``eager`` backend standing in for inductor)."""
+    import ancsh.learned.compiled as compiled_module
+    from ancsh.learned.bench import training_cost, write_cost_report
+
+    monkeypatch.setattr(compiled_module, "compile_network", lambda m: torch.compile(m, dynamic=False, backend="eager"))
+    result = training_cost(("today", "new", "new_compiled"), width=0.125, num_points=256, repeats=2)
+    rows = {r["name"]: r for r in result["rows"]}
+    assert rows["new_compiled"]["compile_cpu_s"] > 0 and "compile_cpu_s" not in rows["new"]
+    assert abs(rows["new_compiled"]["first_loss"] - rows["today"]["first_loss"]) < 1e-4 * abs(rows["today"]["first_loss"])
+    text = write_cost_report(result, tmp_path / "cost.md", command="ancsh bench learned-cost").read_text()
+    assert "Compilation (new step, torch.compile" in text and "Compiled against uncompiled new step" in text
+    assert "Best variant that computes the same function as today's step" in text
+
+
 def test_compile_config_is_checked_and_a_missing_compiler_is_a_clear_error(monkeypatch):
     with pytest.raises(ValueError, match="compile"):
         TrainConfig(compile="yes")
