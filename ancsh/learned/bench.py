@@ -14,7 +14,7 @@ Results go to stdout as a markdown table (and ``--json`` to a file).
 
 ``ancsh bench learned-cost`` -- training frames per CPU-second of today's step (reference 1x1
 convolutions, sampling and grouping at every step) beside the new one (channel-last layers,
-per-frame cached neighbourhoods) and variants (batch, threads, bf16), measured in one process
+per-frame cached neighbourhoods) and variants (batch, threads, bf16, torch.compile), measured in one process
 with interleaved repetitions, plus the single-frame forward time; a Markdown table that names
 its command, written to a fresh folder (or ``--out``).
 """

@@ -3,7 +3,8 @@
 Scenario: a network of the shipped layout (smaller) on random clouds. The per-frame neighbourhood
 cache equals freshly computed neighbourhoods (bit-exact indices); the channel-last layers with
 cached neighbourhoods give the reference step's loss and gradients (float64, to rounding); the
-numpy farthest-point sampling equals the torch reference.
+numpy farthest-point sampling equals the torch reference; so does the compiled network's step
+(``torch.compile``, slow: it compiles C++ kernels; skipped without a C++ compiler).
 """
 
 import copy
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 import torch
 
+from ancsh.learned.compiled import compile_network, cxx_compiler
 from ancsh.learned.losses import ancsh_loss
 from ancsh.learned.network import build_network
 from ancsh.learned.pointnet2 import farthest_point_sample, farthest_point_sample_reference
@@ -52,34 +54,63 @@ def test_neighbourhood_cache_equals_fresh_computation(tmp_path, tiny_arrays):
     np.testing.assert_array_equal(moved["groups1"], net.neighbourhoods(torch.from_numpy(other)).numpy()["groups1"])
 
 
-@pytest.mark.parametrize("kind", ["ancsh", "direct_voting"])
-def test_channel_last_cached_step_matches_the_reference_step(tiny_arrays, kind):
+def _float64_case(arrays, kind="ancsh"):
+    """A float64 network, batch and neighbourhoods of ``arrays``, and ``step(model, call, nb) -> (loss, grads)``
+    (``call`` evaluates ``model``: itself or a compiled wrapper)."""
     net = _net(kind).double()
-    points, targets = tiny_arrays.batch(np.arange(len(tiny_arrays)))
+    points, targets = arrays.batch(np.arange(len(arrays)))
     points = points.double()
     targets = type(targets)(**{k: v.double() if v.is_floating_point() else v for k, v in vars(targets).items()})
-    nb = net.neighbourhoods(points)
     loss_fn = ancsh_loss
     if kind == "direct_voting":
         from ancsh.learned.losses import direct_voting_loss as loss_fn
 
-    def step(model, neighbourhoods):
+    def step(model, call, neighbourhoods):
         model.zero_grad()
-        total, _ = loss_fn(model(points, neighbourhoods), targets)
+        total, _ = loss_fn(call(points, neighbourhoods), targets)
         total.backward()
         return total, {n: p.grad.clone() for n, p in model.named_parameters()}
 
-    ref_net = copy.deepcopy(net)
-    ref_net.backbone.channels_last = False
-    ref_loss, ref_grad = step(ref_net, None)
-    loss, grad = step(net, nb)  # (the float32 cache would round the float64 weights)
+    return net, points, net.neighbourhoods(points), step
+
+
+def _assert_same_step(net, ref_net, step, ref_step):
+    """Loss, parameter gradients and batch-norm running statistics agree to float64 rounding."""
+    (loss, grad), (ref_loss, ref_grad) = step, ref_step
     torch.testing.assert_close(loss, ref_loss, rtol=1e-10, atol=1e-12)
     for name in ref_grad:
         torch.testing.assert_close(grad[name], ref_grad[name], rtol=1e-8, atol=1e-10, msg=name)
     for (name, b), (_, b_ref) in zip(net.named_buffers(), ref_net.named_buffers()):  # batch-norm running stats
         torch.testing.assert_close(b, b_ref, rtol=1e-10, atol=1e-12, msg=name)
+
+
+@pytest.mark.parametrize("kind", ["ancsh", "direct_voting"])
+def test_channel_last_cached_step_matches_the_reference_step(tiny_arrays, kind):
+    net, points, nb, step = _float64_case(tiny_arrays, kind)
+    ref_net = copy.deepcopy(net)
+    ref_net.backbone.channels_last = False
+    ref = step(ref_net, ref_net, None)
+    _assert_same_step(net, ref_net, step(net, net, nb), ref)  # (the float32 cache would round the float64 weights)
     with pytest.raises(ValueError, match="neighbourhoods"):
         ref_net(points, nb)
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore:`torch.jit.script_method` is deprecated:DeprecationWarning")  # inside inductor
+@pytest.mark.skipif(cxx_compiler() is None, reason="torch.compile on a CPU needs a C++ compiler ($CXX or g++ on the "
+                    "PATH); none found")
+def test_compiled_step_matches_the_reference_step(tiny_arrays):
+    """The inductor-compiled network (``TrainConfig.compile``): fused kernels only reorder sums, so the float64
+    step agrees to rounding as the channel-last one does (a changed function would differ at the 1e-2 level)."""
+    net, _, nb, step = _float64_case(tiny_arrays)
+    ref_net = copy.deepcopy(net)
+    ref_net.backbone.channels_last = False
+    compiled = compile_network(net)
+    for _ in range(2):  # the second call runs the compiled code without tracing; running stats move on in both
+        ref = step(ref_net, ref_net, None)
+        _assert_same_step(net, ref_net, step(net, compiled, nb), ref)
+    assert any(k.startswith("_orig_mod.") for k in compiled.state_dict())  # the wrapper's keys are prefixed ...
+    assert set(net.state_dict()) == set(ref_net.state_dict())  # ... the network's own, which checkpoints hold, are not
 
 
 def test_eval_mode_outputs_agree_between_layouts(tiny_arrays):
