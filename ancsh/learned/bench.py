@@ -243,7 +243,7 @@ STEP_VARIANTS = {
         StepVariant("new_b32", "new step, batch 32", True, True, batch=32),
         StepVariant("new_2threads", "new step, 2 threads", True, True, threads=2),
         StepVariant("new_bf16", "new step, bf16 autocast", True, True, bf16=True),
-        StepVariant("new_compiled", "new step, torch.compile (inductor C++ kernels)", True, True, compiled=True),
+        StepVariant("new_compiled", "new step compiled: torch.compile, inductor C++ kernels", True, True, compiled=True),
     )
 }
 """Step variants of ``ancsh bench learned-cost`` by name; ``today`` is the reference, ``new`` the default step."""
@@ -265,7 +265,8 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
         ``step_cpu_s`` / ``step_wall_s``, ``first_loss``; compiled variants also ``compile_cpu_s`` /
         ``compile_wall_s``, the first step's time, compilation included), ``cache_ms_per_frame`` (CPU
         time to compute the neighbourhoods of one frame, once per frame), ``forward_ms`` (one frame,
-        one thread, eval mode, per layout: min CPU time) and the settings.
+        one thread, eval mode, per layout: min CPU time), ``first_loss_float64`` (the first step's loss of the
+        reference variant's batch in float64) and the settings.
     """
     import torch
 
@@ -295,6 +296,13 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
     c0 = time.process_time()
     cache = Neighbourhoods.from_numpy(base.neighbourhoods(x).numpy())
     cache_ms = 1e3 * (time.process_time() - c0) / F
+    ref_batch = next((v.batch for v in variants if v.name == "today"), variants[0].batch)
+    with torch.no_grad():  # the first step's loss in float64: what the float32 first losses round
+        net64, sl = copy.deepcopy(base).double(), slice(0, ref_batch)
+        nb64 = Neighbourhoods(**{k: v[sl].double() if v.is_floating_point() else v[sl] for k, v in vars(cache).items()})
+        t64 = targets[sl]
+        t64 = type(t64)(**{k: v.double() if v.is_floating_point() else v for k, v in vars(t64).items()})
+        loss64 = ancsh_loss(net64(x[sl].double(), nb64), t64)[0].item()
     states = {}
     for v in variants:
         net = copy.deepcopy(base)
@@ -353,6 +361,7 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
         r["speedup_cpu"] = r["frames_per_cpu_s"] / ref["frames_per_cpu_s"]
     return {
         "rows": rows, "cache_ms_per_frame": cache_ms, "forward_ms": forward, "reference": ref["name"],
+        "first_loss_float64": {"batch": ref_batch, "loss": loss64},
         "settings": {"width": width, "num_points": num_points, "npoints": list(cfg.npoints), "nsamples": list(cfg.nsamples),
                      "repeats": repeats, "seed": seed, "torch": torch.__version__, "cpus": os.cpu_count(),
                      "machine": platform.machine(), "load_avg": os.getloadavg()[0]},
@@ -406,6 +415,12 @@ def write_cost_report(result: dict, path, *, command: str) -> Path:
             if "new" in rows:
                 lines += [f"Compiled against uncompiled new step: {rows['new']['step_cpu_s'] / r['step_cpu_s']:.2f}x "
                           "frames per CPU-second.", ""]
+    f64 = result["first_loss_float64"]
+    lines += [f"First loss of batch {f64['batch']} evaluated in float64 (the same weights and frames): {f64['loss']:.5f}; "
+              "the float32 first losses of that batch differ from it by rounding only: "
+              + ", ".join(f"{r['name']} {abs(r['first_loss'] - f64['loss']) / abs(f64['loss']):.1e}"
+                          for r in result["rows"] if r["batch"] == f64["batch"] and not r["bf16"])
+              + " relative.", ""]
     ref = rows.get(result["reference"])
     same = [r for r in result["rows"] if not r["bf16"] and ref is not None and r["batch"] == ref["batch"]]
     if same:
@@ -416,9 +431,9 @@ def write_cost_report(result: dict, path, *, command: str) -> Path:
         "Accuracy per training frame: the new step is the same network and computes the same function "
         "(`tests/learned/test_learned_step_cost.py` checks, in float64, that its loss, parameter gradients and "
         "batch-norm running statistics equal the reference step's to 1e-8 relative, and that cached neighbourhoods "
-        "equal freshly computed ones index for index); so does the compiled step (`tests/learned/test_learned_compiled.py`, "
-        "the same check of the inductor-compiled network; in float32 its fused kernels differ from the uncompiled step "
-        "only by the order of sums). The bf16 and batch variants change the numerics or the "
+        "equal freshly computed ones index for index); so does the compiled step (the same file checks the network "
+        "traced by torch.compile, with dynamo alone and with inductor's C++ kernels; compiled, each set abstraction "
+        "max-pools before its last batch norm + ReLU, which are monotone per channel: the same values). The bf16 and batch variants change the numerics or the "
         "optimisation and would need an equal-frames training comparison before use.",
         "",
     ]

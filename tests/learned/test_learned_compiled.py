@@ -65,7 +65,7 @@ def test_cost_benchmark_times_the_compilation_apart(tmp_path, monkeypatch):
     assert rows["new_compiled"]["compile_cpu_s"] > 0 and "compile_cpu_s" not in rows["new"]
     assert abs(rows["new_compiled"]["first_loss"] - rows["today"]["first_loss"]) < 1e-4 * abs(rows["today"]["first_loss"])
     text = write_cost_report(result, tmp_path / "cost.md", command="ancsh bench learned-cost").read_text()
-    assert "Compilation (new step, torch.compile" in text and "Compiled against uncompiled new step" in text
+    assert "Compilation (new step compiled: torch.compile" in text and "Compiled against uncompiled new step" in text
     assert "Best variant that computes the same function as today's step" in text
 
 
