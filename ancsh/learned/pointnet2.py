@@ -229,7 +229,7 @@ class SharedMLP(nn.Sequential):
         The last layer's batch norm and ReLU, ``relu(s h + t)`` per channel, are monotone in ``h``
         (increasing where ``s >= 0``, decreasing where ``s < 0``), so their maximum over ``dim`` is
         ``relu(s m + t)`` with ``m`` the maximum of ``h`` (or its minimum, where ``s < 0``): the same
-        values, computed on the pooled rows instead of all of them. That saves a pass over the
+        values, computed on the pooled rows instead of all of them. That saves passes over the
         largest activations when compiled (``torch.compile`` traces this path) and in eval mode; an
         uncompiled training step keeps the plain order, whose fused batch-norm kernel computes the
         statistics faster than the separate ``var_mean`` this order needs.
@@ -247,7 +247,8 @@ class SharedMLP(nn.Sequential):
         h = h @ _matrix(pairs[-1][0]).t()
         scale, shift = _batch_norm_affine(bn, h)
         sign = torch.where(scale >= 0, 1.0, -1.0).to(h.dtype).detach()
-        pooled = _max_pool((h * sign).reshape(*lead, h.shape[-1]), dim=dim, keepdim=keepdim) * sign
+        # amax: compiled, its backward (the gradient to the maxima, split over ties) fuses with the batch norm's
+        pooled = (h * sign).reshape(*lead, h.shape[-1]).amax(dim=dim, keepdim=keepdim) * sign
         return torch.relu(pooled * scale + shift)
 
     def _pairs(self) -> list:
