@@ -81,6 +81,11 @@ class TrainConfig:
         Seeds initialisation, point sampling and batch order.
     num_threads : int
         torch intra-op threads.
+    compile : bool
+        Train with the network compiled by ``torch.compile`` (:mod:`ancsh.learned.compiled`): the
+        same function, fewer CPU-seconds per step after a one-off compilation at the start of each
+        process (``docs/results/learned_cost.md``); needs a C++ compiler on a CPU. Default
+        ``False``. It changes no weights, so a run can be resumed with it switched on or off.
     """
 
     category: str = "laptop"
@@ -108,6 +113,7 @@ class TrainConfig:
     pose_val_frames: int = 32
     seed: int = 0
     num_threads: int = 1
+    compile: bool = False
 
     def __post_init__(self):
         if not isinstance(self.category, str) or not self.category:
@@ -155,6 +161,8 @@ class TrainConfig:
         _positive_int(self.pose_val_frames, "pose_val_frames")
         if isinstance(self.val_fraction, bool) or not isinstance(self.val_fraction, (int, float)) or not 0 <= self.val_fraction <= 0.5:
             raise ValueError(f"val_fraction: expected a number in [0, 0.5], got {self.val_fraction!r}")
+        if not isinstance(self.compile, bool):
+            raise ValueError(f"compile: expected true or false, got {self.compile!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"seed: expected a non-negative integer, got {self.seed!r}")
 

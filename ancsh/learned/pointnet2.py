@@ -219,11 +219,70 @@ class SharedMLP(nn.Sequential):
         """``(..., C_in) -> (..., C_out)``, channel-last."""
         lead = x.shape[:-1]
         h = x.reshape(-1, x.shape[-1])
-        layers = list(self)
-        for conv, bn in zip(layers[0::3], layers[1::3]):
-            h = h @ conv.weight.reshape(conv.weight.shape[0], -1).t()
-            h = torch.relu_(_batch_norm_rows(bn, h))
+        for conv, bn in self._pairs():
+            h = torch.relu_(_batch_norm_rows(bn, h @ _matrix(conv).t()))
         return h.reshape(*lead, h.shape[-1])
+
+    def forward_last_max(self, x: torch.Tensor, dim: int, keepdim: bool = False) -> torch.Tensor:
+        """Maximum over ``dim`` of :meth:`forward_last` (channel-last, ``dim`` not the last axis).
+
+        The last layer's batch norm and ReLU, ``relu(s h + t)`` per channel, are monotone in ``h``
+        (increasing where ``s >= 0``, decreasing where ``s < 0``), so their maximum over ``dim`` is
+        ``relu(s m + t)`` with ``m`` the maximum of ``h`` (or its minimum, where ``s < 0``): the same
+        values, computed on the pooled rows instead of all of them. That saves passes over the
+        largest activations when compiled (``torch.compile`` traces this path) and in eval mode; an
+        uncompiled training step keeps the plain order, whose fused batch-norm kernel computes the
+        statistics faster than the separate ``var_mean`` this order needs.
+        """
+        from . import distributed
+
+        pairs = self._pairs()
+        bn = pairs[-1][1]
+        if bn.training and (distributed.syncing() or not torch.compiler.is_compiling()):
+            return _max_pool(self.forward_last(x), dim=dim, keepdim=keepdim)
+        lead = x.shape[:-1]
+        h = x.reshape(-1, x.shape[-1])
+        for conv, layer_bn in pairs[:-1]:
+            h = torch.relu_(_batch_norm_rows(layer_bn, h @ _matrix(conv).t()))
+        h = h @ _matrix(pairs[-1][0]).t()
+        scale, shift = _batch_norm_affine(bn, h)
+        sign = torch.where(scale >= 0, 1.0, -1.0).to(h.dtype).detach()
+        # amax: compiled, its backward (the gradient to the maxima, split over ties) fuses with the batch norm's
+        pooled = (h * sign).reshape(*lead, h.shape[-1]).amax(dim=dim, keepdim=keepdim) * sign
+        return torch.relu(pooled * scale + shift)
+
+    def _pairs(self) -> list:
+        """``[(conv, batch_norm), ...]`` per layer."""
+        layers = list(self)
+        return list(zip(layers[0::3], layers[1::3]))
+
+
+def _matrix(conv: nn.Module) -> torch.Tensor:
+    """The ``(C_out, C_in)`` matrix of a 1x1 convolution."""
+    return conv.weight.reshape(conv.weight.shape[0], -1)
+
+
+def _batch_norm_affine(bn: nn.modules.batchnorm._BatchNorm, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-channel ``scale, shift`` with ``bn(h) = h * scale + shift`` for ``(P, C)`` rows, with the semantics of
+    ``bn.forward`` (batch statistics in training, running statistics updated as :class:`nn.BatchNorm1d` does:
+    momentum, cumulative average when it is ``None``, unbiased variance)."""
+    use_batch = bn.training or not bn.track_running_stats
+    if use_batch:
+        var, mean = torch.var_mean(h, dim=0, correction=0)
+        if bn.training and bn.track_running_stats:
+            with torch.no_grad():
+                bn.num_batches_tracked.add_(1)
+                momentum = 1.0 / float(bn.num_batches_tracked) if bn.momentum is None else bn.momentum
+                n = h.shape[0]
+                bn.running_mean.mul_(1.0 - momentum).add_(momentum * mean.detach())
+                bn.running_var.mul_(1.0 - momentum).add_((momentum * n / max(n - 1, 1)) * var.detach())
+    else:
+        mean, var = bn.running_mean, bn.running_var
+    scale = torch.rsqrt(var + bn.eps)
+    if bn.weight is not None:
+        scale = bn.weight * scale
+    shift = -mean * scale
+    return scale, shift if bn.bias is None else bn.bias + shift
 
 
 def _batch_norm_rows(bn: nn.modules.batchnorm._BatchNorm, h: torch.Tensor) -> torch.Tensor:
@@ -361,14 +420,14 @@ class SetAbstraction(nn.Module):
         if self.npoint is None:
             centres = xyz.new_zeros(xyz.shape[0], 1, 3)
             grouped = xyz if features is None else torch.cat([xyz, features], dim=-1)  # (B, N, 3 + C)
-            return centres, _max_pool(self.mlp.forward_last(grouped), dim=1, keepdim=True)
+            return centres, self.mlp.forward_last_max(grouped, dim=1, keepdim=True)
         if centre_idx is None or group_idx is None:
             centre_idx, group_idx = self.sample_and_group(xyz)
         centres = gather_points(xyz, centre_idx)
-        grouped = gather_points(xyz if features is None else torch.cat([xyz, features], dim=-1), group_idx)
-        rel = grouped[..., :3] - centres.unsqueeze(2)
-        grouped = rel if features is None else torch.cat([rel, grouped[..., 3:]], dim=-1)  # (B, S, K, 3 + C)
-        return centres, _max_pool(self.mlp.forward_last(grouped), dim=2)
+        rel = gather_points(xyz, group_idx) - centres.unsqueeze(2)
+        # Coordinates and features gathered apart: the backward scatters only the features' gradient.
+        grouped = rel if features is None else torch.cat([rel, gather_points(features, group_idx)], dim=-1)  # (B, S, K, 3 + C)
+        return centres, self.mlp.forward_last_max(grouped, dim=2)
 
 
 def _max_pool(x: torch.Tensor, dim: int, keepdim: bool = False) -> torch.Tensor:

@@ -344,6 +344,13 @@ class Trainer:
             self._initialise_from(config.init_weights, train)
         self.model = self.model.to(self.device)
         self.step_model = self.dist.wrap(self.model)  # the model itself, or its DDP wrapper
+        if config.compile:
+            if self.dist.active:
+                raise ValueError(f"compile: not supported in a distributed run ({self.dist.world_size} processes); "
+                                 "set compile = false")
+            from .compiled import compile_network
+
+            self.step_model = compile_network(self.model)  # shares the model's parameters; evaluation stays uncompiled
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self.loss_fn = loss_function(config)
         if pose_val is not None and not isinstance(pose_val, PoseValidation):
