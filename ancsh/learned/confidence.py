@@ -100,9 +100,16 @@ def fit_calibrator(X, good) -> dict:
 
 
 def probability_good(calibration: dict, x) -> float:
-    """P(good) of one feature vector under a :func:`fit_calibrator` result."""
+    """P(good) of one feature vector under a :func:`fit_calibrator` result.
+
+    The logistic function is evaluated without overflow (``scipy.special.expit``): a feature far outside
+    the calibration frames' range (e.g. 50 000 points against ~1 000) gives a probability of 0 or 1, not a
+    floating-point warning.
+    """
+    from scipy.special import expit
+
     z = (np.asarray(x, dtype=np.float64) - calibration["mean"]) / np.asarray(calibration["scale"])
-    return float(1.0 / (1.0 + np.exp(-(z @ np.asarray(calibration["coef"]) + calibration["intercept"]))))
+    return float(expit(z @ np.asarray(calibration["coef"]) + calibration["intercept"]))
 
 
 def reliability(calibration: dict, X, good, bins: int = 5) -> dict:

@@ -1,6 +1,7 @@
 """The calibrated confidence: features of a fit, a logistic regression of 'good', its reliability, its use in predict."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -26,6 +27,12 @@ def test_calibrator_recovers_a_known_logistic_relation():
     assert rel["brier"] < rel["brier_constant"]
     with pytest.raises(ValueError, match="both good and bad"):
         fit_calibrator(X[:10], np.ones(10, dtype=bool))
+    # far outside the calibration range (e.g. 50x the points): 0 or 1, without an overflow warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        far = np.zeros(len(FEATURES))
+        far[0] = 1e4
+        assert probability_good(cal, far) == 1.0 and probability_good(cal, -far) == 0.0
 
 
 def test_features_treat_missing_evidence_as_worst():
