@@ -547,6 +547,8 @@ def summarize(measured: dict, forms=INFLATION_FORMS, per_index: str = "auto") ->
         {category: {quantity: SigmaMap.to_json() or a list of them per part / joint, "correlation": rho}}},
         "d2": {category: {provider: {quantity: (raw test d2, inflated test d2)}}}}``.
     """
+    from .solvers.uncertainty import maps_to_json
+
     rows, factors, d2_out = [], {}, {}
     for cat, per_provider in measured["records"].items():
         for p, splits in per_provider.items():
@@ -565,7 +567,7 @@ def summarize(measured: dict, forms=INFLATION_FORMS, per_index: str = "auto") ->
                 m, form, cal_gaps = fit_quantity_inflation(cal[q], q, rho, forms, per_index)
                 if m is None:
                     continue
-                entry[q] = [v.to_json() for v in m] if isinstance(m, tuple) else m.to_json()
+                entry[q] = maps_to_json(m)
                 d2_cal, d2_test = normalised_errors(cal[q], rho), normalised_errors(test[q], rho)
                 raw_test = normalised_errors(test[q], 0.0)
                 inflated_test = inflated_errors(d2_test, raw_sigmas(test[q], rho), m, [r.index for r in test[q]])

@@ -62,7 +62,8 @@ import numpy as np
 from ..geometry._checks import check_number
 
 __all__ = ["FitUncertainty", "INFLATED_QUANTITIES", "Inflation", "INFLATION_PATH", "SigmaMap", "UNCERTAINTY_STATUSES",
-           "block_sigma", "effective_points", "fit_covariance", "inflation_for", "load_inflation_table"]
+           "block_sigma", "effective_points", "fit_covariance", "inflation_for", "load_inflation_table", "maps_from_json",
+           "maps_to_json"]
 
 UNCERTAINTY_STATUSES = ("ok", "singular", "unavailable")
 
@@ -161,6 +162,21 @@ class SigmaMap:
         return cls(factor=float(value))
 
 
+def maps_from_json(value, name: str):
+    """One quantity's map(s): a :class:`SigmaMap` from :meth:`SigmaMap.from_json`'s forms, or a tuple of them
+    from a non-empty sequence (one per part or joint); errors name ``name`` (and the index)."""
+    if isinstance(value, (list, tuple)):
+        if not value:
+            raise ValueError(f"{name}: expected a map or a non-empty sequence of maps (one per part or joint)")
+        return tuple(SigmaMap.from_json(m, f"{name}[{i}]") for i, m in enumerate(value))
+    return SigmaMap.from_json(value, name)
+
+
+def maps_to_json(maps):
+    """The stored form of :func:`maps_from_json`'s result: a number or mapping, or a list of them."""
+    return [m.to_json() for m in maps] if isinstance(maps, tuple) else maps.to_json()
+
+
 #: The quantities an :class:`Inflation` maps (the :class:`SigmaMap` fields).
 INFLATED_QUANTITIES = ("rotation", "translation", "scale", "joint_state", "joint_axis", "joint_pivot")
 
@@ -199,14 +215,7 @@ class Inflation:
 
     def __post_init__(self):
         for q in INFLATED_QUANTITIES:
-            v = getattr(self, q)
-            if isinstance(v, (list, tuple)):
-                if not v:
-                    raise ValueError(f"{q}: expected a map or a non-empty sequence of maps (one per part or joint)")
-                v = tuple(SigmaMap.from_json(m, f"{q}[{i}]") for i, m in enumerate(v))
-            else:
-                v = SigmaMap.from_json(v, q)
-            object.__setattr__(self, q, v)
+            object.__setattr__(self, q, maps_from_json(getattr(self, q), q))
         object.__setattr__(self, "correlation", check_number(self.correlation, "correlation", minimum=0.0, maximum=1.0))
 
     @property
@@ -236,11 +245,8 @@ class Inflation:
     def to_json(self) -> dict:
         """``{quantity: number | {factor, power, reference, floor} | [one of those per part or joint],
         "correlation": rho, "source": str}`` (the stored form of :meth:`from_json`, with the source)."""
-        out = {}
-        for q in INFLATED_QUANTITIES:
-            v = getattr(self, q)
-            out[q] = [m.to_json() for m in v] if isinstance(v, tuple) else v.to_json()
-        return {**out, "correlation": self.correlation, "source": self.source}
+        return {**{q: maps_to_json(getattr(self, q)) for q in INFLATED_QUANTITIES},
+                "correlation": self.correlation, "source": self.source}
 
     @classmethod
     def from_json(cls, entry: dict, source: str = "raw", *, name: str = "inflation") -> "Inflation":
@@ -248,12 +254,7 @@ class Inflation:
         ignored; a number is the single factor of the first stored tables)."""
         if not isinstance(entry, dict):
             raise ValueError(f"{name}: expected a mapping of quantities, got {type(entry).__name__}")
-        kw = {}
-        for q in INFLATED_QUANTITIES:
-            if q in entry:
-                v = entry[q]
-                kw[q] = (tuple(SigmaMap.from_json(m, f"{name}.{q}[{i}]") for i, m in enumerate(v))
-                         if isinstance(v, list) else SigmaMap.from_json(v, f"{name}.{q}"))
+        kw = {q: maps_from_json(entry[q], f"{name}.{q}") for q in INFLATED_QUANTITIES if q in entry}
         if "correlation" in entry:
             kw["correlation"] = float(entry["correlation"])
         return cls(**kw, source=source)
