@@ -341,6 +341,9 @@ def weights_summary() -> list[dict]:
     (its lineage, 0 for a network trained from scratch); the scores are those stored in the file (held-out test frames,
     beside the trivial baselines: majority label, all-zero NPCS, mean axis). ``curve`` is
     :func:`learning_curve_fit` of the history's validation NPCS error (``None`` without one).
+    ``pose_curve`` lists the history's pose validations (``TrainConfig.pose_val_every``: the fitted
+    rotation and joint-axis errors of the validation instances through the full pipeline), each a dict
+    of ``step``, ``minutes``, ``rot_deg``, ``axis_deg``, ``score`` (their sum, degrees); empty without any.
     ``num_threads``, ``batch_size`` and ``num_points`` are the training settings stored in the file's config.
     """
     import csv
@@ -349,10 +352,13 @@ def weights_summary() -> list[dict]:
     for name in available_weights():
         net = load_network(WEIGHTS_DIR / f"{name}.pt")
         history = WEIGHTS_DIR / f"{name}_history.csv"
-        minutes, steps, curve = float("nan"), None, None
+        minutes, steps, curve, pose_curve = float("nan"), None, None, []
         if history.is_file():
             with open(history, newline="") as f:
                 hist = list(csv.DictReader(f))
+            pose_curve = [{"step": int(float(r["step"])), "minutes": float(r["elapsed_s"]) / 60.0,
+                           "rot_deg": float(r["pose_rot_deg"]), "axis_deg": float(r["pose_axis_deg"]),
+                           "score": float(r["pose_score"])} for r in hist if r.get("pose_score")]
             if hist:
                 minutes, steps = float(hist[-1]["elapsed_s"]) / 60.0, int(float(hist[-1]["step"]))
             if hist and hist[0].get("val_npcs_err"):
@@ -367,6 +373,7 @@ def weights_summary() -> list[dict]:
             "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": net.step,
             "trained_steps": steps, "train_min": minutes, "parent_min": parent_min,
             "parent_step": (net.lineage or {}).get("step"), "test_frames": m.get("test_frames"), "curve": curve,
+            "pose_curve": pose_curve,
             "num_threads": net.config.num_threads, "batch_size": net.config.batch_size,
             "num_points": net.config.num_points,
             **{k: m.get(k, float("nan")) for k in (

@@ -84,7 +84,7 @@ def test_direct_voting_weights_beat_a_constant_axis(category):
 
 def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     from ancsh.cli import main
-    from ancsh.learned.weights import available_weights
+    from ancsh.learned.weights import available_weights, weights_summary
 
     out = tmp_path / "weights.md"
     assert main(["weights", "--out", str(out)]) == 0
@@ -94,10 +94,18 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     for name in available_weights():
         assert f"`{name}.pt`" in text and f"`{name}.pt`" in printed
     table, curves = text.split("## Learning curves")
+    curves, _, pose = curves.partition("## Pose validation")
     rows = [line for line in table.splitlines() if line.startswith("| `")]
     assert len(rows) == len(available_weights())
     curve_rows = [line for line in curves.splitlines() if line.startswith("| `")]
     assert len(curve_rows) == len(shipped_categories())  # every ANCSH network has a validation NPCS curve
+    summary = {r["name"]: r for r in weights_summary()}
+    pose_rows = [line for line in pose.splitlines() if line.startswith("| `")]
+    assert len(pose_rows) == sum(bool(r["pose_curve"]) for r in summary.values())
+    for line in pose_rows:  # each row lists its history's pose validations and names the best one
+        pc = summary[line.split("`")[1][:-3]]["pose_curve"]
+        best = min(pc, key=lambda p: p["score"])
+        assert line.count(": ") == len(pc) and f"{best['score']:.1f} ({best['step']})" in line
 
 
 def test_training_settings_sentence_comes_from_the_files_configs():
