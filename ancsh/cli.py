@@ -36,7 +36,7 @@ EXAMPLES = {
     "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
     "bench gpu-check": "ancsh bench gpu-check --device cuda   # on a machine with a GPU: CUDA against the CPU",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
-    "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~20 CPU-minutes",
+    "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~30 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",

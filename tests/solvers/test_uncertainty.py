@@ -480,3 +480,27 @@ def test_report_names_the_maps_and_the_rows_that_miss(tmp_path):
     assert head["rows_within_all"] == 1 and head["rows_all"] == 2
     stored = json.loads((tmp_path / "u.json").read_text())["summary"]["factors"]["learned"]["laptop"]
     assert isinstance(stored["translation"], list) and len(stored["translation"]) == 2
+
+
+@pytest.mark.slow
+def test_calibration_frames_default_to_twice_the_test_frames_and_records_must_match(tmp_path, capsys):
+    """``ancsh bench uncertainty`` fits ``--calibration-frames`` (default 2 x ``--frames``) calibration frames and
+    ``--frames`` test frames; a records file replayed with other counts is refused, naming ``--records``; the
+    replayed report names the command that fitted the frames."""
+    from ancsh.cli import main
+    from ancsh.uncertainty_calibration import CalibrationConfig, load_records
+
+    assert CalibrationConfig(frames=4).n_calibration == 8 and CalibrationConfig(frames=4, calibration_frames=5).n_calibration == 5
+    for bad in (3, 2.5, True):
+        with pytest.raises(ValueError, match="calibration_frames"):
+            CalibrationConfig(calibration_frames=bad)
+    base = ["bench", "uncertainty", "--categories", "laptop", "--providers", "oracle-realistic", "--frames", "4"]
+    npz = tmp_path / "r.npz"
+    assert main([*base, "--out", str(tmp_path / "a.md"), "--save-records", str(npz)]) == 0
+    counts = load_records(npz)["counts"]["laptop"]["oracle-realistic"]
+    assert counts["calibration"]["frames"] == 8 and counts["test"]["frames"] == 4
+    assert main([*base, "--calibration-frames", "8", "--out", str(tmp_path / "b.md"), "--records", str(npz)]) == 0
+    text = (tmp_path / "b.md").read_text()
+    assert "per category 8 calibration frames" in text and "the frames were fitted by `ancsh bench uncertainty --frames 4" in text
+    assert main([*base, "--calibration-frames", "5", "--out", str(tmp_path / "c.md"), "--records", str(npz)]) != 0
+    assert "--records" in capsys.readouterr().err and not (tmp_path / "c.md").exists()
