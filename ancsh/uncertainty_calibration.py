@@ -45,7 +45,7 @@ import datetime
 import json
 import platform
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +66,12 @@ CALIBRATION_FRAMES_PER_TEST_FRAME = 2
 _FACTOR_GRID = np.exp(np.linspace(np.log(0.25), np.log(200.0), 1200))
 
 
+def _shipped_categories() -> tuple:
+    from .learned.weights import shipped_categories
+
+    return tuple(shipped_categories())
+
+
 @dataclass(frozen=True)
 class CalibrationConfig:
     """What the study runs.
@@ -73,6 +79,8 @@ class CalibrationConfig:
     Attributes
     ----------
     categories : tuple of str
+        Default: every category with a shipped ANCSH network
+        (:func:`ancsh.learned.weights.shipped_categories`), since the maps are installed per category.
     providers : tuple of str
         From :data:`PROVIDERS`.
     frames : int
@@ -90,7 +98,7 @@ class CalibrationConfig:
     formulation : str
     """
 
-    categories: tuple = ("laptop", "drawer", "eyeglasses", "oven", "washing_machine")
+    categories: tuple = field(default_factory=lambda: _shipped_categories())
     providers: tuple = PROVIDERS
     frames: int = 150
     calibration_frames: int | None = None
@@ -838,7 +846,7 @@ def register(sub) -> None:
     p.add_argument("--frames", type=int, default=150, help="test frames per category (default 150)")
     p.add_argument("--calibration-frames", type=int, default=None,
                    help=f"calibration frames per category (default {CALIBRATION_FRAMES_PER_TEST_FRAME} x --frames)")
-    p.add_argument("--categories", default=None, help="comma-separated (default: the five with shipped weights)")
+    p.add_argument("--categories", default=None, help="comma-separated (default: every category with shipped weights)")
     p.add_argument("--providers", default=None, help=f"comma-separated from {','.join(PROVIDERS)} (default: both)")
     p.add_argument("--seed", type=int, default=0, help="test frame seed (default 0, as ancsh evaluate)")
     p.add_argument("--calibration-seed", type=int, default=1001)
