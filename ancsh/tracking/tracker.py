@@ -46,7 +46,7 @@ from ..solvers.terms import PreviousSolution
 from ..solvers.types import FitResult, FitStatus, Observation
 
 __all__ = ["CategoryTracker", "TrackStatus", "TrackedFrame", "TrackerConfig", "check_fit", "fit_frame",
-           "joint_state_std", "predicted_fit", "previous_solution"]
+           "fitted_canonical", "joint_state_std", "predicted_fit", "previous_solution"]
 
 
 class TrackStatus(str, Enum):
@@ -213,6 +213,8 @@ class TrackerConfig:
     predict_from: str = "network"
     warm_rescore_rounds: int = 2
     network_scale: bool = True
+    fusion_weight: float = 0.0
+    fusion_recentre: bool = True
     template_categories: tuple = ("laptop",)
     template_icp: object = None
     min_points: int = 100
@@ -225,11 +227,12 @@ class TrackerConfig:
         check_choice(self.formulation, "formulation", tuple(n for n, f in FORMULATIONS.items() if f.parameterisation))
         if self.solver is not None:
             check_choice(self.solver, "solver", FORMULATIONS[self.formulation].solvers)
-        for name in ("temporal_weight", "temporal_state_weight"):
+        for name in ("temporal_weight", "temporal_state_weight", "fusion_weight"):
             check_number(getattr(self, name), name, minimum=0.0)
         check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
         check_bool(self.carried_uncertainty, "carried_uncertainty")
         check_bool(self.network_scale, "network_scale")
+        check_bool(self.fusion_recentre, "fusion_recentre")
         check_choice(self.predict_from, "predict_from", ("network", "frames"))
         for name in ("carried_gate", "max_relative_residual"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
@@ -261,6 +264,59 @@ def previous_solution(result: FitResult, correspondences, weight: float, state_w
     sigma = T.scale / float(correspondences.npcs_scale[r])
     origin = T.translation - sigma * (T.rotation @ np.asarray(correspondences.npcs_translation[r]))
     return PreviousSolution(Sim3.unchecked(T.rotation, origin, sigma), np.asarray(result.joint_states), weight, state_weight)
+
+
+def fitted_canonical(correspondences, result: FitResult):
+    """``correspondences`` with the canonical parameters ``result`` was solved with (:attr:`FitResult.canonical`).
+
+    A fit with free canonical parameters (``FitConfig.naocs_prior_weight > 0``, the default) moves each
+    part's NPCS -> NAOCS translation and each pivot by solved offsets; the tracker's predictions
+    (:func:`previous_solution`, :func:`predicted_fit`) and carried correspondences must use the moved
+    ones, or forward kinematics of the object pose and joint states does not give back the fitted part
+    poses (measured on oracle eyeglasses: the temples moved by 3-6 mm along their length, which the
+    carried frames' closest-point matches cannot correct). Unchanged where the fit reports none.
+    """
+    c = getattr(result, "canonical", None)
+    if c is None:
+        return correspondences
+    return dataclasses.replace(correspondences, npcs_translation=c.npcs_translation, joint_pivots_naocs=c.joint_pivots_naocs)
+
+
+def recentred(carried, network, points_cam, T_cam_npcs, gate: float):
+    """``carried`` correspondences restricted to the points the network's rows keep and shifted to agree with
+    them on each part's position.
+
+    A point keeps its carried weight where the carried and the network's label agree and the network's
+    NPCS coordinate, posed at ``T_cam_npcs`` (the warm start), lies within ``gate`` metres of it (the
+    warm fit's own inlier rule); each part's carried NPCS coordinates are then shifted so that their
+    mean over those points equals the network's. The data term's translation of a part is then the
+    same for either set of rows at any rotation and scale: in a fused fit the carried rows inform the
+    parts' rotations (and the joint states through them), the network's rows their positions -- closest-
+    point matches reproduce the predicted pose along a thin part (they cannot see a slide along it),
+    where the network's positions are unbiased.
+
+    Parameters
+    ----------
+    carried, network : Correspondences
+        Of the same ``N`` points.
+    points_cam : (N, 3) float64
+        The points (camera frame, metres).
+    T_cam_npcs : sequence of Sim3
+        ``(M,)`` part poses at which the network's inliers are judged.
+    gate : float
+        Metres.
+    """
+    pts = np.asarray(points_cam, dtype=np.float64)
+    npcs = np.array(carried.npcs, dtype=np.float64, copy=True)
+    w = np.ones(carried.num_points) if carried.weights is None else np.array(carried.weights, dtype=np.float64)
+    keep = np.zeros(carried.num_points, dtype=bool)
+    for j, T in enumerate(T_cam_npcs):
+        sel = (carried.part_labels == j) & (network.part_labels == j) & (w > 0)
+        sel[sel] = np.linalg.norm(T.apply(network.npcs[sel]) - pts[sel], axis=1) <= gate
+        keep |= sel
+        if np.count_nonzero(sel) >= 3:
+            npcs[sel] += network.npcs[sel].mean(axis=0) - carried.npcs[sel].mean(axis=0)
+    return dataclasses.replace(carried, npcs=npcs, weights=np.where(keep, w, 0.0))
 
 
 def predicted_fit(result: FitResult, correspondences, prediction: PreviousSolution) -> FitResult:
@@ -467,14 +523,17 @@ class CategoryTracker:
         start = predicted_fit(tr.result, tr.correspondences, prior)
         kwargs = dict(warm_start=start, previous=prior if use_prior else None)
         warm = dataclasses.replace(cfg.fit, rescore_rounds=max(cfg.fit.rescore_rounds, cfg.warm_rescore_rounds))
+        L = float(np.median([T.scale / g for T, g in zip(start.T_cam_npcs, tr.correspondences.npcs_scale)]))
         if network:
             corr = self.provider.correspond(observation)
             if cfg.network_scale:
                 warm = dataclasses.replace(warm, optimize_scale=True)
-            result = fit(observation, corr, cfg.formulation, cfg.solver, warm, rng=self.rng, **kwargs)
+            if cfg.fusion_weight > 0:
+                result = self._fused(observation, corr, start, warm, kwargs, L)
+            else:
+                result = fit(observation, corr, cfg.formulation, cfg.solver, warm, rng=self.rng, **kwargs)
             return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "network"
         result, corr = start, tr.correspondences
-        L = float(np.median([T.scale / g for T, g in zip(result.T_cam_npcs, corr.npcs_scale)]))
         iterations = 0
         quick = dataclasses.replace(warm, uncertainty=False)
         for i in range(cfg.carried_iterations):
@@ -494,11 +553,27 @@ class CategoryTracker:
             result = dataclasses.replace(result, iterations=iterations)
         return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "carried"
 
+    def _fused(self, observation: Observation, corr, start: FitResult, warm: FitConfig, kwargs: dict, L: float) -> FitResult:
+        """The fused warm fit of a network frame (``TrackerConfig.fusion_weight``): the network's
+        correspondences and, with that weight, the carried ones of the same points (matched at the
+        predicted poses ``start``), in one solve; the result's inliers are those of the network's rows."""
+        from .carried import stack_correspondences
+
+        cfg, n = self.config, observation.num_points
+        carried = self._track.template.correspond(observation.points_cam, start.T_cam_npcs, cfg.carried_gate * L)
+        if cfg.fusion_recentre:
+            carried = recentred(carried, corr, observation.points_cam, start.T_cam_npcs, cfg.fit.inlier_threshold * L)
+        both = Observation(np.concatenate([observation.points_cam, observation.points_cam]))
+        result = fit(both, stack_correspondences(corr, carried, cfg.fusion_weight), cfg.formulation, cfg.solver, warm,
+                     rng=self.rng, **kwargs)
+        return dataclasses.replace(result, inliers=result.inliers[:n]) if result.inliers.shape[0] == 2 * n else result
+
     def _advance(self, observation, result: FitResult, corr, network: bool) -> None:
         """Carry an accepted fit to the next frame."""
         from .carried import CarriedTemplate
 
         cfg = self.config
+        corr = fitted_canonical(corr, result)
         prior = previous_solution(result, corr, cfg.temporal_weight, cfg.temporal_state_weight)
         tr = self._track
         self._num_joints = len(result.joint_states)
