@@ -213,7 +213,7 @@ class TrackerConfig:
     predict_from: str = "network"
     warm_rescore_rounds: int = 2
     network_scale: bool = True
-    fusion_weight: float = 0.0
+    fusion_weight: float = 2.0
     fusion_recentre: bool = True
     template_categories: tuple = ("laptop",)
     template_icp: object = None
@@ -317,6 +317,24 @@ def recentred(carried, network, points_cam, T_cam_npcs, gate: float):
         if np.count_nonzero(sel) >= 3:
             npcs[sel] += network.npcs[sel].mean(axis=0) - carried.npcs[sel].mean(axis=0)
     return dataclasses.replace(carried, npcs=npcs, weights=np.where(keep, w, 0.0))
+
+
+def fused_canonical(network, previous, weight: float):
+    """``network`` correspondences with canonical parameters averaged with ``previous``'s (weight ``weight``
+    on them): NPCS -> NAOCS scales and translations, joint pivots, and joint axes (normalised) --
+    the recursive fusion of tracking applied to the per-frame estimates of the canonical parameters
+    (``TrackerConfig.fusion_weight``). ``network`` unchanged where the joint types differ."""
+    if previous.num_parts != network.num_parts or tuple(previous.joint_types) != tuple(network.joint_types):
+        return network
+    a = 1.0 / (1.0 + weight)
+    mix = lambda new, old: a * np.asarray(new, dtype=np.float64) + (1.0 - a) * np.asarray(old, dtype=np.float64)  # noqa: E731
+    axes = mix(network.joint_axes_naocs, previous.joint_axes_naocs)
+    norms = np.linalg.norm(axes, axis=1, keepdims=True)
+    axes = np.where(norms > 1e-9, axes / np.maximum(norms, 1e-12), network.joint_axes_naocs)
+    return dataclasses.replace(network, npcs_scale=mix(network.npcs_scale, previous.npcs_scale),
+                               npcs_translation=mix(network.npcs_translation, previous.npcs_translation),
+                               joint_pivots_naocs=mix(network.joint_pivots_naocs, previous.joint_pivots_naocs),
+                               joint_axes_naocs=axes)
 
 
 def predicted_fit(result: FitResult, correspondences, prediction: PreviousSolution) -> FitResult:
@@ -560,6 +578,7 @@ class CategoryTracker:
         from .carried import stack_correspondences
 
         cfg, n = self.config, observation.num_points
+        corr = fused_canonical(corr, self._track.correspondences, cfg.fusion_weight)
         carried = self._track.template.correspond(observation.points_cam, start.T_cam_npcs, cfg.carried_gate * L)
         if cfg.fusion_recentre:
             carried = recentred(carried, corr, observation.points_cam, start.T_cam_npcs, cfg.fit.inlier_threshold * L)
