@@ -1,4 +1,4 @@
-"""Category-level tracking over a depth sequence: warm starts, a temporal prior, carried correspondences.
+"""Category-level tracking over a depth sequence: warm starts, fusion over time, carried correspondences.
 
 :class:`CategoryTracker` turns one observation after another into a :class:`TrackedFrame`:
 
@@ -6,20 +6,33 @@
    (:func:`ancsh.solvers.fit` with ``warm_start=``), and the program gets the
    :class:`~ancsh.solvers.terms.TemporalPriorTerm` toward the constant-velocity prediction of
    the last two fits (:meth:`~ancsh.solvers.terms.PreviousSolution.constant_velocity`; pose and
-   joint-state weights in :class:`TrackerConfig`).
+   joint-state weights in :class:`TrackerConfig`; by default the pose part only). Predictions and
+   carried correspondences use the canonical parameters each fit was solved with
+   (:attr:`~ancsh.solvers.types.FitResult.canonical`, :func:`fitted_canonical`).
 2. **Correspondences**: the provider (the network) runs on every ``network_every``-th frame; in
    between, correspondences are carried by the previous fit (:class:`~ancsh.tracking.carried.CarriedTemplate`:
    nearest points of the last network frame's surface, in the fit's NPCS), re-matched
    ``carried_iterations`` times (default once: one match and one warm solve, without the
    covariances); their object pose is predicted from the network frames (``predict_from``).
-3. **Carried category template** (categories in ``TrackerConfig.template_categories``, default the
+3. **Fusion over time** (``fusion_weight > 0``, the default): a network frame is fitted on the
+   network's correspondences *and*, with weight ``fusion_weight``, the carried ones of the same
+   points (one solve of the same data term on both sets of rows, :func:`~ancsh.tracking.carried.stack_correspondences`).
+   The carried rows hold the previous fused estimate moved by the observed motion, so the estimate is a
+   recursive weighted mean of the network frames' measurements -- with weight ``w`` the past keeps
+   ``w / (1 + w)``: uncorrelated per-frame errors shrink (steady-state variance ``1 / (1 + 2 w)`` of one
+   frame's for a still object), a per-instance bias of the network does not. The carried rows are re-centred
+   on the network's positions part by part (:func:`recentred`: they inform rotations and joint states,
+   the network the positions, which closest-point matches cannot see along a thin part), and the canonical
+   parameters are averaged alike (:func:`fused_canonical`). The price: on exact correspondences a fused
+   frame keeps part of the carried frames' error (about half a degree on the test laptop).
+4. **Carried category template** (categories in ``TrackerConfig.template_categories``, default the
    laptop): at every (re-)initialisation the cold fit is refined against the category template
    (:func:`~ancsh.solvers.icp.category.refine_fit`, seconds, once), and where the refinement is
    accepted the track follows that template by warm articulated ICP (an
    :class:`~ancsh.tracking.instance.InstanceTracker` on it, source ``"template"``) instead of network
    or carried-correspondence frames: the network then runs only to re-initialise. Where the template
    ICP stops explaining the points, the frame is fitted cold (and refined) again.
-4. **Lost and re-initialised**: a warm fit that fails its solve or a plausibility check
+5. **Lost and re-initialised**: a warm fit that fails its solve or a plausibility check
    (:func:`check_fit`: too few inliers -- the points no longer lie where the object was --,
    the category's size range, a large residual) is retried cold on the same frame (network +
    RANSAC, :func:`fit_frame`); a frame with fewer than ``min_points`` points, or whose cold fit
@@ -147,7 +160,22 @@ class TrackerConfig:
     temporal_weight : float
         Weight of the pose part of the temporal prior (0: none), ``>= 0``.
     temporal_state_weight : float
-        Weight of its joint-state part, ``>= 0``.
+        Weight of its joint-state part, ``>= 0``. Default 0: the constant-velocity prediction of a joint
+        state is poor where the joint swings (a laptop lid: 4-7 degrees off where the fits are 1-2), and the
+        prior pulled the fits toward it; measured with fusion on (``ancsh bench tracking``, k = 3, no
+        template), tracking / per-frame joint-state error 0.01 -> 0: laptop learned 1.61 -> 0.90, oracle
+        0.92 -> 0.49; drawer 1.0-1.1 either way.
+    fusion_weight : float
+        Weight of the carried correspondences in a network frame's fit, relative to the network's
+        (module docstring, item 3), ``>= 0``; 0: a network frame is fitted on the network's
+        correspondences alone (each network frame then a per-frame measurement). Default 2, measured on
+        the benchmark's sequences at k = 3 (tracking / per-frame rotation, translation, joint state): oracle
+        eyeglasses 0.98 / 1.95 / 0.89 without fusion -> 0.57 / 1.61 / 0.73 with it, laptop 1.08 / 1.70 /
+        0.99 -> 0.67 / 1.41 / 0.49 (one sequence each without; two with); learned drawer 1.11 / 1.27 / 1.09 ->
+        0.99 / 1.08 / 1.05, eyeglasses 1.08 / 1.09 / 1.08 -> 0.89 / 0.96 / 0.85 (``docs/results/tracking.md``).
+    fusion_recentre : bool
+        Re-centre the carried rows of a fused fit on the network's (:func:`recentred`). Measured on oracle
+        laptop frames: translation 2.07x per-frame without, 1.56x with. Default ``True``.
     velocity : float
         ``damping`` of the constant-velocity prediction, in ``[0, 1]`` (0: zero velocity).
     carried_iterations : int
@@ -205,7 +233,7 @@ class TrackerConfig:
     formulation: str = "exact_reduced"
     solver: str | None = None
     temporal_weight: float = 0.01
-    temporal_state_weight: float = 0.01
+    temporal_state_weight: float = 0.0
     velocity: float = 1.0
     carried_iterations: int = 1
     carried_gate: float = 0.1
