@@ -8,6 +8,10 @@ at the current estimate (ICP's closest-point step, on a point template instead o
 :mod:`ancsh.solvers.icp`): it takes that template point's part label and NPCS coordinates; the
 canonical parameters (NPCS -> NAOCS maps, joints, limits) are those of the network frame.
 Matches farther than a gate get weight 0.
+
+On a network frame the tracker can fit both sets of rows at once (:func:`stack_correspondences`,
+``TrackerConfig.fusion_weight``): the carried rows then bring the previous estimate, moved by the
+observed motion, into the new one -- tracking's fusion over time.
 """
 
 from __future__ import annotations

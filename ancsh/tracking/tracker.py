@@ -168,11 +168,14 @@ class TrackerConfig:
     fusion_weight : float
         Weight of the carried correspondences in a network frame's fit, relative to the network's
         (module docstring, item 3), ``>= 0``; 0: a network frame is fitted on the network's
-        correspondences alone (each network frame then a per-frame measurement). Default 2, measured on
-        the benchmark's sequences at k = 3 (tracking / per-frame rotation, translation, joint state): oracle
-        eyeglasses 0.98 / 1.95 / 0.89 without fusion -> 0.57 / 1.61 / 0.73 with it, laptop 1.08 / 1.70 /
-        0.99 -> 0.67 / 1.41 / 0.49 (one sequence each without; two with); learned drawer 1.11 / 1.27 / 1.09 ->
-        0.99 / 1.08 / 1.05, eyeglasses 1.08 / 1.09 / 1.08 -> 0.89 / 0.96 / 0.85 (``docs/results/tracking.md``).
+        correspondences alone (each network frame then a per-frame measurement). Default 2, measured with
+        ``ancsh bench tracking`` (k = 3, two sequences per object; tracking / per-frame rotation, translation,
+        joint state; laptop without its template) without -> with fusion: oracle drawer 1.12 / 1.56 / 1.68 ->
+        0.80 / 1.20 / 1.08, eyeglasses 0.98 / 1.97 / 1.03 -> 0.55 / 1.61 / 0.76, laptop 1.01 / 1.75 / 0.86 ->
+        0.67 / 1.41 / 0.49; learned drawer 1.04 / 1.07 / 1.05 -> 0.99 / 1.08 / 1.05, eyeglasses 0.91 / 0.96 /
+        0.86 -> 0.88 / 0.96 / 0.85, laptop 0.90 / 1.03 / 0.98 -> 0.84 / 1.02 / 0.90 (the learned errors are
+        mostly a per-instance bias, which no fusion removes). A fused network frame costs about a tenth more
+        than an unfused one (twice the rows, one closest-point match).
     fusion_recentre : bool
         Re-centre the carried rows of a fused fit on the network's (:func:`recentred`). Measured on oracle
         laptop frames: translation 2.07x per-frame without, 1.56x with. Default ``True``.
