@@ -656,7 +656,7 @@ class _Fit:
             formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
             joint_pivots_cam=pivots, joint_states=states, boxes_cam=boxes, status=status, message=message,
             cost_per_term=costs, iterations=int(iterations), max_constraint_violation=violation, inliers=inliers,
-            time_s=time.perf_counter() - self.start, uncertainty=uncertainty,
+            time_s=time.perf_counter() - self.start, uncertainty=uncertainty, canonical=canonical,
         )
 
     def _violation(self, poses, canonical, L) -> float:

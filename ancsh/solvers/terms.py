@@ -833,8 +833,9 @@ class TemporalPriorTerm(EnergyTerm):
     a zero-velocity prior; or its constant-velocity extrapolation, :meth:`PreviousSolution.constant_velocity`:
     a prior on the change of pose and joint-state velocity). ``dtheta_k`` is the deviation of
     joint state ``k`` (:func:`joint_state_expr`): radians, or divided by ``L`` (prismatic).
-    Weights ``w`` (pose, parameter ``temporal_weight``) and ``w_q`` (joint states,
-    ``temporal_state_weight``). Defined on the part poses, so it serves both parameterisations.
+    Weights ``w`` (pose) and ``w_q`` (joint states) of the :class:`PreviousSolution`, entering as the
+    parameters ``sqrt_temporal_weight`` and ``sqrt_temporal_state_weight`` (either may be 0).
+    Defined on the part poses, so it serves both parameterisations.
     """
 
     name = "temporal_prior"
@@ -844,8 +845,10 @@ class TemporalPriorTerm(EnergyTerm):
         pose = [ca.vec(ctx.poses[r].R - ctx.params.get("prev_R", 3, 3)),
                 (ctx.naocs_to_cam(r, ca.DM.zeros(3)) - ctx.params.get("prev_origin", 3)) / ctx.L,
                 (ctx.object_scale(r) - ctx.params.get("prev_scale")) / ctx.L]
-        out = [ca.sqrt(ctx.params.get("temporal_weight")) * ca.vertcat(*pose)]
-        w_q = ca.sqrt(ctx.params.get("temporal_state_weight"))
+        # the parameters are the weights' square roots: sqrt(w) of a parameter has no derivative at w = 0,
+        # and a zero joint-state weight with a pose weight (or the reverse) made the multipliers NaN
+        out = [ctx.params.get("sqrt_temporal_weight") * ca.vertcat(*pose)]
+        w_q = ctx.params.get("sqrt_temporal_state_weight")
         for k in range(st.num_joints):
             d = joint_state_expr(ctx, k) - ctx.params.get(f"prev_state{k}")
             out.append(w_q * (d if st.is_revolute(k) else d / ctx.L))
@@ -856,8 +859,8 @@ class TemporalPriorTerm(EnergyTerm):
         if len(prev.joint_states) != structure.num_joints:
             raise ValueError(f"inputs.previous.joint_states: expected {structure.num_joints} states, got {len(prev.joint_states)}")
         T = prev.T_cam_naocs
-        return {"temporal_weight": prev.weight, "temporal_state_weight": prev.state_weight, "prev_R": T.rotation,
-                "prev_origin": T.translation, "prev_scale": T.scale,
+        return {"sqrt_temporal_weight": np.sqrt(prev.weight), "sqrt_temporal_state_weight": np.sqrt(prev.state_weight),
+                "prev_R": T.rotation, "prev_origin": T.translation, "prev_scale": T.scale,
                 **{f"prev_state{k}": q for k, q in enumerate(prev.joint_states)}}
 
 

@@ -341,6 +341,12 @@ class FitResult:
         (:mod:`ancsh.solvers.uncertainty`; raw Jacobian values unless a caller inflated them);
         ``None`` for a fit without an estimate, with ``FitConfig(uncertainty=False)``, or refined
         afterwards by a category template (:func:`ancsh.solvers.icp.category.refine_fit`).
+    canonical : CanonicalParameters or None
+        The canonical parameters the part poses and joints were solved with
+        (:class:`~ancsh.solvers.terms.CanonicalParameters`: the correspondences', moved by the solved
+        offsets where the formulation frees them, ``FitConfig.naocs_prior_weight > 0``), so that the
+        object pose and joint states reproduce the part poses through forward kinematics (tracking's
+        predictions); ``None`` for a fit without an estimate or from elsewhere (a category template).
     """
 
     formulation: str
@@ -358,6 +364,7 @@ class FitResult:
     inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     time_s: float = 0.0
     uncertainty: object = None
+    canonical: object = None
 
     def __post_init__(self):
         if self.uncertainty is not None:
@@ -365,6 +372,11 @@ class FitResult:
 
             if not isinstance(self.uncertainty, FitUncertainty):
                 raise ValueError(f"uncertainty: expected a FitUncertainty or None, got {type(self.uncertainty).__name__}")
+        if self.canonical is not None:
+            from .terms import CanonicalParameters
+
+            if not isinstance(self.canonical, CanonicalParameters):
+                raise ValueError(f"canonical: expected CanonicalParameters or None, got {type(self.canonical).__name__}")
         if not isinstance(self.status, FitStatus):
             object.__setattr__(self, "status", FitStatus(self.status))
         for p in self.T_cam_npcs:

@@ -387,8 +387,9 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
         "revolute joints, object diagonals for prismatic ones); `failed` counts in-view frames without one.",
         "",
         f"Tracking: category level -- network (or oracle) every k = {cfg['network_every']} frames, correspondences "
-        "carried by the previous fit in between, warm-started `exact_reduced` fits with the constant-velocity temporal "
-        f"prior; categories {', '.join(report['tracker'].get('template_categories') or ()) or 'none'} instead carry the "
+        f"carried by the previous fit in between, warm-started `exact_reduced` fits with {_prior_words(report['tracker'])}"
+        f"; {_fusion_words(report['tracker'])}; categories "
+        f"{', '.join(report['tracker'].get('template_categories') or ()) or 'none'} instead carry the "
         "category template refined at every (re-)initialisation (`refine_fit`, seconds, once) by warm articulated ICP, the "
         "network only re-initialising (median ms: template frames). Per frame: provider + RANSAC + `exact_reduced` on "
         "every frame. URDF -- warm-started articulated ICP "
@@ -427,6 +428,24 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
 
     write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), separators=(",", ":")).encode())
     return text
+
+
+def _prior_words(tracker: dict) -> str:
+    """How the report names the tracker's temporal prior (``TrackerConfig`` fields of the run)."""
+    w, wq = tracker.get("temporal_weight", 0.0), tracker.get("temporal_state_weight", 0.0)
+    if not w and not wq:
+        return "no temporal prior"
+    parts = [f"pose {w:g}"] + ([f"joint state {wq:g}"] if wq else ["no joint-state part"])
+    return f"the constant-velocity temporal prior ({', '.join(parts)})"
+
+
+def _fusion_words(tracker: dict) -> str:
+    """How the report names the fusion of network frames (``TrackerConfig.fusion_weight``)."""
+    w = tracker.get("fusion_weight", 0.0)
+    if not w:
+        return "network frames fitted on the network's correspondences alone"
+    return (f"network frames fused: the network's correspondences and, with weight {w:g}, the carried ones in one fit "
+            "(a recursive weighted mean over the network frames)")
 
 
 def _correlation_table(rows) -> list:

@@ -8,6 +8,10 @@ at the current estimate (ICP's closest-point step, on a point template instead o
 :mod:`ancsh.solvers.icp`): it takes that template point's part label and NPCS coordinates; the
 canonical parameters (NPCS -> NAOCS maps, joints, limits) are those of the network frame.
 Matches farther than a gate get weight 0.
+
+On a network frame the tracker can fit both sets of rows at once (:func:`stack_correspondences`,
+``TrackerConfig.fusion_weight``): the carried rows then bring the previous estimate, moved by the
+observed motion, into the new one -- tracking's fusion over time.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import numpy as np
 from ..geometry._checks import as_points, check_positive
 from ..solvers.types import Correspondences, FitResult
 
-__all__ = ["CarriedTemplate"]
+__all__ = ["CarriedTemplate", "stack_correspondences"]
 
 
 class CarriedTemplate:
@@ -92,3 +96,40 @@ class CarriedTemplate:
             joint_children=c.joint_children, joint_axes_naocs=c.joint_axes_naocs, joint_pivots_naocs=c.joint_pivots_naocs,
             weights=(d <= gate).astype(np.float64), npcs_extents=c.npcs_extents, joint_limits=c.joint_limits,
         )
+
+
+def stack_correspondences(first: Correspondences, second: Correspondences, weight: float) -> Correspondences:
+    """One set of correspondences for the points of two sets stacked (``first``'s rows, then ``second``'s).
+
+    Tracking's fused network frames (``TrackerConfig.fusion_weight``): ``first`` the network's
+    correspondences of a frame, ``second`` the carried ones of the same points, their weights
+    multiplied by ``weight``. The canonical parameters, joints and extents are ``first``'s; the NPCS
+    coordinates of both are of the same parts' NPCS frames.
+
+    Parameters
+    ----------
+    first, second : Correspondences
+        Of the same object (part and joint counts), ``N1`` and ``N2`` points.
+    weight : float
+        Factor of ``second``'s per-point weights, ``>= 0``.
+
+    Returns
+    -------
+    Correspondences
+        ``N1 + N2`` points.
+    """
+    from ..geometry._checks import check_number
+
+    weight = check_number(weight, "weight", minimum=0.0)
+    if second.num_parts != first.num_parts or len(second.joint_types) != len(first.joint_types):
+        raise ValueError(f"second: {second.num_parts} parts and {len(second.joint_types)} joints, first has "
+                         f"{first.num_parts} and {len(first.joint_types)}")
+    w1 = np.ones(first.num_points) if first.weights is None else np.asarray(first.weights, dtype=np.float64)
+    w2 = np.ones(second.num_points) if second.weights is None else np.asarray(second.weights, dtype=np.float64)
+    return Correspondences(
+        part_labels=np.concatenate([first.part_labels, second.part_labels]), npcs=np.concatenate([first.npcs, second.npcs]),
+        npcs_scale=first.npcs_scale, npcs_translation=first.npcs_translation, joint_types=first.joint_types,
+        joint_parents=first.joint_parents, joint_children=first.joint_children, joint_axes_naocs=first.joint_axes_naocs,
+        joint_pivots_naocs=first.joint_pivots_naocs, weights=np.concatenate([w1, weight * w2]),
+        npcs_extents=first.npcs_extents, joint_limits=first.joint_limits,
+    )

@@ -425,7 +425,7 @@ def _articulated(fit: FitResult, model: ArticulatedModel, layout: FittedLayout, 
         axes[k], pivots[k] = est.T_cam_base.apply_direction(a), est.T_cam_base.apply(p)
     states = est.q - model.rest_states
     return dataclasses.replace(fit, T_cam_npcs=poses, boxes_cam=boxes, joint_axes_cam=axes, joint_pivots_cam=pivots,
-                               joint_states=states)
+                               joint_states=states, canonical=None)
 
 
 def _score(scorer: FitScorer, surface: ModelSurface, result: FitResult, layout: FittedLayout, f: float, gate: float) -> FitScore:
