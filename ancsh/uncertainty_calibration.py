@@ -52,7 +52,7 @@ import numpy as np
 
 from .outputs import output_flags
 
-__all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "ErrorRecord", "coverage", "error_records",
+__all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "ErrorRecord", "coverage", "error_records", "merge_records",
            "fit_inflation", "fit_quantity_inflation", "fit_sigma_map", "inflated_errors", "measure", "normalised_errors",
            "raw_sigmas", "register", "run", "summarize", "write_report"]
 
@@ -557,6 +557,32 @@ def load_records(path) -> dict:
     return out
 
 
+
+def merge_records(parts: list) -> dict:
+    """One :func:`measure` output from several (:func:`load_records` of files measured separately).
+
+    Categories are independent in the study (their own frames, correlation and maps), so the runs of
+    different categories combine; a category held by several parts is taken from the last one (a
+    category re-measured, e.g. for new weights). Counts follow the records; the fit timings (per
+    provider, not per category) are pooled over every part's frames, a replaced category's included.
+    ``source`` lists each part's command.
+    """
+    if not parts:
+        raise ValueError("parts: expected at least one measured set")
+    records, counts, timing, sources = {}, {}, {}, []
+    for m in parts:
+        records.update(m["records"])
+        counts.update(m["counts"])
+        for prov, t in m["timing"].items():
+            for key, v in t.items():
+                timing.setdefault(prov, {}).setdefault(key, []).extend(v)
+        src = m.get("source")
+        sources += src if isinstance(src, list) else [src] if src else []
+    out = {"records": records, "counts": counts, "timing": timing}
+    if sources:
+        out["source"] = sources[0] if len(sources) == 1 else sources
+    return out
+
 #: Within-part residual correlations tried (per provider and category).
 CORRELATION_GRID = (0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0)
 #: The quantities whose coverage chooses the correlation.
@@ -713,6 +739,10 @@ def _frames_note(config: CalibrationConfig) -> str:
 def _source_note(measured: dict, command: str) -> str:
     """Where the errors came from when they were read from a records file (``--records``)."""
     src = measured.get("source")
+    if isinstance(src, list):  # several records files (merge_records)
+        return "; the frames were fitted by " + " and ".join(
+            f"`{x['command']}` ({x['elapsed_s'] / 60:.0f} min; its categories {', '.join(x.get('categories', []))})"
+            if x.get("categories") else f"`{x['command']}` ({x['elapsed_s'] / 60:.0f} min)" for x in src)
     if not src or src.get("command") == command:
         return ""
     return f"; the frames were fitted by `{src['command']}` ({src['elapsed_s'] / 60:.0f} min)"
@@ -855,8 +885,10 @@ def register(sub) -> None:
     p.add_argument("--install", action="store_true", help="write the maps to ancsh/weights/uncertainty_inflation.json")
     p.add_argument("--save-records", default=None, metavar="NPZ",
                    help="also write every frame's errors and raw covariances (to compare inflation maps offline)")
-    p.add_argument("--records", default=None, metavar="NPZ",
-                   help="reuse the errors of --save-records instead of fitting the frames (the same --frames, --calibration-frames and seeds)")
+    p.add_argument("--records", default=None, metavar="NPZ", nargs="+",
+                   help="reuse the errors of --save-records instead of fitting the frames (the same --frames, "
+                        "--calibration-frames and seeds); several files combine their categories, a category in "
+                        "several taken from the last")
     p.set_defaults(func=run)
 
 
@@ -874,9 +906,10 @@ def _command(args) -> str:
     parts += output_flags(args.out, update_docs=args.update_docs)
     if args.install:
         parts.append("--install")
-    for flag in ("save_records", "records"):
-        if getattr(args, flag, None):
-            parts.append(f"--{flag.replace('_', '-')} {getattr(args, flag)}")
+    if getattr(args, "save_records", None):
+        parts.append(f"--save-records {args.save_records}")
+    if getattr(args, "records", None):
+        parts.append("--records " + " ".join(str(r) for r in args.records))
     return " ".join(parts)
 
 
@@ -893,15 +926,26 @@ def run(args) -> int:
     command = _command(args)
     t0 = time.perf_counter()
     if getattr(args, "records", None):
-        measured = load_records(args.records)
+        parts = []
+        for path in args.records:
+            m = load_records(path)
+            held = sorted({(c[s]["frames"], s) for per in m["counts"].values() for c in per.values() for s in c})
+            want = sorted({(config.n_calibration, "calibration"), (config.frames, "test")})
+            if held != want:
+                raise ValueError(f"--records: {path} holds {held} frames per split, not {want} "
+                                 "(pass the --frames / --calibration-frames it was measured with)")
+            parts.append(m)
+        taken = set()  # each file's source names the categories taken from it (the last file holding them)
+        for m in reversed(parts):
+            if isinstance(m.get("source"), dict):
+                m["source"] = dict(m["source"], categories=sorted(set(m["records"]) - taken))
+            taken |= set(m["records"])
+        measured = merge_records(parts)
+        if len(parts) == 1 and isinstance(measured.get("source"), dict):
+            measured["source"].pop("categories", None)
         if sorted(measured["records"]) != sorted(config.categories):
-            raise ValueError(f"--records: {args.records} holds categories {sorted(measured['records'])}, "
-                             f"not {sorted(config.categories)}")
-        held = sorted({(c[s]["frames"], s) for per in measured["counts"].values() for c in per.values() for s in c})
-        want = sorted({(config.n_calibration, "calibration"), (config.frames, "test")})
-        if held != want:
-            raise ValueError(f"--records: {args.records} holds {held} frames per split, not {want} "
-                             "(pass the --frames / --calibration-frames it was measured with)")
+            raise ValueError(f"--records: {' '.join(map(str, args.records))} hold categories "
+                             f"{sorted(measured['records'])}, not {sorted(config.categories)}")
     else:
         measured = measure(config, progress=lambda s: print(s, flush=True))
         measured["source"] = {"command": command, "elapsed_s": time.perf_counter() - t0}

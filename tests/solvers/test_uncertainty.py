@@ -502,5 +502,29 @@ def test_calibration_frames_default_to_twice_the_test_frames_and_records_must_ma
     assert main([*base, "--calibration-frames", "8", "--out", str(tmp_path / "b.md"), "--records", str(npz)]) == 0
     text = (tmp_path / "b.md").read_text()
     assert "per category 8 calibration frames" in text and "the frames were fitted by `ancsh bench uncertainty --frames 4" in text
+    assert main([*base, "--calibration-frames", "8", "--out", str(tmp_path / "d.md"), "--records", str(npz), str(npz)]) == 0
+    assert "its categories laptop" in (tmp_path / "d.md").read_text()  # two files: each names what was taken from it
     assert main([*base, "--calibration-frames", "5", "--out", str(tmp_path / "c.md"), "--records", str(npz)]) != 0
     assert "--records" in capsys.readouterr().err and not (tmp_path / "c.md").exists()
+
+
+def test_records_of_separate_runs_merge_by_category_the_last_holder_winning():
+    """Categories measured in separate runs combine; a category re-measured is taken from the later run, with
+    its counts; timings pool; both commands are kept."""
+    from ancsh.uncertainty_calibration import ErrorRecord, merge_records
+
+    def run(cats, value, command):
+        rec = ErrorRecord(np.full(1, value), np.eye(1), np.zeros((1, 1)), 1.0, 0.0, 0)
+        return {"records": {c: {"learned": {"test": {"joint_state": [rec]}}} for c in cats},
+                "counts": {c: {"learned": {"test": {"frames": int(value), "failed": 0, "singular": 0}}} for c in cats},
+                "timing": {"learned": {"fit_ms": [value]}}, "source": {"command": command, "elapsed_s": 60.0}}
+
+    merged = merge_records([run(["laptop", "oven"], 1.0, "a"), run(["oven", "safe"], 2.0, "b")])
+    assert sorted(merged["records"]) == ["laptop", "oven", "safe"]
+    value = lambda c: merged["records"][c]["learned"]["test"]["joint_state"][0].error[0]  # noqa: E731
+    assert value("laptop") == 1.0 and value("oven") == 2.0 and value("safe") == 2.0
+    assert merged["counts"]["oven"]["learned"]["test"]["frames"] == 2
+    assert merged["timing"]["learned"]["fit_ms"] == [1.0, 2.0]
+    assert [s["command"] for s in merged["source"]] == ["a", "b"]
+    with pytest.raises(ValueError, match="parts"):
+        merge_records([])
