@@ -335,7 +335,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     import numpy as np
 
     from ..outputs import DOCS_RESULTS, file_sha256, fresh_output_dir
-    from .confidence import calibration_path, collect, fit_calibrator, reliability, write_report
+    from .confidence import calibration_path, choose_calibrator, collect, write_report
     from .weights import weights_path
 
     if args.frames < 4:
@@ -346,16 +346,16 @@ def run_calibrate(args: argparse.Namespace) -> int:
         raise missing_weights_error(args.category)
     data = collect(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
     fit_half = np.arange(len(data["good"])) % 2 == 0
-    calibration = fit_calibrator(data["X"][fit_half], data["good"][fit_half])
+    calibration, rel = choose_calibrator(data["X"][fit_half], data["good"][fit_half], data["X"][~fit_half], data["good"][~fit_half])
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))  # it holds for these weights only
-    rel = reliability(calibration, data["X"][~fit_half], data["good"][~fit_half])
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
     parts = ["calibrate", "--category", args.category, "--frames", str(args.frames)]
     parts += ["--seed", str(args.seed)] if args.seed != 7 else []
     parts += output_flags(args.out, update_docs=args.update_docs)
     parts += ["--install"] if args.install else []
     paths = write_report(args.category, calibration, rel, out, command=_command(parts))
-    print(f"good fits {100 * rel['good_rate']:.0f}%, Brier {rel['brier']:.4f} (constant {rel['brier_constant']:.4f}); "
+    print(f"good fits {100 * rel['good_rate']:.0f}%, {calibration['model']} model, Brier {rel['brier']:.4f} "
+          f"(constant {rel['brier_constant']:.4f}); "
           f"wrote {paths['md']}, {paths['png']}")
     if args.install:
         target = calibration_path(args.category)

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "calibration_path", "fit_features", "collect", "fit_calibrator",
-           "probability_good", "reliability", "write_report"]
+__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "calibration_path", "choose_calibrator", "constant_calibrator", "fit_features",
+           "collect", "fit_calibrator", "probability_good", "reliability", "write_report"]
 
 FEATURES = ("inlier_ratio_min", "residual_rel_max", "seg_margin_min", "seg_margin_mean", "log_points")
 #: A fit is "good" when every part's rotation error is below this (degrees).
@@ -99,6 +99,42 @@ def fit_calibrator(X, good) -> dict:
             "frames": int(len(y)), "good_rate": float(y.mean())}
 
 
+
+def constant_calibrator(good) -> dict:
+    """The calibration that says only the base rate: ``P(good)`` = the good fits' share of ``good`` for every fit
+    (:func:`fit_calibrator`'s format, zero coefficients)."""
+    y = np.asarray(good, dtype=bool)
+    if y.all() or not y.any():
+        raise ValueError("good: both good and bad fits are needed to calibrate")
+    rate = float(y.mean())
+    d = len(FEATURES)
+    return {"features": list(FEATURES), "good_rotation_deg": GOOD_ROTATION_DEG, "mean": [0.0] * d, "scale": [1.0] * d,
+            "coef": [0.0] * d, "intercept": float(np.log(rate / (1.0 - rate))), "frames": int(len(y)),
+            "good_rate": rate, "model": "constant"}
+
+
+def choose_calibrator(X_fit, good_fit, X_check, good_check) -> tuple[dict, dict]:
+    """The logistic regression of ``(X_fit, good_fit)`` where it beats the constant base rate on the check frames,
+    else that constant.
+
+    Both are fitted on the fit frames only and compared by their Brier score on the check frames: where the
+    fit's evidence does not separate good from bad fits better than the base rate (e.g. 96 % good fits
+    leave little to predict), a regression only adds noise to ``p_good``.
+
+    Returns
+    -------
+    (dict, dict)
+        The calibration (``"model"``: ``"logistic"`` or ``"constant"``; ``"brier_check"``: both candidates'
+        Brier scores on the check frames) and its :func:`reliability` on the check frames.
+    """
+    logistic = dict(fit_calibrator(X_fit, good_fit), model="logistic")
+    constant = constant_calibrator(good_fit)
+    rel = {"logistic": reliability(logistic, X_check, good_check), "constant": reliability(constant, X_check, good_check)}
+    pick = "logistic" if rel["logistic"]["brier"] < rel["constant"]["brier"] else "constant"
+    chosen = {"logistic": logistic, "constant": constant}[pick]
+    chosen["brier_check"] = {k: r["brier"] for k, r in rel.items()}
+    return chosen, rel[pick]
+
 def probability_good(calibration: dict, x) -> float:
     """P(good) of one feature vector under a :func:`fit_calibrator` result.
 
@@ -159,6 +195,20 @@ def write_report(category: str, calibration: dict, rel: dict, out_dir, *, comman
         f"{calibration['frames']} rendered frames of the held-out instances (seed stream 7, not the evaluation's), "
         f"measured on {rel['frames']} others. Good fits: {100 * rel['good_rate']:.0f}%.\n\n"
         f"Brier score {rel['brier']:.4f} (a constant {rel['good_rate']:.2f}: {rel['brier_constant']:.4f}).\n\n"
+        + _model_sentence(calibration) +
         "| predicted P | frames | mean predicted | observed good |\n|---|---|---|---|\n" + rows + "\n\n"
         f"![reliability diagram]({paths['png'].name})\n")
     return paths
+
+
+def _model_sentence(calibration: dict) -> str:
+    """Which candidate :func:`choose_calibrator` kept, with both check-frame Brier scores."""
+    b = calibration.get("brier_check")
+    if not b:
+        return ""
+    if calibration.get("model") == "constant":
+        return (f"Installed: **the constant base rate** {calibration['good_rate']:.2f} of the fitting frames for every fit. The "
+                f"regression did not beat it on the check frames (Brier {b['logistic']:.4f} vs {b['constant']:.4f}): the fit's "
+                "evidence does not tell this network's good fits from its bad ones better than the base rate.\n\n")
+    return (f"Installed: the logistic regression (check-frame Brier {b['logistic']:.4f}, against {b['constant']:.4f} for the "
+            f"fitting frames' base rate {calibration['good_rate']:.2f} as a constant).\n\n")

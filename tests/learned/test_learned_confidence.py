@@ -90,3 +90,22 @@ def test_infer_takes_the_raw_prediction_from_either_provider_interface():
     old = SimpleNamespace(correspond=lambda obs: corr, last_prediction=raw)
     bare = SimpleNamespace(correspond=lambda obs: corr)
     assert infer(new, None) == (corr, raw) and infer(old, None) == (corr, raw) and infer(bare, None) == (corr, None)
+
+
+def test_calibration_falls_back_to_the_base_rate_where_the_evidence_does_not_predict():
+    """Informative features: the regression is kept; features unrelated to the outcome at a 96 % base rate: the
+    constant base rate is (the regression's check-frame Brier score is no better); p_good is then the rate."""
+    from ancsh.learned.confidence import choose_calibrator
+
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(400, len(FEATURES)))
+    informative = rng.random(400) < 1.0 / (1.0 + np.exp(-3.0 * X[:, 0]))
+    cal, rel = choose_calibrator(X[:200], informative[:200], X[200:], informative[200:])
+    assert cal["model"] == "logistic" and cal["brier_check"]["logistic"] < cal["brier_check"]["constant"]
+    assert rel["brier"] == cal["brier_check"]["logistic"]
+    noise = rng.random(400) < 0.96
+    noise[:4] = False  # both outcomes in the fitting half
+    cal, rel = choose_calibrator(X[:200], noise[:200], X[200:], noise[200:])
+    assert cal["model"] == "constant" and cal["brier_check"]["constant"] <= cal["brier_check"]["logistic"]
+    assert probability_good(cal, X[250]) == pytest.approx(noise[:200].mean())
+    assert rel["brier"] == cal["brier_check"]["constant"]
