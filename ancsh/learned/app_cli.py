@@ -161,7 +161,7 @@ def run_weights(args: argparse.Namespace) -> int:
             best = min(pc, key=lambda p: p["score"])
             history = ", ".join(f"{p['step']}: {p['score']:.1f}" for p in pc)
             pose.append(f"| `{r['name']}.pt` | {history} | "
-                        f"{best['score']:.1f} ({best['step']}) | {pc[-1]['score'] / best['score']:.2f} |")
+                        f"{best['score']:.1f} ({best['step']}) | {f(pc[-1]['score'] / best['score'], '.2f')} |")
     print("\n".join(lines))
     print("\n".join(curves))
     if len(pose) > 2:
