@@ -1044,5 +1044,9 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real
         "category": category, "command": command, "date": date, "ancsh_version": __version__, "settings": s, "summary": summary,
         "paper": {"table1": paper1, "table2": paper2}, "per_frame": _per_frame(evaluation),
     }
+    if real is not None:  # the real split's summary, so that its figures can be read back (ancsh weights --reports)
+        rs = real[0]["settings"]
+        data["real"] = {"settings": {k: rs[k] for k in ("frames", "real_catalog", "real_instances", "weights_sha256")},
+                        "summary": {k: real[1][k] for k in ("methods", "table2", "budget") if k in real[1]}}
     write_json(paths["json"], data, one_line=("per_frame",))
     return paths

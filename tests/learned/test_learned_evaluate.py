@@ -178,5 +178,21 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
     assert "## The real test split beside the procedural one" in both and "| ANCSH-exact reduced (ours) | door |" in both
     alone = ev.write_report(proc, ev.summarize(proc), tmp_path / "alone", command="test")["md"].read_text()
     assert "real test split" not in alone
+    # the JSON keeps the real split's summary, and the targets read both splits back from it
+    from ancsh.learned.targets import collect_targets, target_lines
+
+    rows, missing = collect_targets(tmp_path / "both")
+    assert [r.category for r in rows] == ["oven"] and "laptop" in missing and "oven" not in missing
+    (row,) = rows
+    sp, sr = ev.summarize(proc), ev.summarize(real)
+    assert row.rot_deg == pytest.approx(sp["methods"]["exact_reduced"]["rot_deg"]["mean"])
+    assert row.real_rot_deg == pytest.approx(sr["methods"]["exact_reduced"]["rot_deg"]["mean"])
+    assert row.real_ratio == pytest.approx(np.divide(row.real_rot_deg, row.rot_deg))
+    assert row.paper_rot_deg == tuple(ev.PAPER_TABLE1["oven"]["ANCSH"]["rot_deg"]) and not row.stale
+    assert row.real_frames == real["settings"]["frames"]
+    (alone_row,), _ = collect_targets(tmp_path / "alone")
+    assert alone_row.real_rot_deg is None and alone_row.real_ratio is None and alone_row.real_met is None
+    md = target_lines(rows, missing, {"oven": (10.0, 5.0)})
+    assert "| oven | base, door |" in md[2] and "10 + 5" in md[2] and "shipped weights" in md[2]
     with pytest.raises(ValueError, match="no real test object"):
         ev.evaluate_category("laptop", real=str(catalog), **kw)

@@ -1,0 +1,197 @@
+"""Where the shipped ANCSH networks stand against the paper's Table 1 (the learned-accuracy targets).
+
+The figures are read back from the evaluation reports that ``ancsh evaluate`` wrote
+(``<category>.json``; with ``--real`` it also holds the real test split's summary), never
+re-measured here: per part, the ANCSH-exact (``exact_reduced``) mean rotation error on the
+procedural test split against the paper's ANCSH row, the joint-axis error against the paper's, and
+the real split's rotation error as a ratio of the procedural one (goal: at most
+:data:`REAL_RATIO_GOAL`). A report whose weights differ from the shipped file (SHA-256) is marked
+stale: its figures describe other weights.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["REAL_RATIO_GOAL", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "TargetRow", "collect_targets", "target_lines"]
+
+TARGET_METHOD = "exact_reduced"
+"""The method the targets are stated for (ANCSH-exact, reduced coordinates)."""
+
+REAL_RATIO_GOAL = 1.25
+"""Goal for the real split: rotation error at most this multiple of the procedural split's, per part."""
+
+TRAINING_BUDGET_MIN = 240.0
+"""Training budget per category: 4 CPU-core-hours (one torch thread = one core), in minutes."""
+
+
+@dataclass(frozen=True)
+class TargetRow:
+    """One category's standing, read from its evaluation report.
+
+    Attributes
+    ----------
+    category : str
+    part_names, joint_names : tuple of str
+    frames : int
+        Procedural test frames of the report.
+    rot_deg : tuple of float
+        Mean rotation error per part (degrees), ANCSH-exact, procedural test split.
+    axis_deg : tuple of float
+        Mean joint-axis angle error per joint (degrees, camera frame).
+    paper_rot_deg, paper_axis_deg : tuple of float or None
+        The paper's Table 1 ANCSH row (``None``: the paper has no such category or column).
+    real_frames : int
+        Real-split frames in the report (0: none evaluated).
+    real_rot_deg : tuple of float or None
+        Mean rotation error per part on the real split.
+    report_sha256 : str
+        SHA-256 of the weights the report evaluated.
+    shipped_sha256 : str or None
+        SHA-256 of the shipped weights file (``None``: none shipped).
+    """
+
+    category: str
+    part_names: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    frames: int
+    rot_deg: tuple[float, ...]
+    axis_deg: tuple[float, ...]
+    paper_rot_deg: tuple[float, ...] | None
+    paper_axis_deg: tuple[float, ...] | None
+    real_frames: int
+    real_rot_deg: tuple[float, ...] | None
+    report_sha256: str
+    shipped_sha256: str | None
+
+    @property
+    def stale(self) -> bool:
+        """The report evaluated other weights than the shipped file."""
+        return self.shipped_sha256 is None or self.report_sha256 != self.shipped_sha256
+
+    @property
+    def paper_ratio(self) -> tuple[float, ...] | None:
+        """Ours / the paper's rotation error, per part."""
+        if self.paper_rot_deg is None:
+            return None
+        return tuple(o / p for o, p in zip(self.rot_deg, self.paper_rot_deg))
+
+    @property
+    def rotation_met(self) -> bool | None:
+        """Every part at most the paper's rotation error (``None`` without a paper row)."""
+        r = self.paper_ratio
+        return None if r is None else all(x <= 1.0 for x in r)
+
+    @property
+    def axis_met(self) -> bool | None:
+        """Every joint axis at most the paper's error (``None`` without a paper figure)."""
+        if self.paper_axis_deg is None:
+            return None
+        return all(o <= p for o, p in zip(self.axis_deg, self.paper_axis_deg))
+
+    @property
+    def real_ratio(self) -> tuple[float, ...] | None:
+        """Real / procedural rotation error, per part (``None`` without a real split)."""
+        if self.real_rot_deg is None:
+            return None
+        return tuple(r / p for r, p in zip(self.real_rot_deg, self.rot_deg))
+
+    @property
+    def real_met(self) -> bool | None:
+        """Every part's real / procedural ratio at most :data:`REAL_RATIO_GOAL`."""
+        r = self.real_ratio
+        return None if r is None else all(x <= REAL_RATIO_GOAL for x in r)
+
+
+def _means(summary: dict, metric: str, where: Path) -> tuple[float, ...]:
+    try:
+        values = summary["methods"][TARGET_METHOD][metric]["mean"]
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"{where}: no {TARGET_METHOD} {metric} means in the report ({exc!r})") from None
+    return tuple(float("nan") if v is None else float(v) for v in values)
+
+
+def _read_row(path: Path, shipped_sha256: str | None) -> TargetRow:
+    try:
+        report = json.loads(path.read_text())
+        category, settings, summary = report["category"], report["settings"], report["summary"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"{path}: not an `ancsh evaluate` report ({exc!r})") from None
+    paper = ((report.get("paper") or {}).get("table1") or {}).get("ANCSH")
+    real = report.get("real")
+    return TargetRow(
+        category=category,
+        part_names=tuple(settings["part_names"]),
+        joint_names=tuple(settings["joint_names"]),
+        frames=int(settings["frames"]),
+        rot_deg=_means(summary, "rot_deg", path),
+        axis_deg=_means(summary, "axis_deg", path),
+        paper_rot_deg=None if not paper else tuple(paper["rot_deg"]),
+        paper_axis_deg=None if not paper or "axis_deg" not in paper else tuple(paper["axis_deg"]),
+        real_frames=0 if real is None else int(real["settings"]["frames"]),
+        real_rot_deg=None if real is None else _means(real["summary"], "rot_deg", path),
+        report_sha256=str(settings["weights_sha256"]),
+        shipped_sha256=shipped_sha256,
+    )
+
+
+def collect_targets(reports_dir) -> tuple[list[TargetRow], list[str]]:
+    """Read ``<category>.json`` in ``reports_dir`` for every category with shipped ANCSH weights.
+
+    Returns the rows (category order) and the categories without a report. Raises ``ValueError``
+    naming the argument when ``reports_dir`` is not a folder, and naming the file when a report
+    cannot be read.
+    """
+    from ..outputs import file_sha256
+    from .weights import shipped_categories, weights_path
+
+    reports = Path(reports_dir)
+    if not reports.is_dir():
+        raise ValueError(f"reports_dir: {reports} is not a folder")
+    rows, missing = [], []
+    for category in shipped_categories("ancsh"):
+        path = reports / f"{category}.json"
+        if not path.is_file():
+            missing.append(category)
+            continue
+        rows.append(_read_row(path, file_sha256(weights_path(category))))
+    return rows, missing
+
+
+def _join(values, spec: str) -> str:
+    return " / ".join("-" if v != v else format(v, spec) for v in values)
+
+
+def _verdict(met: bool | None) -> str:
+    return "" if met is None else (" (met)" if met else " (**not met**)")
+
+
+def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[str, tuple[float, float]]) -> list[str]:
+    """Markdown: one row per category (figures of :func:`collect_targets`), with the training time spent
+    on its shipped network against :data:`TRAINING_BUDGET_MIN`: ``training_min[category]`` is
+    ``(own, parent)`` minutes, ``parent`` those of the network it was fine-tuned from (0 if none)."""
+    lines = [
+        "| category | parts | frames (real) | rotation (°), ours | paper | ours / paper | joint axis (°), ours | paper "
+        "| real / procedural rotation | training (min) of 240 | report |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        ratio = r.paper_ratio
+        real = r.real_ratio
+        own, parent = training_min.get(r.category, (float("nan"), 0.0))
+        minutes = "-" if own != own else (f"{own:.0f}" if not parent else f"{own:.0f} + {parent:.0f}")
+        lines.append(
+            f"| {r.category} | {', '.join(r.part_names)} | {r.frames} ({r.real_frames}) | {_join(r.rot_deg, '.2f')} | "
+            f"{'-' if r.paper_rot_deg is None else _join(r.paper_rot_deg, '.1f')} | "
+            f"{'-' if ratio is None else _join(ratio, '.1f') + 'x' + _verdict(r.rotation_met)} | "
+            f"{_join(r.axis_deg, '.2f')} | "
+            f"{'-' if r.paper_axis_deg is None else _join(r.paper_axis_deg, '.1f') + _verdict(r.axis_met)} | "
+            f"{'-' if real is None else _join(real, '.2f') + 'x' + _verdict(r.real_met)} | "
+            f"{minutes} | "
+            f"{'stale: other weights' if r.stale else 'shipped weights'} |"
+        )
+    if missing:
+        lines += ["", f"No report for: {', '.join(missing)} (`ancsh evaluate --category C --real builtin --out DIR`)."]
+    return lines
