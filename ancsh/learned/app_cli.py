@@ -224,7 +224,7 @@ def run_weights(args: argparse.Namespace) -> int:
                 "part). Training: minutes of one core spent on the shipped network, + those of the network it was "
                 "fine-tuned from, against the budget of 4 core-hours (240 min) per "
                 "category. A report marked stale evaluated "
-                "other weights than the shipped file.", "",
+                "other weights than the shipped file, or frames of an older generator.", "",
                 *targets, "",
             ]
         args.out.parent.mkdir(parents=True, exist_ok=True)

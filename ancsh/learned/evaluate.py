@@ -43,6 +43,7 @@ import numpy as np
 
 from .._machine import describe_machine, machine_facts
 from ..solvers.types import Correspondences, FitResult, Observation
+from ..data.procedural import GENERATOR_VERSION
 from .weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 
 __all__ = [
@@ -519,7 +520,7 @@ def evaluate_category(
             "test_instances": len(gen.real_instances) if real is not None else gen.num_instances,
             "split": "procedural" if real is None else "real", "real_catalog": real,
             "real_instances": [o.name for o in gen.real_instances] if real is not None else [],
-            "num_points": gen.config.num_points,
+            "num_points": gen.config.num_points, "generator_version": GENERATOR_VERSION,
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
             "time_limit_s": time_limit_s, "refine": refine,

@@ -6,7 +6,7 @@ re-measured here: per part, the ANCSH-exact (``exact_reduced``) mean rotation er
 procedural test split against the paper's ANCSH row, the joint-axis error against the paper's, and
 the real split's rotation error as a ratio of the procedural one (goal: at most
 :data:`REAL_RATIO_GOAL`). A report whose weights differ from the shipped file (SHA-256) is marked
-stale: its figures describe other weights.
+stale: its figures describe other weights (or frames of an older generator).
 """
 
 from __future__ import annotations
@@ -51,6 +51,9 @@ class TargetRow:
         SHA-256 of the weights the report evaluated.
     shipped_sha256 : str or None
         SHA-256 of the shipped weights file (``None``: none shipped).
+    generator_version : int or None
+        ``GENERATOR_VERSION`` of the frame generator the report rendered with (``None``: not recorded,
+        reports older than version 2).
     """
 
     category: str
@@ -65,11 +68,18 @@ class TargetRow:
     real_rot_deg: tuple[float, ...] | None
     report_sha256: str
     shipped_sha256: str | None
+    generator_version: int | None = None
 
     @property
-    def stale(self) -> bool:
-        """The report evaluated other weights than the shipped file."""
-        return self.shipped_sha256 is None or self.report_sha256 != self.shipped_sha256
+    def stale(self) -> str:
+        """Why the report does not describe the shipped weights on today's frames ('' when it does)."""
+        from ..data.procedural import GENERATOR_VERSION
+
+        if self.shipped_sha256 is None or self.report_sha256 != self.shipped_sha256:
+            return "other weights"
+        if self.generator_version != GENERATOR_VERSION:
+            return f"frames of generator version {self.generator_version or 'before 2'}, not {GENERATOR_VERSION}"
+        return ""
 
     @property
     def paper_ratio(self) -> tuple[float, ...] | None:
@@ -134,6 +144,7 @@ def _read_row(path: Path, shipped_sha256: str | None) -> TargetRow:
         real_rot_deg=None if real is None else _means(real["summary"], "rot_deg", path),
         report_sha256=str(settings["weights_sha256"]),
         shipped_sha256=shipped_sha256,
+        generator_version=settings.get("generator_version"),
     )
 
 
@@ -190,7 +201,7 @@ def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[s
             f"{'-' if r.paper_axis_deg is None else _join(r.paper_axis_deg, '.1f') + _verdict(r.axis_met)} | "
             f"{'-' if real is None else _join(real, '.2f') + 'x' + _verdict(r.real_met)} | "
             f"{minutes} | "
-            f"{'stale: other weights' if r.stale else 'shipped weights'} |"
+            f"{'stale: ' + r.stale if r.stale else 'current'} |"
         )
     if missing:
         lines += ["", f"No report for: {', '.join(missing)} (`ancsh evaluate --category C --real builtin --out DIR`)."]

@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from ancsh.data.procedural import GENERATOR_VERSION
 from ancsh.learned.evaluate import PAPER_TABLE1
 from ancsh.learned.targets import REAL_RATIO_GOAL, collect_targets, target_lines
 
@@ -15,7 +16,7 @@ def _report(category, rot, axis, sha, *, real_rot=None, paper=True):
     data = {
         "category": category,
         "settings": {"part_names": [f"p{i}" for i in range(len(rot))], "joint_names": [f"j{k}" for k in range(len(axis))],
-                     "frames": 7, "weights_sha256": sha},
+                     "frames": 7, "weights_sha256": sha, "generator_version": GENERATOR_VERSION},
         "summary": summary,
         "paper": {"table1": PAPER_TABLE1.get(category) if paper else None},
     }
@@ -45,8 +46,13 @@ def test_rows_compare_with_the_paper_and_the_real_split(tmp_path):
     assert lap.real_ratio == pytest.approx(np.divide(real, under)) and lap.real_frames == 3
     assert oven.rotation_met is False and oven.real_ratio is None and oven.stale
     assert "drawer" in missing and "laptop" not in missing
+    old = _report("laptop", under, [1.0], sha)
+    del old["settings"]["generator_version"]  # a report from before the generator recorded its version
+    (tmp_path / "laptop.json").write_text(json.dumps(old))
+    old_row = {r.category: r for r in collect_targets(tmp_path)[0]}["laptop"]
+    assert "generator version before 2" in old_row.stale
     md = "\n".join(target_lines(rows, missing, {}))
-    assert "stale: other weights" in md and "(met)" in md and "**not met**" in md and "No report for: " in md
+    assert "stale: other weights" in md and "| current |" in md and "(met)" in md and "**not met**" in md and "No report for: " in md
 
 
 def test_bad_reports_are_named(tmp_path):
