@@ -52,8 +52,8 @@ class TargetRow:
     shipped_sha256 : str or None
         SHA-256 of the shipped weights file (``None``: none shipped).
     generator_version : int or None
-        ``GENERATOR_VERSION`` of the frame generator the report rendered with (``None``: not recorded,
-        reports older than version 2).
+        ``GENERATOR_VERSION`` of the frame generator the report rendered with (``None``: not recorded by
+        reports written before it was).
     """
 
     category: str
@@ -77,8 +77,10 @@ class TargetRow:
 
         if self.shipped_sha256 is None or self.report_sha256 != self.shipped_sha256:
             return "other weights"
+        if self.generator_version is None:
+            return f"frame generator version not recorded (re-run ancsh evaluate; today's is {GENERATOR_VERSION})"
         if self.generator_version != GENERATOR_VERSION:
-            return f"frames of generator version {self.generator_version or 'before 2'}, not {GENERATOR_VERSION}"
+            return f"frames of generator version {self.generator_version}, not {GENERATOR_VERSION}"
         return ""
 
     @property
