@@ -41,13 +41,73 @@ from .network import build_network
 from .pointnet2 import Neighbourhoods
 
 __all__ = ["Trainer", "HistoryRow", "split_by_instance", "evaluate_arrays", "trivial_baselines", "loss_function",
-           "neighbourhood_cache", "PoseValidation", "write_history_csv", "plot_history"]
+           "neighbourhood_cache", "PoseValidation", "write_history_csv", "plot_history", "camera_rotations",
+           "rotate_batch"]
 
 
 def loss_function(config: TrainConfig):
     """``(outputs, targets) -> (total, parts)``: the loss of ``config`` (kind, loss weights, pose weight)."""
     fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
     return functools.partial(fn, weights=config.loss_weights, pose_weight=config.pose_weight)
+
+
+def camera_rotations(centroids_cam: np.ndarray, roll_rad: float, tilt_rad: float, seeds) -> np.ndarray:
+    """Random camera rotations about the camera centre, one per frame (``TrainConfig.augment_*_deg``).
+
+    Parameters
+    ----------
+    centroids_cam : (B, 3) float64
+        Each frame's point centroid (camera frame, metres); its direction from the camera is the roll axis.
+    roll_rad, tilt_rad : float
+        Maximal angles (radians): a uniform roll about the ray to the centroid, then a uniform tilt about
+        a uniformly drawn axis perpendicular to that ray.
+    seeds : sequence of B seeds
+        One ``np.random.default_rng`` seed per frame (the rotation of a frame depends on its seed only).
+
+    Returns
+    -------
+    (B, 3, 3) float64
+        Rotation matrices ``R`` acting on camera-frame vectors (``x -> R @ x``).
+    """
+    from scipy.spatial.transform import Rotation
+
+    c = np.asarray(centroids_cam, dtype=np.float64)
+    if c.ndim != 2 or c.shape[1] != 3 or not np.all(np.isfinite(c)):
+        raise ValueError(f"centroids_cam: expected finite (B, 3) values, got shape {c.shape}")
+    seeds = list(seeds)
+    if len(seeds) != len(c):
+        raise ValueError(f"seeds: expected {len(c)} seeds, got {len(seeds)}")
+    out = np.empty((len(c), 3, 3))
+    for b, (centroid, seed) in enumerate(zip(c, seeds)):
+        rng = np.random.default_rng(seed)
+        norm = np.linalg.norm(centroid)
+        ray = centroid / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0])
+        roll = Rotation.from_rotvec(rng.uniform(-roll_rad, roll_rad) * ray)
+        perp = np.cross(ray, rng.normal(size=3))
+        while np.linalg.norm(perp) < 1e-9:  # (a draw parallel to the ray: vanishingly rare)
+            perp = np.cross(ray, rng.normal(size=3))
+        tilt = Rotation.from_rotvec(rng.uniform(-tilt_rad, tilt_rad) * perp / np.linalg.norm(perp))
+        out[b] = (tilt * roll).as_matrix()
+    return out
+
+
+def rotate_batch(points, targets, rotations):
+    """Rotate a training batch's points about their centroids by ``rotations`` ``(B, 3, 3)``.
+
+    The NPCS / NAOCS targets stay as they are (canonical frames); the camera-frame joint vectors
+    (``targets.joint_cam``: axis and unit direction to the axis, the distance unchanged) rotate with
+    the points. Returns ``(points, targets)`` as new tensors.
+    """
+    import dataclasses
+
+    R = torch.as_tensor(rotations, dtype=points.dtype, device=points.device)
+    centroid = points.mean(dim=1, keepdim=True)
+    rotated = torch.einsum("bij,bnj->bni", R, points - centroid) + centroid
+    jc = targets.joint_cam
+    Rj = R.to(jc.dtype)
+    joint_cam = torch.cat([torch.einsum("bij,bnj->bni", Rj, jc[..., 0:3]), torch.einsum("bij,bnj->bni", Rj, jc[..., 3:6]),
+                           jc[..., 6:]], dim=-1)
+    return rotated, dataclasses.replace(targets, joint_cam=joint_cam)
 
 
 def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path=None) -> dict[str, np.ndarray]:
@@ -417,7 +477,13 @@ class Trainer:
         for g in self.optimizer.param_groups:
             g["lr"] = self.learning_rate(self.step)
         idx = self.dist.local_batch(self.batch_indices(self.step))  # all of it in a single process
-        points, targets = move(self.train_arrays.batch(idx), self.device)
+        points, targets = self.train_arrays.batch(idx)
+        c = self.config
+        if c.augment_roll_deg or c.augment_tilt_deg:
+            rotations = camera_rotations(points.double().mean(dim=1).numpy(), math.radians(c.augment_roll_deg),
+                                         math.radians(c.augment_tilt_deg), [[c.seed, self.step, int(i)] for i in idx])
+            points, targets = rotate_batch(points, targets, rotations)
+        points, targets = move((points, targets), self.device)
         with global_batch(self.dist):
             out = self.step_model(points, move(Neighbourhoods.from_numpy(self.neighbourhoods, idx), self.device))
             total, parts = self.loss_fn(out, targets, pose_weight=self.pose_weight(self.step))
