@@ -488,6 +488,7 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
             m = sm["methods"]["exact_reduced"]
             rows.append({
                 "run": name, "run_dir": str(run), "checkpoint": ck, "pose_weight": config.pose_weight,
+                "augment_deg": [config.augment_roll_deg, config.augment_tilt_deg],
                 "pose_start_step": config.pose_start_step,
                 "category": config.category, "step": load_network(run / ck).step,
                 "trained_steps": int(float(hist[-1]["step"])), "train_wall_min": float(hist[-1]["elapsed_s"]) / 60,
@@ -509,7 +510,7 @@ def write_ablation_report(result: dict, path, *, command: str, commands=()) -> P
         return ", ".join("-" if x is None else format(x, spec) for x in v)
 
     lines = [
-        "# Pose-aware loss: ablation at equal training time",
+        "# Training ablation at equal training time (pose-aware loss, rotation augmentation)",
         "",
         f"Command: `{command}`  ",
         f"Date: {date}; {result['frames']} rendered test frames (held-out instances, seed {result['seed']}) per row, "
@@ -519,13 +520,15 @@ def write_ablation_report(result: dict, path, *, command: str, commands=()) -> P
     if commands:
         lines += ["Training runs:", "", *[f"- `{c}`" for c in commands], ""]
     lines += [
-        "| Run | pose weight | checkpoint (step) | steps trained | training wall (min) | rotation error per part (°) "
-        "| median rotation (°) | joint axis (°) | joint state | NPCS orientation error per part (°) | failed fits |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| Run | pose weight | augmentation roll / tilt (°) | checkpoint (step) | steps trained | training wall (min) "
+        "| rotation error per part (°) | median rotation (°) | joint axis (°) | joint state "
+        "| NPCS orientation error per part (°) | failed fits |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in result["rows"]:
+        roll, tilt = r.get("augment_deg") or (0.0, 0.0)
         lines.append(
-            f"| {r['run']} | {r['pose_weight']:g} | {r['checkpoint']} ({r['step']}) | {r['trained_steps']} "
+            f"| {r['run']} | {r['pose_weight']:g} | {roll:g} / {tilt:g} | {r['checkpoint']} ({r['step']}) | {r['trained_steps']} "
             f"| {r['train_wall_min']:.1f} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "
             f"| {fmt(r['state_err'])} | {fmt(r['npcs_rot_deg'])} | {r['failures']}/{r['frames']} |")
     lines.append("")
@@ -561,8 +564,63 @@ def _curve_table(curves: dict, rows: dict) -> list[str]:
     return lines + [""]
 
 
+def roll_equivariance(networks: dict, *, frames: int = 30, angle_deg: float = 10.0, seed: int = 0) -> dict:
+    """:func:`ancsh.learned.equivariance.roll_gain` of several networks on the same test frames.
+
+    ``networks``: label -> ``(category, weights or None)`` (``None``: the shipped network of the category).
+    """
+    from .equivariance import roll_gain
+
+    rows = {}
+    for label, (category, weights) in networks.items():
+        rows[label] = roll_gain(category, weights, frames=frames, angle_deg=angle_deg, seed=seed)
+        print(f"{label}: gain {rows[label]['gain_mean']:.2f} ± {rows[label]['gain_sem']:.2f}", flush=True)
+    for category in dict.fromkeys(c for c, _ in networks.values()):  # the measurement's reference: gain 1
+        rows[f"{category}: ground truth"] = roll_gain(category, frames=frames, angle_deg=angle_deg, seed=seed, oracle=True)
+    return {"rows": rows, "frames": frames, "angle_deg": angle_deg, "seed": seed}
+
+
+def write_roll_report(result: dict, path, *, command: str) -> Path:
+    """Write :func:`roll_equivariance` output as Markdown to ``path`` (JSON beside it)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    lines = [
+        "# Camera-roll equivariance of the networks", "",
+        f"Command: `{command}`  ",
+        f"Date: {date}; {result['frames']} rendered test frames per network (held-out instances, seed {result['seed']}), "
+        f"each fitted (`exact_reduced`) as rendered and after a camera roll of ±{result['angle_deg']:g}° about the ray "
+        "through the points' centroid (alternating sign).", "",
+        "A camera roll turns the true part rotations by exactly the roll, so the fitted rotations of a network that reads "
+        "the orientation from the object's shape follow it (gain 1). A gain below 1 is the share the network follows: "
+        "the rest it takes from the camera frame (the object's usual orientation in the training views), and on test "
+        "views it is biased toward that usual orientation (`ancsh.learned.equivariance`). Gain: the fitted rotation's "
+        "turn about the roll axis over the roll, averaged over parts, then over frames (± its standard error). The "
+        "*ground truth* rows fit the true correspondences of the same frames: the measurement's reference.", "",
+        "| network | category | weights (sha256) | frames (skipped) | gain mean ± s.e. | median |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label, r in result["rows"].items():
+        lines.append(f"| {label} | {r['category']} | `{Path(r['weights']).name}` ({(r['weights_sha256'] or '-')[:12]}) "
+                     f"| {r['frames']} ({r['skipped']}) | {r['gain_mean']:.2f} ± {r['gain_sem']:.2f} | "
+                     f"{r['gain_median']:.2f} |")
+    path.write_text("\n".join(lines) + "\n")
+    path.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    return path
+
+
 def register(sub) -> None:
-    """Add ``ancsh bench learned-cost`` and ``ancsh bench learned-ablation`` to the ``bench`` sub-parsers."""
+    """Add ``ancsh bench learned-cost``, ``learned-ablation`` and ``roll-equivariance`` to the ``bench`` sub-parsers."""
+    r = sub.add_parser("roll-equivariance", help="how far each network's fitted rotation follows a camera roll "
+                       "(1 = reads the shape; less = leans on the camera frame)")
+    r.add_argument("--categories", nargs="+", help="shipped networks of these categories (default: every shipped one)")
+    r.add_argument("--weights", nargs="*", default=(), metavar="LABEL=CATEGORY:PATH",
+                   help="also these weights files or checkpoints (e.g. oven_aug=oven:runs/oven_aug/best.pt)")
+    r.add_argument("--frames", type=int, default=30, help="test frames per network (default 30)")
+    r.add_argument("--angle", type=float, default=10.0, help="roll in degrees (default 10)")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--out", type=Path, help="Markdown file; default: a fresh folder bench_out/roll_equivariance_<UTC time>/")
+    r.set_defaults(func=run_roll)
     a = sub.add_parser("learned-ablation", help="held-out errors of training runs through the full pipeline (loss ablation)")
     a.add_argument("--runs", nargs="+", required=True, metavar="NAME=RUN_DIR", help="run directories of `ancsh train`")
     a.add_argument("--frames", type=int, default=300, help="rendered test frames per checkpoint (default 300)")
@@ -603,6 +661,30 @@ def run_ablation(args) -> int:
     command = f"ancsh bench learned-ablation --runs {' '.join(args.runs)} --frames {args.frames} --seed {args.seed}" + (
         f" --out {args.out}" if args.out else "")
     path = write_ablation_report(result, out, command=command, commands=args.train_commands)
+    print(path.read_text())
+    print(f"wrote {path}")
+    return 0
+
+
+def run_roll(args) -> int:
+    from .weights import shipped_categories
+
+    networks = {c: (c, None) for c in (args.categories if args.categories is not None
+                                      else ([] if args.weights else shipped_categories("ancsh")))}
+    for item in args.weights:
+        label, sep, rest = item.partition("=")
+        category, sep2, weights = rest.partition(":")
+        if not (sep and sep2 and label and category and weights):
+            raise ValueError(f"--weights: expected LABEL=CATEGORY:PATH, got {item!r}")
+        networks[label] = (category, weights)
+    result = roll_equivariance(networks, frames=args.frames, angle_deg=args.angle, seed=args.seed)
+    out = args.out or Path("bench_out") / f"roll_equivariance_{_stamp()}" / "roll_equivariance.md"
+    command = " ".join(["ancsh bench roll-equivariance",
+                        *(["--categories", *args.categories] if args.categories is not None else []),
+                        *(["--weights", *args.weights] if args.weights else []),
+                        f"--frames {args.frames} --angle {args.angle:g} --seed {args.seed}",
+                        *([f"--out {args.out}"] if args.out else [])])
+    path = write_roll_report(result, out, command=command)
     print(path.read_text())
     print(f"wrote {path}")
     return 0
