@@ -29,6 +29,7 @@ EXAMPLES = {
     "data import": "ancsh data import ../shared/data/partnet_mobility --out catalog_out",
     "data ranges": "ancsh data ranges --out ranges.md",
     "bench learned-ablation": "ancsh bench learned-ablation --runs base=runs/laptop_ancsh wide=runs/laptop_wide --frames 100",
+    "bench roll-equivariance": "ancsh bench roll-equivariance --categories oven laptop --frames 20",
     "bench learned-cost": "ancsh bench learned-cost --variants today new --repeats 6",
     "bench template-refinement": "ancsh bench template-refinement --categories laptop --frames 20 --real-frames 0",
     "bench": "ancsh bench fit --quick",
