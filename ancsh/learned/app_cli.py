@@ -165,19 +165,24 @@ def run_weights(args: argparse.Namespace) -> int:
             history = ", ".join(f"{p['step']}: {p['score']:.1f}" for p in pc)
             pose.append(f"| `{r['name']}.pt` | {history} | "
                         f"{best['score']:.1f} ({best['step']}) | {f(pc[-1]['score'] / best['score'], '.2f')} |")
-    targets = []
+    targets, limits = [], []
     if args.reports is not None:
-        from .targets import collect_targets, target_lines
+        from .targets import budget_projection, collect_targets, limit_lines, roll_gains, target_lines
 
         target_rows, missing = collect_targets(args.reports)
-        minutes = {r["category"]: (r["train_min"], r["parent_min"]) for r in rows if r["kind"] == "ancsh"}
+        ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh"}
+        minutes = {c: (r["train_min"], r["parent_min"]) for c, r in ancsh_rows.items()}
         targets = target_lines(target_rows, missing, minutes)
+        gains = roll_gains(args.reports / "roll_equivariance.json")
+        limits = limit_lines([budget_projection(t, ancsh_rows[t.category], gains.get(t.category, float("nan")))
+                              for t in target_rows if t.category in ancsh_rows])
     print("\n".join(lines))
     print("\n".join(curves))
     if len(pose) > 2:
         print("\n".join(pose))
     if targets:
         print("\n".join(targets))
+        print("\n".join(limits))
     if args.out is not None:
         date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         cmd = _command(["weights", *(["--reports", str(args.reports)] if args.reports is not None else []),
@@ -226,6 +231,18 @@ def run_weights(args: argparse.Namespace) -> int:
                 "category. A report marked stale evaluated "
                 "other weights than the shipped file, or frames of an older generator.", "",
                 *targets, "",
+                "## What limits the targets: more of the same training within the budget", "",
+                "Per category (`ancsh.learned.targets.budget_projection`): the factor by which the worst part's "
+                "rotation error must fall to meet the paper's; the training minutes left of the 240; and what a power "
+                "law fitted to the shipped run's own history projects at the budget's end, as a multiple of today's "
+                "error -- from the validation NPCS error (the learning-curve table above) and from the pose "
+                "validations (the quantity judged; exponent >= 0: no longer falling, projected 1.00). The power "
+                "laws are extrapolations (optimistic: curves flatten), the NPCS error is only a proxy, and the pose "
+                "validations carry about ±1° of noise each. Roll gain: how far the fitted rotation follows a camera "
+                "roll (1 = the network reads the orientation from the shape; `roll_equivariance.md` in the reports "
+                "folder, shipped weights only; '-' when not measured on them). A category projected not to reach "
+                "its target needs another lever than more steps of the same training.", "",
+                *limits, "",
             ]
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text("\n".join(text))

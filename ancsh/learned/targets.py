@@ -12,10 +12,14 @@ stale: its figures describe other weights (or frames of an older generator).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["REAL_RATIO_GOAL", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "TargetRow", "collect_targets", "target_lines"]
+__all__ = [
+    "REAL_RATIO_GOAL", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
+    "collect_targets", "limit_lines", "roll_gains", "target_lines",
+]
 
 TARGET_METHOD = "exact_reduced"
 """The method the targets are stated for (ANCSH-exact, reduced coordinates)."""
@@ -207,4 +211,141 @@ def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[s
         )
     if missing:
         lines += ["", f"No report for: {', '.join(missing)} (`ancsh evaluate --category C --real builtin --out DIR`)."]
+    return lines
+
+
+@dataclass(frozen=True)
+class BudgetProjection:
+    """What more of the same training projects for one category, against what its targets need.
+
+    Attributes
+    ----------
+    category : str
+    needed : float
+        The factor by which the worst part's rotation error must fall to meet the paper's
+        (``min(paper / ours)`` over parts; ``nan`` without a paper row; >= 1 once met).
+    spent_min, left_min : float
+        Training minutes spent on the shipped network and its parent, and those left of
+        :data:`TRAINING_BUDGET_MIN` (never negative).
+    npcs_factor : float
+        The validation NPCS error's power-law projection over the remaining budget: error at
+        ``own + left`` minutes over error at ``own`` (``nan`` without a learning curve).
+    pose_factor : float
+        The same projection from a power law fitted to the pose validations (fitted rotation +
+        joint-axis error, the quantity the targets judge; ``nan`` with fewer than 3).
+    pose_exponent : float
+        That power law's exponent (``nan`` without it; >= 0: the pose score no longer falls).
+    roll_gain : float
+        The shipped network's camera-roll gain (:mod:`ancsh.learned.equivariance`; ``nan`` when not
+        measured).
+    """
+
+    category: str
+    needed: float
+    spent_min: float
+    left_min: float
+    npcs_factor: float
+    pose_factor: float
+    pose_exponent: float
+    roll_gain: float = float("nan")
+
+    @property
+    def reachable(self) -> bool | None:
+        """Whether either projection over the remaining budget reaches the needed factor (``None`` when
+        neither projection or no paper row exists)."""
+        best = min((f for f in (self.npcs_factor, self.pose_factor) if f == f), default=float("nan"))
+        if best != best or self.needed != self.needed:
+            return None
+        return best <= self.needed
+
+
+def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = float("nan")) -> BudgetProjection:
+    """Project more of the same training over the rest of the budget, for one category.
+
+    Parameters
+    ----------
+    row : TargetRow
+        The category's standing (:func:`collect_targets`).
+    weights_row : dict
+        The shipped ANCSH network's row of :func:`ancsh.learned.weights.weights_summary` (``train_min``,
+        ``parent_min``, ``curve``, ``pose_curve``).
+    roll_gain : float
+        Its measured camera-roll gain, passed through (``nan``: not measured).
+
+    Notes
+    -----
+    Both projections assume the power law ``err = a * t**b`` fitted to the run's own history
+    (:func:`ancsh.learned.weights.learning_curve_fit`) holds up to ``t = own + left`` minutes; curves
+    usually flatten, so they are optimistic. The NPCS error is only a proxy for the pose; the pose
+    validations measure it (64 frames, about ±1° of noise each).
+    """
+    from .weights import learning_curve_fit
+
+    own = float(weights_row.get("train_min", float("nan")))
+    parent = float(weights_row.get("parent_min") or 0.0)
+    spent = own + parent
+    left = max(0.0, TRAINING_BUDGET_MIN - spent) if spent == spent else float("nan")
+    ratio = row.paper_ratio
+    needed = float("nan") if ratio is None or not all(math.isfinite(x) and x > 0 for x in ratio) else 1.0 / max(ratio)
+
+    def project(exponent: float) -> float:
+        if exponent != exponent or not own > 0 or left != left:
+            return float("nan")
+        return math.exp(exponent * math.log((own + left) / own))
+
+    curve = weights_row.get("curve")
+    npcs_factor = project(float(curve["exponent"])) if curve else float("nan")
+    pose = [p for p in weights_row.get("pose_curve") or () if p["minutes"] > 0 and p["score"] > 0]
+    pose_exponent = float("nan")
+    if len(pose) >= 3:
+        fit = learning_curve_fit([p["minutes"] for p in pose], [p["score"] for p in pose], tail_fraction=1.0)
+        pose_exponent = fit["exponent"]
+    pose_factor = float("nan") if pose_exponent != pose_exponent else (
+        1.0 if pose_exponent >= 0 else project(pose_exponent))
+    return BudgetProjection(row.category, needed, spent, left, npcs_factor, pose_factor, pose_exponent,
+                            float(roll_gain))
+
+
+def roll_gains(path) -> dict[str, float]:
+    """Mean roll gain of each shipped network in a ``roll_equivariance.json`` of ``ancsh bench roll-equivariance``
+    (rows labelled by their category and measured on the shipped weights; {} when ``path`` does not exist)."""
+    from ..outputs import file_sha256
+    from .weights import weights_path
+
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    try:
+        rows = json.loads(path.read_text())["rows"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"{path}: not a roll-equivariance report ({exc!r})") from None
+    gains = {}
+    for label, r in rows.items():
+        category = r.get("category")
+        if label != category or not r.get("weights_sha256"):
+            continue
+        shipped = weights_path(category)
+        if shipped.is_file() and file_sha256(shipped) == r["weights_sha256"]:
+            gains[category] = float(r["gain_mean"])
+    return gains
+
+
+def limit_lines(projections: list[BudgetProjection]) -> list[str]:
+    """Markdown: per category, what its targets need, the budget left, and what more of the same training projects."""
+    def f(v, spec):
+        return "-" if v != v else format(v, spec)
+
+    lines = [
+        "| category | rotation must fall to (x today) | budget left (min) | NPCS-curve projection at the budget's end "
+        "(x today) | pose-curve exponent | pose-curve projection (x today) | roll gain | more of the same training |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for p in projections:
+        reach = p.reachable
+        verdict = "-" if reach is None else ("met already" if p.needed >= 1.0 else (
+            "projected to reach it" if reach else "**projected not to reach it**"))
+        lines.append(
+            f"| {p.category} | {f(p.needed, '.2f')} | {f(p.left_min, '.0f')} | {f(p.npcs_factor, '.2f')} | "
+            f"{f(p.pose_exponent, '.2f')} | {f(p.pose_factor, '.2f')} | {f(p.roll_gain, '.2f')} | {verdict} |"
+        )
     return lines

@@ -7,7 +7,9 @@ import pytest
 
 from ancsh.data.procedural import GENERATOR_VERSION
 from ancsh.learned.evaluate import PAPER_TABLE1
-from ancsh.learned.targets import REAL_RATIO_GOAL, collect_targets, target_lines
+from ancsh.learned.targets import (
+    REAL_RATIO_GOAL, TRAINING_BUDGET_MIN, budget_projection, collect_targets, limit_lines, roll_gains, target_lines,
+)
 
 
 def _report(category, rot, axis, sha, *, real_rot=None, paper=True):
@@ -80,3 +82,58 @@ def test_weights_command_adds_the_targets_section(tmp_path):
     assert f"ancsh weights --reports {reports} --out {out}" in text
     section = text.split("## Table 1 targets")[1]
     assert "| oven | p0, p1 | 7 (0) | 9.00 / 9.00 |" in section and "stale: other weights" in section
+    limits = text.split("## What limits the targets")[1]
+    assert "| oven | " in limits and "| laptop | " not in limits  # one row per category with a report
+
+
+def _target_row(category, rot):
+    from ancsh.learned.targets import TargetRow
+
+    paper = PAPER_TABLE1[category]["ANCSH"]
+    return TargetRow(category, tuple(f"p{i}" for i in range(len(rot))), ("j0",), 10, tuple(rot), (1.0,),
+                     tuple(paper["rot_deg"]), tuple(paper["axis_deg"]), 0, None, "0" * 64, None)
+
+
+def test_budget_projection_follows_the_runs_own_power_laws():
+    rng = np.random.default_rng(11)
+    b_pose, b_npcs, own, parent = -rng.uniform(0.2, 0.6), -rng.uniform(0.1, 0.4), 40.0, 30.0
+    minutes = np.linspace(5.0, own, 6)
+    pose = [{"minutes": float(t), "score": float(20.0 * t ** b_pose)} for t in minutes]  # an exact power law
+    paper = PAPER_TABLE1["oven"]["ANCSH"]["rot_deg"]
+    rot = [p * k for p, k in zip(paper, (3.0, 2.0))]  # the worst part is 3x the paper's
+    weights_row = {"train_min": own, "parent_min": parent, "curve": {"exponent": b_npcs}, "pose_curve": pose}
+    proj = budget_projection(_target_row("oven", rot), weights_row, roll_gain=0.4)
+    left = TRAINING_BUDGET_MIN - own - parent
+    assert proj.needed == pytest.approx(1 / 3) and proj.left_min == pytest.approx(left) and proj.roll_gain == 0.4
+    assert proj.pose_exponent == pytest.approx(b_pose)
+    assert proj.pose_factor == pytest.approx(((own + left) / own) ** b_pose)
+    assert proj.npcs_factor == pytest.approx(((own + left) / own) ** b_npcs)
+    assert proj.reachable is (min(proj.pose_factor, proj.npcs_factor) <= 1 / 3)
+    # a flat pose curve projects no gain; a spent budget projects none either
+    flat = dict(weights_row, pose_curve=[{"minutes": float(t), "score": 9.0} for t in minutes], curve=None)
+    assert budget_projection(_target_row("oven", rot), flat).pose_factor == pytest.approx(1.0)
+    spent = dict(weights_row, parent_min=TRAINING_BUDGET_MIN)
+    p_spent = budget_projection(_target_row("oven", rot), spent)
+    assert p_spent.left_min == 0 and p_spent.npcs_factor == pytest.approx(1.0) and p_spent.reachable is False
+    met = budget_projection(_target_row("oven", [p * 0.5 for p in paper]), weights_row)
+    assert met.needed == pytest.approx(2.0) and met.reachable is True
+    md = "\n".join(limit_lines([p_spent, met]))
+    assert "**projected not to reach it**" in md and "met already" in md
+
+
+def test_roll_gains_keep_only_rows_measured_on_the_shipped_weights(tmp_path):
+    from ancsh.learned.weights import weights_path
+    from ancsh.outputs import file_sha256
+
+    sha = file_sha256(weights_path("laptop"))
+    rows = {"laptop": {"category": "laptop", "weights_sha256": sha, "gain_mean": 0.93},
+            "oven": {"category": "oven", "weights_sha256": "0" * 64, "gain_mean": 0.3},  # other weights
+            "aug": {"category": "laptop", "weights_sha256": sha, "gain_mean": 0.5},  # not labelled by its category
+            "laptop: ground truth": {"category": "laptop", "weights_sha256": None, "gain_mean": 1.0}}
+    path = tmp_path / "roll_equivariance.json"
+    path.write_text(json.dumps({"rows": rows}))
+    assert roll_gains(path) == {"laptop": 0.93}
+    assert roll_gains(tmp_path / "none.json") == {}
+    path.write_text("[1")
+    with pytest.raises(ValueError, match="roll_equivariance.json"):
+        roll_gains(path)
