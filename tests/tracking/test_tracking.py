@@ -536,10 +536,15 @@ def test_tracker_carries_the_refined_category_template_and_reinitialises_it():
                                        TrackStatus.REINITIALISED, TrackStatus.TRACKED]
     assert [o.source for o in out] == ["network", "template", "template", "none", "network", "template"]
     assert "carrying the category template" in out[0].message and "carrying the category template" in out[4].message
+    # the re-initialisation refines against the template of the track before the loss, at its scale only
+    assert "before the loss" in out[4].message and "before the loss" not in out[0].message
+    assert out[0].message.split("category template ")[1].split(" ")[0] == out[4].message.split("category template ")[1].split(" ")[0]
     assert oracle.calls == 2
     assert out[1].result.uncertainty is None and out[1].to_dict()["joint_states_std"] is None
     with pytest.raises(ValueError, match="template_categories"):
         TrackerConfig(template_categories="laptop")
+    with pytest.raises(ValueError, match="template_reuse"):
+        TrackerConfig(template_reuse="yes")
 
 
 def test_instance_tracker_without_reinitialisation_reports_a_frame_it_cannot_explain_lost():
