@@ -27,11 +27,12 @@
    frame keeps part of the carried frames' error (about half a degree on the test laptop).
 4. **Carried category template** (categories in ``TrackerConfig.template_categories``, default the
    laptop): at every (re-)initialisation the cold fit is refined against the category template
-   (:func:`~ancsh.solvers.icp.category.refine_fit`, seconds, once), and where the refinement is
+   (:func:`~ancsh.solvers.icp.category.refine_fit`, a fraction of a second, once), and where the refinement is
    accepted the track follows that template by warm articulated ICP (an
    :class:`~ancsh.tracking.instance.InstanceTracker` on it, source ``"template"``) instead of network
    or carried-correspondence frames: the network then runs only to re-initialise. Where the template
-   ICP stops explaining the points, the frame is fitted cold (and refined) again.
+   ICP stops explaining the points, the frame is fitted cold (and refined) again -- first against the template
+   chosen before, at its scale (``template_reuse``: the object is assumed the same).
 5. **Lost and re-initialised**: a warm fit that fails its solve or a plausibility check
    (:func:`check_fit`: too few inliers -- the points no longer lie where the object was --,
    the category's size range, a large residual) is retried cold on the same frame (network +
