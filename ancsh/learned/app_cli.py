@@ -226,7 +226,8 @@ def run_weights(args: argparse.Namespace) -> int:
                 "per part, the mean ANCSH-exact (reduced) rotation error on the procedural test split beside the "
                 "paper's Table 1 ANCSH row (its CAD datasets, not our instances), the joint-axis error beside the "
                 "paper's, and the real test split's rotation error over the procedural one (goal: at most 1.25x per "
-                "part). Training: minutes of one core spent on the shipped network, + those of the network it was "
+                "part), and the same fits refined against the category template where the report has that row "
+                "(`ancsh evaluate --refine template`, an option of the learned provider). Training: minutes of one core spent on the shipped network, + those of the network it was "
                 "fine-tuned from, against the budget of 4 core-hours (240 min) per "
                 "category. A report marked stale evaluated "
                 "other weights than the shipped file, or frames of an older generator.", "",

@@ -17,12 +17,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = [
-    "REAL_RATIO_GOAL", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
+    "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
     "collect_targets", "limit_lines", "roll_gains", "target_lines",
 ]
 
 TARGET_METHOD = "exact_reduced"
 """The method the targets are stated for (ANCSH-exact, reduced coordinates)."""
+
+REFINED_METHOD = "template"
+"""The report's row of the same fits refined against the category template (``ancsh evaluate --refine template``),
+shown beside the targets' method."""
 
 REAL_RATIO_GOAL = 1.25
 """Goal for the real split: rotation error at most this multiple of the procedural split's, per part."""
@@ -58,6 +62,9 @@ class TargetRow:
     generator_version : int or None
         ``GENERATOR_VERSION`` of the frame generator the report rendered with (``None``: not recorded by
         reports written before it was).
+    refined_rot_deg : tuple of float or None
+        Mean rotation error per part of the same fits refined against the category template
+        (:data:`REFINED_METHOD`, ``ancsh evaluate --refine template``); ``None`` when the report has no such row.
     """
 
     category: str
@@ -73,6 +80,7 @@ class TargetRow:
     report_sha256: str
     shipped_sha256: str | None
     generator_version: int | None = None
+    refined_rot_deg: tuple[float, ...] | None = None
 
     @property
     def stale(self) -> str:
@@ -101,6 +109,19 @@ class TargetRow:
         return None if r is None else all(x <= 1.0 for x in r)
 
     @property
+    def refined_ratio(self) -> tuple[float, ...] | None:
+        """The template-refined rotation error over the paper's, per part (``None`` without either)."""
+        if self.paper_rot_deg is None or self.refined_rot_deg is None:
+            return None
+        return tuple(o / p for o, p in zip(self.refined_rot_deg, self.paper_rot_deg))
+
+    @property
+    def refined_met(self) -> bool | None:
+        """Every part of the template-refined fits at most the paper's rotation error (``None`` without either)."""
+        r = self.refined_ratio
+        return None if r is None else all(x <= 1.0 for x in r)
+
+    @property
     def axis_met(self) -> bool | None:
         """Every joint axis at most the paper's error (``None`` without a paper figure)."""
         if self.paper_axis_deg is None:
@@ -121,11 +142,11 @@ class TargetRow:
         return None if r is None else all(x <= REAL_RATIO_GOAL for x in r)
 
 
-def _means(summary: dict, metric: str, where: Path) -> tuple[float, ...]:
+def _means(summary: dict, metric: str, where: Path, method: str = TARGET_METHOD) -> tuple[float, ...]:
     try:
-        values = summary["methods"][TARGET_METHOD][metric]["mean"]
+        values = summary["methods"][method][metric]["mean"]
     except (KeyError, TypeError) as exc:
-        raise ValueError(f"{where}: no {TARGET_METHOD} {metric} means in the report ({exc!r})") from None
+        raise ValueError(f"{where}: no {method} {metric} means in the report ({exc!r})") from None
     return tuple(float("nan") if v is None else float(v) for v in values)
 
 
@@ -151,6 +172,8 @@ def _read_row(path: Path, shipped_sha256: str | None) -> TargetRow:
         report_sha256=str(settings["weights_sha256"]),
         shipped_sha256=shipped_sha256,
         generator_version=settings.get("generator_version"),
+        refined_rot_deg=_means(summary, "rot_deg", path, REFINED_METHOD)
+        if REFINED_METHOD in (summary.get("methods") or {}) else None,
     )
 
 
@@ -185,14 +208,21 @@ def _verdict(met: bool | None) -> str:
     return "" if met is None else (" (met)" if met else " (**not met**)")
 
 
+def _refined_cell(r: TargetRow) -> str:
+    if r.refined_rot_deg is None:
+        return "- (no `--refine template` row)"
+    ratio = r.refined_ratio
+    return _join(r.refined_rot_deg, ".2f") + ("" if ratio is None else ", " + _join(ratio, ".1f") + "x" + _verdict(r.refined_met))
+
+
 def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[str, tuple[float, float]]) -> list[str]:
     """Markdown: one row per category (figures of :func:`collect_targets`), with the training time spent
     on its shipped network against :data:`TRAINING_BUDGET_MIN`: ``training_min[category]`` is
     ``(own, parent)`` minutes, ``parent`` those of the network it was fine-tuned from (0 if none)."""
     lines = [
         "| category | parts | frames (real) | rotation (°), ours | paper | ours / paper | joint axis (°), ours | paper "
-        "| real / procedural rotation | training (min) of 240 | report |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| real / procedural rotation | + category template: rotation (°), / paper | training (min) of 240 | report |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         ratio = r.paper_ratio
@@ -206,6 +236,7 @@ def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[s
             f"{_join(r.axis_deg, '.2f')} | "
             f"{'-' if r.paper_axis_deg is None else _join(r.paper_axis_deg, '.1f') + _verdict(r.axis_met)} | "
             f"{'-' if real is None else _join(real, '.2f') + 'x' + _verdict(r.real_met)} | "
+            f"{_refined_cell(r)} | "
             f"{minutes} | "
             f"{'stale: ' + r.stale if r.stale else 'current'} |"
         )
