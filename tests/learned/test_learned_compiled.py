@@ -37,8 +37,9 @@ def test_trainer_with_compile_trains_checkpoints_and_resumes(tmp_path, tiny_arra
     trainer = Trainer(cfg, tiny_arrays, None, tmp_path / "run", progress=False)
     assert wrapped and trainer.step_model is wrapped[-1] and trainer.step_model is not trainer.model
     first, first_plain = trainer.train_step(), plain.train_step()
-    for k in first:  # the same loss on the same initial weights
-        assert abs(first[k] - first_plain[k]) <= 1e-5 * max(1.0, abs(first_plain[k])), k
+    for k in first:  # the same loss on the same initial weights, to float32 rounding: the traced graph sums in
+        # another order (measured up to 1.0e-5 relative on the joint loss on an AMD EPYC, 2026-12-02)
+        assert abs(first[k] - first_plain[k]) <= 1e-4 * max(1.0, abs(first_plain[k])), k
     trainer.fit(max_steps=3)
     ck = torch.load(tmp_path / "run" / "last.pt", weights_only=True)
     assert not any(k.startswith("_orig_mod.") for k in ck["model"])
