@@ -98,28 +98,22 @@ class TargetRow:
     @property
     def paper_ratio(self) -> tuple[float, ...] | None:
         """Ours / the paper's rotation error, per part."""
-        if self.paper_rot_deg is None:
-            return None
-        return tuple(o / p for o, p in zip(self.rot_deg, self.paper_rot_deg))
+        return _over(self.rot_deg, self.paper_rot_deg)
 
     @property
     def rotation_met(self) -> bool | None:
         """Every part at most the paper's rotation error (``None`` without a paper row)."""
-        r = self.paper_ratio
-        return None if r is None else all(x <= 1.0 for x in r)
+        return _at_most_one(self.paper_ratio)
 
     @property
     def refined_ratio(self) -> tuple[float, ...] | None:
         """The template-refined rotation error over the paper's, per part (``None`` without either)."""
-        if self.paper_rot_deg is None or self.refined_rot_deg is None:
-            return None
-        return tuple(o / p for o, p in zip(self.refined_rot_deg, self.paper_rot_deg))
+        return _over(self.refined_rot_deg, self.paper_rot_deg)
 
     @property
     def refined_met(self) -> bool | None:
         """Every part of the template-refined fits at most the paper's rotation error (``None`` without either)."""
-        r = self.refined_ratio
-        return None if r is None else all(x <= 1.0 for x in r)
+        return _at_most_one(self.refined_ratio)
 
     @property
     def axis_met(self) -> bool | None:
@@ -140,6 +134,17 @@ class TargetRow:
         """Every part's real / procedural ratio at most :data:`REAL_RATIO_GOAL`."""
         r = self.real_ratio
         return None if r is None else all(x <= REAL_RATIO_GOAL for x in r)
+
+
+def _over(values, reference) -> tuple[float, ...] | None:
+    """``values / reference`` per entry (``None`` when either is missing)."""
+    if values is None or reference is None:
+        return None
+    return tuple(v / r for v, r in zip(values, reference))
+
+
+def _at_most_one(ratios) -> bool | None:
+    return None if ratios is None else all(x <= 1.0 for x in ratios)
 
 
 def _means(summary: dict, metric: str, where: Path, method: str = TARGET_METHOD) -> tuple[float, ...]:
