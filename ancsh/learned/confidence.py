@@ -102,11 +102,14 @@ def fit_calibrator(X, good) -> dict:
 
 def constant_calibrator(good) -> dict:
     """The calibration that says only the base rate: ``P(good)`` = the good fits' share of ``good`` for every fit
-    (:func:`fit_calibrator`'s format, zero coefficients)."""
+    (:func:`fit_calibrator`'s format, zero coefficients). Where every fit is good (or every one bad), the
+    share is estimated with one pseudo-fit of each kind, ``(k + 1) / (n + 2)`` (Laplace's rule): a finite
+    logit, not a certainty that ``n`` frames cannot give."""
     y = np.asarray(good, dtype=bool)
-    if y.all() or not y.any():
-        raise ValueError("good: both good and bad fits are needed to calibrate")
-    rate = float(y.mean())
+    if y.size == 0:
+        raise ValueError("good: no fits to calibrate")
+    k, n = int(y.sum()), int(y.size)
+    rate = float(y.mean()) if 0 < k < n else (k + 1.0) / (n + 2.0)
     d = len(FEATURES)
     return {"features": list(FEATURES), "good_rotation_deg": GOOD_ROTATION_DEG, "mean": [0.0] * d, "scale": [1.0] * d,
             "coef": [0.0] * d, "intercept": float(np.log(rate / (1.0 - rate))), "frames": int(len(y)),
@@ -119,7 +122,8 @@ def choose_calibrator(X_fit, good_fit, X_check, good_check) -> tuple[dict, dict]
 
     Both are fitted on the fit frames only and compared by their Brier score on the check frames: where the
     fit's evidence does not separate good from bad fits better than the base rate (e.g. 96 % good fits
-    leave little to predict), a regression only adds noise to ``p_good``.
+    leave little to predict), a regression only adds noise to ``p_good``. Fit frames of one outcome only (every
+    fit good) give the constant directly (:func:`constant_calibrator`'s add-one rate).
 
     Returns
     -------
@@ -127,8 +131,12 @@ def choose_calibrator(X_fit, good_fit, X_check, good_check) -> tuple[dict, dict]
         The calibration (``"model"``: ``"logistic"`` or ``"constant"``; ``"brier_check"``: both candidates'
         Brier scores on the check frames) and its :func:`reliability` on the check frames.
     """
-    logistic = dict(fit_calibrator(X_fit, good_fit), model="logistic")
     constant = constant_calibrator(good_fit)
+    y = np.asarray(good_fit, dtype=bool)
+    if y.all() or not y.any():  # one outcome only: nothing for a regression to separate
+        rel = reliability(constant, X_check, good_check)
+        return dict(constant, brier_check={"constant": rel["brier"]}), rel
+    logistic = dict(fit_calibrator(X_fit, good_fit), model="logistic")
     rel = {"logistic": reliability(logistic, X_check, good_check), "constant": reliability(constant, X_check, good_check)}
     pick = "logistic" if rel["logistic"]["brier"] < rel["constant"]["brier"] else "constant"
     chosen = {"logistic": logistic, "constant": constant}[pick]
@@ -206,6 +214,10 @@ def _model_sentence(calibration: dict) -> str:
     b = calibration.get("brier_check")
     if not b:
         return ""
+    if calibration.get("model") == "constant" and "logistic" not in b:
+        return (f"Installed: **a constant** {calibration['good_rate']:.3f} for every fit: the fitting frames held one "
+                "outcome only (no regression can separate them), so the rate is estimated with one pseudo-fit of each "
+                "kind, (k + 1) / (n + 2).\n\n")
     if calibration.get("model") == "constant":
         return (f"Installed: **the constant base rate** {calibration['good_rate']:.2f} of the fitting frames for every fit. The "
                 f"regression did not beat it on the check frames (Brier {b['logistic']:.4f} vs {b['constant']:.4f}): the fit's "

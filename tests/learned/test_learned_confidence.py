@@ -109,3 +109,13 @@ def test_calibration_falls_back_to_the_base_rate_where_the_evidence_does_not_pre
     assert cal["model"] == "constant" and cal["brier_check"]["constant"] <= cal["brier_check"]["logistic"]
     assert probability_good(cal, X[250]) == pytest.approx(noise[:200].mean())
     assert rel["brier"] == cal["brier_check"]["constant"]
+    # every fitting frame good (a network without a bad fit in them): the constant at the add-one rate, not an error
+    all_good = np.ones(400, dtype=bool)
+    all_good[300] = False
+    cal, rel = choose_calibrator(X[:200], all_good[:200], X[200:], all_good[200:])
+    assert cal["model"] == "constant" and set(cal["brier_check"]) == {"constant"}
+    assert probability_good(cal, X[250]) == pytest.approx(201 / 202)
+    assert rel["frames"] == 200 and rel["good_rate"] == pytest.approx(199 / 200)
+    from ancsh.learned.confidence import _model_sentence
+
+    assert "one outcome only" in _model_sentence(cal)  # the report says why no regression was tried
