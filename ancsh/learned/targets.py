@@ -103,7 +103,7 @@ class TargetRow:
     @property
     def rotation_met(self) -> bool | None:
         """Every part at most the paper's rotation error (``None`` without a paper row)."""
-        return _at_most_one(self.paper_ratio)
+        return _all_at_most(self.paper_ratio, 1.0)
 
     @property
     def refined_ratio(self) -> tuple[float, ...] | None:
@@ -113,7 +113,7 @@ class TargetRow:
     @property
     def refined_met(self) -> bool | None:
         """Every part of the template-refined fits at most the paper's rotation error (``None`` without either)."""
-        return _at_most_one(self.refined_ratio)
+        return _all_at_most(self.refined_ratio, 1.0)
 
     @property
     def axis_met(self) -> bool | None:
@@ -125,15 +125,12 @@ class TargetRow:
     @property
     def real_ratio(self) -> tuple[float, ...] | None:
         """Real / procedural rotation error, per part (``None`` without a real split)."""
-        if self.real_rot_deg is None:
-            return None
-        return tuple(r / p for r, p in zip(self.real_rot_deg, self.rot_deg))
+        return _over(self.real_rot_deg, self.rot_deg)
 
     @property
     def real_met(self) -> bool | None:
         """Every part's real / procedural ratio at most :data:`REAL_RATIO_GOAL`."""
-        r = self.real_ratio
-        return None if r is None else all(x <= REAL_RATIO_GOAL for x in r)
+        return _all_at_most(self.real_ratio, REAL_RATIO_GOAL)
 
 
 def _over(values, reference) -> tuple[float, ...] | None:
@@ -143,8 +140,9 @@ def _over(values, reference) -> tuple[float, ...] | None:
     return tuple(v / r for v, r in zip(values, reference))
 
 
-def _at_most_one(ratios) -> bool | None:
-    return None if ratios is None else all(x <= 1.0 for x in ratios)
+def _all_at_most(ratios, bound: float) -> bool | None:
+    """Every ratio at most ``bound`` (``None`` when there are none)."""
+    return None if ratios is None else all(x <= bound for x in ratios)
 
 
 def _means(summary: dict, metric: str, where: Path, method: str = TARGET_METHOD) -> tuple[float, ...]:
