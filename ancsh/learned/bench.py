@@ -442,7 +442,8 @@ def write_cost_report(result: dict, path, *, command: str) -> Path:
     return path
 
 
-def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last.pt", "best.pt")) -> dict:
+def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last.pt", "best.pt"),
+             baseline: str | None = None) -> dict:
     """Held-out test errors of training runs (e.g. paper loss vs paper + pose loss) through the full pipeline.
 
     Parameters
@@ -453,11 +454,15 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
         Rendered test frames (held-out instances, :func:`ancsh.learned.evaluate.evaluate_category`).
     checkpoints : sequence of str
         Checkpoint files of each run to evaluate (missing ones are skipped).
+    baseline : str, optional
+        Weights the runs started from, evaluated first on the same frames as a row ``start``: ``"builtin"``
+        (the shipped network of the runs' category) or a weights file / checkpoint. Fine-tunes are judged
+        against it.
 
     Returns
     -------
     dict
-        ``rows``: per run and checkpoint, its step, the run's training steps and training wall time,
+        ``rows``: the baseline's row first (its training columns ``None``), then per run and checkpoint, its step, the run's training steps and training wall time,
         and means of the ``exact_reduced`` fit's per-part rotation error, joint-axis and joint-state
         errors and of the network's per-part NPCS orientation error (the error budget). ``curves``:
         per run, the pose validation of its history (``step``, ``pose_score`` = mean fitted rotation +
@@ -471,6 +476,31 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
     from .weights import load_network
 
     rows, curves = [], {}
+    if not runs:
+        raise ValueError("runs: expected at least one NAME -> run directory")
+
+    def row(name, category, weights, checkpoint, extra):
+        ev = evaluate_category(category, frames=frames, methods=("exact_reduced",), weights=weights, seed=seed,
+                               progress=False)
+        sm = summarize(ev)
+        m = sm["methods"]["exact_reduced"]
+        rows.append({
+            "run": name, **extra, "checkpoint": checkpoint, "category": category,
+            "step": load_network(category if weights is None else weights).step,
+            "frames": m["frames"], "failures": m["failures"], "rot_deg": m["rot_deg"]["mean"],
+            "rot_deg_median": m["rot_deg"]["median"], "axis_deg": m["axis_deg"]["mean"], "state_err": m["state_err"]["mean"],
+            "npcs_rot_deg": sm["budget"]["npcs_rot_deg"]["mean"],
+        })
+        print(json.dumps(rows[-1]), flush=True)
+
+    if baseline is not None:
+        category = TrainConfig.from_json(Path(next(iter(runs.values()))) / "config.json").category
+        weights = None if baseline == "builtin" else Path(baseline)
+        if weights is not None and not weights.is_file():
+            raise ValueError(f"baseline: no weights file {weights}")
+        row("start", category, weights, "shipped" if weights is None else weights.name,
+            {"run_dir": None, "pose_weight": None, "augment_deg": None, "pose_start_step": None, "trained_steps": None,
+             "train_wall_min": None})
     for name, run in runs.items():
         run = Path(run)
         config = TrainConfig.from_json(run / "config.json")
@@ -482,22 +512,11 @@ def ablation(runs: dict, *, frames: int = 300, seed: int = 0, checkpoints=("last
         for ck in checkpoints:
             if not (run / ck).is_file():
                 continue
-            ev = evaluate_category(config.category, frames=frames, methods=("exact_reduced",), weights=run / ck,
-                                   seed=seed, progress=False)
-            sm = summarize(ev)
-            m = sm["methods"]["exact_reduced"]
-            rows.append({
-                "run": name, "run_dir": str(run), "checkpoint": ck, "pose_weight": config.pose_weight,
-                "augment_deg": [config.augment_roll_deg, config.augment_tilt_deg],
-                "pose_start_step": config.pose_start_step,
-                "category": config.category, "step": load_network(run / ck).step,
-                "trained_steps": int(float(hist[-1]["step"])), "train_wall_min": float(hist[-1]["elapsed_s"]) / 60,
-                "frames": m["frames"], "failures": m["failures"], "rot_deg": m["rot_deg"]["mean"],
-                "rot_deg_median": m["rot_deg"]["median"], "axis_deg": m["axis_deg"]["mean"], "state_err": m["state_err"]["mean"],
-                "npcs_rot_deg": sm["budget"]["npcs_rot_deg"]["mean"],
-            })
-            print(json.dumps(rows[-1]), flush=True)
-    return {"rows": rows, "curves": curves, "frames": frames, "seed": seed}
+            row(name, config.category, run / ck, ck, {
+                "run_dir": str(run), "pose_weight": config.pose_weight,
+                "augment_deg": [config.augment_roll_deg, config.augment_tilt_deg], "pose_start_step": config.pose_start_step,
+                "trained_steps": int(float(hist[-1]["step"])), "train_wall_min": float(hist[-1]["elapsed_s"]) / 60})
+    return {"rows": rows, "curves": curves, "frames": frames, "seed": seed, "baseline": baseline}
 
 
 def write_ablation_report(result: dict, path, *, command: str, commands=()) -> Path:
@@ -525,11 +544,14 @@ def write_ablation_report(result: dict, path, *, command: str, commands=()) -> P
         "| NPCS orientation error per part (°) | failed fits |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
+    def opt(v, spec="g"):
+        return "-" if v is None else format(v, spec)
+
     for r in result["rows"]:
-        roll, tilt = r.get("augment_deg") or (0.0, 0.0)
+        aug = "-" if r.get("run_dir", "") is None else "{:g} / {:g}".format(*(r.get("augment_deg") or (0.0, 0.0)))
         lines.append(
-            f"| {r['run']} | {r['pose_weight']:g} | {roll:g} / {tilt:g} | {r['checkpoint']} ({r['step']}) | {r['trained_steps']} "
-            f"| {r['train_wall_min']:.1f} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "
+            f"| {r['run']} | {opt(r['pose_weight'])} | {aug} | {r['checkpoint']} ({r['step']}) | {opt(r['trained_steps'])} "
+            f"| {opt(r['train_wall_min'], '.1f')} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "
             f"| {fmt(r['state_err'])} | {fmt(r['npcs_rot_deg'])} | {r['failures']}/{r['frames']} |")
     lines.append("")
     lines += _curve_table(result.get("curves") or {}, {r["run"]: r for r in result["rows"]})
@@ -625,6 +647,8 @@ def register(sub) -> None:
     a.add_argument("--runs", nargs="+", required=True, metavar="NAME=RUN_DIR", help="run directories of `ancsh train`")
     a.add_argument("--frames", type=int, default=300, help="rendered test frames per checkpoint (default 300)")
     a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--baseline", metavar="WEIGHTS", help="also evaluate the weights the runs started from, as a row "
+                   "'start': 'builtin' (the shipped network of the runs' category) or a weights file")
     a.add_argument("--train-commands", nargs="*", default=(), help="the commands that made the runs (for the report)")
     a.add_argument("--out", type=Path, help="Markdown file (e.g. docs/results/learned_ablation.md); default: a fresh "
                    "folder bench_out/learned_ablation_<UTC time>/")
@@ -656,10 +680,10 @@ def run_ablation(args) -> int:
         if not sep or not name or not run:
             raise ValueError(f"--runs: expected NAME=RUN_DIR, got {item!r}")
         runs[name] = run
-    result = ablation(runs, frames=args.frames, seed=args.seed)
+    result = ablation(runs, frames=args.frames, seed=args.seed, baseline=args.baseline)
     out = args.out or Path("bench_out") / f"learned_ablation_{_stamp()}" / "learned_ablation.md"
-    command = f"ancsh bench learned-ablation --runs {' '.join(args.runs)} --frames {args.frames} --seed {args.seed}" + (
-        f" --out {args.out}" if args.out else "")
+    command = (f"ancsh bench learned-ablation --runs {' '.join(args.runs)} --frames {args.frames} --seed {args.seed}"
+               + (f" --baseline {args.baseline}" if args.baseline else "") + (f" --out {args.out}" if args.out else ""))
     path = write_ablation_report(result, out, command=command, commands=args.train_commands)
     print(path.read_text())
     print(f"wrote {path}")

@@ -257,3 +257,23 @@ def test_ablation_report_compares_pose_validation_at_equal_steps(tmp_path, tiny_
     assert result["rows"] == [] and [c["step"] for c in result["curves"]["b"]] == [500, 1500]
     text = write_ablation_report(result, tmp_path / "abl.md", command="test").read_text()
     assert "| 1000 | 10.25 (0.050) |  |" in text and "| 1500 |  | 30.00 (0.050) |" in text
+
+
+def test_ablation_baseline_row_is_the_start_weights_on_the_same_frames(tmp_path, tiny_config):
+    """`bench learned-ablation --baseline`: the weights a fine-tune started from, first, on the runs' test frames."""
+    from ancsh.learned.bench import ablation, write_ablation_report
+    from ancsh.learned.evaluate import evaluate_category, summarize
+
+    run = tmp_path / "a"
+    run.mkdir()
+    dataclasses.replace(tiny_config, category="laptop").to_json(run / "config.json")
+    write_history_csv([HistoryRow(step=5, elapsed_s=5.0, lr=1e-3, val={"npcs_err": 0.05}).to_dict()], run / "history.csv")
+    result = ablation({"a": run}, frames=2, seed=3, baseline="builtin")
+    [start] = result["rows"]  # the run has no checkpoint: the baseline row only
+    ref = summarize(evaluate_category("laptop", frames=2, methods=("exact_reduced",), seed=3, progress=False))
+    assert start["run"] == "start" and start["checkpoint"] == "shipped" and start["trained_steps"] is None
+    assert start["rot_deg"] == ref["methods"]["exact_reduced"]["rot_deg"]["mean"]
+    text = write_ablation_report(result, tmp_path / "abl.md", command="test").read_text()
+    assert "| start | - | - | shipped (" in text
+    with pytest.raises(ValueError, match="baseline"):
+        ablation({"a": run}, frames=1, baseline=str(tmp_path / "missing.pt"))
