@@ -18,6 +18,9 @@ __all__ = ["TrainConfig"]
 _KINDS = ("ancsh", "direct_voting")
 
 
+POSE_LOSSES = ("chordal", "displacement")  # the kinds of ancsh.learned.losses.npcs_pose_loss
+
+
 def _positive_int(value, name: str) -> int:
     return check_int(value, name, minimum=1)
 
@@ -60,6 +63,11 @@ class TrainConfig:
     pose_start_step : int
         First step whose training loss includes the pose term (0 = from the start). Switching it
         on late lets the paper's losses shape the NPCS first (a large pose term slows early training).
+    pose_loss : str
+        Which pose term (``kind`` of :func:`~ancsh.learned.losses.npcs_pose_loss`): ``"chordal"`` (the
+        default; squared chordal distance of each part's NPCS orientation error) or ``"displacement"``
+        (the mean squared distance the error moves the part's true NPCS: thin parts' rotations about
+        their long axes weigh what they move).
     val_fraction : float
         Share of training *instances* held out for validation, in ``[0, 0.5]``.
     val_frames : int
@@ -120,6 +128,7 @@ class TrainConfig:
     loss_weights: tuple = (1.0, 10.0, 1.0, 1.0, 1.0)
     pose_weight: float = 0.0
     pose_start_step: int = 0
+    pose_loss: str = "chordal"
     init_weights: str = ""
     val_fraction: float = 0.1
     val_frames: int = 256
@@ -170,6 +179,8 @@ class TrainConfig:
         if self.kind == "direct_voting" and pw:
             raise ValueError("pose_weight: the direct_voting network predicts no NPCS; expected 0")
         object.__setattr__(self, "pose_weight", float(pw))
+        if self.pose_loss not in POSE_LOSSES:
+            raise ValueError(f"pose_loss: expected one of {POSE_LOSSES}, got {self.pose_loss!r}")
         if not isinstance(self.init_weights, str):
             raise ValueError(f"init_weights: expected a string ('' = none, 'builtin' or a path), got {self.init_weights!r}")
         if isinstance(self.pose_start_step, bool) or not isinstance(self.pose_start_step, int) or self.pose_start_step < 0:

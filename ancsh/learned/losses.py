@@ -21,10 +21,11 @@ from dataclasses import dataclass, fields
 
 import torch
 
+from .config import POSE_LOSSES
 from .distributed import batch_mean, batch_ratio
 
 __all__ = ["Targets", "relaxed_iou_loss", "ancsh_loss", "direct_voting_loss", "LOSS_NAMES", "procrustes_rotation",
-           "npcs_pose_loss"]
+           "npcs_pose_loss", "POSE_LOSSES"]
 
 LOSS_NAMES = ("seg", "npcs", "naocs", "assoc", "joint")
 
@@ -168,14 +169,23 @@ def procrustes_rotation(cross_covariance: torch.Tensor, eps: float = 1e-6) -> to
 
 
 def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor, num_parts: int, *,
-                   min_points: int = 4, min_spread: float = 1e-4) -> torch.Tensor:
-    """Mean over (frame, part) of the squared chordal distance ``|R - I|_F^2 = 4 (1 - cos theta)`` of the
-    Procrustes rotation ``R`` fitted from a part's predicted NPCS onto its true NPCS.
+                   min_points: int = 4, min_spread: float = 1e-4, kind: str = "chordal") -> torch.Tensor:
+    """Mean over (frame, part) of a distance of the Procrustes rotation ``R`` fitted from a part's
+    predicted NPCS onto its true NPCS from the identity.
 
-    ``theta`` is the orientation error the predicted NPCS of the part carry (the quantity the pose
-    of the part inherits); the loss is 0 exactly when every part's prediction is a rotation-free
-    (translated, scaled, deformed without rotating) copy of the truth, smooth at the truth, and at
-    most 8. Points are weighted uniformly within their true part.
+    ``R`` is the orientation error the predicted NPCS of the part carry (the quantity the pose of the
+    part inherits); either loss is 0 exactly when every part's prediction is a rotation-free
+    (translated, scaled, deformed without rotating) copy of the truth, and smooth at the truth.
+    Points are weighted uniformly within their true part. ``kind``:
+
+    - ``"chordal"``: the squared chordal distance ``|R - I|_F^2 = 4 (1 - cos theta)``, at most 8, the same
+      for every axis of the error;
+    - ``"displacement"``: the mean squared distance by which ``R`` moves the part's centred true NPCS
+      ``q_i``, ``mean_i |(R - I) q_i|^2 = tr((R - I) S (R - I)^T)`` with ``S`` their covariance (NPCS units
+      squared, the rotational share of the NPCS error): an error about an axis along which the part is
+      long moves its points little. For a thin part (an eyeglasses temple) the rotation about its long
+      axis is barely determined by its points, and the chordal loss's gradient there is about 100x the
+      base's (measured on shipped eyeglasses frames); this one weighs that rotation by what it moves.
 
     Parts are left out (no loss, no gradient) when they are degenerate in the ground truth: fewer
     than ``min_points`` points, or true NPCS that do not span a plane (second eigenvalue of their
@@ -195,6 +205,8 @@ def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor,
         At least 3.
     min_spread : float
         In ``[0, 1)``.
+    kind : str
+        One of :data:`POSE_LOSSES`.
 
     Returns
     -------
@@ -208,6 +220,8 @@ def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor,
         raise ValueError(f"min_points: expected an integer >= 3, got {min_points!r}")
     if not 0 <= min_spread < 1:
         raise ValueError(f"min_spread: expected a number in [0, 1), got {min_spread!r}")
+    if kind not in POSE_LOSSES:
+        raise ValueError(f"kind: expected one of {POSE_LOSSES}, got {kind!r}")
     w = torch.nn.functional.one_hot(labels, num_parts).to(pred.dtype)  # (B, N, M)
     count = w.sum(1)  # (B, M)
     safe_count = count.clamp_min(1.0).unsqueeze(-1)
@@ -218,24 +232,30 @@ def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor,
 
     q, p = centred(true), centred(pred)
     C = torch.einsum("bnmi,bnmj->bmij", q, p)  # (B, M, 3, 3)
+    S = torch.einsum("bnmi,bnmj->bmij", q, q) / safe_count.unsqueeze(-1)  # covariance of the true NPCS (no gradient)
     with torch.no_grad():
-        ev = torch.linalg.eigvalsh(torch.einsum("bnmi,bnmj->bmij", q, q) / safe_count.unsqueeze(-1))  # ascending
+        ev = torch.linalg.eigvalsh(S)  # ascending
         valid = (count >= min_points) & (ev[..., 2] > 0) & (ev[..., 1] > min_spread * ev[..., 2])
     eye = torch.eye(3, dtype=pred.dtype, device=pred.device)
     # Invalid parts get a well-conditioned stand-in (R = I, zero loss); `where` passes them no gradient.
     safe = torch.diag(torch.tensor([3.0, 2.0, 1.0], dtype=pred.dtype, device=pred.device))
     C = torch.where(valid[..., None, None], C, safe)
     R = procrustes_rotation(C)
-    chordal = (R - eye).square().sum((-1, -2))
-    return batch_ratio((chordal * valid).sum(), valid.sum())
+    if kind == "chordal":
+        per_part = (R - eye).square().sum((-1, -2))
+    else:
+        D = R - eye
+        per_part = (D @ S.detach() * D).sum((-1, -2))  # tr(D S D^T): exactly 0 at R = I
+    return batch_ratio((per_part * valid).sum(), valid.sum())
 
 
-def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0
-               ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0,
+               pose_loss: str = "chordal") -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Weighted ANCSH loss; returns the total and the unweighted components keyed by :data:`LOSS_NAMES`.
 
     NPCS, scale and translation are taken at the ground-truth part (during training). With
-    ``pose_weight > 0`` the total adds ``pose_weight *`` :func:`npcs_pose_loss` (component ``"pose"``).
+    ``pose_weight > 0`` the total adds ``pose_weight *`` :func:`npcs_pose_loss` of kind ``pose_loss``
+    (component ``"pose"``).
     """
     parts = {
         "seg": relaxed_iou_loss(outputs["seg_logits"], targets.labels),
@@ -248,13 +268,13 @@ def ancsh_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.
     total = sum(w * parts[k] for w, k in zip(weights, LOSS_NAMES))
     if pose_weight:
         npcs = _take_part(outputs["npcs"], targets.labels)
-        parts["pose"] = npcs_pose_loss(npcs, targets.npcs, targets.labels, outputs["npcs"].shape[2])
+        parts["pose"] = npcs_pose_loss(npcs, targets.npcs, targets.labels, outputs["npcs"].shape[2], kind=pose_loss)
         total = total + pose_weight * parts["pose"]
     return total, parts
 
 
-def direct_voting_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0
-                       ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+def direct_voting_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0, 1.0, 1.0), pose_weight: float = 0.0,
+                       pose_loss: str = "chordal") -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Loss of the direct-voting baseline: segmentation, association, camera-frame joint votes.
 
     The vote distance is compared in units of the normalised cloud (divided by ``cloud_scale``)

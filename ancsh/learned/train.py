@@ -48,7 +48,7 @@ __all__ = ["Trainer", "HistoryRow", "split_by_instance", "evaluate_arrays", "tri
 def loss_function(config: TrainConfig):
     """``(outputs, targets) -> (total, parts)``: the loss of ``config`` (kind, loss weights, pose weight)."""
     fn = ancsh_loss if config.kind == "ancsh" else direct_voting_loss
-    return functools.partial(fn, weights=config.loss_weights, pose_weight=config.pose_weight)
+    return functools.partial(fn, weights=config.loss_weights, pose_weight=config.pose_weight, pose_loss=config.pose_loss)
 
 
 def camera_rotations(centroids_cam: np.ndarray, roll_rad: float, tilt_rad: float, seeds) -> np.ndarray:

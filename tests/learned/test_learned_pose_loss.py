@@ -49,14 +49,15 @@ def test_procrustes_rotation_gradient_matches_finite_differences():
     assert torch.autograd.gradcheck(procrustes_rotation, (C.requires_grad_(),), eps=1e-6, atol=1e-7)
 
 
-def test_pose_loss_is_zero_at_the_truth_and_for_rotation_free_errors():
+@pytest.mark.parametrize("kind", ["chordal", "displacement"])
+def test_pose_loss_is_zero_at_the_truth_and_for_rotation_free_errors(kind):
     true, labels, g = _frames()
     pred = true.clone().requires_grad_()
-    loss = npcs_pose_loss(pred, true, labels, 2)
+    loss = npcs_pose_loss(pred, true, labels, 2, kind=kind)
     loss.backward()
     assert abs(loss.item()) < 1e-20 and float(pred.grad.abs().max()) < 1e-12
     shifted = 0.7 * true + torch.tensor([0.1, 0.2, -0.3], dtype=torch.float64)  # scaled and shifted, not rotated
-    assert float(npcs_pose_loss(shifted, true, labels, 2)) < 1e-20
+    assert float(npcs_pose_loss(shifted, true, labels, 2, kind=kind)) < 1e-20
 
 
 def test_pose_loss_equals_the_chordal_distance_of_a_known_rotation():
@@ -69,10 +70,38 @@ def test_pose_loss_equals_the_chordal_distance_of_a_known_rotation():
     assert abs(float(npcs_pose_loss(pred, true, labels, 1)) - expected) < 1e-12
 
 
-def test_pose_loss_gradient_matches_finite_differences():
+@pytest.mark.parametrize("kind", ["chordal", "displacement"])
+def test_pose_loss_gradient_matches_finite_differences(kind):
     true, labels, g = _frames(B=2, N=24, M=2, seed=2)
     pred = (true + 0.2 * torch.randn(true.shape, generator=g, dtype=torch.float64)).requires_grad_()
-    assert torch.autograd.gradcheck(lambda p: npcs_pose_loss(p, true, labels, 2), (pred,), eps=1e-6, atol=1e-7)
+    assert torch.autograd.gradcheck(lambda p: npcs_pose_loss(p, true, labels, 2, kind=kind), (pred,), eps=1e-6, atol=1e-7)
+
+
+def test_displacement_pose_loss_is_the_mean_squared_displacement_of_the_true_npcs():
+    """``mean |(R - I) q|^2`` over the centred true NPCS, here for a known rotation about z."""
+    true, labels, _ = _frames(B=1, M=1)
+    theta = 0.3
+    c, s = math.cos(theta), math.sin(theta)
+    R = torch.tensor([[c, -s, 0], [s, c, 0], [0, 0, 1.0]], dtype=torch.float64)
+    q = true[0] - true[0].mean(0)
+    expected = ((q @ R.T - q).square().sum(1)).mean()
+    got = npcs_pose_loss(true @ R, true, labels, 1, kind="displacement")
+    assert abs(float(got) - float(expected)) < 1e-12
+
+
+def test_displacement_pose_loss_weighs_a_thin_part_by_what_its_error_moves():
+    """A bar along x (1 x 0.02 x 0.02): a rotation about its long axis moves its points by the thickness only,
+    one about a short axis by the length; the chordal loss weighs the two alike."""
+    g = torch.Generator().manual_seed(5)
+    true = (torch.rand(1, 200, 3, generator=g, dtype=torch.float64) - 0.5) * torch.tensor([1.0, 0.02, 0.02], dtype=torch.float64)
+    labels = torch.zeros(1, 200, dtype=torch.long)
+    c, s = math.cos(0.1), math.sin(0.1)
+    about_x = torch.tensor([[1.0, 0, 0], [0, c, -s], [0, s, c]], dtype=torch.float64)
+    about_z = torch.tensor([[c, -s, 0], [s, c, 0], [0, 0, 1.0]], dtype=torch.float64)
+    loss = {(k, n): float(npcs_pose_loss(true @ R, true, labels, 1, kind=k))
+            for k in ("chordal", "displacement") for n, R in (("x", about_x), ("z", about_z))}
+    assert abs(loss["chordal", "x"] - loss["chordal", "z"]) < 1e-9
+    assert loss["displacement", "x"] < 1e-3 * loss["displacement", "z"]
 
 
 def test_degenerate_parts_give_finite_loss_and_gradients():
@@ -106,6 +135,8 @@ def test_pose_loss_rejects_bad_arguments():
         npcs_pose_loss(true, true, labels, 2, min_points=2)
     with pytest.raises(ValueError, match="min_spread"):
         npcs_pose_loss(true, true, labels, 2, min_spread=1.0)
+    with pytest.raises(ValueError, match="kind"):
+        npcs_pose_loss(true, true, labels, 2, kind="geodesic")
 
 
 def test_ancsh_loss_adds_the_weighted_pose_term_and_the_config_defaults_to_off():
@@ -132,3 +163,9 @@ def test_ancsh_loss_adds_the_weighted_pose_term_and_the_config_defaults_to_off()
         TrainConfig(pose_weight=-1.0)
     with pytest.raises(ValueError, match="pose_weight"):
         TrainConfig(kind="direct_voting", pose_weight=1.0)
+    with pytest.raises(ValueError, match="pose_loss"):
+        TrainConfig(pose_loss="geodesic")
+    cfg = TrainConfig(pose_weight=1.0, pose_loss="displacement")
+    _, parts = loss_function(cfg)(out, t)
+    torch.testing.assert_close(parts["pose"], npcs_pose_loss(npcs.gather(2, labels[..., None, None].expand(B, N, 1, 3))[:, :, 0],
+                                                             true, labels, 2, kind="displacement"))
