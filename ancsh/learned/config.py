@@ -107,7 +107,7 @@ class TrainConfig:
         which centres its input): the visible surface is unchanged, so the NPCS / NAOCS targets are
         too and the direct-voting camera-frame joint vectors rotate with the points. Distances are
         preserved, so the cached neighbourhoods stay valid. The shipped networks trained without it
-        lean on the camera frame: their fitted rotation follows a 10° camera roll by only 0.3–0.5
+        lean on the camera frame: their fitted rotation follows a 10° camera roll by only 0.4–0.7
         (oven, washing machine, drawer) against about 1 for the laptop (``ancsh bench
         roll-equivariance``).
     """
