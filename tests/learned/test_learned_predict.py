@@ -70,7 +70,11 @@ def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rend
 
 def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, rendered):
     frame, depth = rendered
-    pred = predict_depth(read_depth(files / "depth.png"), read_intrinsics(files / "K.json"), "laptop")
+    depth, intrinsics = read_depth(files / "depth.png"), read_intrinsics(files / "K.json")
+    refined = predict_depth(depth, intrinsics, "laptop", refine="template").to_json()
+    # a fit the category template refined has no covariance of its own (docs/json_schema.md): null, not the learned fit's
+    assert refined["ok"] and ("category template" not in refined["message"] or refined["uncertainty"] is None)
+    pred = predict_depth(depth, intrinsics, "laptop", refine="none")
     data = pred.to_json()
     assert data["ok"] and data["formulation"] == "exact_reduced"
     # the shipped weights' standard deviations carry the measured inflation (raw ones beside them)
