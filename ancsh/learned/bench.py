@@ -548,7 +548,8 @@ def write_ablation_report(result: dict, path, *, command: str, commands=()) -> P
         return "-" if v is None else format(v, spec)
 
     for r in result["rows"]:
-        aug = "-" if r.get("run_dir", "") is None else "{:g} / {:g}".format(*(r.get("augment_deg") or (0.0, 0.0)))
+        a = r.get("augment_deg", (0.0, 0.0))  # None: the baseline row (no training of its own)
+        aug = "-" if a is None else f"{a[0]:g} / {a[1]:g}"
         lines.append(
             f"| {r['run']} | {opt(r['pose_weight'])} | {aug} | {r['checkpoint']} ({r['step']}) | {opt(r['trained_steps'])} "
             f"| {opt(r['train_wall_min'], '.1f')} | {fmt(r['rot_deg'])} | {fmt(r['rot_deg_median'])} | {fmt(r['axis_deg'])} "

@@ -232,8 +232,8 @@ def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor,
 
     q, p = centred(true), centred(pred)
     C = torch.einsum("bnmi,bnmj->bmij", q, p)  # (B, M, 3, 3)
-    S = torch.einsum("bnmi,bnmj->bmij", q, q) / safe_count.unsqueeze(-1)  # covariance of the true NPCS (no gradient)
     with torch.no_grad():
+        S = torch.einsum("bnmi,bnmj->bmij", q, q) / safe_count.unsqueeze(-1)  # covariance of the true NPCS
         ev = torch.linalg.eigvalsh(S)  # ascending
         valid = (count >= min_points) & (ev[..., 2] > 0) & (ev[..., 1] > min_spread * ev[..., 2])
     eye = torch.eye(3, dtype=pred.dtype, device=pred.device)
@@ -245,7 +245,7 @@ def npcs_pose_loss(pred: torch.Tensor, true: torch.Tensor, labels: torch.Tensor,
         per_part = (R - eye).square().sum((-1, -2))
     else:
         D = R - eye
-        per_part = (D @ S.detach() * D).sum((-1, -2))  # tr(D S D^T): exactly 0 at R = I
+        per_part = (D @ S * D).sum((-1, -2))  # tr(D S D^T): exactly 0 at R = I
     return batch_ratio((per_part * valid).sum(), valid.sum())
 
 
@@ -279,7 +279,8 @@ def direct_voting_loss(outputs: dict, targets: Targets, weights=(1.0, 10.0, 1.0,
 
     The vote distance is compared in units of the normalised cloud (divided by ``cloud_scale``)
     so the loss does not depend on the object's size in metres. NPCS/NAOCS components are zero;
-    ``pose_weight`` must be 0 (the network predicts no NPCS).
+    ``pose_weight`` must be 0 (the network predicts no NPCS); ``pose_loss`` is accepted for the common signature and
+    unused.
     """
     if pose_weight:
         raise ValueError(f"pose_weight: the direct-voting network predicts no NPCS, got {pose_weight}")
