@@ -19,6 +19,8 @@ EXAMPLES = {
     "demo": "ancsh demo --categories laptop,oven --out demo_out",
     "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume; "
              "on 2 processes: torchrun --nproc_per_node 2 -m ancsh train ...",
+    "export": "ancsh export --run runs/laptop_ancsh --data data/laptop_train --out ancsh/weights/laptop.pt "
+              "--test-data data/laptop_test",
     "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
     "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
     "weights": "ancsh weights --out weights.md",

@@ -1,4 +1,6 @@
-"""``ancsh train``: train the ANCSH network (or the direct-voting baseline) for one category.
+"""``ancsh train``: train the ANCSH network (or the direct-voting baseline) for one category;
+``ancsh export``: ship a run's network, the checkpoint confirmed on all its validation frames
+(:mod:`ancsh.learned.select`).
 
 torch is imported inside :func:`run`, so ``ancsh --help`` stays light.
 """
@@ -6,6 +8,7 @@ torch is imported inside :func:`run`, so ``ancsh --help`` stays light.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -38,6 +41,25 @@ def register(sub) -> None:
 
     add_device_argument(p)
     p.set_defaults(func=run)
+
+    e = sub.add_parser(
+        "export",
+        help="ship a run's network: confirm best.pt against last.pt on all validation frames, export the better",
+        description="Score a training run's checkpoints through the full pipeline (network, RANSAC, exact_reduced fit) "
+        "on every frame of the run's validation instances -- the split re-created from the run's config.json and its "
+        "training shards -- and export the lowest pose score (mean part rotation + joint-axis error, degrees) as a "
+        "weights file with the run's config, history and curves beside it. The scores go into the weights file's "
+        "metrics and <stem>_test_metrics.json under 'selection'.",
+    )
+    e.add_argument("--run", required=True, type=Path, help="run directory of `ancsh train` (config.json, best.pt, last.pt)")
+    e.add_argument("--data", required=True, type=Path, help="the run's training shards (its validation split is made from them)")
+    e.add_argument("--out", required=True, type=Path, help="weights file to write, e.g. ancsh/weights/laptop.pt")
+    e.add_argument("--checkpoints", nargs="+", type=Path, metavar="PT",
+                   help="candidates (default: the run's best.pt and last.pt, where present)")
+    e.add_argument("--frames", type=int, help="score this many evenly spaced validation frames (default: all)")
+    e.add_argument("--test-data", type=Path, help="held-out test shards: the chosen network's scores against trivial "
+                   "baselines, stored with the weights (as `ancsh train --test-data`)")
+    e.set_defaults(func=run_export)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -101,8 +123,9 @@ def _run(args: argparse.Namespace, context) -> int:
 
         from .train import PoseValidation
 
-        val_frames = np.flatnonzero(np.isin(arrays.instance, np.unique(val.instance)))
-        picks = val_frames[np.linspace(0, len(val_frames) - 1, min(config.pose_val_frames, len(val_frames))).round().astype(int)]
+        from .select import validation_frame_indices
+
+        picks = validation_frame_indices(arrays.instance, np.unique(val.instance), config.pose_val_frames)
         pose_val = PoseValidation.from_dataset(data, picks, seed=config.seed)
         say(f"pose validation: {len(picks)} frames of the validation instances, every {config.pose_val_every} steps")
     trainer = Trainer(config, train, val, out, progress=not args.no_progress and context.is_main, pose_val=pose_val,
@@ -134,6 +157,46 @@ def _run(args: argparse.Namespace, context) -> int:
         path = export_weights(best, args.export, metrics=metrics)
         print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB)")
         copy_training_log(out, path, metrics)
+    return 0
+
+
+def run_export(args: argparse.Namespace) -> int:
+    import json
+
+    from .config import TrainConfig
+    from .select import choose, confirm_checkpoints
+    from .weights import export_weights
+
+    config_path = args.run / "config.json"
+    if not config_path.is_file():
+        raise FileNotFoundError(f"--run: no run configuration {config_path}")
+    config = TrainConfig.from_json(config_path)
+    candidates = args.checkpoints or [c for c in (args.run / "best.pt", args.run / "last.pt") if c.is_file()]
+    if not candidates:
+        raise FileNotFoundError(f"--run: {args.run} holds neither best.pt nor last.pt")
+    shards = _check_shards(args.data, config.category)
+    rows = confirm_checkpoints(candidates, shards, config, frames=args.frames)
+    chosen = choose(rows)
+    print(f"{'checkpoint':<40} {'step':>6} {'frames':>6} {'rotation':>9} {'axis':>7} {'state':>7} {'score':>7} failed")
+    for r in rows:
+        mark = "  <- export" if r is chosen else ""
+        print(f"{Path(r['checkpoint']).name:<40} {r['step']:>6} {r['frames']:>6} {r['pose_rot_deg']:>9.3f} "
+              f"{r['pose_axis_deg']:>7.3f} {r['pose_state_err']:>7.3f} {r['pose_score']:>7.3f} "
+              f"{int(r['pose_failures'])}{mark}")
+    metrics = {}
+    if args.test_data is not None:
+        metrics = evaluate_checkpoint(chosen["checkpoint"], args.test_data, config)
+    command = ["export", "--run", args.run, "--data", args.data, "--out", args.out]
+    command += (["--checkpoints", *args.checkpoints] if args.checkpoints else [])
+    command += (["--frames", args.frames] if args.frames is not None else [])
+    command += (["--test-data", args.test_data] if args.test_data is not None else [])
+    metrics["selection"] = {"chosen": chosen["checkpoint"], "candidates": rows,
+                            "command": "ancsh " + shlex.join(str(a) for a in command)}
+    path = export_weights(chosen["checkpoint"], args.out, metrics=metrics)
+    copy_training_log(args.run, path, metrics)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB), step {chosen['step']}, pose score "
+          f"{chosen['pose_score']:.3f} on {chosen['frames']} validation frames")
+    (args.run / "selection.json").write_text(json.dumps(metrics["selection"], indent=2) + "\n")
     return 0
 
 

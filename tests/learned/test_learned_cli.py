@@ -66,3 +66,57 @@ def test_provider_on_rendered_frames_matches_the_ground_truth_structure(tmp_path
     assert corr.structure_key() == Correspondences.from_ground_truth(frame.gt).structure_key()
     assert corr.num_points == len(frame.points)
     assert np.all(np.isfinite(corr.joint_pivots_naocs))
+
+
+@pytest.mark.slow
+def test_export_confirms_the_checkpoints_on_all_validation_frames(tmp_path, laptop_shards, capsys):
+    from ancsh.learned.config import TrainConfig
+    from ancsh.learned.data import arrays_from_dataset
+    from ancsh.learned.train import PoseValidation, split_by_instance
+    from ancsh.learned.weights import load_network
+
+    cfg = {"num_points": 64, "width": 0.125, "npoints": [32, 8], "nsamples": [8, 8], "batch_size": 2, "max_steps": 2,
+           "val_every": 1, "checkpoint_every": 1, "val_fraction": 0.4, "seed": 4}
+    (tmp_path / "c.json").write_text(json.dumps(cfg))
+    run = tmp_path / "run"
+    assert main(["train", "--category", "laptop", "--config", str(tmp_path / "c.json"), "--data", str(laptop_shards),
+                 "--out", str(run), "--no-progress"]) == 0
+    weights = tmp_path / "w.pt"
+    capsys.readouterr()
+    assert main(["export", "--run", str(run), "--data", str(laptop_shards), "--out", str(weights),
+                 "--test-data", str(laptop_shards)]) == 0
+    assert "<- export" in capsys.readouterr().out
+    selection = json.loads((tmp_path / "w_test_metrics.json").read_text())["selection"]
+    rows = selection["candidates"]
+    assert [r["checkpoint"] for r in rows] == [str(run / "best.pt"), str(run / "last.pt")]
+    # every frame of the run's validation instances, split as in training (the config's seed)
+    config = TrainConfig.from_json(run / "config.json")
+    arrays = arrays_from_dataset(laptop_shards, config.num_points, seed=config.seed)
+    _, val = split_by_instance(arrays, config.val_fraction, config.seed)
+    frames = np.flatnonzero(np.isin(arrays.instance, np.unique(val.instance)))
+    assert 0 < len(frames) < len(arrays) and all(r["frames"] == len(frames) for r in rows)
+    # the scores are those of PoseValidation on exactly those frames, and the lower one is exported
+    last = load_network(run / "last.pt")
+    expected = PoseValidation.from_dataset(laptop_shards, frames, seed=config.seed).evaluate(last)
+    assert rows[1]["pose_score"] == pytest.approx(expected["pose_score"])
+    chosen = min(rows, key=lambda r: r["pose_score"])
+    assert selection["chosen"] == chosen["checkpoint"]
+    shipped = load_network(weights)
+    assert shipped.step == chosen["step"]
+    assert shipped.metrics["selection"]["chosen"] == chosen["checkpoint"] and "seg_acc" in shipped.metrics
+    assert json.loads((run / "selection.json").read_text())["chosen"] == chosen["checkpoint"]
+    assert main(["export", "--run", str(tmp_path / "missing"), "--data", str(laptop_shards), "--out", str(weights)]) == 2
+    assert "--run" in capsys.readouterr().err
+
+
+def test_validation_frame_indices_spreads_evenly_over_the_validation_instances():
+    from ancsh.learned.select import choose, validation_frame_indices
+
+    instance = np.array([0, 1, 1, 2, 0, 1, 2, 2, 1])
+    assert validation_frame_indices(instance, [1]).tolist() == [1, 2, 5, 8]
+    assert validation_frame_indices(instance, [1, 2], 3).tolist() == [1, 5, 8]
+    assert validation_frame_indices(instance, [1], 10).tolist() == [1, 2, 5, 8]
+    with pytest.raises(ValueError, match="count"):
+        validation_frame_indices(instance, [1], 0)
+    rows = [{"pose_score": 3.0}, {"pose_score": 2.0}, {"pose_score": 2.0}]
+    assert choose(rows) is rows[1]
