@@ -105,6 +105,19 @@ def register(sub) -> None:
     s.set_defaults(func=run_show)
 
 
+def _check_real_objects(real: str, category: str, split: str) -> None:
+    """Refuse ``--real`` when its catalog holds no object of ``category`` in ``split`` (it would add nothing)."""
+    from .catalog import load_catalog
+
+    catalog = load_catalog(None if real == "builtin" else real)
+    if catalog.instances(category, split):
+        return
+    others = sorted({o.split for o in catalog.instances(category)})
+    where = f"its {category} objects are all in the {' and '.join(others)} split" if others else f"it has no {category} object"
+    raise ValueError(f"--real: the catalog {real!r} has no {category} object in the {split} split ({where}); "
+                     "leave --real out for procedural frames only")
+
+
 def run_generate(args) -> int:
     from pathlib import Path
 
@@ -114,6 +127,8 @@ def run_generate(args) -> int:
     from .render import Intrinsics
     from .sequences import SequenceMotion
 
+    if args.real and args.category:
+        _check_real_objects(args.real, args.category, args.split)
     executor = executor_from_args(args)
     config = GenerationConfig(
         category=args.category,

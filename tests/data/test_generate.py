@@ -187,6 +187,22 @@ def test_cli_error_paths(tmp_path, capsys):
     assert issubclass(CorruptShardError, ValueError)
 
 
+def test_cli_refuses_real_objects_the_catalog_does_not_have(tmp_path, capsys):
+    from ancsh.data.catalog import load_catalog
+
+    catalog = load_catalog(None)  # the shipped catalog: its eyeglasses are all test objects, it has no drawer
+    assert catalog.instances("eyeglasses", "test") and not catalog.instances("eyeglasses", "train")
+    assert not catalog.instances("drawer")
+    out = tmp_path / "ds"
+    args = ["data", "generate", "--split", "train", "--real", "builtin", "--frames", "2", "--out", str(out), "--quiet"]
+    assert main([*args, "--category", "eyeglasses"]) == 2
+    err = capsys.readouterr().err
+    assert "--real" in err and "no eyeglasses object in the train split" in err and "all in the test split" in err
+    assert main([*args, "--category", "drawer"]) == 2
+    assert "it has no drawer object" in capsys.readouterr().err
+    assert not out.exists()  # nothing was generated
+
+
 def test_bench_render_prints_rates(capsys, tmp_path):
     assert main(["bench", "render", "--frames", "2", "--categories", "laptop", "--width", "160", "--height", "120",
                  "--out", str(tmp_path / "r.md")]) == 0
