@@ -123,12 +123,14 @@ class TemplateLibrary:
         self.num_parts = M.pop()
         self._features = np.stack([np.concatenate([e.sizes.ravel(), e.centres.ravel()]) for e in entries])
         self._models: dict = {}
+        self._available: dict = {}
 
     def __len__(self) -> int:
         return len(self.entries)
 
     def nearest(self, centres, sizes, *, count: int = 1) -> list[int]:
-        """Indices of the ``count`` entries whose part boxes are nearest to the given ones.
+        """Indices of the ``count`` :meth:`available` entries whose part boxes are nearest to the given ones
+        (fewer where fewer are available; none without any).
 
         Distance: Euclidean over every part's box side lengths and centre (NAOCS units, so the
         object's overall size does not matter; a template is scaled to the fitted boxes anyway).
@@ -146,7 +148,22 @@ class TemplateLibrary:
             raise ValueError(f"count: expected a positive integer, got {count!r}")
         f = np.concatenate([s.ravel(), c.ravel()])
         d = np.linalg.norm(self._features - f, axis=1)
-        return [int(i) for i in np.argsort(d, kind="stable")[: int(count)]]
+        order = [int(i) for i in np.argsort(d, kind="stable") if self.available(int(i))]
+        return order[: int(count)]
+
+    def available(self, index: int) -> bool:
+        """Whether entry ``index`` can be built here: procedural entries always; real ones when their
+        URDF is present (the shared data folder, :func:`ancsh.data.paths.shared_data_dir`). Checked once
+        per entry. :meth:`nearest` returns available entries only, so a library stays usable (with its
+        procedural entries) on a machine without the shared data."""
+        if index not in self._available:
+            e = self.entries[index]
+            if e.source == "procedural":
+                self._available[index] = True
+            else:
+                obj = _real_objects(self.real or "builtin", self.category).get(e.name)
+                self._available[index] = obj is not None and obj.urdf_path.is_file()
+        return self._available[index]
 
     #: Triangle budget per part of a template model (larger real meshes are decimated once, on load).
     MAX_FACES = 3000

@@ -485,6 +485,9 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
             raise ValueError(f"templates: the {templates.category} library has {templates.num_parts} parts, "
                              f"the fit {corr.num_parts}")
         chosen = [templates.model(i) for i in templates.nearest(layout.centres, layout.sizes, count=config.templates)]
+        if not chosen:
+            return TemplateRefinement(fit, False, "input", f"no {templates.category} template is available here (real "
+                                      "templates need the shared data folder)", time_s=time.perf_counter() - t0)
     else:
         chosen = [templates]
     rng = check_generator(rng)

@@ -93,6 +93,23 @@ def test_template_selection_picks_the_true_instance(scene):
     assert models[picked].name == scene["model"].name
 
 
+def test_templates_without_their_urdf_are_skipped(scene, tmp_path, monkeypatch):
+    """Without the shared data folder, real templates are not chosen (procedural ones still are), and a
+    library of none available leaves the fit as it is, with the reason."""
+    monkeypatch.setenv("ANCSH_SHARED_DATA", str(tmp_path))  # an empty shared data folder
+    laptop = TemplateLibrary.from_dict(load_template_library("laptop").to_dict())  # a fresh copy: no cached checks
+    real = [i for i, e in enumerate(laptop.entries) if e.source == "real"]
+    assert real and not any(laptop.available(i) for i in real)
+    assert all(laptop.available(i) for i, e in enumerate(laptop.entries) if e.source == "procedural")
+    nearest_real = laptop.entries[real[0]]  # its own boxes: it would be the nearest entry if it were available
+    picked = laptop.nearest(nearest_real.centres, nearest_real.sizes, count=5)
+    assert len(picked) == 5 and not set(picked) & set(real)
+    none_here = TemplateLibrary(CATEGORY, [TemplateEntry.of_model(scene["model"], "real")], real="builtin")
+    assert none_here.nearest(np.zeros((2, 3)), np.ones((2, 3))) == []
+    out = refine_fit(scene["obs"], scene["fit"], scene["corr"], none_here, rng=0)
+    assert not out.accepted and out.result is scene["fit"] and "no oven template is available" in out.reason
+
+
 def test_shipped_library_is_current_and_round_trips():
     lib = load_template_library(CATEGORY)
     assert len(lib) >= 200 and lib.num_parts == 2
