@@ -337,16 +337,17 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         corr, raw = infer(provider, obs)
         t_net = time.perf_counter() - t0
         result = fit(obs, corr, formulation, rng=seed)
+        template_fit = False
         if result.ok and formulation != "per_part":
             refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
             if refined is not None:
-                result = refined.result
+                result, template_fit = refined.result, refined.accepted
                 notes.append(f"category-template refinement: {'kept' if refined.accepted else 'not kept'} "
                              f"({refined.reason}; template {refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")
         labels = np.asarray(corr.part_labels)
         quality = part_quality(result, pts, corr, raw)
         result = check_plausibility(result, labels, category, quality)
-        result = inflate_uncertainty(result, category, provider)
+        result = inflate_uncertainty(result, category, provider, template=template_fit)
         p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
         types = tuple(t.value for t in corr.joint_types)
         parents, children = corr.joint_parents, corr.joint_children
@@ -365,17 +366,21 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     )
 
 
-def inflate_uncertainty(result, category: str, provider):
+def inflate_uncertainty(result, category: str, provider, *, template: bool = False):
     """The fit with its standard deviations inflated by the factors measured for these weights of
     ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights.
-    ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits."""
+    ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits.
+    ``template``: the fit was refined by the category template (an accepted
+    :meth:`LearnedProvider.refine`), whose covariance is the template ICP's: the factors measured for
+    those fits apply (provider ``"learned-template"`` of ``ancsh bench uncertainty``)."""
     import dataclasses
 
     from ..solvers.uncertainty import inflation_for
 
     if result.uncertainty is None:
         return result
-    inflation = inflation_for("learned", str(category), weights_sha256=getattr(provider.network, "sha256", None))
+    inflation = inflation_for("learned-template" if template else "learned", str(category),
+                              weights_sha256=getattr(provider.network, "sha256", None))
     return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
 
 

@@ -340,7 +340,8 @@ class FitResult:
         Covariances and standard deviations of the part poses, object pose and joints
         (:mod:`ancsh.solvers.uncertainty`; raw Jacobian values unless a caller inflated them);
         ``None`` for a fit without an estimate, with ``FitConfig(uncertainty=False)``, or refined
-        afterwards by a category template (:func:`ancsh.solvers.icp.category.refine_fit`).
+        afterwards by a category template's ``base`` candidate; an ``articulated`` refinement
+        (:func:`ancsh.solvers.icp.category.refine_fit`) carries the template ICP's covariance.
     canonical : CanonicalParameters or None
         The canonical parameters the part poses and joints were solved with
         (:class:`~ancsh.solvers.terms.CanonicalParameters`: the correspondences', moved by the solved

@@ -528,3 +528,21 @@ def test_records_of_separate_runs_merge_by_category_the_last_holder_winning():
     assert [s["command"] for s in merged["source"]] == ["a", "b"]
     with pytest.raises(ValueError, match="parts"):
         merge_records([])
+
+
+@pytest.mark.slow
+def test_learned_template_provider_calibrates_the_refined_fits_only():
+    """``learned-template`` records the frames whose template refinement was accepted (their errors against
+    the refined fits' ICP covariances), counts the others, and has no scale row; it runs only when asked."""
+    from ancsh.uncertainty_calibration import DEFAULT_PROVIDERS, CalibrationConfig, measure
+
+    assert "learned-template" not in DEFAULT_PROVIDERS and "learned-template" not in CalibrationConfig().providers
+    cfg = CalibrationConfig(categories=("laptop",), providers=("learned", "learned-template"), frames=4, calibration_frames=4)
+    measured = measure(cfg)
+    counts = measured["counts"]["laptop"]["learned-template"]["test"]
+    records = measured["records"]["laptop"]["learned-template"]["test"]
+    refined = counts["frames"] - counts["failed"]
+    assert counts["frames"] + counts["not_refined"] == 4 and refined >= 1
+    assert len(records["rotation"]) == 2 * refined and records["scale"] == []  # two parts per frame; no scale
+    assert all(np.all(np.isfinite(r.covariance)) for r in records["rotation"] + records["joint_state"])
+    assert len(measured["records"]["laptop"]["learned"]["test"]["scale"]) > 0  # the learned row keeps its scale

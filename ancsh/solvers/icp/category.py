@@ -23,6 +23,12 @@ fit's own part poses -- so all are compared on the same terms. Candidates per sc
 The best-scoring candidate replaces the input only when its score is below the input's by
 ``margin`` and no part's observed-point term got worse by more than ``part_tolerance``; otherwise
 the input fit is returned unchanged (:attr:`TemplateRefinement.accepted` is ``False``).
+
+An accepted ``articulated`` candidate carries the covariance of its ICP (Gauss-Newton at the ICP
+solution, :func:`~ancsh.solvers.icp.articulated.icp_uncertainty`) mapped to the refined fit's NPCS
+frames, the scale unknown (``nan``: chosen by the scale search); a ``base`` candidate carries none.
+Its standard deviations describe the template's fit to the points, not the template's shape error
+(the inflation measured by ``ancsh bench uncertainty --providers learned-template`` covers that).
 """
 
 from __future__ import annotations
@@ -392,6 +398,7 @@ class _Candidate:
     template: str
     model: ArticulatedModel | None = None  # the scaled template and its ICP estimate
     pose: ArticulatedPose | None = None
+    icp_uncertainty: object = None  # FitUncertainty of the ICP estimate (template part frames), articulated only
 
 
 def _scaled(model: ArticulatedModel, factor: float) -> ArticulatedModel:
@@ -426,6 +433,34 @@ def _articulated(fit: FitResult, model: ArticulatedModel, layout: FittedLayout, 
     states = est.q - model.rest_states
     return dataclasses.replace(fit, T_cam_npcs=poses, boxes_cam=boxes, joint_axes_cam=axes, joint_pivots_cam=pivots,
                                joint_states=states, canonical=None)
+
+
+def _refined_uncertainty(best: _Candidate, layout: FittedLayout):
+    """The covariance of an ``articulated`` candidate: its ICP's (object pose and joint states of the
+    template, scale fixed; :func:`~ancsh.solvers.icp.articulated.icp_uncertainty`) mapped from the
+    template's part and base frames to the refined fit's NPCS and NAOCS frames (the maps of
+    :func:`_articulated`). The part and object scales were chosen by the scale search, not fitted:
+    their variances are ``nan`` (unknown). ``None`` for a ``base`` candidate (its joints are the
+    input fit's, its object pose the ICP's: no single program holds both) and where the ICP
+    computed none."""
+    u = best.icp_uncertainty
+    if best.choice != "articulated" or u is None:
+        return None
+    S = Sim3(np.eye(3), np.zeros(3), best.scale)
+    parts = best.pose.part_poses(best.model)
+    u = u.composed(parts, [S @ T for T in layout.T_B_npcs], best.pose.T_cam_base,
+                   S @ Sim3(np.eye(3), np.zeros(3), layout.diagonal))
+
+    def unknown_scale(v):
+        if v is None:
+            return None
+        P, O = v.part_covariances.copy(), v.object_covariance.copy()
+        P[:, 6, :] = P[:, :, 6] = np.nan
+        O[6, :] = O[:, 6] = np.nan
+        return replace(v, part_covariances=P, object_covariance=O, correlated=unknown_scale(v.correlated),
+                       base=unknown_scale(v.base))
+
+    return unknown_scale(u)
 
 
 def _score(scorer: FitScorer, surface: ModelSurface, result: FitResult, layout: FittedLayout, f: float, gate: float) -> FitScore:
@@ -525,7 +560,7 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
             if "articulated" in config.candidates:
                 r = _articulated(fit, m_f, layout, f, est)
                 cands.append(_Candidate("articulated", f, r, _score(scorer, surface, r, layout, f, gate), s_in, ft.source,
-                                        m_f, est))
+                                        m_f, est, icp.uncertainty))
             if "base" in config.candidates:
                 G = est.T_cam_base @ Sim3(np.eye(3), np.zeros(3), f) @ layout.T_cam_B.inverse()
                 r = _moved(fit, G, f, corr)
@@ -547,7 +582,7 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
                                   f"part {j} worse by {worse[j]:.4f} (tolerance {config.part_tolerance:g})", **common)
     result = dataclasses.replace(best.result, message=(fit.message + "; " if fit.message else "")
                                  + f"refined by the category template {best.template} ({best.choice}, scale {best.scale:g})",
-                                 time_s=fit.time_s + dt, uncertainty=None)  # the fit's covariance was of other poses
+                                 time_s=fit.time_s + dt, uncertainty=_refined_uncertainty(best, layout))
     carried = CarriedTemplateFit(best.model, best.pose, layout, best.scale, fit)
     return TemplateRefinement(result, True, best.choice, f"score {best.score.score:.4f} < input {s_in.score:.4f}",
                               scale=best.scale, carried=carried, **common)

@@ -41,9 +41,49 @@ def test_true_instance_template_recovers_the_pose_at_least_as_well(scene):
     before, after = _rot(scene["fit"], scene["frame"].gt), _rot(ref.result, scene["frame"].gt)
     assert ref.accepted and ref.result.ok
     assert ref.score_refined < ref.score_input
-    assert scene["fit"].uncertainty is not None and ref.result.uncertainty is None  # no covariance of the moved poses
     assert np.all(after <= before + 1e-6), (before, after)
     assert after.max() < 1.0  # the template is the object: ICP lands near the truth (input: ~2 degrees)
+
+
+def test_refined_fit_carries_the_template_icp_covariance(scene):
+    """An articulated refinement reports the ICP's covariance in the refined fit's NPCS frames: the same
+    camera-frame rotation and joint-state variances as the ICP run at that estimate; the scale unknown."""
+    from ancsh.solvers.icp.articulated import icp_uncertainty
+    from ancsh.solvers.icp.template import TemplateProvider
+
+    icp_config = dataclasses.replace(RefineConfig().icp, num_points=None)  # every point (no subsample to replay)
+    config = RefineConfig(candidates=("articulated",), scales=(1.0,), icp=icp_config)
+    ref = refine_fit(scene["obs"], scene["fit"], scene["corr"], scene["model"], config=config, rng=0)
+    assert ref.accepted and ref.choice == "articulated"
+    u = ref.result.uncertainty
+    assert u is not None and u.status == "ok"
+    assert np.all(np.isfinite(u.rotation_rms_rad)) and np.all(u.rotation_rms_rad > 0)
+    assert np.all(np.isfinite(u.translation_rms_m)) and np.all(np.isfinite(u.joint_state_std))
+    assert np.all(np.isnan(u.scale_std))  # chosen by the scale search, not estimated
+    # the ICP's own covariance at the carried estimate, in the template's part frames
+    c = ref.carried
+    diagonal = TemplateProvider(c.model).T_cam_naocs_scale  # as articulated_icp sets its gate and robust loss
+    prov = TemplateProvider(c.model, c.pose, max_distance=max(icp_config.gate_end * diagonal, icp_config.gate_floor),
+                            loss=icp_config.loss, loss_scale=max(icp_config.loss_scale * diagonal, icp_config.gate_floor / 3))
+    icp = icp_uncertainty(prov, scene["obs"].points_cam, prov.correspond(scene["obs"]),
+                          point_to_plane=icp_config.point_to_plane, point_weight=icp_config.point_weight)
+    for j in range(2):  # composing on the right keeps the camera-frame rotation tangent
+        np.testing.assert_allclose(u.part_covariances[j, :3, :3], icp.part_covariances[j, :3, :3], rtol=1e-6, atol=1e-14)
+    np.testing.assert_allclose(u.joint_state_covariance, icp.joint_state_covariance, rtol=1e-6, atol=1e-14)
+    # translations move to the NPCS origins, t' = t + s R c (c: the NPCS origin in the template part frame, at
+    # scale 1 here): a rotation error phi moves them by phi x (s R c)
+    layout = fitted_layout(scene["fit"], scene["corr"])
+    moved = []
+    for j, T_part in enumerate(c.pose.part_poses(c.model)):
+        w = T_part.scale * T_part.rotation @ layout.T_B_npcs[j].translation
+        B = np.hstack([-np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]]), np.eye(3)])
+        expected = B @ icp.part_covariances[j, :6, :6] @ B.T
+        np.testing.assert_allclose(u.part_covariances[j, 3:6, 3:6], expected, rtol=1e-6, atol=1e-14)
+        moved.append(np.abs(expected - icp.part_covariances[j, 3:6, 3:6]).max() / np.abs(expected).max())
+    assert max(moved) > 0.05  # the lever arm matters (so the check above can tell the frames apart)
+    base = refine_fit(scene["obs"], scene["fit"], scene["corr"], scene["model"], rng=0,
+                      config=RefineConfig(candidates=("base",), scales=(1.0,)))
+    assert not base.accepted or base.result.uncertainty is None  # the base candidate: no single program's covariance
 
 
 def test_input_score_is_the_template_at_the_fit_part_poses(scene):
