@@ -55,7 +55,9 @@ def register(sub) -> None:
     e.add_argument("--data", required=True, type=Path, help="the run's training shards (its validation split is made from them)")
     e.add_argument("--out", required=True, type=Path, help="weights file to write, e.g. ancsh/weights/laptop.pt")
     e.add_argument("--checkpoints", nargs="+", type=Path, metavar="PT",
-                   help="candidates (default: the run's best.pt and last.pt, where present)")
+                   help="candidates (default: the run's best.pt and last.pt, where present); a weights file among them "
+                   "(e.g. the network the run was fine-tuned from) is scored too, and when it scores best nothing is "
+                   "exported")
     e.add_argument("--frames", type=int, help="score this many evenly spaced validation frames (default: all)")
     e.add_argument("--test-data", type=Path, help="held-out test shards: the chosen network's scores against trivial "
                    "baselines, stored with the weights (as `ancsh train --test-data`)")
@@ -183,6 +185,12 @@ def run_export(args: argparse.Namespace) -> int:
         print(f"{Path(r['checkpoint']).name:<40} {r['step']:>6} {r['frames']:>6} {r['pose_rot_deg']:>9.3f} "
               f"{r['pose_axis_deg']:>7.3f} {r['pose_state_err']:>7.3f} {r['pose_score']:>7.3f} "
               f"{int(r['pose_failures'])}{mark}")
+    from .weights import read_torch_file
+
+    if "model" not in read_torch_file(chosen["checkpoint"], argument="--checkpoints"):
+        print(f"the best candidate, {chosen['checkpoint']}, is a weights file, not a training checkpoint: "
+              f"nothing exported (keep it)")
+        return 0
     metrics = {}
     if args.test_data is not None:
         metrics = evaluate_checkpoint(chosen["checkpoint"], args.test_data, config)
