@@ -87,8 +87,9 @@ class CalibrationConfig:
     providers : tuple of str
         From :data:`PROVIDERS` (default :data:`DEFAULT_PROVIDERS`). ``learned-template``: the learned
         fits refined against the category template (:meth:`~ancsh.learned.provider.LearnedProvider.refine`,
-        forced on), only the frames whose refinement was accepted (the others keep the learned fit,
-        which the ``learned`` row calibrates); their covariance is the template ICP's, without a
+        forced on), only the frames whose refinement was accepted as the ``articulated`` candidate (the
+        others keep the learned fit, which the ``learned`` row calibrates, or carry no covariance: counted
+        as ``not_refined``); their covariance is the template ICP's, without a
         scale (chosen by the scale search), so they have no ``scale`` row.
     frames : int
         Test frames per category.
@@ -495,7 +496,7 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
                     result = fit(obs, corr, config.formulation, rng=i)
                     if p == "learned-template" and result.ok:
                         refined = learned.refine(obs, corr, result, refine="template", rng=i)
-                        if not refined.accepted:
+                        if not refined.accepted or refined.result.uncertainty is None:  # kept the input, or base
                             counts[cat][p][split]["not_refined"] += 1
                             continue
                         result = refined.result
@@ -825,14 +826,18 @@ def write_report(measured: dict, summary: dict, config: CalibrationConfig, out_m
             f"{_describe(r['sigma_map'], 'per joint' if r['quantity'].startswith('joint') else 'per part')} | "
             f"{_pct(r['inflated'][0])} / {_pct(r['inflated'][1])} | {'yes' if _within(r['inflated']) else '**no**'} |")
     lines += ["", "Fits per split (failed: no estimate or a failed plausibility check, not scored; singular: some "
-              "quantity undetermined, its errors not scored):", "",
+              "quantity undetermined, its errors not scored; not refined: learned-template frames whose template "
+              "refinement kept the learned fit or chose the base candidate, which carries no covariance):", "",
               "| category | provider | calibration frames / failed / singular | test frames / failed / singular |",
               "|---|---|---|---|"]
     for cat, per in measured["counts"].items():
         for p, c in per.items():
             a, b = c["calibration"], c["test"]
-            lines.append(f"| {cat} | {p} | {a['frames']} / {a['failed']} / {a['singular']} | "
-                         f"{b['frames']} / {b['failed']} / {b['singular']} |")
+            def frames(x):  # learned-template: the frames left to the learned fit (or without a covariance) beside
+                return f"{x['frames']}" + (f" (+{x['not_refined']} not refined)" if "not_refined" in x else "")
+
+            lines.append(f"| {cat} | {p} | {frames(a)} / {a['failed']} / {a['singular']} | "
+                         f"{frames(b)} / {b['failed']} / {b['singular']} |")
     lines += ["", "## Cost of the covariance", "",
               "Mean over the test frames, the same fit run with and without `FitConfig(uncertainty=...)` in one process:", "",
               "| provider | fit with covariance (ms) | without (ms) | covariance alone (ms) |", "|---|---|---|---|"]
