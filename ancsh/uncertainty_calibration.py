@@ -883,6 +883,7 @@ def install(summary: dict, config: CalibrationConfig, command: str, path=None) -
 
             per_cat = {c: {**f, "weights_sha256": file_sha256(weights_path(c))} for c, f in per_cat.items()}
         table["providers"].setdefault(p, {}).update(per_cat)
+        table.setdefault("commands", {})[p] = command  # what measured each provider's maps (the last run per provider)
     table["formulation"] = config.formulation
     table["command"] = command
     table["date"] = datetime.date.today().isoformat()
@@ -955,7 +956,8 @@ def run(args) -> int:
         parts = []
         for path in args.records:
             m = load_records(path)
-            held = sorted({(c[s]["frames"], s) for per in m["counts"].values() for c in per.values() for s in c})
+            held = sorted({(c[s]["frames"] + c[s].get("not_refined", 0), s)  # learned-template: refined + not
+                           for per in m["counts"].values() for c in per.values() for s in c})
             want = sorted({(config.n_calibration, "calibration"), (config.frames, "test")})
             if held != want:
                 raise ValueError(f"--records: {path} holds {held} frames per split, not {want} "
