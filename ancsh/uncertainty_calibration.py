@@ -52,7 +52,7 @@ import numpy as np
 
 from .outputs import output_flags
 
-__all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "ErrorRecord", "coverage", "error_records", "merge_records",
+__all__ = ["COVERAGE_TARGETS", "CORRELATION_GRID", "QUANTITIES", "CalibrationConfig", "ErrorRecord", "coverage", "describe_sigma_map", "error_records", "merge_records",
            "fit_inflation", "fit_quantity_inflation", "fit_sigma_map", "inflated_errors", "measure", "normalised_errors",
            "raw_sigmas", "register", "run", "summarize", "write_report"]
 
@@ -194,7 +194,7 @@ def _record(index, e, C, Cc, block, block_corr) -> ErrorRecord:
                        int(index))
 
 
-def error_records(result, gt) -> dict:
+def error_records(result, gt, *, reported: bool = False) -> dict:
     """``{quantity: [ErrorRecord, ...]}`` of one fit against its ground truth: each error vector
     (``dof``,) with its raw covariance and the covariance per unit within-part correlation, in the
     same coordinates, and the block variances the inflation maps.
@@ -204,10 +204,13 @@ def error_records(result, gt) -> dict:
     result : FitResult
         With :attr:`~ancsh.solvers.types.FitResult.uncertainty`.
     gt : AncshGroundTruth
+    reported : bool
+        Use the covariances as the fit reports them (after any inflation applied to it) instead of the
+        raw ones: for checking the coverage of what a user is given.
     """
     from .geometry.rotations import log_so3
 
-    u = result.uncertainty.raw()
+    u = result.uncertainty if reported else result.uncertainty.raw()
     c = u.correlated if u.correlated is not None else u  # none only for "unavailable" (infinite) covariances
     out = {q: [] for q in QUANTITIES}
     for j, (T, G) in enumerate(zip(result.T_cam_npcs, gt.T_cam_npcs)):
@@ -697,7 +700,7 @@ def reliability_plot(measured: dict, summary: dict, path) -> Path:
                 col = colours[c % len(colours)]
                 ax.plot(probs, coverage(raw, q, 1.0, probs), "--", color=col, lw=1)
                 ax.plot(probs, coverage(inflated, q, 1.0, probs), "-", color=col, lw=1.5,
-                        label=f"{cat} (rho {ent['correlation']:g}, {_describe(ent[q])})"[:60])
+                        label=f"{cat} (rho {ent['correlation']:g}, {describe_sigma_map(ent[q])})"[:60])
             for t in COVERAGE_TARGETS:
                 ax.axvline(t, color="0.85", lw=0.8)
             ax.set_title(f"{p}: {q.replace('_', ' ')}")
@@ -716,10 +719,10 @@ def reliability_plot(measured: dict, summary: dict, path) -> Path:
     return path
 
 
-def _describe(stored, per: str = "per part") -> str:
+def describe_sigma_map(stored, per: str = "per part") -> str:
     """A stored map (:meth:`SigmaMap.to_json`, or a list of them ``per`` part / joint) in a few characters."""
     if isinstance(stored, list):
-        return f"{per}: " + "; ".join(_describe(v) for v in stored)
+        return f"{per}: " + "; ".join(describe_sigma_map(v) for v in stored)
     if not isinstance(stored, dict):
         return f"×{stored:.3g}"
     out = f"×{stored['factor']:.3g}"
@@ -823,7 +826,7 @@ def write_report(measured: dict, summary: dict, config: CalibrationConfig, out_m
         lines.append(
             f"| {r['category']} | {r['provider']} | {r['quantity']} | {r['n_calibration']} / {r['n_test']} | "
             f"{_pct(r['raw'][0])} / {_pct(r['raw'][1])} | {r['correlation']:g} | "
-            f"{_describe(r['sigma_map'], 'per joint' if r['quantity'].startswith('joint') else 'per part')} | "
+            f"{describe_sigma_map(r['sigma_map'], 'per joint' if r['quantity'].startswith('joint') else 'per part')} | "
             f"{_pct(r['inflated'][0])} / {_pct(r['inflated'][1])} | {'yes' if _within(r['inflated']) else '**no**'} |")
     lines += ["", "Fits per split (failed: no estimate or a failed plausibility check, not scored; singular: some "
               "quantity undetermined, its errors not scored; not refined: learned-template frames whose template "
@@ -889,7 +892,8 @@ def install(summary: dict, config: CalibrationConfig, command: str, path=None) -
     table["date"] = datetime.date.today().isoformat()
     table["meaning"] = ("maps of the raw Jacobian standard deviations of ancsh.solvers.uncertainty (SigmaMap: a number is "
                         "a single factor; a list holds one map per part or joint), per provider, category and quantity, "
-                        "measured on calibration frames by ancsh bench uncertainty")
+                        "measured on calibration frames by ancsh bench uncertainty (providers *-tracked-<source>: warm tracked "
+                        "frames, by ancsh bench tracking --calibration-sequences)")
     path.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
     return path
 

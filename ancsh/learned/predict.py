@@ -366,21 +366,26 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     )
 
 
-def inflate_uncertainty(result, category: str, provider, *, template: bool = False):
+def inflate_uncertainty(result, category: str, provider, *, template: bool = False, tracked: str | None = None):
     """The fit with its standard deviations inflated by the factors measured for these weights of
     ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights.
     ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits.
     ``template``: the fit was refined by the category template (an accepted
     :meth:`LearnedProvider.refine`), whose covariance is the template ICP's: the factors measured for
-    those fits apply (provider ``"learned-template"`` of ``ancsh bench uncertainty``)."""
+    those fits apply (provider ``"learned-template"`` of ``ancsh bench uncertainty``).
+    ``tracked``: the source of a warm tracked frame (``"network"``, ``"carried"``, ``"template"``): the
+    factors measured on tracked frames of that source (provider ``"learned-tracked-<source>"`` of
+    ``ancsh bench tracking --calibration-sequences``) apply where measured, else the single-frame ones."""
     import dataclasses
 
     from ..solvers.uncertainty import inflation_for
 
     if result.uncertainty is None:
         return result
-    inflation = inflation_for("learned-template" if template else "learned", str(category),
-                              weights_sha256=getattr(provider.network, "sha256", None))
+    sha = getattr(provider.network, "sha256", None)
+    inflation = inflation_for(f"learned-tracked-{tracked}", str(category), weights_sha256=sha) if tracked else None
+    if inflation is None or inflation.is_identity:
+        inflation = inflation_for("learned-template" if template else "learned", str(category), weights_sha256=sha)
     return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
 
 

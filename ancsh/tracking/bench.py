@@ -54,6 +54,12 @@ class BenchConfig:
     network_every : int
         ``k``: the network runs on every ``k``-th tracked frame.
     seed : int
+    tracker : dict
+        :class:`~ancsh.tracking.tracker.TrackerConfig` fields of the tracking side.
+    calibration_sequences : int
+        Sequences per procedural object of the calibration of tracked frames' standard deviations
+        (:func:`calibrate`; 0: none), frame seed ``calibration_seed`` (the same held-out instances, other
+        sequences than the benchmark's).
     """
 
     categories: tuple = ("laptop", "drawer", "eyeglasses")
@@ -67,6 +73,8 @@ class BenchConfig:
     network_every: int = 3
     seed: int = 0
     tracker: dict = field(default_factory=dict)
+    calibration_sequences: int = 0
+    calibration_seed: int = 1001
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -117,6 +125,56 @@ def _category_errors(result, frame) -> dict:
             "state_signed": v["state"].tolist()}
 
 
+#: Quantities whose reported standard deviations the benchmark checks (:mod:`ancsh.uncertainty_calibration`).
+COVERAGE_QUANTITIES = ("rotation", "translation", "joint_state")
+
+
+def _reported(result, tracked, provider_name: str, category: str, provider):
+    """The fit with the standard deviations a user is given: the tracker's frames (``tracked``, a
+    :class:`~ancsh.tracking.tracker.TrackedFrame`) as it reports them (a learned provider's inflated,
+    :meth:`~ancsh.tracking.tracker.CategoryTracker.step`); a learned per-frame fit (``tracked`` ``None``)
+    inflated as ``ancsh predict`` does (:func:`~ancsh.learned.predict.inflate_uncertainty`); the oracle's
+    fits (raw in the tracker: it has no weights) as the tracker would a learned provider's, with the
+    factors of provider ``oracle-realistic`` (``-tracked-<source>`` for warm tracked frames, where measured)."""
+    import dataclasses
+
+    from .tracker import TrackStatus
+
+    unc = getattr(result, "uncertainty", None)
+    if unc is None:
+        return result
+    if provider_name == "learned":
+        if tracked is not None:
+            return result
+        from ..learned.predict import inflate_uncertainty
+
+        return inflate_uncertainty(result, category, provider)
+    from ..solvers.uncertainty import inflation_for
+
+    if not unc.inflation.is_identity:
+        return result
+    inflation = None
+    if tracked is not None and tracked.status == TrackStatus.TRACKED:
+        inflation = inflation_for(tracked_provider_key(provider_name, tracked.source), category)
+    if inflation is None or inflation.is_identity:
+        inflation = inflation_for("oracle-realistic", category)
+    return dataclasses.replace(result, uncertainty=unc.inflated(inflation))
+
+
+def _coverage_fields(result, frame) -> dict:
+    """``{"d2": {quantity: [squared Mahalanobis distance of each part's / joint's error, ...]}}`` under the
+    fit's reported covariance (:func:`~ancsh.uncertainty_calibration.error_records`, ``reported=True``;
+    ``nan`` where a variance is unbounded), and ``"inflation"``: the source of the maps applied; ``{}`` for a fit
+    without an uncertainty."""
+    from ..uncertainty_calibration import error_records, normalised_errors
+
+    if getattr(result, "uncertainty", None) is None:
+        return {}
+    records = error_records(result, frame.gt, reported=True)
+    return {"d2": {q: normalised_errors(records[q]).tolist() for q in COVERAGE_QUANTITIES},
+            "inflation": result.uncertainty.inflation.source}
+
+
 def _instance_errors(result, frame, model, part_points) -> dict:
     from ..geometry.metrics import rotation_error_deg
     from ..solvers.icp.evaluate import ad_correct
@@ -141,6 +199,75 @@ def _diag_inverse(model) -> float:
     return canonical_space(model).T_naocs_base.scale
 
 
+def _provider(name: str, category: str):
+    if name == "learned":
+        from ..learned.provider import LearnedProvider
+
+        return LearnedProvider(category, num_threads=1)
+    return _FrameOracle()
+
+
+#: How the inflation table names the maps of tracked frames, by bench provider and frame source.
+def tracked_provider_key(provider_name: str, source: str) -> str:
+    """``"learned-tracked-carried"``, ``"oracle-realistic-tracked-network"``, ...: the inflation-table provider of
+    a warm tracked frame (:func:`ancsh.learned.predict.inflate_uncertainty`'s ``tracked``)."""
+    return f"{'learned' if provider_name == 'learned' else 'oracle-realistic'}-tracked-{source}"
+
+
+def calibrate(config: BenchConfig, *, progress=None) -> dict:
+    """Measure inflation maps of tracked frames' standard deviations, per provider, category and frame source.
+
+    Tracks ``config.calibration_sequences`` sequences per object (frame seed ``config.calibration_seed``;
+    tracking only) and collects, of every warm (``tracked``) in-view frame that reports a covariance, the raw
+    error records (:func:`ancsh.uncertainty_calibration.error_records`) under
+    :func:`tracked_provider_key`; :func:`ancsh.uncertainty_calibration.summarize` fits the within-part
+    correlation and the maps as for single frames (its "test" split is the calibration itself here:
+    the benchmark's own sequences are the test).
+
+    Returns
+    -------
+    dict
+        ``{"summary": summarize(...)'s dict (without its d2), "counts": {category: {provider key: frames}}}``.
+    """
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..data.sequences import SequenceMotion
+    from ..solvers.types import Observation
+    from ..uncertainty_calibration import QUANTITIES, error_records
+    from ..uncertainty_calibration import summarize as fit_maps
+    from .tracker import CategoryTracker, TrackerConfig, TrackStatus
+
+    say = progress or (lambda s: None)
+    tcfg = TrackerConfig(network_every=config.network_every, **config.tracker)
+    records, counts = {}, {}
+    for category in config.categories:
+        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=config.calibration_seed,
+                                              sequence=SequenceMotion(length=config.length)))
+        for provider_name in config.providers:
+            provider = _provider(provider_name, category)
+            for seq in range(config.calibration_sequences):
+                say(f"calibration: {category} / {provider_name} / sequence {seq}")
+                tracker = CategoryTracker(provider, tcfg, category=category, rng=config.calibration_seed)
+                for fr, blank in _sequence_frames(gen, seq, config.length, config.gap):
+                    if isinstance(provider, _FrameOracle):
+                        provider.frame = fr
+                    tracked = tracker.step(Observation(np.zeros((0, 3)) if blank else fr.points))
+                    r = tracked.result
+                    if blank or tracked.status != TrackStatus.TRACKED or getattr(r, "uncertainty", None) is None:
+                        continue
+                    key = tracked_provider_key(provider_name, tracked.source)
+                    cal = records.setdefault(category, {}).setdefault(key, {"calibration": {q: [] for q in QUANTITIES}})
+                    for q, rs in error_records(r, fr.gt).items():
+                        cal["calibration"][q] += rs
+                    counts.setdefault(category, {}).setdefault(key, 0)
+                    counts[category][key] += 1
+    for per_key in records.values():
+        for splits in per_key.values():
+            splits["test"] = splits["calibration"]
+    summary = fit_maps({"records": records})
+    summary.pop("d2")
+    return {"summary": summary, "counts": counts}
+
+
 def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
     """Run the benchmark; returns ``{"config", "machine", "records"}`` (one record per frame and method)."""
     from .._machine import machine_facts
@@ -157,12 +284,7 @@ def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
         gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=config.seed,
                                               sequence=SequenceMotion(length=config.length)))
         for provider_name in config.providers:
-            if provider_name == "learned":
-                from ..learned.provider import LearnedProvider
-
-                provider = LearnedProvider(category, num_threads=1)
-            else:
-                provider = _FrameOracle()
+            provider = _provider(provider_name, category)
             for seq in range(config.sequences):
                 frames = _sequence_frames(gen, seq, config.length, config.gap)
                 say(f"{category} / {provider_name} / sequence {seq}: {len(frames)} frames")
@@ -193,6 +315,8 @@ def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
                                "source": None if tracked is None else tracked.source,
                                "iterations": None if result is None else int(result.iterations)}
                         rec.update(_category_errors(result, fr) if not blank else {"ok": result is not None and result.ok})
+                        if not blank and rec["ok"]:
+                            rec.update(_coverage_fields(_reported(result, tracked, provider_name, category, provider), fr))
                         records.append(rec)
     if config.urdf is not None:
         records += _urdf_records(config, say)
@@ -287,6 +411,8 @@ def summarize(report: dict) -> dict:
                 m["network_frames"] = sum(r["source"] == "network" for r in sel)
                 m["recovered"] = _recovered(sel)
             row[method] = m
+        if prov != "urdf":
+            row["coverage"] = _coverage_summary([r for r in recs if r["object"] == obj and r["provider"] == prov])
         t, p = row["tracking"], row["per_frame"]
         row["ratio"] = {k: (t[k] / p[k] if p[k] else float("nan")) for k in ("rot_deg", "trans", "state_err")}
         row["speedup"] = t["fps"] / p["fps"]
@@ -295,6 +421,31 @@ def summarize(report: dict) -> dict:
                                                         and r["method"] == method]) for method in ("per_frame", "tracking")}
         rows.append(row)
     return {"rows": rows}
+
+
+def _coverage_summary(records) -> list:
+    """Coverage of the reported standard deviations, per method and (tracking) per frame source:
+    ``[{"method", "source", "fits", "with_std", quantity: [1 sigma, 2 sigma] or None, "n_" + quantity}, ...]``
+    over the in-view frames with an accepted fit (:func:`~ancsh.uncertainty_calibration.coverage`;
+    unbounded variances left out)."""
+    from ..uncertainty_calibration import coverage
+
+    out = []
+    for method in ("tracking", "per_frame"):
+        good = [r for r in records if r["method"] == method and not r["blank"] and r["ok"]]
+        sources = [None] + (sorted({r["source"] for r in good}) if method == "tracking" else [])
+        for source in sources:
+            sel = [r for r in good if source is None or r["source"] == source]
+            if not sel:
+                continue
+            have = [r for r in sel if r.get("d2")]
+            row = {"method": method, "source": source or "all", "fits": len(sel), "with_std": len(have)}
+            for q in COVERAGE_QUANTITIES:
+                d2 = np.array([np.nan if v is None else v for r in have for v in r["d2"][q]], dtype=np.float64)
+                row["n_" + q] = int(np.isfinite(d2).sum())
+                row[q] = coverage(d2, q).tolist() if row["n_" + q] else None
+            out.append(row)
+    return out
 
 
 CORRELATION_KINDS = (("rot_vec", "rotation"), ("trans_vec", "translation"), ("state_signed", "joint state"))
@@ -361,8 +512,11 @@ def _fmt(v, digits=2) -> str:
     return f"{v:.{digits}f}"
 
 
-def write_report(report: dict, summary: dict, path, *, command: str) -> str:
-    """Write the markdown table (and ``.json`` next to it: config, machine, summary, records); returns the markdown."""
+def write_report(report: dict, summary: dict, path, *, command: str, calibration: dict | None = None,
+                 installed: bool = False) -> str:
+    """Write the markdown table (and ``.json`` next to it: config, machine, summary, records, calibration);
+    returns the markdown. ``calibration``: :func:`calibrate`'s result (``installed``: its maps were installed
+    before the benchmark's sequences ran, so the coverage table tests them)."""
     from pathlib import Path
 
     from .._machine import describe_machine
@@ -415,6 +569,9 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
                      f"{_fmt(r['rot_deg'])} | {_fmt(r['trans'])} | {_fmt(r['state_err'])} | | | | |")
     lines += ["", "## Targets", ""]
     lines += _targets(rows, cfg)
+    lines += _coverage_table(rows)
+    if calibration is not None:
+        lines += _calibration_table(calibration, cfg, installed)
     lines += _correlation_table(rows)
     text = "\n".join(lines) + "\n"
     path = Path(path)
@@ -423,7 +580,7 @@ def write_report(report: dict, summary: dict, path, *, command: str) -> str:
 
     write_bytes_atomically(path, text.encode())
     payload = {"command": command, "config": cfg, "tracker": report["tracker"], "machine": report["machine"],
-               "summary": summary, "records": report["records"]}
+               "summary": summary, "calibration": calibration, "records": report["records"]}
     from ..learned.evaluate import json_safe
 
     write_bytes_atomically(path.with_suffix(".json"), json.dumps(json_safe(payload), separators=(",", ":")).encode())
@@ -446,6 +603,70 @@ def _fusion_words(tracker: dict) -> str:
         return "network frames fitted on the network's correspondences alone"
     return (f"network frames fused: the network's correspondences and, with weight {w:g}, the carried ones in one fit "
             "(a recursive weighted mean over the network frames)")
+
+
+def _coverage_table(rows) -> list:
+    """The markdown section of the reported standard deviations' coverage (:func:`_coverage_summary`)."""
+    have = [r for r in rows if r.get("coverage")]
+    if not have:
+        return []
+    lines = ["", "## Coverage of the reported standard deviations", "",
+             "How often the truth lies within the reported 1σ / 2σ (%, target 68 / 95, within 10 points: issue 15), over "
+             "the in-view frames with an accepted fit, per part (rotation, translation of `T_cam_npcs`) and joint (state): "
+             "the squared Mahalanobis distance of the error under the reported covariance against the chi-square "
+             "quantiles (`ancsh bench uncertainty`'s definitions). What is reported: the tracker's frames as it returns "
+             "them (learned: inflated by the factors of `ancsh/weights/uncertainty_inflation.json`, provider `learned`, or "
+             "`learned-template` for the carried category template), learned per-frame fits inflated as by `ancsh "
+             "predict`; the oracle's fits on both sides by the factors of provider `oracle-realistic`. `with std`: fits "
+             "that report one, of the accepted fits; by source: the tracker's frames by where their correspondences "
+             "came from (`network`: the cold and warm network frames).", "",
+             "| object | provider | method | source | with std | rotation | translation | joint state |",
+             "|---|---|---|---|---|---|---|---|"]
+
+    from ..uncertainty_calibration import COVERAGE_TARGETS
+
+    def cell(c, q):
+        v = c[q]
+        if v is None:
+            return "—"
+        mark = "" if all(abs(a - b) <= 0.10 for a, b in zip(v, COVERAGE_TARGETS)) else " **x**"
+        return f"{100 * v[0]:.0f} / {100 * v[1]:.0f}{mark} ({c['n_' + q]})"
+
+    for row in have:
+        for c in row["coverage"]:
+            lines.append(f"| {row['object']} | {row['provider']} | {c['method'].replace('_', '-')} | {c['source']} | "
+                         f"{c['with_std']}/{c['fits']} | " + " | ".join(cell(c, q) for q in COVERAGE_QUANTITIES) + " |")
+    lines += ["", "**x**: outside 10 points of the target at 1σ or 2σ; in brackets the number of errors scored."]
+    return lines
+
+
+def _calibration_table(calibration: dict, cfg: dict, installed: bool) -> list:
+    """The markdown section of the tracked frames' inflation maps (:func:`calibrate`)."""
+    from ..uncertainty_calibration import describe_sigma_map
+
+    rows = calibration["summary"]["rows"]
+    lines = ["", "## Calibration of tracked frames' standard deviations", "",
+             f"Measured on {cfg['calibration_sequences']} other sequences per object (frame seed "
+             f"{cfg['calibration_seed']}, the same held-out instances; tracking only), per provider, object and source "
+             "of the warm tracked frames, as `ancsh bench uncertainty` measures single frames (within-part correlation "
+             "rho, then per quantity the map of the raw sigmas that brings the calibration coverage nearest 68 / 95 %). A "
+             "carried frame's raw covariance counts the carried rows as observations, and a fused network frame's "
+             "counts them beside the network's: both repeat earlier errors, so their raw sigmas are far too small. "
+             + ("These maps were installed (`ancsh/weights/uncertainty_inflation.json`, providers `*-tracked-<source>`) "
+                "before the benchmark's sequences ran: the coverage table above tests them on other sequences."
+                if installed else "These maps were **not** installed (no `--install`): the coverage table above used "
+                "the table as it was."), "",
+             "| object | provider | quantity | n | raw 1σ / 2σ (%) | rho | map | inflated 1σ / 2σ (%) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if r["quantity"] not in COVERAGE_QUANTITIES:
+            continue
+        per = "per joint" if r["quantity"].startswith("joint") else "per part"
+        raw, inf = r["raw"], r["calibration_inflated"]
+        lines.append(f"| {r['category']} | {r['provider']} | {r['quantity']} | {r['n_calibration']} | "
+                     f"{100 * raw[0]:.0f} / {100 * raw[1]:.0f} | {r['correlation']:g} | "
+                     f"{describe_sigma_map(r['sigma_map'], per)} | {100 * inf[0]:.0f} / {100 * inf[1]:.0f} |")
+    return lines
 
 
 def _correlation_table(rows) -> list:
@@ -521,6 +742,13 @@ def register(sub) -> None:
     p.add_argument("--tracker", default=None, metavar="JSON",
                    help="TrackerConfig settings of the tracking side, a JSON object, e.g. '{\"temporal_weight\": 0.1}' "
                         "(default: TrackerConfig's defaults)")
+    p.add_argument("--calibration-sequences", type=int, default=0,
+                   help="first measure inflation maps of tracked frames' standard deviations on this many other "
+                        "sequences per procedural object (default 0: none)")
+    p.add_argument("--calibration-seed", type=int, default=1001, help="frame seed of the calibration sequences (default 1001)")
+    p.add_argument("--install", action="store_true",
+                   help="install the measured maps in ancsh/weights/uncertainty_inflation.json before the benchmark's "
+                        "sequences run (needs --calibration-sequences)")
     p.add_argument("--out", default=None, help="markdown report path (default: a fresh ancsh_results/bench-tracking-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/tracking.md (when --out is not given)")
     p.set_defaults(func=run)
@@ -529,12 +757,15 @@ def register(sub) -> None:
 def _command(args) -> str:
     parts = ["ancsh bench tracking"]
     defaults = {"categories": "laptop,drawer,eyeglasses", "providers": "learned,oracle", "urdf": "default", "sequences": 2,
-                "length": 40, "urdf_length": 16, "urdf_sequences": 1, "gap": 3, "network_every": 3, "seed": 0}
+                "length": 40, "urdf_length": 16, "urdf_sequences": 1, "gap": 3, "network_every": 3, "seed": 0,
+                "calibration_sequences": 0, "calibration_seed": 1001}
     for key, default in defaults.items():
         if getattr(args, key) != default:
             parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
     if args.tracker:
         parts.append(f"--tracker '{json.dumps(_tracker_settings(args.tracker), sort_keys=True)}'")
+    if args.install:
+        parts.append("--install")
     parts += output_flags(args.out, update_docs=args.update_docs)
     return " ".join(parts)
 
@@ -571,13 +802,27 @@ def run(args) -> int:
             raise ValueError(f"--providers: expected learned and/or oracle, got {p!r}")
     config = BenchConfig(categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), providers=providers,
                          urdf=urdf, sequences=args.sequences, urdf_sequences=args.urdf_sequences, length=args.length, urdf_length=args.urdf_length, gap=args.gap,
-                         network_every=args.network_every, seed=args.seed, tracker=_tracker_settings(args.tracker))
+                         network_every=args.network_every, seed=args.seed, tracker=_tracker_settings(args.tracker),
+                         calibration_sequences=args.calibration_sequences, calibration_seed=args.calibration_seed)
+    if args.calibration_sequences < 0:
+        raise ValueError(f"--calibration-sequences: expected an integer >= 0, got {args.calibration_sequences}")
+    if args.install and not args.calibration_sequences:
+        raise ValueError("--install: nothing to install without --calibration-sequences")
     command = _command(args)
+    out = report_path(args.out, update_docs=args.update_docs, docs_name="tracking.md", command="bench-tracking")
     t0 = time.perf_counter()
+    calibration = None
+    if args.calibration_sequences:
+        calibration = calibrate(config, progress=lambda s: print(s, flush=True))
+        if args.install:
+            from ..uncertainty_calibration import CalibrationConfig, install
+            from .tracker import TrackerConfig
+
+            tformulation = TrackerConfig(**config.tracker).formulation
+            print(f"installed the maps of tracked frames in {install(calibration['summary'], CalibrationConfig(formulation=tformulation), command)}")
     report = run_benchmark(config, progress=lambda s: print(s, flush=True))
     summary = summarize(report)
-    out = report_path(args.out, update_docs=args.update_docs, docs_name="tracking.md", command="bench-tracking")
-    text = write_report(report, summary, out, command=command)
+    text = write_report(report, summary, out, command=command, calibration=calibration, installed=args.install)
     print(text)
     print(f"wrote {out} and {out.with_suffix('.json')} in {time.perf_counter() - t0:.0f} s")
     return 0

@@ -190,9 +190,12 @@ class TrackerConfig:
         Matches farther than this many object diagonals get weight 0, ``> 0``.
     carried_uncertainty : bool
         Compute the fit covariances (``FitConfig.uncertainty``) of carried frames (on their last
-        solve only; intermediate solves never do). Default ``False``: the covariance took about a
-        fifth of a carried frame's time here; network frames keep ``fit.uncertainty``, and carried
-        frames then report no ``joint_states_std``.
+        solve only; intermediate solves never do). Default ``True``: every tracked frame reports its
+        standard deviations (``ancsh bench tracking`` measures their coverage and the cost); ``False``
+        saves about a fifth of a carried frame's time, and carried frames then report no
+        ``joint_states_std``. A carried frame's raw covariance counts the carried rows as data, which
+        they are not (they repeat the last network frame's errors): its inflation is measured per
+        source (``learned-tracked-carried``).
     predict_from : str
         Where the constant-velocity prediction (warm start and temporal prior) of a carried frame
         takes its *object pose*: ``"network"`` (default) from the last two network frames of the track,
@@ -222,8 +225,11 @@ class TrackerConfig:
         drawers); eyeglasses 1.10, 1.22, 1.29. ``()``: never.
     template_icp : InstanceTrackerConfig or None
         The template's warm ICP (default: :class:`~ancsh.tracking.instance.InstanceTrackerConfig` without
-        covariances and without its own cold multi-start: a frame it loses is re-initialised by the
-        network). Template frames report no ``joint_states_std``.
+        its own cold multi-start: a frame it loses is re-initialised by the network). With its
+        ``uncertainty`` (default on) a template frame reports the ICP's covariance mapped to the fit's
+        frames (:func:`~ancsh.solvers.icp.category.template_fit_uncertainty`; scale variances unknown),
+        inflated for a learned provider by the factors of provider ``learned-template`` (those of
+        single-frame template refinements, ``ancsh bench uncertainty --providers learned-template``).
     template_reuse : bool
         A re-initialisation after a loss first refines against the template chosen before the loss, at its scale
         only (one articulated ICP run, about half the cost of the nearest-template choice with its scale search),
@@ -248,7 +254,7 @@ class TrackerConfig:
     velocity: float = 1.0
     carried_iterations: int = 1
     carried_gate: float = 0.1
-    carried_uncertainty: bool = False
+    carried_uncertainty: bool = True
     predict_from: str = "network"
     warm_rescore_rounds: int = 2
     network_scale: bool = True
@@ -285,7 +291,7 @@ class TrackerConfig:
         from .instance import InstanceTrackerConfig  # (instance.py imports this module)
 
         if self.template_icp is None:
-            object.__setattr__(self, "template_icp", InstanceTrackerConfig(uncertainty=False, reinitialise=False))
+            object.__setattr__(self, "template_icp", InstanceTrackerConfig(reinitialise=False))
         elif not isinstance(self.template_icp, InstanceTrackerConfig):
             raise ValueError(f"template_icp: expected an InstanceTrackerConfig, got {type(self.template_icp).__name__}")
 
@@ -515,7 +521,7 @@ class CategoryTracker:
         if self._template is not None:
             result, why = self._template_step(observation)
             if result is not None:
-                return self._frame(index, TrackStatus.TRACKED, result.message, result, "template", t0)
+                return self._frame(index, TrackStatus.TRACKED, result.message, result, "template", t0, template=True)
         elif self._track is not None:
             result, corr, source = self._warm(observation)
             if result.ok:
@@ -530,15 +536,15 @@ class CategoryTracker:
         self._started = True
         self._track = None
         self._advance(observation, result, corr, True)
-        result, how = self._start_template(observation, result, corr)
-        return self._frame(index, status, why + "cold fit (network + RANSAC)" + how, result, "network", t0)
+        result, how, refined = self._start_template(observation, result, corr)
+        return self._frame(index, status, why + "cold fit (network + RANSAC)" + how, result, "network", t0, template=refined)
 
     def _start_template(self, observation, result: FitResult, corr):
         """Refine a cold fit against the category template and carry it (``template_categories``):
-        ``(fit to report, message suffix)``."""
+        ``(fit to report, message suffix, whether it is the template's)``."""
         cfg = self.config
         if self.category not in cfg.template_categories:
-            return result, ""
+            return result, "", False
         from ..data.templates import load_template_library
         from ..solvers.icp.category import RefineConfig, refine_fit
         from .instance import InstanceTracker
@@ -557,12 +563,14 @@ class CategoryTracker:
         if ref is None or not ref.accepted:
             ref = refine_fit(observation, result, corr, library, rng=self.rng)
         if not ref.accepted:
-            return result, f"; category template not carried ({ref.reason})"
+            return result, f"; category template not carried ({ref.reason})", False
         self._template_choice = (ref.template, ref.scale)
         c = ref.carried
         self._template = (InstanceTracker(c.model, cfg.template_icp, rng=self.rng, initial=c.pose), c)
-        return c.fit_of(c.pose), (f"; carrying the category template {ref.template} (scale {ref.scale:g}, {ref.choice} "
-                                  f"refinement{reused})")
+        # an articulated refinement's covariance is the ICP's at c.pose (refine_fit); a base one has none
+        fitted = dataclasses.replace(c.fit_of(c.pose), uncertainty=ref.result.uncertainty if ref.choice == "articulated" else None)
+        return fitted, (f"; carrying the category template {ref.template} (scale {ref.scale:g}, {ref.choice} "
+                        f"refinement{reused})"), True
 
     def _template_step(self, observation):
         """A warm ICP frame of the carried category template: ``(FitResult or None, why it was lost)``."""
@@ -574,7 +582,7 @@ class CategoryTracker:
             self.reset()
             return None, f"category template lost ({tracked.message}); "
         r = tracked.result
-        fitted = carried.fit_of(ArticulatedPose(r.T_cam_base, r.q))
+        fitted = carried.fit_of(ArticulatedPose(r.T_cam_base, r.q), r.uncertainty)
         fitted = dataclasses.replace(fitted, iterations=int(r.iterations), message=r.message)
         self._num_joints = len(fitted.joint_states)
         return fitted, ""
@@ -663,11 +671,16 @@ class CategoryTracker:
         self._track = _Track(result, corr, template, since, prior, None if tr is None else tr.prior, anchor, anchor_before,
                              gap)
 
-    def _frame(self, index, status, message, result, source, t0) -> TrackedFrame:
+    def _frame(self, index, status, message, result, source, t0, template: bool = False) -> TrackedFrame:
+        """``template``: the fit is the carried category template's (its covariance the template ICP's).
+        A learned provider's covariances are inflated by the factors measured for these weights: of
+        tracked frames of this source (``learned-tracked-<source>``) for a warm frame, of single-frame
+        fits (``learned``, ``learned-template``) for a cold one or where none were measured."""
         if getattr(result, "uncertainty", None) is not None and self.category is not None and hasattr(self.provider, "network"):
             from ..learned.predict import inflate_uncertainty  # as ancsh predict: the factors measured for these weights
 
-            result = inflate_uncertainty(result, self.category, self.provider)
+            result = inflate_uncertainty(result, self.category, self.provider, template=template,
+                                         tracked=source if status == TrackStatus.TRACKED else None)
         return TrackedFrame(index, status, message, result, np.asarray(result.joint_states, dtype=np.float64).copy(), source,
                             int(result.iterations), time.perf_counter() - t0)
 

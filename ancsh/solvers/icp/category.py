@@ -57,6 +57,7 @@ __all__ = [
     "fitted_layout",
     "fitted_template",
     "refine_fit",
+    "template_fit_uncertainty",
 ]
 
 BOX_SCALINGS = ("parts", "object")
@@ -380,10 +381,22 @@ class CarriedTemplateFit:
     scale: float
     fit: FitResult
 
-    def fit_of(self, pose: ArticulatedPose) -> FitResult:
-        """The category-level fit (NPCS part poses, joints, boxes) of the template at ``pose`` (no covariances:
-        the input fit's were of other poses)."""
-        return dataclasses.replace(_articulated(self.fit, self.model, self.layout, self.scale, pose), uncertainty=None)
+    def fit_of(self, pose: ArticulatedPose, uncertainty=None) -> FitResult:
+        """The category-level fit (NPCS part poses, joints, boxes) of the template at ``pose``.
+
+        Parameters
+        ----------
+        pose : ArticulatedPose
+            The template's estimate (camera frame, absolute joint states).
+        uncertainty : FitUncertainty, optional
+            Its articulated ICP covariance (template part frames,
+            :func:`~ancsh.solvers.icp.articulated.icp_uncertainty` at ``pose``): mapped to the fit's NPCS
+            and NAOCS frames (:func:`template_fit_uncertainty`). ``None``: the fit has none (the input
+            fit's covariances were of other poses).
+        """
+        fitted = _articulated(self.fit, self.model, self.layout, self.scale, pose)
+        return dataclasses.replace(fitted, uncertainty=template_fit_uncertainty(uncertainty, self.model, pose, self.layout,
+                                                                                self.scale))
 
 
 @dataclass(frozen=True)
@@ -435,21 +448,34 @@ def _articulated(fit: FitResult, model: ArticulatedModel, layout: FittedLayout, 
                                joint_states=states, canonical=None)
 
 
-def _refined_uncertainty(best: _Candidate, layout: FittedLayout):
-    """The covariance of an ``articulated`` candidate: its ICP's (object pose and joint states of the
-    template, scale fixed; :func:`~ancsh.solvers.icp.articulated.icp_uncertainty`) mapped from the
-    template's part and base frames to the refined fit's NPCS and NAOCS frames (the maps of
-    :func:`_articulated`). The part and object scales were chosen by the scale search, not fitted:
-    their variances are ``nan`` (unknown). ``None`` for a ``base`` candidate (its joints are the
-    input fit's, its object pose the ICP's: no single program holds both) and where the ICP
-    computed none."""
-    u = best.icp_uncertainty
-    if best.choice != "articulated" or u is None:
+def template_fit_uncertainty(uncertainty, model: ArticulatedModel, pose: ArticulatedPose, layout: "FittedLayout",
+                             scale: float):
+    """An articulated ICP covariance of a category template mapped to the category-level fit it gives.
+
+    The ICP's covariance (object pose and joint states of the template, its scale fixed;
+    :func:`~ancsh.solvers.icp.articulated.icp_uncertainty`) describes the template's part and base
+    frames; the fit (:meth:`CarriedTemplateFit.fit_of`) reports NPCS and NAOCS frames, constant maps
+    away (the maps of :func:`_articulated`). The part and object scales were chosen by the scale
+    search, not fitted: their variances are ``nan`` (unknown).
+
+    Parameters
+    ----------
+    uncertainty : FitUncertainty or None
+        The ICP's covariance at ``pose`` (``None`` gives ``None``).
+    model : ArticulatedModel
+        The scaled template the ICP fitted (metres).
+    pose : ArticulatedPose
+        Its estimate (camera frame).
+    layout : FittedLayout
+        The NPCS frames of the fit's parts relative to the template's base.
+    scale : float
+        The template's global scale factor.
+    """
+    if uncertainty is None:
         return None
-    S = Sim3(np.eye(3), np.zeros(3), best.scale)
-    parts = best.pose.part_poses(best.model)
-    u = u.composed(parts, [S @ T for T in layout.T_B_npcs], best.pose.T_cam_base,
-                   S @ Sim3(np.eye(3), np.zeros(3), layout.diagonal))
+    S = Sim3(np.eye(3), np.zeros(3), scale)
+    u = uncertainty.composed(pose.part_poses(model), [S @ T for T in layout.T_B_npcs], pose.T_cam_base,
+                             S @ Sim3(np.eye(3), np.zeros(3), layout.diagonal))
 
     def unknown_scale(v):
         if v is None:
@@ -461,6 +487,15 @@ def _refined_uncertainty(best: _Candidate, layout: FittedLayout):
                        base=unknown_scale(v.base))
 
     return unknown_scale(u)
+
+
+def _refined_uncertainty(best: _Candidate, layout: FittedLayout):
+    """The covariance of an ``articulated`` candidate (:func:`template_fit_uncertainty` of its ICP's);
+    ``None`` for a ``base`` candidate (its joints are the input fit's, its object pose the ICP's: no
+    single program holds both) and where the ICP computed none."""
+    if best.choice != "articulated":
+        return None
+    return template_fit_uncertainty(best.icp_uncertainty, best.model, best.pose, layout, best.scale)
 
 
 def _score(scorer: FitScorer, surface: ModelSurface, result: FitResult, layout: FittedLayout, f: float, gate: float) -> FitScore:

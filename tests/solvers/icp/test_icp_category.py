@@ -81,6 +81,11 @@ def test_refined_fit_carries_the_template_icp_covariance(scene):
         np.testing.assert_allclose(u.part_covariances[j, 3:6, 3:6], expected, rtol=1e-6, atol=1e-14)
         moved.append(np.abs(expected - icp.part_covariances[j, 3:6, 3:6]).max() / np.abs(expected).max())
     assert max(moved) > 0.05  # the lever arm matters (so the check above can tell the frames apart)
+    # a tracked frame of the carried template maps its ICP covariance the same way (CarriedTemplateFit.fit_of)
+    tracked = c.fit_of(c.pose, icp).uncertainty
+    np.testing.assert_allclose(tracked.part_covariances, u.part_covariances, rtol=1e-6, atol=1e-14)
+    np.testing.assert_allclose(tracked.object_covariance, u.object_covariance, rtol=1e-6, atol=1e-14)
+    assert c.fit_of(c.pose).uncertainty is None
     base = refine_fit(scene["obs"], scene["fit"], scene["corr"], scene["model"], rng=0,
                       config=RefineConfig(candidates=("base",), scales=(1.0,)))
     assert not base.accepted or base.result.uncertainty is None  # the base candidate: no single program's covariance
