@@ -214,6 +214,21 @@ def tracked_provider_key(provider_name: str, source: str) -> str:
     return f"{'learned' if provider_name == 'learned' else 'oracle-realistic'}-tracked-{source}"
 
 
+def _sequences(config: BenchConfig, seed: int, count: int):
+    """``(category, provider name, provider, sequence index, [(frame, blank), ...])`` of ``count`` sequences per
+    procedural object (frame seed ``seed``; one provider per category and provider name, shared by its sequences)."""
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..data.sequences import SequenceMotion
+
+    for category in config.categories:
+        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=seed,
+                                              sequence=SequenceMotion(length=config.length)))
+        for provider_name in config.providers:
+            provider = _provider(provider_name, category)
+            for seq in range(count):
+                yield category, provider_name, provider, seq, _sequence_frames(gen, seq, config.length, config.gap)
+
+
 def calibrate(config: BenchConfig, *, progress=None) -> dict:
     """Measure inflation maps of tracked frames' standard deviations, per provider, category and frame source.
 
@@ -229,8 +244,6 @@ def calibrate(config: BenchConfig, *, progress=None) -> dict:
     dict
         ``{"summary": summarize(...)'s dict (without its d2), "counts": {category: {provider key: frames}}}``.
     """
-    from ..data.generate import FrameGenerator, GenerationConfig
-    from ..data.sequences import SequenceMotion
     from ..solvers.types import Observation
     from ..uncertainty_calibration import QUANTITIES, error_records
     from ..uncertainty_calibration import summarize as fit_maps
@@ -239,27 +252,23 @@ def calibrate(config: BenchConfig, *, progress=None) -> dict:
     say = progress or (lambda s: None)
     tcfg = TrackerConfig(network_every=config.network_every, **config.tracker)
     records, counts = {}, {}
-    for category in config.categories:
-        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=config.calibration_seed,
-                                              sequence=SequenceMotion(length=config.length)))
-        for provider_name in config.providers:
-            provider = _provider(provider_name, category)
-            for seq in range(config.calibration_sequences):
-                say(f"calibration: {category} / {provider_name} / sequence {seq}")
-                tracker = CategoryTracker(provider, tcfg, category=category, rng=config.calibration_seed)
-                for fr, blank in _sequence_frames(gen, seq, config.length, config.gap):
-                    if isinstance(provider, _FrameOracle):
-                        provider.frame = fr
-                    tracked = tracker.step(Observation(np.zeros((0, 3)) if blank else fr.points))
-                    r = tracked.result
-                    if blank or tracked.status != TrackStatus.TRACKED or getattr(r, "uncertainty", None) is None:
-                        continue
-                    key = tracked_provider_key(provider_name, tracked.source)
-                    cal = records.setdefault(category, {}).setdefault(key, {"calibration": {q: [] for q in QUANTITIES}})
-                    for q, rs in error_records(r, fr.gt).items():
-                        cal["calibration"][q] += rs
-                    counts.setdefault(category, {}).setdefault(key, 0)
-                    counts[category][key] += 1
+    for category, provider_name, provider, seq, frames in _sequences(config, config.calibration_seed,
+                                                                     config.calibration_sequences):
+        say(f"calibration: {category} / {provider_name} / sequence {seq}")
+        tracker = CategoryTracker(provider, tcfg, category=category, rng=config.calibration_seed)
+        for fr, blank in frames:
+            if isinstance(provider, _FrameOracle):
+                provider.frame = fr
+            tracked = tracker.step(Observation(np.zeros((0, 3)) if blank else fr.points))
+            r = tracked.result
+            if blank or tracked.status != TrackStatus.TRACKED or getattr(r, "uncertainty", None) is None:
+                continue
+            key = tracked_provider_key(provider_name, tracked.source)
+            cal = records.setdefault(category, {}).setdefault(key, {"calibration": {q: [] for q in QUANTITIES}})
+            for q, rs in error_records(r, fr.gt).items():
+                cal["calibration"][q] += rs
+            counts.setdefault(category, {}).setdefault(key, 0)
+            counts[category][key] += 1
     for per_key in records.values():
         for splits in per_key.values():
             splits["test"] = splits["calibration"]
@@ -271,8 +280,6 @@ def calibrate(config: BenchConfig, *, progress=None) -> dict:
 def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
     """Run the benchmark; returns ``{"config", "machine", "records"}`` (one record per frame and method)."""
     from .._machine import machine_facts
-    from ..data.generate import FrameGenerator, GenerationConfig
-    from ..data.sequences import SequenceMotion
     from ..solvers.types import Observation
     from .tracker import CategoryTracker, TrackerConfig, fit_frame
 
@@ -280,44 +287,38 @@ def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
     machine_start = machine_facts()
     records = []
     tcfg = TrackerConfig(network_every=config.network_every, **config.tracker)
-    for category in config.categories:
-        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=config.seed,
-                                              sequence=SequenceMotion(length=config.length)))
-        for provider_name in config.providers:
-            provider = _provider(provider_name, category)
-            for seq in range(config.sequences):
-                frames = _sequence_frames(gen, seq, config.length, config.gap)
-                say(f"{category} / {provider_name} / sequence {seq}: {len(frames)} frames")
-                tracker = CategoryTracker(provider, tcfg, category=category, rng=config.seed)
-                for fr, blank in frames:
-                    if isinstance(provider, _FrameOracle):
-                        provider.frame = fr
-                    obs = Observation(np.zeros((0, 3)) if blank else fr.points)
-                    out = {}
+    for category, provider_name, provider, seq, frames in _sequences(config, config.seed, config.sequences):
+        say(f"{category} / {provider_name} / sequence {seq}: {len(frames)} frames")
+        tracker = CategoryTracker(provider, tcfg, category=category, rng=config.seed)
+        for fr, blank in frames:
+            if isinstance(provider, _FrameOracle):
+                provider.frame = fr
+            obs = Observation(np.zeros((0, 3)) if blank else fr.points)
+            out = {}
 
-                    def run_tracking():
-                        t0 = time.perf_counter()
-                        tracked = tracker.step(obs)
-                        out["tracking"] = (tracked.result, time.perf_counter() - t0, tracked)
+            def run_tracking():
+                t0 = time.perf_counter()
+                tracked = tracker.step(obs)
+                out["tracking"] = (tracked.result, time.perf_counter() - t0, tracked)
 
-                    def run_per_frame():
-                        t0 = time.perf_counter()
-                        result, _ = fit_frame(provider, obs, tcfg, category, config.seed)
-                        out["per_frame"] = (result, time.perf_counter() - t0, None)
+            def run_per_frame():
+                t0 = time.perf_counter()
+                result, _ = fit_frame(provider, obs, tcfg, category, config.seed)
+                out["per_frame"] = (result, time.perf_counter() - t0, None)
 
-                    for run in ((run_tracking, run_per_frame) if fr.time_index % 2 == 0 else (run_per_frame, run_tracking)):
-                        run()
-                    for method, (result, dt, tracked) in out.items():
-                        rec = {"object": category, "provider": provider_name, "sequence": seq, "t": fr.time_index,
-                               "blank": blank, "method": method, "time_s": dt,
-                               "status": None if result is None else result.status.value,
-                               "track": None if tracked is None else tracked.status.value,
-                               "source": None if tracked is None else tracked.source,
-                               "iterations": None if result is None else int(result.iterations)}
-                        rec.update(_category_errors(result, fr) if not blank else {"ok": result is not None and result.ok})
-                        if not blank and rec["ok"]:
-                            rec.update(_coverage_fields(_reported(result, tracked, provider_name, category, provider), fr))
-                        records.append(rec)
+            for run in ((run_tracking, run_per_frame) if fr.time_index % 2 == 0 else (run_per_frame, run_tracking)):
+                run()
+            for method, (result, dt, tracked) in out.items():
+                rec = {"object": category, "provider": provider_name, "sequence": seq, "t": fr.time_index,
+                       "blank": blank, "method": method, "time_s": dt,
+                       "status": None if result is None else result.status.value,
+                       "track": None if tracked is None else tracked.status.value,
+                       "source": None if tracked is None else tracked.source,
+                       "iterations": None if result is None else int(result.iterations)}
+                rec.update(_category_errors(result, fr) if not blank else {"ok": result is not None and result.ok})
+                if not blank and rec["ok"]:
+                    rec.update(_coverage_fields(_reported(result, tracked, provider_name, category, provider), fr))
+                records.append(rec)
     if config.urdf is not None:
         records += _urdf_records(config, say)
     return {"config": config.to_dict(), "tracker": asdict(tcfg) | {"fit": asdict(tcfg.fit)},
