@@ -167,14 +167,16 @@ def run_weights(args: argparse.Namespace) -> int:
                         f"{best['score']:.1f} ({best['step']}) | {f(pc[-1]['score'] / best['score'], '.2f')} |")
     targets, limits = [], []
     if args.reports is not None:
-        from .targets import budget_projection, collect_targets, limit_lines, roll_gains, target_lines
+        from .targets import budget_projection, collect_targets, limit_lines, roll_gains, target_lines, unshipped_minutes
 
         target_rows, missing = collect_targets(args.reports)
         ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh"}
         minutes = {c: (r["train_min"], r["parent_min"]) for c, r in ancsh_rows.items()}
         targets = target_lines(target_rows, missing, minutes)
         gains = roll_gains(args.reports / "roll_equivariance.json")
-        limits = limit_lines([budget_projection(t, ancsh_rows[t.category], gains.get(t.category, float("nan")))
+        unshipped = unshipped_minutes()
+        limits = limit_lines([budget_projection(t, ancsh_rows[t.category], gains.get(t.category, float("nan")),
+                                                unshipped.get(t.category, 0.0))
                               for t in target_rows if t.category in ancsh_rows])
     print("\n".join(lines))
     print("\n".join(curves))
@@ -234,7 +236,8 @@ def run_weights(args: argparse.Namespace) -> int:
                 *targets, "",
                 "## What limits the targets: more of the same training within the budget", "",
                 "Per category (`ancsh.learned.targets.budget_projection`): the factor by which the worst part's "
-                "rotation error must fall to meet the paper's; the training minutes left of the 240; and what a power "
+                "rotation error must fall to meet the paper's; the training minutes left of the 240 (the shipped lineage's and "
+                "the runs not shipped, `ancsh/weights/unshipped_training.json`); and what a power "
                 "law fitted to the shipped run's own history projects at the budget's end, as a multiple of today's "
                 "error -- from the validation NPCS error (the learning-curve table above) and from the pose "
                 "validations (the quantity judged; exponent >= 0: no longer falling, projected 1.00). The power "

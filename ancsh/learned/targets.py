@@ -34,6 +34,39 @@ REAL_RATIO_GOAL = 1.25
 TRAINING_BUDGET_MIN = 240.0
 """Training budget per category: 4 CPU-core-hours (one torch thread = one core), in minutes."""
 
+UNSHIPPED_PATH = Path(__file__).resolve().parents[1] / "weights" / "unshipped_training.json"
+"""Ledger of training runs whose networks were not shipped (they spent budget all the same)."""
+
+
+def unshipped_minutes(path=None) -> dict[str, float]:
+    """Training minutes per category of runs that were not shipped (:data:`UNSHIPPED_PATH`: ``{"runs":
+    [{"category", "minutes", "what"}, ...]}``); ``{}`` without the file.
+
+    Raises
+    ------
+    ValueError
+        For a ledger that is not such a list (naming the file and the entry).
+    """
+    import json
+
+    path = UNSHIPPED_PATH if path is None else Path(path)
+    if not path.is_file():
+        return {}
+    runs = json.loads(path.read_text()).get("runs")
+    if not isinstance(runs, list):
+        raise ValueError(f"{path}: expected {{\"runs\": [...]}}")
+    out: dict[str, float] = {}
+    for i, r in enumerate(runs):
+        try:
+            minutes = float(r["minutes"])
+            category = str(r["category"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{path}: runs[{i}]: expected a category and minutes ({exc})") from exc
+        if not minutes >= 0:
+            raise ValueError(f"{path}: runs[{i}].minutes: expected >= 0, got {minutes}")
+        out[category] = out.get(category, 0.0) + minutes
+    return out
+
 
 @dataclass(frozen=True)
 class TargetRow:
@@ -293,7 +326,8 @@ class BudgetProjection:
         return best <= self.needed
 
 
-def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = float("nan")) -> BudgetProjection:
+def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = float("nan"),
+                      unshipped_min: float = 0.0) -> BudgetProjection:
     """Project more of the same training over the rest of the budget, for one category.
 
     Parameters
@@ -305,6 +339,8 @@ def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = floa
         ``parent_min``, ``curve``, ``pose_curve``).
     roll_gain : float
         Its measured camera-roll gain, passed through (``nan``: not measured).
+    unshipped_min : float
+        Minutes of the category's runs that were not shipped (:func:`unshipped_minutes`): spent budget.
 
     Notes
     -----
@@ -317,7 +353,7 @@ def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = floa
 
     own = float(weights_row.get("train_min", float("nan")))
     parent = float(weights_row.get("parent_min") or 0.0)
-    spent = own + parent
+    spent = own + parent + float(unshipped_min)
     left = max(0.0, TRAINING_BUDGET_MIN - spent) if spent == spent else float("nan")
     ratio = row.paper_ratio
     needed = float("nan") if ratio is None or not all(math.isfinite(x) and x > 0 for x in ratio) else 1.0 / max(ratio)

@@ -144,3 +144,26 @@ def test_roll_gains_keep_only_rows_measured_on_the_shipped_weights(tmp_path):
     path.write_text("[1")
     with pytest.raises(ValueError, match="roll_equivariance.json"):
         roll_gains(path)
+
+
+def test_unshipped_runs_spend_the_budget(tmp_path):
+    """Minutes of runs that were not shipped are read from the ledger and count as spent."""
+    from ancsh.learned.targets import unshipped_minutes
+
+    ledger = tmp_path / "unshipped.json"
+    ledger.write_text(json.dumps({"runs": [{"category": "oven", "minutes": 30}, {"category": "oven", "minutes": 12.5},
+                                           {"category": "drawer", "minutes": 5}]}))
+    assert unshipped_minutes(ledger) == {"oven": 42.5, "drawer": 5.0}
+    assert unshipped_minutes(tmp_path / "absent.json") == {}
+    rot = [4.0, 5.0]
+    row = {"train_min": 60.0, "parent_min": 100.0, "curve": None, "pose_curve": []}
+    plain = budget_projection(_target_row("oven", rot), row)
+    spent = budget_projection(_target_row("oven", rot), row, unshipped_min=42.5)
+    assert plain.left_min == pytest.approx(TRAINING_BUDGET_MIN - 160.0)
+    assert spent.left_min == pytest.approx(TRAINING_BUDGET_MIN - 202.5)
+    ledger.write_text(json.dumps({"runs": [{"category": "oven"}]}))
+    with pytest.raises(ValueError, match="runs\\[0\\]"):
+        unshipped_minutes(ledger)
+    ledger.write_text(json.dumps({"runs": [{"category": "oven", "minutes": -1}]}))
+    with pytest.raises(ValueError, match="minutes"):
+        unshipped_minutes(ledger)
