@@ -192,7 +192,7 @@ class TrackerConfig:
         Compute the fit covariances (``FitConfig.uncertainty``) of carried frames (on their last
         solve only; intermediate solves never do). Default ``True``: every tracked frame reports its
         standard deviations (``ancsh bench tracking`` measures their coverage and the cost); ``False``
-        saves about a fifth of a carried frame's time, and carried frames then report no
+        saves a fifth to a third of a carried frame's time (``docs/results/tracking.md``), and carried frames then report no
         ``joint_states_std``. A carried frame's raw covariance counts the carried rows as data, which
         they are not (they repeat the last network frame's errors): its inflation is measured per
         source (``learned-tracked-carried``).
@@ -228,8 +228,9 @@ class TrackerConfig:
         its own cold multi-start: a frame it loses is re-initialised by the network). With its
         ``uncertainty`` (default on) a template frame reports the ICP's covariance mapped to the fit's
         frames (:func:`~ancsh.solvers.icp.category.template_fit_uncertainty`; scale variances unknown),
-        inflated for a learned provider by the factors of provider ``learned-template`` (those of
-        single-frame template refinements, ``ancsh bench uncertainty --providers learned-template``).
+        inflated for a learned provider by the factors measured on tracked template frames
+        (``learned-tracked-template``, ``ancsh bench tracking --calibration-sequences``), else by those of
+        single-frame template refinements (``learned-template``, ``ancsh bench uncertainty``).
     template_reuse : bool
         A re-initialisation after a loss first refines against the template chosen before the loss, at its scale
         only (one articulated ICP run, about half the cost of the nearest-template choice with its scale search),
