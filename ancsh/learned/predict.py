@@ -378,14 +378,13 @@ def inflate_uncertainty(result, category: str, provider, *, template: bool = Fal
     ``ancsh bench tracking --calibration-sequences``) apply where measured, else the single-frame ones."""
     import dataclasses
 
-    from ..solvers.uncertainty import inflation_for
+    from ..solvers.uncertainty import first_measured_inflation, tracked_provider
 
     if result.uncertainty is None:
         return result
-    sha = getattr(provider.network, "sha256", None)
-    inflation = inflation_for(f"learned-tracked-{tracked}", str(category), weights_sha256=sha) if tracked else None
-    if inflation is None or inflation.is_identity:
-        inflation = inflation_for("learned-template" if template else "learned", str(category), weights_sha256=sha)
+    single = "learned-template" if template else "learned"
+    inflation = first_measured_inflation((tracked_provider("learned", tracked) if tracked else None, single), str(category),
+                                         weights_sha256=getattr(provider.network, "sha256", None))
     return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
 
 

@@ -62,8 +62,8 @@ import numpy as np
 from ..geometry._checks import check_number
 
 __all__ = ["FitUncertainty", "INFLATED_QUANTITIES", "Inflation", "INFLATION_PATH", "SigmaMap", "UNCERTAINTY_STATUSES",
-           "block_sigma", "effective_points", "fit_covariance", "inflation_for", "load_inflation_table", "maps_from_json",
-           "maps_to_json"]
+           "block_sigma", "effective_points", "first_measured_inflation", "fit_covariance", "inflation_for",
+           "load_inflation_table", "maps_from_json", "maps_to_json", "tracked_provider"]
 
 UNCERTAINTY_STATUSES = ("ok", "singular", "unavailable")
 
@@ -668,11 +668,47 @@ def load_inflation_table(path=None) -> dict:
     return table
 
 
+_TABLE_CACHE: dict = {}  # path -> ((mtime_ns, size), table): inflation_for runs on every tracked frame
+
+
+def _read_table(path: Path) -> dict:
+    """:func:`load_inflation_table`, parsed once per version of the file (by modification time and size);
+    for reading only (callers that change the table load their own copy)."""
+    try:
+        st = path.stat()
+    except OSError:
+        return {"providers": {}}
+    stamp = (st.st_mtime_ns, st.st_size)
+    cached = _TABLE_CACHE.get(path)
+    if cached is None or cached[0] != stamp:
+        cached = (stamp, load_inflation_table(path))
+        _TABLE_CACHE[path] = cached
+    return cached[1]
+
+
 def inflation_for(provider: str, category: str, *, weights_sha256: str | None = None, path=None) -> Inflation:
     """The measured :class:`Inflation` of ``provider`` (``"learned"``, ``"oracle-realistic"``, ...)
     on ``category``; identity (``source="raw"``) when none was measured, or when the factors were
     measured with network weights (their recorded ``weights_sha256``) other than ``weights_sha256``."""
-    entry = load_inflation_table(path)["providers"].get(provider, {}).get(category)
+    entry = _read_table(INFLATION_PATH if path is None else Path(path))["providers"].get(provider, {}).get(category)
     if entry is None or ("weights_sha256" in entry and entry["weights_sha256"] != weights_sha256):
         return Inflation()
     return Inflation.from_json(entry, source=f"{provider}/{category}", name=f"{path or INFLATION_PATH}: {provider}.{category}")
+
+
+def tracked_provider(provider: str, source: str) -> str:
+    """The inflation-table provider of warm tracked frames of one source: ``"learned-tracked-carried"``, ...
+    (``provider`` the single-frame one, ``source`` a :class:`~ancsh.tracking.tracker.TrackedFrame` source)."""
+    return f"{provider}-tracked-{source}"
+
+
+def first_measured_inflation(providers, category: str, *, weights_sha256: str | None = None, path=None) -> Inflation:
+    """The :func:`inflation_for` of the first of ``providers`` (``None`` entries skipped) measured for
+    ``category`` (and these weights); identity when none was."""
+    for provider in providers:
+        if provider is None:
+            continue
+        inflation = inflation_for(provider, category, weights_sha256=weights_sha256, path=path)
+        if not inflation.is_identity:
+            return inflation
+    return Inflation()

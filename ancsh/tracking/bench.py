@@ -149,15 +149,13 @@ def _reported(result, tracked, provider_name: str, category: str, provider):
         from ..learned.predict import inflate_uncertainty
 
         return inflate_uncertainty(result, category, provider)
-    from ..solvers.uncertainty import inflation_for
+    from ..solvers.uncertainty import first_measured_inflation
 
     if not unc.inflation.is_identity:
         return result
-    inflation = None
-    if tracked is not None and tracked.status == TrackStatus.TRACKED:
-        inflation = inflation_for(tracked_provider_key(provider_name, tracked.source), category)
-    if inflation is None or inflation.is_identity:
-        inflation = inflation_for("oracle-realistic", category)
+    warm = tracked is not None and tracked.status == TrackStatus.TRACKED
+    inflation = first_measured_inflation((tracked_provider_key(provider_name, tracked.source) if warm else None,
+                                          "oracle-realistic"), category)
     return dataclasses.replace(result, uncertainty=unc.inflated(inflation))
 
 
@@ -207,11 +205,12 @@ def _provider(name: str, category: str):
     return _FrameOracle()
 
 
-#: How the inflation table names the maps of tracked frames, by bench provider and frame source.
 def tracked_provider_key(provider_name: str, source: str) -> str:
     """``"learned-tracked-carried"``, ``"oracle-realistic-tracked-network"``, ...: the inflation-table provider of
-    a warm tracked frame (:func:`ancsh.learned.predict.inflate_uncertainty`'s ``tracked``)."""
-    return f"{'learned' if provider_name == 'learned' else 'oracle-realistic'}-tracked-{source}"
+    a warm tracked frame of a bench provider (:func:`ancsh.solvers.uncertainty.tracked_provider`)."""
+    from ..solvers.uncertainty import tracked_provider
+
+    return tracked_provider("learned" if provider_name == "learned" else "oracle-realistic", source)
 
 
 def _sequences(config: BenchConfig, seed: int, count: int):
@@ -608,6 +607,8 @@ def _fusion_words(tracker: dict) -> str:
 
 def _coverage_table(rows) -> list:
     """The markdown section of the reported standard deviations' coverage (:func:`_coverage_summary`)."""
+    from ..uncertainty_calibration import COVERAGE_TARGETS
+
     have = [r for r in rows if r.get("coverage")]
     if not have:
         return []
@@ -616,15 +617,14 @@ def _coverage_table(rows) -> list:
              "the in-view frames with an accepted fit, per part (rotation, translation of `T_cam_npcs`) and joint (state): "
              "the squared Mahalanobis distance of the error under the reported covariance against the chi-square "
              "quantiles (`ancsh bench uncertainty`'s definitions). What is reported: the tracker's frames as it returns "
-             "them (learned: inflated by the factors of `ancsh/weights/uncertainty_inflation.json`, provider `learned`, or "
-             "`learned-template` for the carried category template), learned per-frame fits inflated as by `ancsh "
-             "predict`; the oracle's fits on both sides by the factors of provider `oracle-realistic`. `with std`: fits "
+             "them (learned: inflated by the factors of `ancsh/weights/uncertainty_inflation.json`, provider "
+             "`learned-tracked-<source>` for warm frames where measured, else `learned` -- `learned-template` for the "
+             "carried category template), learned per-frame fits inflated as by `ancsh predict`; the oracle's fits by "
+             "the factors of provider `oracle-realistic` (`oracle-realistic-tracked-<source>` likewise). `with std`: fits "
              "that report one, of the accepted fits; by source: the tracker's frames by where their correspondences "
              "came from (`network`: the cold and warm network frames).", "",
              "| object | provider | method | source | with std | rotation | translation | joint state |",
              "|---|---|---|---|---|---|---|---|"]
-
-    from ..uncertainty_calibration import COVERAGE_TARGETS
 
     def cell(c, q):
         v = c[q]

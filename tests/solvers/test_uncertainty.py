@@ -237,6 +237,19 @@ def test_inflation_scales_the_sigmas_and_raw_recovers_them(fit_case, tmp_path):
     table.write_text(json.dumps({"providers": {"learned": {"laptop": {"rotation": 3.0, "weights_sha256": "ab"}}}}))
     assert inflation_for("learned", "laptop", weights_sha256="ab", path=table).rotation == SigmaMap(factor=3.0)
     assert inflation_for("learned", "laptop", weights_sha256="cd", path=table).source == "raw"
+    # a rewritten table is read again (the parsed table is kept per version of the file)
+    table.write_text(json.dumps({"providers": {"learned": {"laptop": {"rotation": 5.0, "weights_sha256": "ab"}},
+                                               "learned-tracked-carried": {"laptop": {"rotation": 7.0}}}}))
+    assert inflation_for("learned", "laptop", weights_sha256="ab", path=table).rotation == SigmaMap(factor=5.0)
+    # the first measured of several providers: a tracked frame's own maps, else the single-frame ones
+    from ancsh.solvers.uncertainty import first_measured_inflation, tracked_provider
+
+    assert tracked_provider("learned", "carried") == "learned-tracked-carried"
+    assert first_measured_inflation((tracked_provider("learned", "carried"), "learned"), "laptop", weights_sha256="ab",
+                                    path=table).rotation == SigmaMap(factor=7.0)
+    assert first_measured_inflation((None, tracked_provider("learned", "network"), "learned"), "laptop",
+                                    weights_sha256="ab", path=table).source == "learned/laptop"
+    assert first_measured_inflation(("nothing",), "laptop", path=table).source == "raw"
     bad = tmp_path / "bad.json"
     bad.write_text("[1, 2]")
     with pytest.raises(ValueError, match="bad.json"):
