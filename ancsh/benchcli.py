@@ -17,6 +17,7 @@ BENCH_MODULES = [
     "ancsh.learned.bench",
     "ancsh.uncertainty_calibration",
     "ancsh.learned.refine_bench",
+    "ancsh.learned.gap_bench",
     "ancsh.learned.gpu_check:register_bench",
     "ancsh.scaling:register_bench",
     "ancsh.tracking.bench",

@@ -286,9 +286,11 @@ def load_template_library(category: str, real: str | None = "builtin") -> Templa
 def refine_default(category: str) -> bool:
     """Whether category-template refinement is on by default (``refine="auto"``) for ``category``.
 
-    Read from ``ancsh/data/templates/refine_defaults.json``, written from the measurement in
-    ``docs/results/template_refinement.md``: on only where it lowered the mean rotation error of
-    every part there without raising the mean joint-state error. Unknown categories: off.
+    Read from ``ancsh/data/templates/refine_defaults.json``, written by ``ancsh bench refine-defaults
+    --install`` from each category's full evaluation (``ancsh evaluate --refine template``, e.g.
+    ``docs/results/<category>.md``): on only where the refinement lowered the mean rotation error of
+    every part there without raising any joint's mean state error by more than 5 %. Unknown
+    categories: off.
     """
     path = Path(__file__).resolve().parent / "templates" / "refine_defaults.json"
     try:

@@ -144,8 +144,12 @@ def run_weights(args: argparse.Namespace) -> int:
         "error | for 5x lower error |",
         "|---|---|---|---|---|---|",
     ]
-    def hours(factor, minutes):
-        return "not reached (flat curve)" if factor == float("inf") else f"{factor * minutes / 60:.0f} h ({factor:.0f}x)"
+    def hours(factor, minutes, cap=1000.0):  # beyond cap x the run's time a power law says only "flat"
+        if factor == float("inf"):
+            return "not reached (flat curve)"
+        if factor > cap:
+            return f"> {cap * minutes / 60:.0f} h (> {cap:.0f}x: flat curve)"
+        return f"{factor * minutes / 60:.0f} h ({factor:.0f}x)"
 
     for r in rows:
         c = r["curve"]

@@ -319,11 +319,11 @@ class _FrameEvaluator:
     method; ``worker(i)`` returns the frame's record (a pure function of the settings and ``i``)."""
 
     def __init__(self, category: str, seed: int, real, weights: str, direct_weights, num_threads: int, methods: tuple,
-                 device="cpu"):
+                 device="cpu", instances: str = "test"):
         from ..data.generate import FrameGenerator, GenerationConfig
         from .provider import DirectVotingPredictor, LearnedProvider
 
-        cfg = dict(category=category, split="test", seed=int(seed))
+        cfg = dict(category=category, split=instances, seed=int(seed))
         if real is not None:
             cfg.update(real=real, real_fraction=1.0)
         self.generator = FrameGenerator(GenerationConfig(**cfg))
@@ -402,6 +402,7 @@ def evaluate_category(
     refine: str | None = None,
     executor=None,
     device="cpu",
+    instances: str = "test",
 ) -> dict:
     """Run the network and every method on ``frames`` rendered test frames of ``category``.
 
@@ -433,12 +434,16 @@ def evaluate_category(
         :data:`TIMING_KEYS` -- do not depend on it.
     device : str or torch.device
         Where the networks run (``"cpu"``, ``"cuda"``, ``"auto"``); the CPU on Ray workers.
+    instances : {"test", "train"}
+        Whose frames are rendered: the held-out test instances (default: every report of the project), or
+        the *training* instances (new views of the objects the networks were trained on -- about 10 % of
+        them were a training run's validation instances -- to measure the gap between them and unseen ones).
 
     Returns
     -------
     dict
         ``records`` (per frame, in frame order), ``settings`` (``split`` is ``"procedural"`` or
-        ``"real"``), ``timing``.
+        ``"real"``, ``instances`` ``"test"`` or ``"train"``), ``timing``.
 
     Raises
     ------
@@ -460,6 +465,8 @@ def evaluate_category(
         raise ValueError(f"methods: expected keys of {list(METHODS)}, got {list(methods)}")
     if isinstance(frames, bool) or int(frames) != frames or frames < 1:
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
+    if instances not in ("test", "train"):
+        raise ValueError(f"instances: expected 'test' or 'train', got {instances!r}")
     if executor is None:
         executor = LocalExecutor(1)
     elif not isinstance(executor, (LocalExecutor, RayExecutor)):
@@ -471,11 +478,12 @@ def evaluate_category(
         device = "cpu"
     device = str(resolve_device(device))
     if real is None:
-        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed)))
+        gen = FrameGenerator(GenerationConfig(category=category, split=instances, seed=int(seed)))
     else:
-        gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed), real=real, real_fraction=1.0))
+        gen = FrameGenerator(GenerationConfig(category=category, split=instances, seed=int(seed), real=real,
+                                              real_fraction=1.0))
         if not gen.real_instances:
-            raise ValueError(f"real: the catalog {real!r} has no real test object of {category!r}")
+            raise ValueError(f"real: the catalog {real!r} has no real {instances} object of {category!r}")
     if weights is None and not weights_path(category).is_file():
         raise missing_weights_error(category)
     network = load_network(category if weights is None else weights)  # its file and SHA-256 at load time
@@ -494,7 +502,7 @@ def evaluate_category(
         from tqdm import tqdm
 
         bar = tqdm(total=int(frames), desc=f"evaluate {category}", unit="frame")
-    worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device)
+    worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device, instances)
     results = executor.imap(_FrameEvaluator, worker_args, range(int(frames)))
     try:
         for rec in results:
@@ -518,7 +526,7 @@ def evaluate_category(
             "direct_weights": direct,
             "available_weights": available_weights(), "num_threads": int(num_threads), "machine": machine_facts(),
             "test_instances": len(gen.real_instances) if real is not None else gen.num_instances,
-            "split": "procedural" if real is None else "real", "real_catalog": real,
+            "split": "procedural" if real is None else "real", "instances": instances, "real_catalog": real,
             "real_instances": [o.name for o in gen.real_instances] if real is not None else [],
             "num_points": gen.config.num_points, "generator_version": GENERATOR_VERSION,
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),

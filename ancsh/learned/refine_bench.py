@@ -6,20 +6,27 @@ fits ``exact_reduced`` and refines it (:func:`ancsh.solvers.icp.category.refine_
 network output, so the two rows differ only by the refinement. It writes each category's report
 (``<category>.md``, ``<category>_real.md``, the same tables as ``ancsh evaluate``) into a folder and a
 side-by-side summary (``template_refinement.md``) with the command that made it.
+
+``ancsh bench refine-defaults`` decides the per-category default of ``refine="auto"`` from the
+categories' full evaluations instead (``ancsh evaluate --refine template``: 500 or more frames, where the
+side-by-side runs a few dozen) and installs it in ``ancsh/data/templates/refine_defaults.json``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import shlex
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..outputs import output_flags
 
-__all__ = ["defaults_from", "refinement_helps", "register", "refinement_rows", "run_template_refinement", "write_summary"]
+__all__ = ["HELPS_RULE", "RefineDefault", "defaults_from_reports", "install_defaults", "refinement_helps", "register",
+           "refinement_rows", "run_template_refinement", "write_summary"]
 
 
 def register(sub) -> None:
@@ -32,11 +39,19 @@ def register(sub) -> None:
                    help="real test-split frames per category where the shipped catalog has test objects (default 50; 0 = none)")
     p.add_argument("--out", type=Path, help="folder (default: a fresh ancsh_results/template-refinement-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write into docs/results/ (when --out is not given)")
-    p.add_argument("--install-defaults", action="store_true",
-                   help="write ancsh/data/templates/refine_defaults.json (refine='auto'): on for the categories where "
-                   "the refinement helped on the procedural split (refinement_helps)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run)
+    d = sub.add_parser("refine-defaults", help="decide refine='auto' per category from the full evaluations "
+                       "(ancsh evaluate --refine template reports) and optionally install it",
+                       description="Read each category's <category>.json of `ancsh evaluate --refine template` in "
+                       "--reports, apply the rule (every part's mean rotation error lower, no joint's mean state error "
+                       "more than 5 % higher, on the procedural test split) where the report is of the shipped weights, "
+                       "print the decisions; --install writes ancsh/data/templates/refine_defaults.json (categories "
+                       "without such a report: off).")
+    d.add_argument("--reports", type=Path, required=True, metavar="DIR", help="the evaluation reports (e.g. docs/results)")
+    d.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
+    d.add_argument("--install", action="store_true", help="write ancsh/data/templates/refine_defaults.json")
+    d.set_defaults(func=run_defaults)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,8 +69,6 @@ def run(args: argparse.Namespace) -> int:
     if args.real_frames != 50:
         parts += ["--real-frames", str(args.real_frames)]
     parts += output_flags(args.out, update_docs=args.update_docs)
-    if args.install_defaults:
-        parts.append("--install-defaults")
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     if args.out is not None:
         summary_path, folder = args.out / "template_refinement.md", args.out
@@ -69,18 +82,12 @@ def run(args: argparse.Namespace) -> int:
     path = write_summary(results, summary_path, command=command, folder=folder)
     print(path.read_text())
     print(f"wrote {path} and the per-category reports in {folder}")
-    if args.install_defaults:
-        import json
-
-        target = Path(__file__).resolve().parents[1] / "data" / "templates" / "refine_defaults.json"
-        target.write_text(json.dumps({"measured_by": command, "summary": str(path), "rule": HELPS_RULE,
-                                      "categories": defaults_from(results)}, indent=1) + "\n")
-        print(f"installed {target}")
     return 0
 
 
-HELPS_RULE = ("on where, on the procedural test split, the refinement lowered the mean rotation error of every part "
-              "and did not raise the mean joint-state error by more than 5 %")
+HELPS_RULE = ("on where, on the procedural test split of the category's full evaluation (`ancsh evaluate --refine "
+              "template`, the shipped weights), the refinement lowered the mean rotation error of every part and did "
+              "not raise any joint's mean state error by more than 5 %")
 
 
 def refinement_helps(summary: dict) -> bool:
@@ -91,9 +98,130 @@ def refinement_helps(summary: dict) -> bool:
     return bool(np.all(rot_b < rot_a) and np.all(st_b <= 1.05 * st_a))
 
 
-def defaults_from(results: list[dict]) -> dict:
-    """``{category: on}`` from :func:`run_template_refinement`'s procedural results."""
-    return {r["category"]: refinement_helps(r["summary"]) for r in results if r["split"] == "procedural"}
+@dataclass(frozen=True)
+class RefineDefault:
+    """The ``refine="auto"`` decision for one category and the evidence it rests on.
+
+    Attributes
+    ----------
+    category : str
+    on : bool
+        Whether ``refine="auto"`` refines against the category template.
+    reason : str
+        Why (the rule's verdict, or why there was no evidence).
+    report : str or None
+        The evaluation report read (``<category>.json``), None where there was none.
+    command : str or None
+        The command that produced that report.
+    frames : int or None
+        Its procedural test frames.
+    rot_deg, rot_deg_refined : tuple of float
+        Per part, mean rotation error (degrees) of ANCSH-exact and of the refined fit.
+    state_err, state_err_refined : tuple of float
+        Per joint, mean joint-state error (degrees for revolute joints, object units for prismatic ones).
+    """
+
+    category: str
+    on: bool
+    reason: str
+    report: str | None = None
+    command: str | None = None
+    frames: int | None = None
+    rot_deg: tuple = ()
+    rot_deg_refined: tuple = ()
+    state_err: tuple = ()
+    state_err_refined: tuple = ()
+
+
+def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
+    """Apply :func:`refinement_helps` to each category's full evaluation report.
+
+    Parameters
+    ----------
+    reports_dir : path
+        A folder of ``ancsh evaluate`` reports (``<category>.json``).
+    categories : iterable of str, optional
+        Default: every category with shipped ANCSH weights.
+
+    Returns
+    -------
+    list of RefineDefault
+        One per category; off where the report is missing, has no refined (``template``) rows, or was
+        made with other weights than the shipped ones (stale).
+    """
+    import json
+
+    from ..outputs import file_sha256
+    from .weights import shipped_categories, weights_path
+
+    reports_dir = Path(reports_dir)
+    if not reports_dir.is_dir():
+        raise ValueError(f"reports_dir: not a folder: {reports_dir}")
+    out = []
+    for cat in (list(categories) if categories else shipped_categories()):
+        path = reports_dir / f"{cat}.json"
+        if not path.is_file():
+            out.append(RefineDefault(cat, False, f"no evaluation report {path}"))
+            continue
+        report = json.loads(path.read_text())
+        methods = report["summary"]["methods"]
+        command = report.get("command")
+        if "template" not in methods or "exact_reduced" not in methods:
+            out.append(RefineDefault(cat, False, "its report has no refined rows (run `ancsh evaluate --refine template`)",
+                                     str(path), command))
+            continue
+        shipped = weights_path(cat)
+        if not shipped.is_file() or report["settings"].get("weights_sha256") != file_sha256(shipped):
+            out.append(RefineDefault(cat, False, "its report is of other weights than the shipped ones (stale)",
+                                     str(path), command))
+            continue
+        a, b = methods["exact_reduced"], methods["template"]
+        on = refinement_helps(report["summary"])
+        rot_a, rot_b = tuple(a["rot_deg"]["mean"]), tuple(b["rot_deg"]["mean"])
+        st_a, st_b = tuple(a["state_err"]["mean"]), tuple(b["state_err"]["mean"])
+        if on:
+            reason = "every part's rotation lower, no joint state more than 5 % higher"
+        elif not all(y < x for x, y in zip(rot_a, rot_b)):
+            reason = "some part's rotation not lower"
+        else:
+            reason = "a joint's state error more than 5 % higher"
+        out.append(RefineDefault(cat, on, reason, str(path), command, int(report["settings"]["frames"]),
+                                 rot_a, rot_b, st_a, st_b))
+    return out
+
+
+def install_defaults(decisions: list[RefineDefault], command: str, path=None) -> Path:
+    """Write :func:`defaults_from_reports`' decisions to ``refine_defaults.json`` (read by
+    :func:`ancsh.data.templates.refine_default`); returns the path written."""
+    import json
+
+    target = Path(path) if path is not None else Path(__file__).resolve().parents[1] / "data" / "templates" / "refine_defaults.json"
+    evidence = {d.category: {k: v for k, v in dataclasses.asdict(d).items() if k not in ("category", "on")}
+                for d in decisions}
+    target.write_text(json.dumps({"measured_by": command, "rule": HELPS_RULE,
+                                  "categories": {d.category: d.on for d in decisions}, "evidence": evidence},
+                                 indent=1) + "\n")
+    return target
+
+
+def run_defaults(args: argparse.Namespace) -> int:
+    parts = ["bench", "refine-defaults", "--reports", str(args.reports)]
+    if args.categories:
+        parts += ["--categories", *args.categories]
+    if args.install:
+        parts.append("--install")
+    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
+    decisions = defaults_from_reports(args.reports, args.categories)
+    print(f"refine='auto' per category ({HELPS_RULE}):")
+    for d in decisions:
+        nums = ""
+        if d.rot_deg:
+            nums = (f"; rotation {_fmt(d.rot_deg, '.2f')} -> {_fmt(d.rot_deg_refined, '.2f')} deg, joint state "
+                    f"{_fmt(d.state_err, '.3g')} -> {_fmt(d.state_err_refined, '.3g')} ({d.frames} frames)")
+        print(f"  {d.category}: {'on' if d.on else 'off'} -- {d.reason}{nums}")
+    if args.install:
+        print(f"installed {install_defaults(decisions, command)}")
+    return 0
 
 
 def run_template_refinement(categories, *, frames: int, real_frames: int, out_dir, command: str,
@@ -196,8 +324,10 @@ def write_summary(results: list[dict], path, *, command: str, folder) -> Path:
         helps = ("yes" if refinement_helps(r["summary"]) else "no") if r["split"] == "procedural" else ""
         lines.append(f"| {r['category']} | {r['split']} | {refine_summary_line(r['summary']['methods']['template'])} "
                      f"| {100 * worse:.0f}% | {100 * better:.0f}% | {helps} |")
-    lines += ["", f"Rule for the per-category default (`refine='auto'`, `ancsh predict`; written by `--install-defaults` "
-              f"to `ancsh/data/templates/refine_defaults.json`): {HELPS_RULE}."]
+    lines += ["", "Helps: the rule of the per-category default on these frames. The default itself (`refine='auto'`, "
+              "`ancsh predict`) is decided on each category's full evaluation, not on these few frames: `ancsh bench "
+              f"refine-defaults --reports docs/results --install` ({HELPS_RULE}; "
+              "`ancsh/data/templates/refine_defaults.json`)."]
     lines.append("")
     path.write_text("\n".join(lines))
     return path

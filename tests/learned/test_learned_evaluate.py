@@ -196,3 +196,28 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
     assert "| oven | base, door |" in md[2] and "10 + 5" in md[2] and "| current |" in md[2]
     with pytest.raises(ValueError, match="no real test object"):
         ev.evaluate_category("laptop", real=str(catalog), **kw)
+
+
+def test_training_instances_are_evaluated_and_set_beside_the_test_ones(tmp_path):
+    from ancsh.learned.gap_bench import gap_rows, run_gap, write_gap_report
+
+    with pytest.raises(ValueError, match="instances"):
+        ev.evaluate_category("laptop", frames=1, methods=("exact_reduced",), instances="val", progress=False)
+    results = run_gap(["laptop"], frames=2, real_frames=0, seed=3, progress=False)
+    assert [(r["split"], r["instances"]) for r in results] == [("procedural", "test"), ("procedural", "train")]
+    test, train = results
+    assert train["settings"]["instances"] == "train" and test["settings"]["instances"] == "test"
+    assert train["settings"]["test_instances"] > test["settings"]["test_instances"]  # 200 training, 20 test objects
+    train_names = {FrameGenerator(GenerationConfig(category="laptop", split="train", seed=3)).frame(i).instance
+                   for i in range(2)}
+    test_names = {FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)).frame(i).instance
+                  for i in range(2)}
+    assert not train_names & test_names
+    rows = gap_rows(results)
+    assert len(rows) == 3 and "training instances" in rows[0] and "test / training" in rows[2]
+    rot_tr = train["summary"]["methods"]["exact_reduced"]["rot_deg"]["mean"]
+    rot_te = test["summary"]["methods"]["exact_reduced"]["rot_deg"]["mean"]
+    assert rows[2].split("|")[5].strip() == " / ".join(f"{a / b:.2f}" for a, b in zip(rot_te, rot_tr))
+    path = write_gap_report(results, tmp_path / "gap.md", command="ancsh bench train-test-gap")
+    data = json.loads(path.with_suffix(".json").read_text())
+    assert [r["instances"] for r in data["results"]] == ["test", "train"] and len(data["results"][1]["npcs_rot_deg"]) == 2
