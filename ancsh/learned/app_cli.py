@@ -171,7 +171,8 @@ def run_weights(args: argparse.Namespace) -> int:
                         f"{best['score']:.1f} ({best['step']}) | {f(pc[-1]['score'] / best['score'], '.2f')} |")
     targets, limits = [], []
     if args.reports is not None:
-        from .targets import budget_projection, collect_targets, limit_lines, roll_gains, target_lines, unshipped_minutes
+        from .targets import (budget_projection, collect_targets, limit_lines, roll_gains, target_lines,
+                              train_test_ratios, unshipped_minutes)
 
         target_rows, missing = collect_targets(args.reports)
         ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh"}
@@ -179,8 +180,9 @@ def run_weights(args: argparse.Namespace) -> int:
         targets = target_lines(target_rows, missing, minutes)
         gains = roll_gains(args.reports / "roll_equivariance.json")
         unshipped = unshipped_minutes()
+        gaps = train_test_ratios(args.reports / "train_test_gap.json")
         limits = limit_lines([budget_projection(t, ancsh_rows[t.category], gains.get(t.category, float("nan")),
-                                                unshipped.get(t.category, 0.0))
+                                                unshipped.get(t.category, 0.0), gaps.get(t.category, float("nan")))
                               for t in target_rows if t.category in ancsh_rows])
     print("\n".join(lines))
     print("\n".join(curves))
@@ -248,7 +250,11 @@ def run_weights(args: argparse.Namespace) -> int:
                 "laws are extrapolations (optimistic: curves flatten), the NPCS error is only a proxy, and the pose "
                 "validations carry about ±1° of noise each. Roll gain: how far the fitted rotation follows a camera "
                 "roll (1 = the network reads the orientation from the shape; `roll_equivariance.md` in the reports "
-                "folder, shipped weights only; '-' when not measured on them). A category projected not to reach "
+                "folder, shipped weights only; '-' when not measured on them). Rotation, test / training "
+                "instances: the mean fitted rotation error on the held-out test instances over that on new views "
+                "of the training instances, averaged over parts (`train_test_gap.md` in the reports folder, "
+                "`ancsh bench train-test-gap`): near 1, the network errs as much on the objects it trained on -- "
+                "under-fitted, and more data of the same kind would not help. A category projected not to reach "
                 "its target needs another lever than more steps of the same training.", "",
                 *limits, "",
             ]

@@ -16,6 +16,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 __all__ = [
     "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
     "collect_targets", "limit_lines", "roll_gains", "target_lines",
@@ -305,6 +307,10 @@ class BudgetProjection:
     roll_gain : float
         The shipped network's camera-roll gain (:mod:`ancsh.learned.equivariance`; ``nan`` when not
         measured).
+    test_over_train : float
+        Mean fitted rotation error on the held-out test instances over that on new views of the training
+        instances, procedural split, averaged over parts (``ancsh bench train-test-gap``; ``nan`` when not
+        measured on the shipped weights): near 1, the network is under-fitted.
     """
 
     category: str
@@ -315,6 +321,7 @@ class BudgetProjection:
     pose_factor: float
     pose_exponent: float
     roll_gain: float = float("nan")
+    test_over_train: float = float("nan")
 
     @property
     def reachable(self) -> bool | None:
@@ -327,7 +334,7 @@ class BudgetProjection:
 
 
 def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = float("nan"),
-                      unshipped_min: float = 0.0) -> BudgetProjection:
+                      unshipped_min: float = 0.0, test_over_train: float = float("nan")) -> BudgetProjection:
     """Project more of the same training over the rest of the budget, for one category.
 
     Parameters
@@ -341,6 +348,8 @@ def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = floa
         Its measured camera-roll gain, passed through (``nan``: not measured).
     unshipped_min : float
         Minutes of the category's runs that were not shipped (:func:`unshipped_minutes`): spent budget.
+    test_over_train : float
+        Its measured train/test rotation ratio (:func:`train_test_ratios`), passed through.
 
     Notes
     -----
@@ -373,7 +382,37 @@ def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = floa
     pose_factor = float("nan") if pose_exponent != pose_exponent else (
         1.0 if pose_exponent >= 0 else project(pose_exponent))
     return BudgetProjection(row.category, needed, spent, left, npcs_factor, pose_factor, pose_exponent,
-                            float(roll_gain))
+                            float(roll_gain), float(test_over_train))
+
+
+def train_test_ratios(path) -> dict[str, float]:
+    """Per category, the procedural split's test-instance over training-instance mean rotation error, averaged over
+    parts, from a ``train_test_gap.json`` of ``ancsh bench train-test-gap`` (rows of the shipped weights only; {}
+    when ``path`` does not exist)."""
+    from ..outputs import file_sha256
+    from .weights import weights_path
+
+    path = Path(path)
+    if not path.is_file():
+        return {}
+    try:
+        rows = json.loads(path.read_text())["results"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"{path}: not a train-test-gap report ({exc!r})") from None
+    found: dict[str, dict[str, list]] = {}
+    for r in rows:
+        cat = r.get("category")
+        shipped = weights_path(cat) if cat else None
+        if r.get("split") != "procedural" or shipped is None or not shipped.is_file():
+            continue
+        if r.get("weights_sha256") == file_sha256(shipped):
+            found.setdefault(cat, {})[r["instances"]] = r["rot_deg"]
+    out = {}
+    for cat, by in found.items():
+        if "test" in by and "train" in by:
+            te, tr = np.asarray(by["test"], dtype=float), np.asarray(by["train"], dtype=float)
+            out[cat] = float(np.mean(te / tr))
+    return out
 
 
 def roll_gains(path) -> dict[str, float]:
@@ -407,8 +446,9 @@ def limit_lines(projections: list[BudgetProjection]) -> list[str]:
 
     lines = [
         "| category | rotation must fall to (x today) | budget left (min) | NPCS-curve projection at the budget's end "
-        "(x today) | pose-curve exponent | pose-curve projection (x today) | roll gain | more of the same training |",
-        "|---|---|---|---|---|---|---|---|",
+        "(x today) | pose-curve exponent | pose-curve projection (x today) | roll gain | rotation, test / training "
+        "instances | more of the same training |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for p in projections:
         reach = p.reachable
@@ -416,6 +456,7 @@ def limit_lines(projections: list[BudgetProjection]) -> list[str]:
             "projected to reach it" if reach else "**projected not to reach it**"))
         lines.append(
             f"| {p.category} | {f(p.needed, '.2f')} | {f(p.left_min, '.0f')} | {f(p.npcs_factor, '.2f')} | "
-            f"{f(p.pose_exponent, '.2f')} | {f(p.pose_factor, '.2f')} | {f(p.roll_gain, '.2f')} | {verdict} |"
+            f"{f(p.pose_exponent, '.2f')} | {f(p.pose_factor, '.2f')} | {f(p.roll_gain, '.2f')} | "
+            f"{f(p.test_over_train, '.2f')} | {verdict} |"
         )
     return lines

@@ -8,7 +8,7 @@ import pytest
 from ancsh.data.procedural import GENERATOR_VERSION
 from ancsh.learned.evaluate import PAPER_TABLE1
 from ancsh.learned.targets import (
-    REAL_RATIO_GOAL, TRAINING_BUDGET_MIN, budget_projection, collect_targets, limit_lines, roll_gains, target_lines,
+    REAL_RATIO_GOAL, TRAINING_BUDGET_MIN, budget_projection, collect_targets, limit_lines, roll_gains, target_lines, train_test_ratios,
 )
 
 
@@ -144,6 +144,26 @@ def test_roll_gains_keep_only_rows_measured_on_the_shipped_weights(tmp_path):
     path.write_text("[1")
     with pytest.raises(ValueError, match="roll_equivariance.json"):
         roll_gains(path)
+
+
+def test_train_test_ratios_average_parts_of_the_shipped_weights_procedural_rows(tmp_path):
+    from ancsh.learned.weights import weights_path
+    from ancsh.outputs import file_sha256
+
+    sha = file_sha256(weights_path("laptop"))
+    row = lambda cat, split, inst, rot, w=sha: {"category": cat, "split": split, "instances": inst,  # noqa: E731
+                                                "weights_sha256": w, "rot_deg": rot}
+    results = [row("laptop", "procedural", "test", [4.0, 3.0]), row("laptop", "procedural", "train", [2.0, 3.0]),
+               row("laptop", "real", "test", [9.0, 9.0]), row("laptop", "real", "train", [1.0, 1.0]),  # real: not read
+               row("oven", "procedural", "test", [4.0, 4.0], "0" * 64), row("oven", "procedural", "train", [2.0, 2.0], "0" * 64),
+               row("drawer", "procedural", "test", [3.0] * 4, file_sha256(weights_path("drawer")))]  # no training row
+    path = tmp_path / "train_test_gap.json"
+    path.write_text(json.dumps({"results": results}))
+    assert train_test_ratios(path) == {"laptop": pytest.approx(1.5)}  # mean of 2.0 and 1.0
+    assert train_test_ratios(tmp_path / "none.json") == {}
+    path.write_text("{}")
+    with pytest.raises(ValueError, match="train_test_gap.json"):
+        train_test_ratios(path)
 
 
 def test_unshipped_runs_spend_the_budget(tmp_path):
