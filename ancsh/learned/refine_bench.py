@@ -151,8 +151,8 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     """
     import json
 
-    from ..outputs import file_sha256
-    from .weights import shipped_categories, weights_path
+    from .targets import is_shipped
+    from .weights import shipped_categories
 
     reports_dir = Path(reports_dir)
     if not reports_dir.is_dir():
@@ -170,8 +170,7 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
             out.append(RefineDefault(cat, False, "its report has no refined rows (run `ancsh evaluate --refine template`)",
                                      str(path), command))
             continue
-        shipped = weights_path(cat)
-        if not shipped.is_file() or report["settings"].get("weights_sha256") != file_sha256(shipped):
+        if not is_shipped(cat, report["settings"].get("weights_sha256")):
             out.append(RefineDefault(cat, False, "its report is of other weights than the shipped ones (stale)",
                                      str(path), command))
             continue

@@ -385,28 +385,37 @@ def budget_projection(row: TargetRow, weights_row: dict, roll_gain: float = floa
                             float(roll_gain), float(test_over_train))
 
 
+def _report_entries(path, key: str, what: str):
+    """``json[key]`` of a benchmark's JSON report; ``None`` when ``path`` does not exist."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text())[key]
+    except (OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"{path}: not a {what} report ({exc!r})") from None
+
+
+def is_shipped(category, weights_sha256) -> bool:
+    """Whether ``weights_sha256`` is that of the ANCSH weights shipped for ``category`` (False when none are)."""
+    from ..outputs import file_sha256
+    from .weights import weights_path
+
+    if not category or not weights_sha256:
+        return False
+    shipped = weights_path(category)
+    return shipped.is_file() and file_sha256(shipped) == weights_sha256
+
+
 def train_test_ratios(path) -> dict[str, float]:
     """Per category, the procedural split's test-instance over training-instance mean rotation error, averaged over
     parts, from a ``train_test_gap.json`` of ``ancsh bench train-test-gap`` (rows of the shipped weights only; {}
     when ``path`` does not exist)."""
-    from ..outputs import file_sha256
-    from .weights import weights_path
-
-    path = Path(path)
-    if not path.is_file():
-        return {}
-    try:
-        rows = json.loads(path.read_text())["results"]
-    except (OSError, ValueError, KeyError) as exc:
-        raise ValueError(f"{path}: not a train-test-gap report ({exc!r})") from None
+    rows = _report_entries(path, "results", "train-test-gap")
     found: dict[str, dict[str, list]] = {}
-    for r in rows:
-        cat = r.get("category")
-        shipped = weights_path(cat) if cat else None
-        if r.get("split") != "procedural" or shipped is None or not shipped.is_file():
-            continue
-        if r.get("weights_sha256") == file_sha256(shipped):
-            found.setdefault(cat, {})[r["instances"]] = r["rot_deg"]
+    for r in rows or ():
+        if r.get("split") == "procedural" and is_shipped(r.get("category"), r.get("weights_sha256")):
+            found.setdefault(r["category"], {})[r["instances"]] = r["rot_deg"]
     out = {}
     for cat, by in found.items():
         if "test" in by and "train" in by:
@@ -418,25 +427,9 @@ def train_test_ratios(path) -> dict[str, float]:
 def roll_gains(path) -> dict[str, float]:
     """Mean roll gain of each shipped network in a ``roll_equivariance.json`` of ``ancsh bench roll-equivariance``
     (rows labelled by their category and measured on the shipped weights; {} when ``path`` does not exist)."""
-    from ..outputs import file_sha256
-    from .weights import weights_path
-
-    path = Path(path)
-    if not path.is_file():
-        return {}
-    try:
-        rows = json.loads(path.read_text())["rows"]
-    except (OSError, ValueError, KeyError) as exc:
-        raise ValueError(f"{path}: not a roll-equivariance report ({exc!r})") from None
-    gains = {}
-    for label, r in rows.items():
-        category = r.get("category")
-        if label != category or not r.get("weights_sha256"):
-            continue
-        shipped = weights_path(category)
-        if shipped.is_file() and file_sha256(shipped) == r["weights_sha256"]:
-            gains[category] = float(r["gain_mean"])
-    return gains
+    rows = _report_entries(path, "rows", "roll-equivariance")
+    return {label: float(r["gain_mean"]) for label, r in (rows or {}).items()
+            if label == r.get("category") and is_shipped(label, r.get("weights_sha256"))}
 
 
 def limit_lines(projections: list[BudgetProjection]) -> list[str]:
