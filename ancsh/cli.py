@@ -34,6 +34,8 @@ EXAMPLES = {
     "bench roll-equivariance": "ancsh bench roll-equivariance --categories oven laptop --frames 20",
     "bench learned-cost": "ancsh bench learned-cost --variants today new --repeats 6",
     "bench template-refinement": "ancsh bench template-refinement --categories laptop --frames 20 --real-frames 0",
+    "bench refine-defaults": "ancsh bench refine-defaults --reports docs/results   # add --install to write them",
+    "bench train-test-gap": "ancsh bench train-test-gap --categories laptop --frames 50 --real-frames 0",
     "bench": "ancsh bench fit --quick",
     "bench render": "ancsh bench render --frames 20 --categories laptop",
     "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
