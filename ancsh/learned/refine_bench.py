@@ -147,10 +147,11 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     -------
     list of RefineDefault
         One per category; off where the report is missing, has no refined (``template``) rows, or was
-        made with other weights than the shipped ones (stale).
+        made with other weights than the shipped ones or on frames of another generator version (stale).
     """
     import json
 
+    from ..data.procedural import GENERATOR_VERSION
     from .targets import is_shipped
     from .weights import shipped_categories
 
@@ -173,6 +174,10 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
         if not is_shipped(cat, report["settings"].get("weights_sha256")):
             out.append(RefineDefault(cat, False, "its report is of other weights than the shipped ones (stale)",
                                      str(path), command))
+            continue
+        if report["settings"].get("generator_version") != GENERATOR_VERSION:
+            out.append(RefineDefault(cat, False, f"its report's frames are not of today's generator (version "
+                                     f"{GENERATOR_VERSION}; stale)", str(path), command))
             continue
         a, b = methods["exact_reduced"], methods["template"]
         on = refinement_helps(report["summary"])

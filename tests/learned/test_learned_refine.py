@@ -36,7 +36,7 @@ def test_refine_off_returns_none_and_on_returns_a_fit_at_least_as_well_scored():
     assert np.all(np.isfinite(out.result.joint_states))
 
 
-def _report(tmp_path, category, *, rot, rot_refined, state, state_refined, sha=None):
+def _report(tmp_path, category, *, rot, rot_refined, state, state_refined, sha=None, generator=None):
     """A minimal ``ancsh evaluate`` report (the fields defaults_from_reports reads)."""
     import json
 
@@ -45,7 +45,10 @@ def _report(tmp_path, category, *, rot, rot_refined, state, state_refined, sha=N
 
     summary = {"methods": {"exact_reduced": {"rot_deg": {"mean": rot}, "state_err": {"mean": state}},
                            "template": {"rot_deg": {"mean": rot_refined}, "state_err": {"mean": state_refined}}}}
-    settings = {"frames": 500, "weights_sha256": sha or file_sha256(weights_path(category))}
+    from ancsh.data.procedural import GENERATOR_VERSION
+
+    settings = {"frames": 500, "weights_sha256": sha or file_sha256(weights_path(category)),
+                "generator_version": GENERATOR_VERSION if generator is None else generator}
     (tmp_path / f"{category}.json").write_text(json.dumps({"command": f"ancsh evaluate --category {category}",
                                                             "settings": settings, "summary": summary}))
 
@@ -61,15 +64,19 @@ def test_refine_defaults_follow_the_rule_on_current_reports_only(tmp_path):
             state_refined=[0.02, 0.0211, 0.02])
     _report(tmp_path, "eyeglasses", rot=[4.0] * 3, rot_refined=[3.0] * 3, state=[1.0] * 2, state_refined=[1.0] * 2,
             sha="0" * 64)
-    got = {d.category: d for d in defaults_from_reports(tmp_path, ["laptop", "oven", "drawer", "eyeglasses", "safe"])}
+    _report(tmp_path, "microwave", rot=[4.0] * 2, rot_refined=[3.0] * 2, state=[1.0], state_refined=[1.0], generator=1)
+    got = {d.category: d for d in defaults_from_reports(tmp_path, ["laptop", "oven", "drawer", "eyeglasses", "safe",
+                                                                   "microwave"])}
     assert got["laptop"].on and got["laptop"].frames == 500 and got["laptop"].rot_deg_refined == (3.0, 3.5)
     assert not got["oven"].on and "rotation" in got["oven"].reason  # a part got worse
     assert not got["drawer"].on and "state" in got["drawer"].reason  # one joint 5.5 % worse
     assert not got["eyeglasses"].on and "stale" in got["eyeglasses"].reason  # other weights
     assert not got["safe"].on and got["safe"].report is None  # no report
+    assert not got["microwave"].on and "generator" in got["microwave"].reason  # frames of an older generator
     path = install_defaults(list(got.values()), "ancsh bench refine-defaults", tmp_path / "defaults.json")
     data = json.loads(path.read_text())
-    assert data["categories"] == {"laptop": True, "oven": False, "drawer": False, "eyeglasses": False, "safe": False}
+    assert data["categories"] == {"laptop": True, "oven": False, "drawer": False, "eyeglasses": False, "safe": False,
+                                  "microwave": False}
     assert data["evidence"]["laptop"]["command"] == "ancsh evaluate --category laptop"
     with pytest.raises(ValueError, match="reports_dir"):
         defaults_from_reports(tmp_path / "missing")
