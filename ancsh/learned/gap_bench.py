@@ -23,10 +23,6 @@ from ..outputs import output_flags
 
 __all__ = ["gap_rows", "register", "run_gap", "write_gap_report"]
 
-#: Per-part metrics of the report: the fitted rotation and the NPCS orientation error it inherits.
-_PART_METRICS = (("rot_deg", "ANCSH-exact rotation (°)"), ("npcs_rot_deg", "NPCS orientation error (°)"))
-
-
 def register(sub) -> None:
     """Add ``ancsh bench train-test-gap`` to the ``bench`` sub-parsers."""
     p = sub.add_parser("train-test-gap", help="the shipped networks on new views of their training instances "
@@ -99,6 +95,8 @@ def run_gap(categories, *, frames: int, real_frames: int, seed: int, progress: b
 
 
 def _means(result: dict, metric: str) -> np.ndarray:
+    """Means over frames of one per-part or per-joint metric (NaN where none): ``npcs_*`` of the NPCS error
+    budget, the others of the ``exact_reduced`` fit."""
     s = result["summary"]
     src = s["budget"] if metric.startswith("npcs") else s["methods"]["exact_reduced"]
     return np.array([np.nan if v is None else v for v in src[metric]["mean"]], dtype=float)
@@ -118,10 +116,7 @@ def gap_rows(results: list[dict]) -> list[str]:
         tr = by_key[(cat, split, "train")]
         cells = {}
         for label, res in (("training instances", tr), ("test instances", r)):
-            m = res["summary"]["methods"]["exact_reduced"]
-            cells[label] = (_means(res, "rot_deg"), _means(res, "npcs_rot_deg"),
-                            np.array([np.nan if v is None else v for v in m["axis_deg"]["mean"]], dtype=float),
-                            res["settings"])
+            cells[label] = (_means(res, "rot_deg"), _means(res, "npcs_rot_deg"), _means(res, "axis_deg"), res["settings"])
         for label, (rot, npcs, axis, st) in cells.items():
             n_inst = len(st["real_instances"]) if split == "real" else st["test_instances"]
             rows.append(f"| {cat} | {split} | {label} ({n_inst}) | {st['frames']} | {_fmt(rot, '.2f')} | "

@@ -49,8 +49,6 @@ def unshipped_minutes(path=None) -> dict[str, float]:
     ValueError
         For a ledger that is not such a list (naming the file and the entry).
     """
-    import json
-
     path = UNSHIPPED_PATH if path is None else Path(path)
     if not path.is_file():
         return {}
