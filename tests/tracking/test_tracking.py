@@ -700,6 +700,36 @@ def test_fusion_helpers_stack_recentre_and_refuse_mismatched_input():
         TrackerConfig(fusion_weight=-1.0)
 
 
+def test_recentred_keeps_the_carried_position_along_the_directions_the_normals_see():
+    """Scenario: a laptop frame (two thin slabs), carried rows with realistic NPCS errors, the network's exact.
+    Re-centred along every direction (threshold None) each part's carried mean becomes the network's; with a
+    threshold only the sliding directions move: along the slab's normal (its thinnest NPCS axis, which the
+    closest-point matches see) the carried position stays, within the slab's plane it moves toward the network's
+    (less than all the way where the slab's edges show)."""
+    from ancsh.solvers.providers.oracle import OracleProvider
+    from ancsh.tracking.tracker import recentred
+
+    fr = _generator(length=2, points=1024).frame(0)
+    exact = OracleProvider(fr, "none", rng=0).correspond(Observation(fr.points))
+    noisy = OracleProvider(fr, "realistic", rng=1).correspond(Observation(fr.points)).with_weights(np.ones(exact.num_points))
+    poses = list(fr.gt.T_cam_npcs)
+    every = recentred(noisy, exact, fr.points, poses, 1.0)
+    sliding = recentred(noisy, exact, fr.points, poses, 1.0, threshold=0.15)
+    np.testing.assert_array_equal(sliding.weights, every.weights)
+    for j, T in enumerate(poses):
+        kept = (every.weights > 0) & (every.part_labels == j)
+        full = T.rotation @ (every.npcs[kept].mean(axis=0) - noisy.npcs[kept].mean(axis=0))
+        part = T.rotation @ (sliding.npcs[kept].mean(axis=0) - noisy.npcs[kept].mean(axis=0))
+        thin = T.rotation[:, int(np.argmin(exact.npcs_extents[j]))]
+        in_plane = lambda v: v - (v @ thin) * thin  # noqa: E731
+        assert abs(part @ thin) <= 0.1 * abs(full @ thin) + 1e-9
+        # toward the network's within the plane (in part: the soft projector counts the slab's edges)
+        assert in_plane(part) @ in_plane(full) >= 0.2 * np.linalg.norm(in_plane(full)) ** 2
+        assert np.linalg.norm(in_plane(part)) <= 1.05 * np.linalg.norm(in_plane(full))
+    with pytest.raises(ValueError, match="recentre_threshold"):
+        TrackerConfig(recentre_threshold=0.0)
+
+
 # --------------------------------------------------------------------------------------------
 # the tracking benchmark's uncertainty calibration
 # --------------------------------------------------------------------------------------------
