@@ -1,9 +1,10 @@
-"""Pure numpy float64 geometry: rotations, Sim(3), Umeyama, RANSAC, boxes, metrics."""
+"""Float64 geometry (numpy, scipy.spatial where needed): rotations, Sim(3), Umeyama, RANSAC, boxes, normals, metrics."""
 
 from .box_iou import box_iou, intersection_volume
 from .boxes import OrientedBox
 from .lines import axis_angle_error, direction_angle, line_distance
 from .metrics import ad_error, axis_angle_error_deg, joint_state_error, rotation_error_deg, translation_error
+from .normals import estimate_normals, sliding_projector
 from .ransac import RansacResult, RansacStatus, fit_sim3_ransac, mean_group_inlier_ratio, ransac
 from .rotations import (
     axis_angle_matrix,
@@ -35,6 +36,7 @@ __all__ = [
     "axis_angle_matrix",
     "box_iou",
     "direction_angle",
+    "estimate_normals",
     "exp_so3",
     "fit_sim3_ransac",
     "geodesic_angle",
@@ -52,6 +54,7 @@ __all__ = [
     "rotation_angle",
     "rotation_between",
     "rotation_error_deg",
+    "sliding_projector",
     "translation_error",
     "umeyama",
     "vee",
