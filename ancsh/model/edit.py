@@ -15,7 +15,7 @@ from ..geometry._checks import as_rotation
 from ..geometry.transforms import Sim3
 from .articulated import ArticulatedModel, Joint, Part
 
-__all__ = ["reparameterized", "restructured", "scaled", "simplified", "with_orientation"]
+__all__ = ["reparameterized", "restructured", "scaled", "simplified", "with_limits", "with_orientation"]
 
 
 def _model(model: ArticulatedModel, parts, joints, **kw) -> ArticulatedModel:
@@ -147,6 +147,33 @@ def restructured(model: ArticulatedModel, part_order, part_names, joint_names=No
         jname = j.name if joint_names is None else joint_names[new_child - 1]
         joints.append(replace(j, name=jname, parent=rename[j.parent], child=rename[j.child]))
     return _model(model, parts, joints)
+
+
+def with_limits(model: ArticulatedModel, lower, upper) -> ArticulatedModel:
+    """The model with its joints' limits replaced by ``lower`` / ``upper`` ``(K,)`` (radians or model units;
+    ``-inf`` / ``inf`` for none); geometry, axes and rest states unchanged.
+
+    Raises
+    ------
+    ValueError
+        Naming ``lower`` or ``upper``: a wrong shape, NaN, ``lower > upper``, or a rest state outside the new limits.
+    """
+    from ..geometry._checks import as_array
+
+    K = model.num_joints
+    lo = as_array(lower, "lower", (K,), finite=False)
+    hi = as_array(upper, "upper", (K,), finite=False)
+    for name, v in (("lower", lo), ("upper", hi)):
+        if np.any(np.isnan(v)):
+            raise ValueError(f"{name}: contains NaN")
+    rest = model.rest_states
+    bad = np.nonzero((lo > hi) | (rest < lo) | (rest > hi))[0]
+    if bad.size:
+        k = int(bad[0])
+        raise ValueError(f"lower, upper: joint {model.joints[k].name!r} gets [{lo[k]:.6g}, {hi[k]:.6g}], which must be "
+                         f"ordered and hold its rest state {rest[k]:.6g}")
+    joints = [replace(j, lower=float(a), upper=float(b)) for j, a, b in zip(model.joints, lo, hi)]
+    return _model(model, model.parts, joints)
 
 
 def with_orientation(model: ArticulatedModel, R_canon_base) -> ArticulatedModel:

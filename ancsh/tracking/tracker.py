@@ -28,7 +28,8 @@
    frame keeps part of the carried frames' error (about half a degree on the test laptop).
 4. **Carried category template** (categories in ``TrackerConfig.template_categories``, default the
    laptop): at every (re-)initialisation the cold fit is refined against the category template
-   (:func:`~ancsh.solvers.icp.category.refine_fit`, a fraction of a second, once), and where the refinement is
+   (:func:`~ancsh.solvers.icp.category.refine_fit`, a fraction of a second, once; its revolute joints released
+   from the template's own limits, ``RefineConfig.release_revolute``), and where the refinement is
    accepted the track follows that template by warm articulated ICP (an
    :class:`~ancsh.tracking.instance.InstanceTracker` on it, source ``"template"``) instead of network
    or carried-correspondence frames: the network then runs only to re-initialise. Where the template
@@ -587,11 +588,11 @@ class CategoryTracker:
             name, scale = self._template_choice
             index = next((i for i, e in enumerate(library.entries) if e.name == name), None)
             if index is not None:
-                ref = refine_fit(observation, result, corr, library.model(index), config=RefineConfig(scales=(scale,)),
-                                 rng=self.rng)
+                ref = refine_fit(observation, result, corr, library.model(index),
+                                 config=RefineConfig(scales=(scale,), release_revolute=True), rng=self.rng)
                 reused = ", the template of the track before the loss" if ref.accepted else ""
         if ref is None or not ref.accepted:
-            ref = refine_fit(observation, result, corr, library, rng=self.rng)
+            ref = refine_fit(observation, result, corr, library, config=RefineConfig(release_revolute=True), rng=self.rng)
         if not ref.accepted:
             return result, f"; category template not carried ({ref.reason})", False
         self._template_choice = (ref.template, ref.scale)

@@ -217,3 +217,30 @@ def test_lookup_errors():
     assert model.joint_index("j") == 0 and model.part_index("b") == 1
     with pytest.raises(ValueError, match="R_canon_base"):
         ArticulatedModel(_parts("a"), (), R_canon_base=random_rotation(0) * 2)
+
+
+def test_with_limits_replaces_limits_only():
+    """A seeded random model with wider limits: forward kinematics at every old state unchanged, the new
+    limits accept states the old ones refused; limits that exclude the rest state, are unordered or of the
+    wrong shape are refused by name."""
+    from ancsh.model.edit import with_limits
+
+    model = random_articulated_model(4, num_parts=3)
+    lo, hi = model.lower_limits - 0.5, model.upper_limits + 0.5
+    wide = with_limits(model, lo, hi)
+    np.testing.assert_array_equal(wide.lower_limits, lo)
+    np.testing.assert_array_equal(wide.upper_limits, hi)
+    np.testing.assert_array_equal(wide.rest_states, model.rest_states)
+    q = model.random_states(np.random.default_rng(0))
+    for A, B in zip(wide.forward_kinematics(q), model.forward_kinematics(q)):
+        np.testing.assert_allclose(A.matrix(), B.matrix(), atol=TOL)
+    beyond = model.upper_limits + 0.25
+    wide.check_states(beyond)
+    with pytest.raises(ValueError, match="outside its limits"):
+        model.check_states(beyond)
+    with pytest.raises(ValueError, match="lower, upper"):
+        with_limits(model, model.rest_states + 0.1, hi)
+    with pytest.raises(ValueError, match="lower"):
+        with_limits(model, lo[:-1], hi)
+    with pytest.raises(ValueError, match="upper"):
+        with_limits(model, lo, np.full_like(hi, np.nan))

@@ -587,6 +587,32 @@ def test_tracker_carries_the_refined_category_template_and_reinitialises_it():
         TrackerConfig(template_reuse="yes")
 
 
+def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
+    """Scenario: the benchmark's third oracle laptop sequence (seed 0), whose lid opens about 20 degrees past the
+    upper limit of the template the refinement picks. The carried template's revolute joint turns half a turn
+    either side of rest (its own limits are one training instance's): every template frame's joint state within
+    3 degrees of the truth, and the template's absolute state goes past its own upper limit."""
+    from ancsh.data.templates import load_template_library
+    from ancsh.tracking.bench import BenchConfig, _sequences
+
+    config = BenchConfig(categories=("laptop",), providers=("oracle",), sequences=3, length=40, gap=3)
+    *_, provider, _, frames = list(_sequences(config, 0, 3))[2]
+    tracker = CategoryTracker(provider, TrackerConfig(network_every=3), category="laptop", rng=0)
+    beyond = 0
+    for fr, _ in frames[:11]:
+        provider.frame = fr
+        out = tracker.step(Observation(fr.points))
+        assert out.ok and abs(np.degrees(out.joint_states[0] - fr.gt.joint_states[0])) < 3.0, fr.time_index
+        if out.source == "template":
+            name, _ = tracker._template_choice
+            library = load_template_library("laptop")
+            own = library.model(next(i for i, e in enumerate(library.entries) if e.name == name))
+            carried = tracker._template[1].model
+            assert carried.upper_limits[0] == pytest.approx(carried.rest_states[0] + np.pi)
+            beyond += tracker._template[0]._last.q[0] > own.upper_limits[0] + np.radians(5)
+    assert beyond >= 3
+
+
 def test_instance_tracker_without_reinitialisation_reports_a_frame_it_cannot_explain_lost():
     """From a start half a metre off, the warm ICP explains no point: with ``reinitialise=False`` the frame is
     lost at once (no cold multi-start), and the next frame has no track to warm-start from."""

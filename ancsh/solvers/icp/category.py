@@ -109,6 +109,11 @@ class RefineConfig:
         Articulated ICP at the first scale (default: one local start from the fit, see :func:`_local_icp`).
     continuation : ArticulatedIcpConfig
         Articulated ICP at the other scales, from the first scale's result (default: a few iterations).
+    release_revolute : bool
+        The template's revolute joints turn half a turn either side of rest (:func:`released`) instead of
+        stopping at the template's own limits, which are one training instance's and not the observed
+        object's (a procedural laptop's lid opens to 110-175 degrees). Default ``False`` (the committed
+        single-frame evaluations); tracking's carried template sets it (``ancsh.tracking.tracker``).
     """
 
     scales: tuple = (1.0, 0.94, 0.88)
@@ -120,6 +125,7 @@ class RefineConfig:
     templates: int = 1
     icp: ArticulatedIcpConfig = field(default_factory=_local_icp)
     continuation: ArticulatedIcpConfig = field(default_factory=_continuation_icp)
+    release_revolute: bool = False
 
     def __post_init__(self):
         scales = tuple(float(s) for s in self.scales)
@@ -137,6 +143,7 @@ class RefineConfig:
             raise ValueError(f"part_tolerance: expected a number >= 0 (inf = off), got {self.part_tolerance!r}")
         if isinstance(self.templates, bool) or int(self.templates) != self.templates or self.templates < 1:
             raise ValueError(f"templates: expected a positive integer, got {self.templates!r}")
+        check_bool(self.release_revolute, "release_revolute")
         for name in ("icp", "continuation"):
             if not isinstance(getattr(self, name), ArticulatedIcpConfig):
                 raise ValueError(f"{name}: expected an ArticulatedIcpConfig, got {type(getattr(self, name)).__name__}")
@@ -506,6 +513,20 @@ def _score(scorer: FitScorer, surface: ModelSurface, result: FitResult, layout: 
     return scorer.score(surface, parts, gate)
 
 
+def released(model: ArticulatedModel) -> ArticulatedModel:
+    """``model`` with each revolute joint's limits widened to half a turn either side of its rest state (its own
+    limits kept where wider); prismatic joints unchanged (:attr:`RefineConfig.release_revolute`)."""
+    from ...model.edit import with_limits
+
+    revolute = np.array([j.is_revolute for j in model.joints], dtype=bool)
+    if not revolute.any():
+        return model
+    rest = model.rest_states
+    lo = np.where(revolute, np.minimum(model.lower_limits, rest - np.pi), model.lower_limits)
+    hi = np.where(revolute, np.maximum(model.upper_limits, rest + np.pi), model.upper_limits)
+    return with_limits(model, lo, hi)
+
+
 def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, templates, *,
                config: RefineConfig | None = None, rng=0) -> TemplateRefinement:
     """Refine a category-level fit by articulated ICP against a category template.
@@ -569,6 +590,8 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
     cands: list[_Candidate] = []
     name, s_first = "", None
     for template in chosen:
+        if config.release_revolute:
+            template = released(template)
         ft = fitted_template(template, layout, box_scaling=config.box_scaling, max_ratio=config.max_ratio)
         model = ft.model
         surface1 = ModelSurface(model)

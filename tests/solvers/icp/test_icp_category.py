@@ -10,7 +10,7 @@ from ancsh.data.templates import TemplateEntry, TemplateLibrary, load_template_l
 from ancsh.evaluation import evaluate_fit
 from ancsh.solvers import Observation, fit
 from ancsh.solvers.icp.articulated import FitScorer
-from ancsh.solvers.icp.category import RefineConfig, fitted_layout, fitted_template, refine_fit
+from ancsh.solvers.icp.category import RefineConfig, fitted_layout, fitted_template, refine_fit, released
 from ancsh.solvers.icp.template import ModelSurface
 from ancsh.solvers.providers.oracle import OracleProvider
 from ancsh.solvers.types import FitResult, FitStatus
@@ -163,6 +163,27 @@ def test_shipped_library_is_current_and_round_trips():
     assert lib.model(0).num_parts == 2
 
 
+def test_released_template_refines_a_state_past_its_own_limit(scene):
+    """The true oven instance with its door's upper limit moved below the frame's state (a template of a
+    door that opens less than the observed one): refined with its own limits the door stops at that limit;
+    released (half a turn about rest, ``release_revolute``) it reaches the observed state, and the carried
+    template keeps the released limits."""
+    from ancsh.model.edit import with_limits
+
+    model, fr = scene["model"], scene["frame"]
+    state = float(fr.gt.joint_states[0])
+    cut = with_limits(model, model.lower_limits, model.rest_states + 0.6 * state)
+    free = released(cut)
+    np.testing.assert_allclose(free.upper_limits, cut.rest_states + np.pi)
+    np.testing.assert_allclose(free.lower_limits, np.minimum(cut.lower_limits, cut.rest_states - np.pi))
+    own = refine_fit(scene["obs"], scene["fit"], scene["corr"], cut, rng=0)
+    rel = refine_fit(scene["obs"], scene["fit"], scene["corr"], cut, config=RefineConfig(release_revolute=True), rng=0)
+    assert rel.accepted
+    err = lambda r: abs(float(r.result.joint_states[0]) - state)  # noqa: E731
+    assert err(rel) < np.radians(2.0) < err(own)
+    assert rel.carried.model.upper_limits[0] == pytest.approx(cut.rest_states[0] + np.pi)
+
+
 def test_bad_inputs_give_clear_errors(scene):
     obs, corr, res = scene["obs"], scene["corr"], scene["fit"]
     failed = FitResult.failure(FitStatus.TOO_FEW_POINTS, "x", formulation="exact_reduced", solver="ipopt", num_joints=1)
@@ -185,6 +206,8 @@ def test_bad_inputs_give_clear_errors(scene):
         RefineConfig(box_scaling="per_axis")
     with pytest.raises(ValueError, match="candidates"):
         RefineConfig(candidates=("joints",))
+    with pytest.raises(ValueError, match="release_revolute"):
+        RefineConfig(release_revolute="yes")
     with pytest.raises(ValueError, match="entries"):
         TemplateLibrary(CATEGORY, [])
     lib = load_template_library(CATEGORY)
