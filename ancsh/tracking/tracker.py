@@ -658,7 +658,8 @@ class CategoryTracker:
 
         cfg = self.config
         corr = self.provider.correspond(observation)
-        quick = dataclasses.replace(cfg.fit, uncertainty=False, rescore_rounds=max(cfg.fit.rescore_rounds, cfg.warm_rescore_rounds))
+        quick = dataclasses.replace(cfg.fit, uncertainty=False,
+                                    rescore_rounds=max(cfg.fit.rescore_rounds, cfg.warm_rescore_rounds))
         net = fit(observation, corr, cfg.formulation, cfg.solver, quick, rng=self.rng, warm_start=fitted)
         net = check_fit(net, observation.points_cam, corr, self.category, cfg.max_relative_residual)
         if not net.ok or len(net.joint_states) != len(self._template_offset):
