@@ -637,15 +637,15 @@ class CategoryTracker:
             self.reset()
             return None, f"category template lost ({tracked.message}); "
         r = tracked.result
-        fitted = carried.fit_of(ArticulatedPose(r.T_cam_base, r.q), r.uncertainty)
+        pose = ArticulatedPose(r.T_cam_base, r.q)
         cfg = self.config
         if cfg.template_states:
             self._template_since += 1
             if self._template_since >= cfg.network_every:
                 self._template_since = 0
-                self._update_template_offset(observation, fitted)
-            if np.any(self._template_offset):
-                fitted = carried.fit_of(ArticulatedPose(r.T_cam_base, r.q + self._template_offset), r.uncertainty)
+                self._update_template_offset(observation, carried.fit_of(pose))  # the template's own states
+            pose = ArticulatedPose(r.T_cam_base, r.q + self._template_offset)
+        fitted = carried.fit_of(pose, r.uncertainty)
         fitted = dataclasses.replace(fitted, iterations=int(r.iterations), message=r.message)
         self._num_joints = len(fitted.joint_states)
         return fitted, ""
