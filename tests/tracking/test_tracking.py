@@ -11,6 +11,7 @@ import pytest
 
 from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.data.noise import DepthNoise
+from ancsh.data.paths import shared_data_dir
 from ancsh.data.render import Intrinsics
 from ancsh.data.sequences import SequenceMotion
 from ancsh.solvers.types import Observation
@@ -614,9 +615,12 @@ def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
     assert beyond >= 3
 
 
+@pytest.mark.skipif(not (shared_data_dir() / "partnet_mobility").is_dir(),
+                    reason="the scenario's template is a shared PartNet-Mobility laptop (shared data not available)")
 def test_network_frames_correct_the_carried_templates_joint_state():
-    """Scenario: the benchmark's ninth learned laptop sequence (seed 0), where the template refinement settles
-    about 7 degrees from the network's joint state (the template's lid is not the object's). With
+    """Scenario: the benchmark's ninth learned laptop sequence (seed 0), where the template refinement (a real
+    laptop of the library, from the shared data) settles about 7 degrees from the network's joint state (the
+    template's lid is not the object's). With
     ``template_states`` the network frames' joint states pull the template frames' toward theirs: frames 10-20
     within 2.5 degrees of the truth on average; without, the template's offset stays (above 4)."""
     from ancsh.learned.provider import LearnedProvider
