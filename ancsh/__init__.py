@@ -19,7 +19,10 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.1.0"
+from . import _moved
+from ._version import __version__
+
+_moved.install()  # old module names (before the 0.1 re-layout) stay importable for one release
 
 _SUBPACKAGES = ("geometry", "model", "data", "solvers", "learned")
 
@@ -36,7 +39,7 @@ def predict(depth, intrinsics, category: str, **options):
     category : str
         e.g. ``"laptop"``; its shipped network is used.
     **options
-        Of :func:`ancsh.learned.predict.predict_depth`: ``mask`` (array, or a PNG/``.npy`` path),
+        Of :func:`ancsh.learned.inference.predict.predict_depth`: ``mask`` (array, or a PNG/``.npy`` path),
         ``hint`` (:class:`ancsh.data.isolate.ObjectHint`), ``isolate``, ``max_depth``, ``weights``,
         ``formulation``, ``num_points``, ``seed``.
 
@@ -49,7 +52,7 @@ def predict(depth, intrinsics, category: str, **options):
     from pathlib import Path
 
     from .data.images import read_depth, read_intrinsics, read_mask
-    from .learned.predict import predict_depth
+    from .learned.inference.predict import predict_depth
 
     if isinstance(depth, (str, Path)):
         depth = read_depth(depth)

@@ -34,8 +34,6 @@ __all__ = [
     "LocalExecutor",
     "RayExecutor",
     "WorkerLost",
-    "add_executor_arguments",
-    "executor_from_args",
     "make_executor",
     "ray_available",
 ]
@@ -298,26 +296,3 @@ def make_executor(kind: str = "local", workers: int = 1, *, address: str | None 
     if not ray_available():
         raise ValueError(f"executor ray: {RAY_MISSING}")
     return RayExecutor(int(workers), address=address, max_retries=max_retries)
-
-
-def add_executor_arguments(parser, *, workers_default: int, workers_help: str) -> None:
-    """Add ``--workers``, ``--executor`` and ``--ray-address`` to a command's parser."""
-    from .data.cli import _positive_int  # the command line's one positive-integer type (light: no heavy imports)
-
-    parser.add_argument("--workers", type=_positive_int, default=workers_default, help=workers_help)
-    parser.add_argument("--executor", choices=EXECUTORS, default="local",
-                        help="where the workers run: local processes (default) or a Ray cluster "
-                             "(pip install 'ancsh[ray]')")
-    parser.add_argument("--ray-address", default=None, metavar="ADDR",
-                        help="with --executor ray: a running cluster ('auto', 'ray://head:10001'); "
-                             "default: a local Ray started for this command")
-
-
-def executor_from_args(args):
-    """The executor of parsed :func:`add_executor_arguments` options (errors name the option)."""
-    if args.ray_address is not None and args.executor != "ray":
-        raise ValueError("--ray-address: only with --executor ray")
-    if args.executor == "ray" and not ray_available():
-        raise ValueError(f"--executor ray: {RAY_MISSING}")
-    return make_executor(args.executor, args.workers, address=args.ray_address)
-

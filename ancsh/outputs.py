@@ -14,7 +14,7 @@ from __future__ import annotations
 import datetime
 from pathlib import Path
 
-__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "provenance"]
+__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "json_safe", "provenance"]
 
 #: Parent of the fresh output folders (relative to the working directory).
 RESULTS_ROOT = Path("ancsh_results")
@@ -82,9 +82,24 @@ def provenance(weights=None, weights_sha256: str | None = None) -> dict:
 
     ``weights_sha256`` is used when given (a digest taken when the file was loaded), else computed.
     """
-    from . import __version__
+    from ._version import __version__
 
     if weights_sha256 is None and weights is not None and Path(weights).is_file():
         weights_sha256 = file_sha256(weights)
     return {"ancsh_version": __version__, "weights": None if weights is None else str(weights),
             "weights_sha256": weights_sha256}
+
+
+def json_safe(x):
+    """A JSON-safe copy: NaN / inf -> ``None``, numpy scalars -> Python, tuples -> lists."""
+    import numpy as np
+
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe(v) for v in x]
+    if isinstance(x, (np.floating, float)):
+        return float(x) if np.isfinite(x) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    return x

@@ -111,7 +111,7 @@ def test_an_unwritable_out_is_a_clear_error(depth_files, capsys):
 
 def test_continuous_joints_are_reported_within_a_turn():
     from ancsh.model.articulated import ArticulatedModel, Joint, JointType, Part
-    from ancsh.solvers.icp.cli import _wrapped_states
+    from ancsh.cli.cad import _wrapped_states
 
     joints = (Joint("wheel", JointType.REVOLUTE, "a", "b", axis=[0, 0, 1], pivot=[0, 0, 0], lower=-np.inf, upper=np.inf),
               Joint("lid", JointType.REVOLUTE, "a", "c", axis=[0, 0, 1], pivot=[0, 0, 0], lower=0.0, upper=50.0))

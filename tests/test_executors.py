@@ -172,7 +172,7 @@ def test_cli_generate_on_ray_writes_the_shards_of_one_process(ray_session, refer
 
 def _without_times(value):
     """``value`` with every measured time (the keys of TIMING_KEYS, FrameRecord.time_s) left out."""
-    from ancsh.learned.evaluate import TIMING_KEYS
+    from ancsh.studies.table1 import TIMING_KEYS
 
     if isinstance(value, dict):
         return {k: _without_times(v) for k, v in value.items() if k not in (*TIMING_KEYS, "time_s")}
@@ -184,7 +184,7 @@ def _without_times(value):
 @pytest.mark.slow
 def test_ray_evaluation_gives_the_same_tables_as_one_process(ray_session):
     pytest.importorskip("torch")
-    from ancsh.learned.evaluate import evaluate_category, json_safe, summarize
+    from ancsh.studies.table1 import evaluate_category, json_safe, summarize
 
     kw = dict(frames=3, methods=("per_part", "exact_reduced"), progress=False)
     one = evaluate_category("laptop", **kw)
@@ -215,7 +215,7 @@ def test_ray_cad_evaluation_gives_the_same_records_as_one_process(ray_session):
     status and the tables built from them are equal."""
     from dataclasses import asdict
 
-    from ancsh.solvers.icp.evaluate import EvalConfig, run_evaluation
+    from ancsh.studies.cad import EvalConfig, run_evaluation
 
     cfg = EvalConfig(frames=1, points=300, procedural=(("laptop", 0), ("drawer", 0)), shared=False, image_size=(160, 120))
     methods = ("per_part_icp", "whole_object_icp")

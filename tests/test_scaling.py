@@ -3,7 +3,7 @@
 import pytest
 
 from ancsh.cli import main
-from ancsh.scaling import Run, ScalingResult, scaling_report
+from ancsh.studies.scaling import Run, ScalingResult, scaling_report
 
 
 def _result():

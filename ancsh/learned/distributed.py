@@ -3,7 +3,7 @@
 ``torchrun --nproc_per_node 2 -m ancsh train --category laptop --data D --out R`` starts two processes;
 each learns its rank from torchrun's environment (:func:`init_distributed`: gloo on CPUs, NCCL on
 CUDA devices, one device per process). Every step takes the same *global* batch as a single process
-(:meth:`~ancsh.learned.train.Trainer.batch_indices`) and each rank runs an equal, contiguous share
+(:meth:`~ancsh.learned.training.train.Trainer.batch_indices`) and each rank runs an equal, contiguous share
 of it (:meth:`DistributedContext.local_batch`). Inside :func:`global_batch`
 
 - batch norm takes its statistics over the global batch (:func:`sync_batch_norm_rows`: sums

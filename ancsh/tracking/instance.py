@@ -25,7 +25,7 @@ from ..solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, aut
 from ..solvers.icp.result import CadFitResult
 from ..solvers.icp.template import ArticulatedPose, ModelTemplate, TemplateProvider
 from ..solvers.types import FitStatus, Observation
-from .tracker import TrackedFrame, TrackStatus
+from .records import TrackedFrame, TrackStatus
 
 __all__ = ["InstanceTracker", "InstanceTrackerConfig"]
 

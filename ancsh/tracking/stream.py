@@ -125,7 +125,7 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
         The records (see ``docs/json_schema.md``, ``ancsh.track/1``).
     """
     from ..data.images import read_depth, read_mask
-    from ..learned.predict import depth_to_points
+    from ..learned.inference.predict import depth_to_points
     from ..solvers.types import Observation
 
     if isolate and mask_dir is None and category is None:

@@ -53,7 +53,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from enum import Enum
 
 import numpy as np
 
@@ -62,91 +61,11 @@ from ..geometry.transforms import Sim3
 from ..solvers.fit import FORMULATIONS, FitConfig, fit
 from ..solvers.terms import PreviousSolution
 from ..solvers.types import FitResult, FitStatus, Observation
+from .instance import InstanceTracker, InstanceTrackerConfig
+from .records import TrackedFrame, TrackStatus, joint_state_std
 
 __all__ = ["CategoryTracker", "TrackStatus", "TrackedFrame", "TrackerConfig", "check_fit", "fit_frame",
            "fitted_canonical", "joint_state_std", "predicted_fit", "previous_solution"]
-
-
-class TrackStatus(str, Enum):
-    """What the tracker did on a frame."""
-
-    INITIALISED = "initialised"  # the first successful (cold) fit of the sequence
-    TRACKED = "tracked"  # a warm-started fit from the previous frame
-    REINITIALISED = "reinitialised"  # a cold fit after a lost frame or a failed warm fit
-    LOST = "lost"  # no acceptable fit on this frame
-
-
-@dataclass(frozen=True)
-class TrackedFrame:
-    """The tracker's answer for one frame.
-
-    Attributes
-    ----------
-    index : int
-        Frame number in the sequence (0-based).
-    status : TrackStatus
-    message : str
-        Why (the failed check of a lost frame, the reason of a re-initialisation).
-    result : FitResult, CadFitResult or None
-        The accepted fit (``None`` when lost).
-    joint_states : (K,) float64
-        Joint states relative to rest (radians / metres); NaN when lost.
-    source : str
-        Where this frame's correspondences came from: ``"network"`` (the provider),
-        ``"carried"`` (the previous fit's point template), ``"template"`` (the carried category template,
-        warm articulated ICP), ``"model"`` (a known URDF) or ``"none"``.
-    iterations : int
-        Solver iterations of the accepted fit (0 when lost).
-    time_s : float
-        Wall time of the whole step (seconds).
-    """
-
-    index: int
-    status: TrackStatus
-    message: str
-    result: object
-    joint_states: np.ndarray
-    source: str
-    iterations: int = 0
-    time_s: float = 0.0
-
-    @property
-    def ok(self) -> bool:
-        """``True`` unless the frame is lost."""
-        return self.status != TrackStatus.LOST
-
-    def to_dict(self) -> dict:
-        """JSON-ready record of the frame (one line of ``ancsh track``'s output; NaN -> ``None``)."""
-        r = self.result
-        poses = []
-        if r is not None:
-            for T in getattr(r, "T_cam_npcs", None) or getattr(r, "T_cam_parts", ()):
-                poses.append({"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)})
-        sigma = joint_state_std(r)
-        unc = getattr(r, "uncertainty", None)
-        return {
-            "frame": int(self.index), "status": self.status.value, "message": self.message, "source": self.source,
-            "fit_status": None if r is None else r.status.value,
-            "joint_states": [None if not np.isfinite(v) else float(v) for v in self.joint_states],
-            "joint_states_std": None if sigma is None else [None if not np.isfinite(v) else float(v) for v in sigma],
-            "part_poses_std": None if unc is None else [{k: float(v) if np.isfinite(v) else None for k, v in part.items()}
-                                                        for part in unc.summary()["parts"]],
-            "uncertainty": None if unc is None else {"status": unc.status, "inflation": unc.inflation.source},
-            "part_poses": poses, "iterations": int(self.iterations), "time_ms": 1e3 * float(self.time_s),
-        }
-
-
-def joint_state_std(result) -> np.ndarray | None:
-    """Standard deviations ``(K,)`` of a fit's joint states, where the fit reports its uncertainty.
-
-    Reads ``result.uncertainty.joint_state_covariance`` (the fit covariances of
-    :mod:`ancsh.solvers.uncertainty`, where present); ``None`` for a result without them.
-    """
-    unc = getattr(result, "uncertainty", None)
-    cov = getattr(unc, "joint_state_covariance", None)
-    if cov is None:
-        return None
-    return np.sqrt(np.clip(np.diag(np.asarray(cov, dtype=np.float64)), 0.0, None))
 
 
 @dataclass(frozen=True)
@@ -324,7 +243,6 @@ class TrackerConfig:
         if isinstance(self.template_categories, str) or not all(isinstance(c, str) for c in self.template_categories):
             raise ValueError(f"template_categories: expected a tuple of category names, got {self.template_categories!r}")
         object.__setattr__(self, "template_categories", tuple(self.template_categories))
-        from .instance import InstanceTrackerConfig  # (instance.py imports this module)
 
         if self.template_icp is None:
             object.__setattr__(self, "template_icp", InstanceTrackerConfig(reinitialise=False))
@@ -454,13 +372,13 @@ def predicted_fit(result: FitResult, correspondences, prediction: PreviousSoluti
 def check_fit(result: FitResult, points_cam, correspondences, category: str | None, max_relative_residual: float) -> FitResult:
     """The fit, or a copy with the failed status of the first plausibility check it fails.
 
-    The checks of ``ancsh predict`` (:func:`ancsh.learned.predict.check_plausibility`: inliers,
+    The checks of ``ancsh predict`` (:func:`ancsh.learned.inference.predict.check_plausibility`: inliers,
     the category's size range, its residual limit), then a residual limit relative to the
     fitted object: a part (with at least 20 points) whose median distance between its points and
     their fitted NPCS exceeds ``max_relative_residual`` object diagonals is ``large_residual``.
     """
 
-    from ..learned.predict import check_plausibility, part_quality
+    from ..learned.inference.predict import check_plausibility, part_quality
 
     if not result.ok:
         return result
@@ -514,7 +432,7 @@ class CategoryTracker:
     Parameters
     ----------
     provider : CorrespondenceProvider
-        Turns an observation into correspondences (e.g. :class:`~ancsh.learned.provider.LearnedProvider`);
+        Turns an observation into correspondences (e.g. :class:`~ancsh.learned.inference.provider.LearnedProvider`);
         called on network frames and re-initialisations only.
     config : TrackerConfig, optional
     category : str, optional
@@ -600,7 +518,6 @@ class CategoryTracker:
         from ..data.templates import load_template_library
         from ..solvers.icp.category import RefineConfig, refine_fit
         from ..solvers.icp.template import ArticulatedPose
-        from .instance import InstanceTracker
 
         library = load_template_library(self.category)
         ref, reused = None, ""
@@ -763,7 +680,7 @@ class CategoryTracker:
         tracked frames of this source (``learned-tracked-<source>``) for a warm frame, of single-frame
         fits (``learned``, ``learned-template``) for a cold one or where none were measured."""
         if getattr(result, "uncertainty", None) is not None and self.category is not None and hasattr(self.provider, "network"):
-            from ..learned.predict import inflate_uncertainty  # as ancsh predict: the factors measured for these weights
+            from ..learned.inference.predict import inflate_uncertainty  # as ancsh predict: the factors measured for these weights
 
             result = inflate_uncertainty(result, self.category, self.provider, template=template,
                                          tracked=source if status == TrackStatus.TRACKED else None)

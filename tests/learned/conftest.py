@@ -2,8 +2,8 @@
 
 import pytest
 
-from ancsh.learned.config import TrainConfig
-from ancsh.learned.data import synthetic_arrays
+from ancsh.learned.network.config import TrainConfig
+from ancsh.learned.training.data import synthetic_arrays
 
 
 @pytest.fixture(scope="session")

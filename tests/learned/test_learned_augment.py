@@ -7,8 +7,8 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from ancsh.learned.config import TrainConfig
-from ancsh.learned.train import Trainer, camera_rotations, rotate_batch
+from ancsh.learned.network.config import TrainConfig
+from ancsh.learned.training.train import Trainer, camera_rotations, rotate_batch
 
 
 def _centroids(rng, n):

@@ -52,10 +52,10 @@ def test_train_command_trains_resumes_and_exports(tmp_path, laptop_shards, capsy
 @pytest.mark.slow
 def test_provider_on_rendered_frames_matches_the_ground_truth_structure(tmp_path, laptop_shards):
     from ancsh.data.dataset import read_frames
-    from ancsh.learned.config import TrainConfig
-    from ancsh.learned.data import arrays_from_dataset
-    from ancsh.learned.provider import LearnedProvider
-    from ancsh.learned.train import Trainer
+    from ancsh.learned.network.config import TrainConfig
+    from ancsh.learned.training.data import arrays_from_dataset
+    from ancsh.learned.inference.provider import LearnedProvider
+    from ancsh.learned.training.train import Trainer
 
     arrays = arrays_from_dataset(laptop_shards)
     cfg = TrainConfig(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8))
@@ -70,10 +70,10 @@ def test_provider_on_rendered_frames_matches_the_ground_truth_structure(tmp_path
 
 @pytest.mark.slow
 def test_export_confirms_the_checkpoints_on_all_validation_frames(tmp_path, laptop_shards, capsys):
-    from ancsh.learned.config import TrainConfig
-    from ancsh.learned.data import arrays_from_dataset
-    from ancsh.learned.train import PoseValidation, split_by_instance
-    from ancsh.learned.weights import load_network
+    from ancsh.learned.network.config import TrainConfig
+    from ancsh.learned.training.data import arrays_from_dataset
+    from ancsh.learned.training.train import PoseValidation, split_by_instance
+    from ancsh.learned.network.weights import load_network
 
     cfg = {"num_points": 64, "width": 0.125, "npoints": [32, 8], "nsamples": [8, 8], "batch_size": 2, "max_steps": 2,
            "val_every": 1, "checkpoint_every": 1, "val_fraction": 0.4, "seed": 4}
@@ -115,7 +115,7 @@ def test_export_confirms_the_checkpoints_on_all_validation_frames(tmp_path, lapt
 
 
 def test_validation_frame_indices_spreads_evenly_over_the_validation_instances():
-    from ancsh.learned.select import choose, validation_frame_indices
+    from ancsh.learned.training.select import choose, validation_frame_indices
 
     instance = np.array([0, 1, 1, 2, 0, 1, 2, 2, 1])
     assert validation_frame_indices(instance, [1]).tolist() == [1, 2, 5, 8]

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import torch
 
-from ancsh.learned.compiled import compile_network, cxx_compiler
-from ancsh.learned.config import TrainConfig
-from ancsh.learned.network import build_network
-from ancsh.learned.train import Trainer
+from ancsh.learned.training.compiled import compile_network, cxx_compiler
+from ancsh.learned.network.config import TrainConfig
+from ancsh.learned.network.models import build_network
+from ancsh.learned.training.train import Trainer
 
 
 def test_trainer_with_compile_trains_checkpoints_and_resumes(tmp_path, tiny_arrays, tiny_config, monkeypatch):
@@ -23,7 +23,7 @@ def test_trainer_with_compile_trains_checkpoints_and_resumes(tmp_path, tiny_arra
     backend stands in for inductor here (the same wrapper, no C++ compilation: fast, and on any machine)."""
     from dataclasses import replace
 
-    import ancsh.learned.compiled as compiled_module
+    import ancsh.learned.training.compiled as compiled_module
 
     wrapped = []
 
@@ -57,8 +57,8 @@ def test_trainer_with_compile_trains_checkpoints_and_resumes(tmp_path, tiny_arra
 
 def test_cost_benchmark_times_the_compilation_apart(tmp_path, monkeypatch):
     """``bench learned-cost`` with the compiled variant (dynamo's ``eager`` backend standing in for inductor)."""
-    import ancsh.learned.compiled as compiled_module
-    from ancsh.learned.bench import training_cost, write_cost_report
+    import ancsh.learned.training.compiled as compiled_module
+    from ancsh.studies.learned_cost import training_cost, write_cost_report
 
     monkeypatch.setattr(compiled_module, "compile_network", lambda m: torch.compile(m, dynamic=False, backend="eager"))
     result = training_cost(("today", "new", "new_compiled"), width=0.125, num_points=256, repeats=2)

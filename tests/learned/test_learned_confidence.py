@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from ancsh.cli import main
-from ancsh.learned import confidence
-from ancsh.learned.confidence import FEATURES, collect, fit_calibrator, fit_features, probability_good, reliability
+from ancsh.learned.inference import confidence
+from ancsh.learned.inference.confidence import FEATURES, fit_features, probability_good
+from ancsh.studies.confidence_calibration import collect, fit_calibrator, reliability
 
 
 def test_calibrator_recovers_a_known_logistic_relation():
@@ -53,8 +54,8 @@ def test_collect_labels_rendered_frames():
 
 def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
     from ancsh.data.generate import FrameGenerator, GenerationConfig
-    from ancsh.learned.predict import predict_depth
-    from ancsh.learned.weights import weights_path
+    from ancsh.learned.inference.predict import predict_depth
+    from ancsh.learned.network.weights import weights_path
     from ancsh.outputs import file_sha256
 
     cal = {"features": list(FEATURES), "good_rotation_deg": 10.0, "mean": [0.0] * 5, "scale": [1.0] * 5,
@@ -83,7 +84,7 @@ def test_calibrate_refuses_too_few_frames(capsys):
 def test_infer_takes_the_raw_prediction_from_either_provider_interface():
     from types import SimpleNamespace
 
-    from ancsh.learned.predict import infer
+    from ancsh.learned.inference.predict import infer
 
     corr, raw = object(), object()
     new = SimpleNamespace(infer=lambda obs: SimpleNamespace(correspondences=corr, prediction=raw))
@@ -95,7 +96,7 @@ def test_infer_takes_the_raw_prediction_from_either_provider_interface():
 def test_calibration_falls_back_to_the_base_rate_where_the_evidence_does_not_predict():
     """Informative features: the regression is kept; features unrelated to the outcome at a 96 % base rate: the
     constant base rate is (the regression's check-frame Brier score is no better); p_good is then the rate."""
-    from ancsh.learned.confidence import choose_calibrator
+    from ancsh.studies.confidence_calibration import choose_calibrator
 
     rng = np.random.default_rng(3)
     X = rng.normal(size=(400, len(FEATURES)))
@@ -116,6 +117,6 @@ def test_calibration_falls_back_to_the_base_rate_where_the_evidence_does_not_pre
     assert cal["model"] == "constant" and set(cal["brier_check"]) == {"constant"}
     assert probability_good(cal, X[250]) == pytest.approx(201 / 202)
     assert rel["frames"] == 200 and rel["good_rate"] == pytest.approx(199 / 200)
-    from ancsh.learned.confidence import _model_sentence
+    from ancsh.studies.confidence_calibration import _model_sentence
 
     assert "one outcome only" in _model_sentence(cal)  # the report says why no regression was tried

@@ -39,7 +39,7 @@ def test_cuda_without_a_gpu_is_refused_naming_the_option(capsys, tmp_path):
 
 
 def test_move_puts_every_tensor_of_a_batch_on_the_device(tiny_arrays):
-    from ancsh.learned.losses import Targets
+    from ancsh.learned.training.losses import Targets
 
     points, targets = move(tiny_arrays.batch(np.arange(2)), "cpu")
     assert isinstance(targets, Targets) and points.shape == (2, 64, 3)
@@ -52,7 +52,7 @@ def test_move_puts_every_tensor_of_a_batch_on_the_device(tiny_arrays):
 @pytest.mark.slow
 def test_gpu_check_script_runs(capsys):
     """The GPU check, CPU against CPU (where no GPU is): every comparison is exact and it passes."""
-    from ancsh.learned.gpu_check import main as gpu_check
+    from ancsh.studies.gpu_check import main as gpu_check
 
     assert gpu_check(["--device", "cpu", "--steps", "2"]) == 0
     out = capsys.readouterr().out

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import torch
 
-from ancsh.learned.data import synthetic_arrays
+from ancsh.learned.training.data import synthetic_arrays
 from ancsh.learned.distributed import DistributedContext, init_distributed
-from ancsh.learned.train import Trainer
+from ancsh.learned.training.train import Trainer
 
 
 def _free_port() -> int:

@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ancsh.learned.equivariance import measure_roll_gain, roll_gain, roll_points
+from ancsh.studies.equivariance import measure_roll_gain, roll_gain, roll_points
 from ancsh.solvers.providers.oracle import OracleProvider
 
 

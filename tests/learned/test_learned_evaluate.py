@@ -10,7 +10,7 @@ from ancsh.cli import main
 from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.data.procedural import CATEGORY_INFO, PAPER_CATEGORIES
 from ancsh.evaluation import evaluate_fit
-from ancsh.learned import evaluate as ev
+from ancsh.studies import table1 as ev
 from ancsh.solvers.types import Correspondences, Observation
 
 
@@ -60,7 +60,7 @@ def _record(visibility, rot, ok=True):
 
 def test_error_budget_recovers_a_known_npcs_rotation_and_matches_the_fit():
     from ancsh.geometry import axis_angle_matrix, geodesic_angle, umeyama
-    from ancsh.learned.provider import Prediction
+    from ancsh.learned.inference.provider import Prediction
 
     frame = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)).frame(0)
     gt = frame.gt
@@ -146,7 +146,7 @@ def test_quick_evaluation_writes_the_report(tmp_path):
 
 
 def test_missing_weights_name_the_available_ones(monkeypatch, tmp_path):
-    import ancsh.learned.weights as weights
+    import ancsh.learned.network.weights as weights
 
     monkeypatch.setattr(weights, "WEIGHTS_DIR", tmp_path)
     with pytest.raises(FileNotFoundError, match="no shipped weights for 'laptop'; available: none"):
@@ -179,7 +179,7 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
     alone = ev.write_report(proc, ev.summarize(proc), tmp_path / "alone", command="test")["md"].read_text()
     assert "real test split" not in alone
     # the JSON keeps the real split's summary, and the targets read both splits back from it
-    from ancsh.learned.targets import collect_targets, target_lines
+    from ancsh.studies.targets import collect_targets, target_lines
 
     rows, missing = collect_targets(tmp_path / "both")
     assert [r.category for r in rows] == ["oven"] and "laptop" in missing and "oven" not in missing
@@ -199,7 +199,7 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
 
 
 def test_training_instances_are_evaluated_and_set_beside_the_test_ones(tmp_path):
-    from ancsh.learned.gap_bench import gap_rows, run_gap, write_gap_report
+    from ancsh.studies.train_test_gap import gap_rows, run_gap, write_gap_report
 
     with pytest.raises(ValueError, match="instances"):
         ev.evaluate_category("laptop", frames=1, methods=("exact_reduced",), instances="val", progress=False)

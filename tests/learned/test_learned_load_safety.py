@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from ancsh.cli import main
-from ancsh.learned.train import Trainer
-from ancsh.learned.weights import WEIGHTS_DIR, available_weights, load_network, read_torch_file
+from ancsh.learned.training.train import Trainer
+from ancsh.learned.network.weights import WEIGHTS_DIR, available_weights, load_network, read_torch_file
 
 
 class _Payload:

@@ -3,8 +3,8 @@
 import pytest
 import torch
 
-from ancsh.learned.losses import LOSS_NAMES, ancsh_loss, direct_voting_loss, relaxed_iou_loss
-from ancsh.learned.network import build_network
+from ancsh.learned.training.losses import LOSS_NAMES, ancsh_loss, direct_voting_loss, relaxed_iou_loss
+from ancsh.learned.network.models import build_network
 
 
 def _one_hot_logits(labels, C, big=50.0):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from ancsh.learned.pointnet2 import (
+from ancsh.learned.network.pointnet2 import (
     FeaturePropagation,
     PointNet2Backbone,
     SetAbstraction,

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from ancsh.geometry.rotations import random_rotation
-from ancsh.learned.losses import Targets, ancsh_loss, npcs_pose_loss, procrustes_rotation
+from ancsh.learned.training.losses import Targets, ancsh_loss, npcs_pose_loss, procrustes_rotation
 
 
 def _frames(B=2, N=60, M=2, seed=0):
@@ -140,8 +140,8 @@ def test_pose_loss_rejects_bad_arguments():
 
 
 def test_ancsh_loss_adds_the_weighted_pose_term_and_the_config_defaults_to_off():
-    from ancsh.learned.config import TrainConfig
-    from ancsh.learned.train import loss_function
+    from ancsh.learned.network.config import TrainConfig
+    from ancsh.learned.training.train import loss_function
 
     true, labels, g = _frames(B=2, N=30, M=2)
     B, N = labels.shape

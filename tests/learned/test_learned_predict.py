@@ -9,9 +9,9 @@ from PIL import Image
 
 from ancsh.cli import main
 from ancsh.data.generate import FrameGenerator, GenerationConfig
-from ancsh.learned.predict import depth_to_points, predict_depth, read_depth, read_intrinsics
-from ancsh.learned.train import Trainer
-from ancsh.learned.weights import export_weights
+from ancsh.learned.inference.predict import depth_to_points, predict_depth, read_depth, read_intrinsics
+from ancsh.learned.training.train import Trainer
+from ancsh.learned.network.weights import export_weights
 
 
 @pytest.fixture(scope="module")

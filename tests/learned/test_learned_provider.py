@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from ancsh.learned.provider import DirectVotingPredictor, LearnedProvider
-from ancsh.learned.train import Trainer
-from ancsh.learned.weights import export_weights, load_network, weights_path
+from ancsh.learned.inference.provider import DirectVotingPredictor, LearnedProvider
+from ancsh.learned.training.train import Trainer
+from ancsh.learned.network.weights import export_weights, load_network, weights_path
 from ancsh.solvers.types import CorrespondenceProvider, Correspondences, Observation
 
 

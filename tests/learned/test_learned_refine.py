@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ancsh.data.templates import refine_default
-from ancsh.learned.provider import LearnedProvider
+from ancsh.learned.inference.provider import LearnedProvider
 from ancsh.solvers import Observation, fit
 
 
@@ -40,7 +40,7 @@ def _report(tmp_path, category, *, rot, rot_refined, state, state_refined, sha=N
     """A minimal ``ancsh evaluate`` report (the fields defaults_from_reports reads)."""
     import json
 
-    from ancsh.learned.weights import weights_path
+    from ancsh.learned.network.weights import weights_path
     from ancsh.outputs import file_sha256
 
     summary = {"methods": {"exact_reduced": {"rot_deg": {"mean": rot}, "state_err": {"mean": state}},
@@ -56,7 +56,7 @@ def _report(tmp_path, category, *, rot, rot_refined, state, state_refined, sha=N
 def test_refine_defaults_follow_the_rule_on_current_reports_only(tmp_path):
     import json
 
-    from ancsh.learned.refine_bench import defaults_from_reports, install_defaults
+    from ancsh.studies.refinement import defaults_from_reports, install_defaults
 
     _report(tmp_path, "laptop", rot=[4.0, 4.0], rot_refined=[3.0, 3.5], state=[1.0], state_refined=[1.04])
     _report(tmp_path, "oven", rot=[4.0, 4.0], rot_refined=[3.0, 4.1], state=[1.0], state_refined=[0.9])

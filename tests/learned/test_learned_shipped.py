@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from ancsh.learned.weights import load_network, shipped_categories
+from ancsh.learned.network.weights import load_network, shipped_categories
 
 SHIPPED = shipped_categories()
 SHIPPED_DIRECT = shipped_categories("direct_voting")
@@ -23,7 +23,7 @@ def _model_of(category):
 
 @pytest.mark.parametrize("category", SHIPPED)
 def test_weights_are_small_match_the_category_and_beat_their_stored_baselines(category):
-    from ancsh.learned.weights import weights_path
+    from ancsh.learned.network.weights import weights_path
 
     assert weights_path(category).stat().st_size < 5e6
     net = load_network(category)
@@ -50,9 +50,9 @@ def test_frames(tmp_path_factory):
 @pytest.mark.parametrize("category", SHIPPED)
 def test_weights_beat_trivial_baselines_on_fresh_test_frames(category, test_frames):
     from ancsh.data.dataset import read_frames
-    from ancsh.learned.data import arrays_from_dataset
-    from ancsh.learned.provider import LearnedProvider
-    from ancsh.learned.train import evaluate_arrays, trivial_baselines
+    from ancsh.learned.training.data import arrays_from_dataset
+    from ancsh.learned.inference.provider import LearnedProvider
+    from ancsh.learned.training.train import evaluate_arrays, trivial_baselines
     from ancsh.solvers.types import Observation
 
     frames_dir = test_frames(category)
@@ -84,7 +84,7 @@ def test_direct_voting_weights_beat_a_constant_axis(category):
 
 def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     from ancsh.cli import main
-    from ancsh.learned.weights import available_weights, weights_summary
+    from ancsh.learned.network.weights import available_weights, weights_summary
 
     out = tmp_path / "weights.md"
     assert main(["weights", "--out", str(out)]) == 0
@@ -109,7 +109,7 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
 
 
 def test_training_settings_sentence_comes_from_the_files_configs():
-    from ancsh.learned.app_cli import training_settings
+    from ancsh.cli.learned import training_settings
 
     row = lambda name, threads: {"name": name, "num_threads": threads, "batch_size": 16, "num_points": 1024}  # noqa: E731
     assert training_settings([row("a", 1), row("b", 1)]) == \
@@ -120,7 +120,7 @@ def test_training_settings_sentence_comes_from_the_files_configs():
 
 
 def test_learning_curve_fit_recovers_a_power_law_and_its_projections():
-    from ancsh.learned.weights import learning_curve_fit
+    from ancsh.learned.network.weights import learning_curve_fit
 
     rng = np.random.default_rng(0)
     t = np.sort(rng.uniform(100.0, 3000.0, size=20))

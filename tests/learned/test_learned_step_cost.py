@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 import torch
 
-from ancsh.learned.compiled import compile_network, cxx_compiler
-from ancsh.learned.losses import ancsh_loss
-from ancsh.learned.network import build_network
-from ancsh.learned.pointnet2 import farthest_point_sample, farthest_point_sample_reference
-from ancsh.learned.train import Trainer, neighbourhood_cache
+from ancsh.learned.training.compiled import compile_network, cxx_compiler
+from ancsh.learned.training.losses import ancsh_loss
+from ancsh.learned.network.models import build_network
+from ancsh.learned.network.pointnet2 import farthest_point_sample, farthest_point_sample_reference
+from ancsh.learned.training.train import Trainer, neighbourhood_cache
 
 
 def _net(kind="ancsh", **kw):
@@ -63,7 +63,7 @@ def _float64_case(arrays, kind="ancsh"):
     targets = type(targets)(**{k: v.double() if v.is_floating_point() else v for k, v in vars(targets).items()})
     loss_fn = ancsh_loss
     if kind == "direct_voting":
-        from ancsh.learned.losses import direct_voting_loss as loss_fn
+        from ancsh.learned.training.losses import direct_voting_loss as loss_fn
 
     def step(model, call, neighbourhoods):
         model.zero_grad()
@@ -107,7 +107,7 @@ def test_compiled_step_matches_the_reference_step(tiny_arrays, monkeypatch, back
     """The compiled network (``TrainConfig.compile``) pools the set-abstraction layers before their last batch norm
     and ReLU (:meth:`SharedMLP.forward_last_max`) and inductor fuses kernels that only reorder sums: the float64 step
     agrees to rounding as the channel-last one does (a changed function would differ at the 1e-2 level)."""
-    import ancsh.learned.pointnet2 as pointnet2
+    import ancsh.learned.network.pointnet2 as pointnet2
 
     pooled_first = []
     affine = pointnet2._batch_norm_affine
@@ -127,7 +127,7 @@ def test_compiled_step_matches_the_reference_step(tiny_arrays, monkeypatch, back
 
 @pytest.mark.parametrize("momentum, track", [(0.1, True), (None, True), (0.1, False)])
 def test_batch_norm_affine_has_the_semantics_of_batch_norm(momentum, track):
-    from ancsh.learned.pointnet2 import _batch_norm_affine
+    from ancsh.learned.network.pointnet2 import _batch_norm_affine
 
     g = torch.Generator().manual_seed(1)
     h = torch.randn(50, 6, generator=g, dtype=torch.float64) * 3 + 1
@@ -166,7 +166,7 @@ def test_trainer_caches_neighbourhoods_once_per_frame(tmp_path, tiny_arrays, tin
 
 
 def test_cost_benchmark_measures_variants_side_by_side_and_writes_its_command(tmp_path):
-    from ancsh.learned.bench import training_cost, write_cost_report
+    from ancsh.studies.learned_cost import training_cost, write_cost_report
 
     result = training_cost(("today", "new"), width=0.125, num_points=256, repeats=2)
     rows = {r["name"]: r for r in result["rows"]}

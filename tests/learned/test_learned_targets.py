@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ancsh.data.procedural import GENERATOR_VERSION
-from ancsh.learned.evaluate import PAPER_TABLE1
-from ancsh.learned.targets import (
+from ancsh.studies.table1 import PAPER_TABLE1
+from ancsh.studies.targets import (
     REAL_RATIO_GOAL, TRAINING_BUDGET_MIN, budget_projection, collect_targets, limit_lines, roll_gains, target_lines, train_test_ratios,
 )
 
@@ -31,7 +31,7 @@ def _report(category, rot, axis, sha, *, real_rot=None, paper=True, refined_rot=
 
 
 def test_rows_compare_with_the_paper_and_the_real_split(tmp_path):
-    from ancsh.learned.weights import weights_path
+    from ancsh.learned.network.weights import weights_path
     from ancsh.outputs import file_sha256
 
     paper = PAPER_TABLE1["laptop"]["ANCSH"]
@@ -94,7 +94,7 @@ def test_weights_command_adds_the_targets_section(tmp_path):
 
 
 def _target_row(category, rot):
-    from ancsh.learned.targets import TargetRow
+    from ancsh.studies.targets import TargetRow
 
     paper = PAPER_TABLE1[category]["ANCSH"]
     return TargetRow(category, tuple(f"p{i}" for i in range(len(rot))), ("j0",), 10, tuple(rot), (1.0,),
@@ -129,7 +129,7 @@ def test_budget_projection_follows_the_runs_own_power_laws():
 
 
 def test_roll_gains_keep_only_rows_measured_on_the_shipped_weights(tmp_path):
-    from ancsh.learned.weights import weights_path
+    from ancsh.learned.network.weights import weights_path
     from ancsh.outputs import file_sha256
 
     sha = file_sha256(weights_path("laptop"))
@@ -147,7 +147,7 @@ def test_roll_gains_keep_only_rows_measured_on_the_shipped_weights(tmp_path):
 
 
 def test_train_test_ratios_average_parts_of_the_shipped_weights_procedural_rows(tmp_path):
-    from ancsh.learned.weights import weights_path
+    from ancsh.learned.network.weights import weights_path
     from ancsh.outputs import file_sha256
 
     sha = file_sha256(weights_path("laptop"))
@@ -168,7 +168,7 @@ def test_train_test_ratios_average_parts_of_the_shipped_weights_procedural_rows(
 
 def test_unshipped_runs_spend_the_budget(tmp_path):
     """Minutes of runs that were not shipped are read from the ledger and count as spent."""
-    from ancsh.learned.targets import unshipped_minutes
+    from ancsh.studies.targets import unshipped_minutes
 
     ledger = tmp_path / "unshipped.json"
     ledger.write_text(json.dumps({"runs": [{"category": "oven", "minutes": 30}, {"category": "oven", "minutes": 12.5},

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from ancsh.learned.config import TrainConfig
-from ancsh.learned.data import TrainingArrays
-from ancsh.learned.train import HistoryRow, Trainer, split_by_instance, trivial_baselines, write_history_csv
+from ancsh.learned.network.config import TrainConfig
+from ancsh.learned.training.data import TrainingArrays
+from ancsh.learned.training.train import HistoryRow, Trainer, split_by_instance, trivial_baselines, write_history_csv
 
 
 def test_config_validates_and_round_trips(tmp_path):
@@ -127,8 +127,8 @@ def test_init_weights_starts_from_a_trained_network_and_refuses_another_structur
 
 
 def test_fine_tuned_weights_keep_their_parent_and_its_training_time(tmp_path, tiny_arrays, tiny_config):
-    from ancsh.learned.cli import copy_training_log
-    from ancsh.learned.weights import export_weights, load_network, training_seconds
+    from ancsh.cli.training import copy_training_log
+    from ancsh.learned.network.weights import export_weights, load_network, training_seconds
     from ancsh.outputs import file_sha256
 
     cfg = dataclasses.replace(tiny_config, max_steps=3, checkpoint_every=3, val_every=3)
@@ -201,7 +201,7 @@ def _pose_frames(seed=11, count=2):
 def test_pose_validation_runs_the_full_pipeline_and_reports_failures_as_data(tiny_arrays, tiny_config):
     """Scenario: an untrained network on two frames of a two-part revolute object: the provider's output
     goes through exact_reduced fits; fits that fail (a part without points) are counted, not raised."""
-    from ancsh.learned.train import PoseValidation
+    from ancsh.learned.training.train import PoseValidation
 
     trainer = Trainer(dataclasses.replace(tiny_config, max_steps=2), tiny_arrays, progress=False)
     scores = PoseValidation(_pose_frames()).evaluate(trainer.pose_network())
@@ -218,8 +218,8 @@ def test_pose_validation_runs_the_full_pipeline_and_reports_failures_as_data(tin
 def test_best_checkpoint_follows_the_pose_score_not_the_validation_loss(tmp_path, tiny_arrays, tiny_config):
     """Scenario: a pose validation whose score is best at the first of three validations; best.pt holds
     that step whatever the validation loss does."""
-    from ancsh.learned.train import PoseValidation
-    from ancsh.learned.weights import load_network
+    from ancsh.learned.training.train import PoseValidation
+    from ancsh.learned.network.weights import load_network
 
     class Scripted(PoseValidation):
         def __init__(self, scores):
@@ -244,7 +244,7 @@ def test_best_checkpoint_follows_the_pose_score_not_the_validation_loss(tmp_path
 
 def test_ablation_report_compares_pose_validation_at_equal_steps(tmp_path, tiny_config):
     """`bench learned-ablation`: each run's pose-validation history, side by side by step."""
-    from ancsh.learned.bench import ablation, write_ablation_report
+    from ancsh.studies.learned_cost import ablation, write_ablation_report
 
     for name, scores in (("a", {500: 12.5, 1000: 10.25}), ("b", {500: 12.5, 1500: 30.0})):
         run = tmp_path / name
@@ -261,8 +261,8 @@ def test_ablation_report_compares_pose_validation_at_equal_steps(tmp_path, tiny_
 
 def test_ablation_baseline_row_is_the_start_weights_on_the_same_frames(tmp_path, tiny_config):
     """`bench learned-ablation --baseline`: the weights a fine-tune started from, first, on the runs' test frames."""
-    from ancsh.learned.bench import ablation, write_ablation_report
-    from ancsh.learned.evaluate import evaluate_category, summarize
+    from ancsh.studies.learned_cost import ablation, write_ablation_report
+    from ancsh.studies.table1 import evaluate_category, summarize
 
     run = tmp_path / "a"
     run.mkdir()

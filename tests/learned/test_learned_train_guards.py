@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from ancsh.cli import main
-from ancsh.learned.train import Trainer
+from ancsh.learned.training.train import Trainer
 
 CFG = {"num_points": 64, "width": 0.125, "npoints": [32, 8], "nsamples": [8, 8], "batch_size": 2,
        "max_steps": 4, "val_every": 2, "checkpoint_every": 100, "val_fraction": 0.2}

@@ -14,9 +14,9 @@ from ancsh.data.isolate import ObjectHint, isolate_object, parse_hint
 from ancsh.data.procedural import CATEGORY_INFO, load_instance
 from ancsh.data.render import Intrinsics, ModelRenderer, look_at
 from ancsh.geometry.transforms import Sim3
-from ancsh.learned.predict import MIN_POINTS, predict_depth, read_depth
-from ancsh.learned.provider import LearnedProvider
-from ancsh.learned.weights import weights_path
+from ancsh.learned.inference.predict import MIN_POINTS, predict_depth, read_depth
+from ancsh.learned.inference.provider import LearnedProvider
+from ancsh.learned.network.weights import weights_path
 from ancsh.model.articulated import ArticulatedModel, Part
 
 
@@ -220,7 +220,7 @@ def test_a_folder_of_depth_images_gives_one_result_each(table_scene, tmp_path, c
 
 
 def test_picture_names_the_parts_and_draws_over_the_colour_image(table_scene, provider, tmp_path, capsys):
-    from ancsh.learned.predict import draw_prediction
+    from ancsh.learned.inference.predict import draw_prediction
 
     depth, intr, _, _ = table_scene
     pred = predict_depth(depth, intr, "laptop", provider=provider)
@@ -240,7 +240,7 @@ def test_picture_names_the_parts_and_draws_over_the_colour_image(table_scene, pr
 def test_a_residual_far_above_validation_fails_the_fit(table_scene, provider):
     import dataclasses
 
-    from ancsh.learned.predict import MAX_RELATIVE_RESIDUAL, check_plausibility
+    from ancsh.learned.inference.predict import MAX_RELATIVE_RESIDUAL, check_plausibility
 
     depth, intr, _, _ = table_scene
     pred = predict_depth(depth, intr, "laptop", provider=provider)

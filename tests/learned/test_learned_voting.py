@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from ancsh.geometry.rotations import random_rotation
-from ancsh.learned.voting import vote_axis, vote_joints, vote_pivot
+from ancsh.learned.inference.voting import vote_axis, vote_joints, vote_pivot
 
 
 def _unit(v):

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from ancsh.solvers import bench
+from ancsh.studies import fit as bench
 
 
 def test_registers_a_fit_parser():

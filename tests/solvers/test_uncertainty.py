@@ -267,7 +267,7 @@ def test_failed_fit_has_no_uncertainty(fit_case):
 
 def test_coverage_and_inflation_fit_recover_a_known_scale():
     """Squared Mahalanobis distances of errors twice as large as predicted: the fitted factor is 2."""
-    from ancsh.uncertainty_calibration import COVERAGE_TARGETS, coverage, fit_inflation
+    from ancsh.studies.uncertainty_calibration import COVERAGE_TARGETS, coverage, fit_inflation
 
     rng = np.random.default_rng(0)
     d2 = 4.0 * np.sum(rng.normal(size=(4000, 3)) ** 2, axis=1)
@@ -280,7 +280,7 @@ def test_coverage_and_inflation_fit_recover_a_known_scale():
 def test_error_records_have_the_quantities_dimensions(fit_case):
     """Every fitted quantity yields an error of its degrees of freedom with finite covariances; with
     the predicted covariance the mean squared Mahalanobis distance of iid-noise fits is near ``dof``."""
-    from ancsh.uncertainty_calibration import QUANTITIES, error_records, normalised_errors
+    from ancsh.studies.uncertainty_calibration import QUANTITIES, error_records, normalised_errors
 
     pooled = {q: [] for q in QUANTITIES}
     for draw in range(12):
@@ -347,7 +347,7 @@ def test_sigma_maps_inflate_each_block_by_its_own_ratio(fit_case, tmp_path):
 def test_calibration_sigmas_are_the_ones_inflated_maps(fit_case):
     """The calibration's raw sigma and inflated distances (:func:`raw_sigmas`, :func:`inflated_errors`)
     are exactly those of the fit's own :meth:`FitUncertainty.inflated` covariances."""
-    from ancsh.uncertainty_calibration import QUANTITIES, error_records, inflated_errors, normalised_errors, raw_sigmas
+    from ancsh.studies.uncertainty_calibration import QUANTITIES, error_records, inflated_errors, normalised_errors, raw_sigmas
 
     case, corr = _noisy_case(fit_case, 5, 0.01)
     r = fit(case.observation, corr, config=FitConfig(ransac=False), rng=0)
@@ -374,7 +374,7 @@ def test_fit_sigma_map_recovers_a_known_inflation(form):
     """Seeded synthetic errors whose true sigma is a single factor, a power law or a floored factor of
     the raw one: :func:`fit_sigma_map` picks that form, recovers its parameters, and on fresh draws its
     1/2 sigma coverage is within 3 points of 68 / 95 %, where the single factor misses by far more."""
-    from ancsh.uncertainty_calibration import COVERAGE_TARGETS, coverage, fit_inflation, fit_sigma_map, inflated_errors
+    from ancsh.studies.uncertainty_calibration import COVERAGE_TARGETS, coverage, fit_inflation, fit_sigma_map, inflated_errors
 
     truth = {"factor": SigmaMap(factor=3.0), "power": SigmaMap(factor=4.0, power=0.3, reference=0.01),
              "floor": SigmaMap(factor=2.0, floor=0.03, reference=0.01)}[form]
@@ -398,7 +398,7 @@ def test_fit_sigma_map_recovers_a_known_inflation(form):
 
 
 def test_fit_sigma_map_handles_empty_and_bad_input():
-    from ancsh.uncertainty_calibration import fit_sigma_map
+    from ancsh.studies.uncertainty_calibration import fit_sigma_map
 
     assert fit_sigma_map(np.array([np.nan]), np.array([1.0]), "rotation") == (None, None, {})
     with pytest.raises(ValueError, match="sigma"):
@@ -412,7 +412,7 @@ def test_per_part_maps_fit_parts_calibrated_differently(tmp_path):
     one factor misses at one level or the other; :func:`fit_quantity_inflation` fits one factor per
     part, recovers both, and an :class:`Inflation` holding them inflates each part by its own; the
     records survive :func:`save_records` / :func:`load_records`."""
-    from ancsh.uncertainty_calibration import (
+    from ancsh.studies.uncertainty_calibration import (
         COVERAGE_TARGETS, ErrorRecord, coverage, fit_quantity_inflation, inflated_errors, load_records, normalised_errors,
         raw_sigmas, save_records,
     )
@@ -467,7 +467,7 @@ def test_per_part_inflation_applies_to_each_part(fit_case):
 def test_report_names_the_maps_and_the_rows_that_miss(tmp_path):
     """Synthetic records of one category: a per-part quantity and one the calibration frames
     mis-state (test errors 3x larger) -- the report shows the per-part maps and names the miss."""
-    from ancsh.uncertainty_calibration import CalibrationConfig, ErrorRecord, summarize, write_report
+    from ancsh.studies.uncertainty_calibration import CalibrationConfig, ErrorRecord, summarize, write_report
 
     rng = np.random.default_rng(11)
 
@@ -501,7 +501,7 @@ def test_calibration_frames_default_to_twice_the_test_frames_and_records_must_ma
     ``--frames`` test frames; a records file replayed with other counts is refused, naming ``--records``; the
     replayed report names the command that fitted the frames."""
     from ancsh.cli import main
-    from ancsh.uncertainty_calibration import CalibrationConfig, load_records
+    from ancsh.studies.uncertainty_calibration import CalibrationConfig, load_records
 
     assert CalibrationConfig(frames=4).n_calibration == 8 and CalibrationConfig(frames=4, calibration_frames=5).n_calibration == 5
     for bad in (3, 2.5, True):
@@ -524,7 +524,7 @@ def test_calibration_frames_default_to_twice_the_test_frames_and_records_must_ma
 def test_records_of_separate_runs_merge_by_category_the_last_holder_winning():
     """Categories measured in separate runs combine; a category re-measured is taken from the later run, with
     its counts; timings pool; both commands are kept."""
-    from ancsh.uncertainty_calibration import ErrorRecord, merge_records
+    from ancsh.studies.uncertainty_calibration import ErrorRecord, merge_records
 
     def run(cats, value, command):
         rec = ErrorRecord(np.full(1, value), np.eye(1), np.zeros((1, 1)), 1.0, 0.0, 0)
@@ -547,7 +547,7 @@ def test_records_of_separate_runs_merge_by_category_the_last_holder_winning():
 def test_learned_template_provider_calibrates_the_refined_fits_only():
     """``learned-template`` records the frames whose template refinement was accepted (their errors against
     the refined fits' ICP covariances), counts the others, and has no scale row; it runs only when asked."""
-    from ancsh.uncertainty_calibration import DEFAULT_PROVIDERS, CalibrationConfig, measure
+    from ancsh.studies.uncertainty_calibration import DEFAULT_PROVIDERS, CalibrationConfig, measure
 
     assert "learned-template" not in DEFAULT_PROVIDERS and "learned-template" not in CalibrationConfig().providers
     cfg = CalibrationConfig(categories=("laptop",), providers=("learned", "learned-template"), frames=4, calibration_frames=4)

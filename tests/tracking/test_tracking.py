@@ -176,7 +176,7 @@ def test_warm_started_articulated_icp_uses_far_fewer_iterations_than_a_cold_fit(
     0's true pose and by the multi-start cold articulated ICP from auto_init views: both AD-correct, the warm
     fit in at most its configured iterations, fewer than a tenth of the cold fit's."""
     from ancsh.solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, auto_init
-    from ancsh.solvers.icp.evaluate import PartPoints, ad_correct
+    from ancsh.studies.cad import PartPoints, ad_correct
     from ancsh.solvers.icp.template import ArticulatedPose
 
     gen = _generator(length=3, noise=True)
@@ -363,7 +363,7 @@ def test_category_tracker_inflates_warm_frames_by_the_maps_of_their_source(tmp_p
 def test_instance_tracker_follows_a_known_model_from_a_known_start():
     """Scenario: a procedural laptop instance tracked (warm articulated ICP) from its true first pose through
     a noisy 6-frame sequence: every frame is tracked with every part AD-correct (10% of its diameter)."""
-    from ancsh.solvers.icp.evaluate import PartPoints, ad_correct
+    from ancsh.studies.cad import PartPoints, ad_correct
     from ancsh.solvers.icp.template import ArticulatedPose
 
     gen = _generator(length=6, noise=True)
@@ -433,7 +433,7 @@ def test_stream_reports_unreadable_and_empty_frames_as_lost_and_recovers(depth_f
     """Scenario: frames 2 (garbage bytes) and 3 (no depth) of a sequence: both are lost records naming the
     problem, frame 4 re-initialises; the JSON lines are on disk as written and an existing output is kept."""
     from ancsh.data.images import read_intrinsics
-    from ancsh.learned.provider import LearnedProvider
+    from ancsh.learned.inference.provider import LearnedProvider
     from ancsh.tracking.stream import JsonLinesWriter, depth_files, track_files
 
     folder, K = depth_folder
@@ -595,7 +595,7 @@ def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
     either side of rest (its own limits are one training instance's): every template frame's joint state within
     3 degrees of the truth, and the template's absolute state goes past its own upper limit."""
     from ancsh.data.templates import load_template_library
-    from ancsh.tracking.bench import BenchConfig, _sequences
+    from ancsh.studies.tracking import BenchConfig, _sequences
 
     config = BenchConfig(categories=("laptop",), providers=("oracle",), sequences=3, length=40, gap=3)
     *_, provider, _, frames = list(_sequences(config, 0, 3))[2]
@@ -623,7 +623,7 @@ def test_network_frames_correct_the_carried_templates_joint_state():
     template's lid is not the object's). With
     ``template_states`` the network frames' joint states pull the template frames' toward theirs: frames 10-20
     within 2.5 degrees of the truth on average; without, the template's offset stays (above 4)."""
-    from ancsh.learned.provider import LearnedProvider
+    from ancsh.learned.inference.provider import LearnedProvider
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0, sequence=SequenceMotion(length=40)))
     frames = [gen.frame(8 * 40 + t) for t in range(21)]
@@ -794,8 +794,8 @@ def test_tracking_benchmark_calibrates_tracked_frames_and_tests_the_installed_ma
     coverage is nearer the targets than the raw one (carried rows are not observations: raw far too
     confident); installed, the benchmark's own (other) sequences report the carried frames with them."""
     import ancsh.solvers.uncertainty as unc
-    from ancsh.tracking.bench import BenchConfig, calibrate, run_benchmark, summarize, write_report
-    from ancsh.uncertainty_calibration import COVERAGE_TARGETS, CalibrationConfig, install
+    from ancsh.studies.tracking import BenchConfig, calibrate, run_benchmark, summarize, write_report
+    from ancsh.studies.uncertainty_calibration import COVERAGE_TARGETS, CalibrationConfig, install
 
     monkeypatch.setattr(unc, "INFLATION_PATH", tmp_path / "inflation.json")
     config = BenchConfig(categories=("laptop",), providers=("oracle",), sequences=1, length=12, gap=0,

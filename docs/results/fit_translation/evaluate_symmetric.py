@@ -1,6 +1,6 @@
 """ancsh evaluate with the previous default scale estimator (symmetric) for exact fits (docs/results/fit_translation.md)."""
 import sys
-import ancsh.learned.evaluate as ev
+import ancsh.studies.table1 as ev
 from ancsh.solvers.fit import FitConfig
 
 class _Sym:

@@ -6,7 +6,7 @@ usage: PYTHONPATH=. python docs/results/fit_translation/measure.py FRAMES_PER_CA
 import json, sys, time
 from dataclasses import replace
 import numpy as np
-from ancsh.solvers.bench import BenchConfig, load_frames, evaluate_fit
+from ancsh.studies.fit import BenchConfig, load_frames, evaluate_fit
 from ancsh.solvers.fit import FitConfig, fit
 from ancsh.solvers.official import OfficialSettings, fit_official
 from ancsh.solvers.providers.oracle import Corruption, corrupt_ground_truth

@@ -6,7 +6,7 @@ from ancsh.data.procedural import make_object
 from ancsh.data.render import object_extent
 from ancsh.geometry.rotations import geodesic_angle
 from ancsh.geometry.transforms import Sim3
-from ancsh.solvers.icp.evaluate import FrameRecord, PartPoints, ad_correct, perturbed_init, render_sequence, write_report
+from ancsh.studies.cad import FrameRecord, PartPoints, ad_correct, perturbed_init, render_sequence, write_report
 
 
 def test_perturbed_init_stays_in_the_stated_ranges():

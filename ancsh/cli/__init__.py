@@ -1,0 +1,109 @@
+"""The ``ancsh`` command line.
+
+Each sub-command lives next to the code it drives, in a module exposing
+``register(subparsers)``; that function adds a parser whose ``func`` default
+receives the parsed arguments and returns an exit code. Heavy imports happen
+inside ``func``, so ``ancsh --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .._version import __version__
+
+# One example per command, shown at the end of its --help.
+EXAMPLES = {
+    "demo": "ancsh demo --categories laptop,oven --out demo_out",
+    "train": "ancsh train --category laptop --data data/laptop_train --time-limit-min 30   # then: --resume; "
+             "on 2 processes: torchrun --nproc_per_node 2 -m ancsh train ...",
+    "export": "ancsh export --run runs/laptop_ancsh --data data/laptop_train --out ancsh/weights/laptop.pt "
+              "--test-data data/laptop_test",
+    "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
+    "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
+    "weights": "ancsh weights --out weights.md",
+    "calibrate": "ancsh calibrate --category laptop --frames 300 --update-docs --install",
+    "data": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
+    "data generate": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
+    "data show": "ancsh data show data/laptop_train --frame 7 --out view.png",
+    "data import": "ancsh data import ../shared/data/partnet_mobility --out catalog_out",
+    "data ranges": "ancsh data ranges --out ranges.md",
+    "bench learned-ablation": "ancsh bench learned-ablation --runs base=runs/laptop_ancsh wide=runs/laptop_wide --frames 100",
+    "bench roll-equivariance": "ancsh bench roll-equivariance --categories oven laptop --frames 20",
+    "bench learned-cost": "ancsh bench learned-cost --variants today new --repeats 6",
+    "bench template-refinement": "ancsh bench template-refinement --categories laptop --frames 20 --real-frames 0",
+    "bench refine-defaults": "ancsh bench refine-defaults --reports docs/results   # add --install to write them",
+    "bench train-test-gap": "ancsh bench train-test-gap --categories laptop --frames 50 --real-frames 0",
+    "bench": "ancsh bench fit --quick",
+    "bench render": "ancsh bench render --frames 20 --categories laptop",
+    "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
+    "bench gpu-check": "ancsh bench gpu-check --device cuda   # on a machine with a GPU: CUDA against the CPU",
+    "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
+    "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~30 CPU-minutes",
+    "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
+    "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
+    "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
+    "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
+}
+
+# Modules that contribute sub-commands, in help order.
+COMMAND_MODULES = [
+    "ancsh.cli.demo",
+    "ancsh.cli.training",
+    "ancsh.cli.learned",
+    "ancsh.cli.data",
+    "ancsh.cli.bench",
+    "ancsh.cli.cad",
+    "ancsh.cli.track",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="ancsh",
+        description="Category-level articulated object pose estimation from a single depth image (ANCSH).",
+    )
+    parser.add_argument("--version", action="version", version=f"ancsh {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    _add_examples(sub, "")
+    return parser
+
+
+def _add_examples(subparsers, prefix: str) -> None:
+    """Put :data:`EXAMPLES` at the end of every (sub-)command's help."""
+    for name, p in subparsers.choices.items():
+        key = f"{prefix}{name}"
+        if key in EXAMPLES:
+            p.epilog = f"example:\n  {EXAMPLES[key]}"
+            p.formatter_class = argparse.RawDescriptionHelpFormatter
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                _add_examples(action, f"{key} ")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError, KeyError) as exc:
+        print(f"ancsh {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"ancsh {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except OSError as exc:  # permission denied, no space left on device, read-only file system, ...
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"ancsh {args.command}: error: cannot read or write{where}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

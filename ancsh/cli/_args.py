@@ -1,0 +1,50 @@
+"""Argument types and option groups shared by the commands (argparse only; the library never imports this)."""
+
+from __future__ import annotations
+
+from ..executors import EXECUTORS, RAY_MISSING, make_executor, ray_available
+
+
+def positive_int(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value}")
+    return value
+
+
+def add_executor_arguments(parser, *, workers_default: int, workers_help: str) -> None:
+    """Add ``--workers``, ``--executor`` and ``--ray-address`` to a command's parser."""
+    parser.add_argument("--workers", type=positive_int, default=workers_default, help=workers_help)
+    parser.add_argument("--executor", choices=EXECUTORS, default="local",
+                        help="where the workers run: local processes (default) or a Ray cluster "
+                             "(pip install 'ancsh[ray]')")
+    parser.add_argument("--ray-address", default=None, metavar="ADDR",
+                        help="with --executor ray: a running cluster ('auto', 'ray://head:10001'); "
+                             "default: a local Ray started for this command")
+
+
+def executor_from_args(args):
+    """The executor of parsed :func:`add_executor_arguments` options (errors name the option)."""
+    if args.ray_address is not None and args.executor != "ray":
+        raise ValueError("--ray-address: only with --executor ray")
+    if args.executor == "ray" and not ray_available():
+        raise ValueError(f"--executor ray: {RAY_MISSING}")
+    return make_executor(args.executor, args.workers, address=args.ray_address)
+

@@ -1,0 +1,38 @@
+"""``ancsh bench``: a parser group that other modules extend with benchmarks.
+
+Each entry of :data:`BENCH_MODULES` is ``"module"`` or ``"module:function"``; the function
+(default ``register``) receives the ``bench`` sub-parsers and adds one benchmark whose
+``func`` default runs it. Modules are imported when the parser is built, so keep their
+top level light (heavy imports inside ``func``).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+# Modules that contribute ``ancsh bench <name>`` sub-commands, in help order.
+BENCH_MODULES = [
+    "ancsh.cli.data:register_bench",
+    "ancsh.studies.fit",
+    "ancsh.studies.learned_cost",
+    "ancsh.studies.uncertainty_calibration",
+    "ancsh.studies.refinement",
+    "ancsh.studies.train_test_gap",
+    "ancsh.studies.gpu_check:register_bench",
+    "ancsh.studies.scaling:register_bench",
+    "ancsh.studies.tracking",
+]
+
+
+def register(sub) -> None:
+    p = sub.add_parser("bench", help="benchmarks that print throughput / accuracy numbers")
+    bench_sub = p.add_subparsers(dest="bench", metavar="BENCHMARK")
+    p.set_defaults(func=lambda args: _help(p))
+    for entry in BENCH_MODULES:
+        module, _, function = entry.partition(":")
+        getattr(importlib.import_module(module), function or "register")(bench_sub)
+
+
+def _help(parser) -> int:
+    parser.print_help()
+    return 0

@@ -1,0 +1,98 @@
+"""``ancsh track``: track an articulated object through a folder of depth frames."""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["register"]
+
+
+def register(sub) -> None:
+    p = sub.add_parser("track", help="track an articulated object through a folder of depth frames (one JSON line a frame)")
+    p.add_argument("--depth", required=True, help="folder of depth frames (16-bit PNG millimetres / .npy metres), "
+                                                  "in natural name order")
+    p.add_argument("--intrinsics", required=True, help="intrinsics JSON of every frame ({fx, fy, cx, cy, width, height})")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--category", help="category level: the shipped network of this category")
+    src.add_argument("--urdf", help="instance level: a known URDF model (warm-started articulated ICP)")
+    p.add_argument("--out", default=None, help="JSON-lines output, one line a frame, written as it goes "
+                                               "(default: a fresh ancsh_results/track-<time>/track.jsonl); never overwritten")
+    p.add_argument("-k", "--network-every", type=int, default=3, help="run the network on every k-th frame (default 3)")
+    p.add_argument("--no-template", dest="template", action="store_false",
+                   help="never carry the category template (default: the categories of TrackerConfig.template_categories, "
+                        "the laptop, are refined against it at every (re-)initialisation, seconds, and tracked on it)")
+    p.add_argument("--weights", default=None, help="a weights file instead of the shipped one (--category)")
+    p.add_argument("--mask-dir", default=None, help="object masks named like the frames (skip isolation)")
+    p.add_argument("--no-isolate", dest="isolate", action="store_false", help="use every valid pixel (no isolation)")
+    p.add_argument("--max-depth", type=float, default=None, help="ignore pixels deeper than this (metres)")
+    p.add_argument("--points", type=int, default=1024, help="points sampled per frame (default 1024)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quiet", action="store_true", help="no per-frame line on the terminal")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ..data.images import read_intrinsics
+    from ..outputs import fresh_output_dir
+    from ..tracking.stream import JsonLinesWriter, depth_files, track_files
+
+    files = depth_files(args.depth)
+    intrinsics = read_intrinsics(args.intrinsics)
+    _check_first_frame(files, intrinsics)
+    category = args.category
+    if args.urdf is not None:
+        from ..data.urdf import load_urdf
+        from ..tracking.instance import InstanceTracker
+
+        model = load_urdf(args.urdf)
+        tracker = InstanceTracker(model, rng=args.seed)
+        category = model.category
+        num_joints = model.num_joints
+        if args.isolate and args.mask_dir is None and category is None:
+            raise ValueError(f"urdf: {args.urdf} names no category to isolate the object by; give --mask-dir or --no-isolate")
+    else:
+        from ..learned.inference.provider import LearnedProvider
+        from ..learned.network.weights import weights_path
+        from ..tracking.tracker import CategoryTracker, TrackerConfig
+
+        if args.weights is None and not weights_path(category).is_file():
+            from ..learned.network.weights import missing_weights_error
+
+            raise missing_weights_error(category)
+        provider = LearnedProvider(category if args.weights is None else args.weights, seed=args.seed)
+        settings = {} if args.template else {"template_categories": ()}
+        tracker = CategoryTracker(provider, TrackerConfig(network_every=args.network_every, **settings), category=category,
+                                  rng=args.seed)
+        num_joints = provider.num_joints
+    out = Path(args.out) if args.out else fresh_output_dir("track") / "track.jsonl"
+
+    def show(rec):
+        if not args.quiet:
+            states = ", ".join("-" if v is None else f"{v:.3f}" for v in rec["joint_states"])
+            print(f"{rec['frame']:5d} {rec['file']}: {rec['status']:13s} [{states}] {rec['time_ms']:.0f} ms"
+                  + (f"  ({rec['message']})" if rec["status"] in ("lost", "reinitialised") else ""), flush=True)
+
+    with JsonLinesWriter(out) as writer:
+        records = track_files(files, intrinsics, tracker, writer, category=category, mask_dir=args.mask_dir,
+                              isolate=args.isolate, max_depth=args.max_depth, num_points=args.points, seed=args.seed,
+                              num_joints=num_joints, progress=show)
+    counts = {s: sum(r["status"] == s for r in records) for s in ("initialised", "tracked", "reinitialised", "lost")}
+    print(f"wrote {out}: {len(records)} frames, " + ", ".join(f"{v} {k}" for k, v in counts.items()), file=sys.stderr)
+    return 0 if counts["lost"] == 0 else 1
+
+
+def _check_first_frame(files, intrinsics) -> None:
+    """A clear error when the first readable frame's size differs from the intrinsics (a mismatched file)."""
+    from ..data.images import read_depth
+
+    for path in files:
+        try:
+            d = read_depth(path)
+        except ValueError:
+            continue
+        if d.shape != (intrinsics.height, intrinsics.width):
+            raise ValueError(f"intrinsics: {intrinsics.width}x{intrinsics.height} pixels, but the frames are "
+                             f"{d.shape[1]}x{d.shape[0]} ({path.name}); is it the intrinsics file of this camera?")
+        return

@@ -1,0 +1,63 @@
+"""A calibrated estimate of whether a prediction is good: P(every part's rotation error < 10 deg).
+
+Features of a fit (:func:`fit_features`, from :func:`ancsh.learned.inference.predict.part_quality`): the
+lowest part inlier ratio, the largest part residual relative to the category's typical size, the
+lowest and the mean part segmentation margin, and the log of the point count. A logistic
+regression (scikit-learn) maps them to the probability, trained on rendered frames of the held-out
+instances drawn from a seed stream other than the evaluation's, its reliability measured on a separate
+half of them (:mod:`ancsh.studies.confidence_calibration`, ``ancsh calibrate --category laptop``, which
+with ``--install`` writes the model beside the shipped weights). The fitted model is a few numbers in
+``ancsh/weights/<category>_confidence.json``; applying it needs numpy only (:func:`probability_good`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "calibration_path", "fit_features", "probability_good"]
+
+FEATURES = ("inlier_ratio_min", "residual_rel_max", "seg_margin_min", "seg_margin_mean", "log_points")
+#: A fit is "good" when every part's rotation error is below this (degrees).
+GOOD_ROTATION_DEG = 10.0
+
+
+def calibration_path(category: str) -> Path:
+    """``ancsh/weights/<category>_confidence.json``."""
+    from ..network.weights import WEIGHTS_DIR
+
+    return WEIGHTS_DIR / f"{category}_confidence.json"
+
+
+def fit_features(quality, category: str) -> np.ndarray:
+    """``(len(FEATURES),)`` float64 from per-part quality dicts (NaN entries count as worst)."""
+    from ...data.procedural import CATEGORY_INFO
+
+    size = CATEGORY_INFO[category].typical_size
+    inl = [q["inlier_ratio"] for q in quality if q["points"]]
+    res = [q["residual_m"] / size for q in quality if q["points"]]
+    mar = [q["seg_margin"] for q in quality if q["points"]]
+    pts = sum(q["points"] for q in quality)
+
+    def clean(values, worst):
+        v = np.asarray(values, dtype=np.float64)
+        return np.where(np.isfinite(v), v, worst) if v.size else np.array([worst])
+
+    return np.array([clean(inl, 0.0).min(), clean(res, 1.0).max(), clean(mar, 0.0).min(), clean(mar, 0.0).mean(),
+                     np.log(max(pts, 1))])
+
+
+def probability_good(calibration: dict, x) -> float:
+    """P(good) of one feature vector under a :func:`fit_calibrator` result.
+
+    The logistic function is evaluated without overflow (``scipy.special.expit``): a feature far outside
+    the calibration frames' range (e.g. 50 000 points against ~1 000) gives a probability of 0 or 1, not a
+    floating-point warning.
+    """
+    from scipy.special import expit
+
+    z = (np.asarray(x, dtype=np.float64) - calibration["mean"]) / np.asarray(calibration["scale"])
+    return float(expit(z @ np.asarray(calibration["coef"]) + calibration["intercept"]))
+
+

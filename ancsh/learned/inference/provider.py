@@ -1,0 +1,354 @@
+"""The learned correspondence provider: ANCSH network output -> :class:`~ancsh.solvers.types.Correspondences`.
+
+:class:`LearnedProvider` implements the ``CorrespondenceProvider`` protocol, so every solver
+formulation runs on network predictions unchanged. Per observation it
+
+1. runs the network on the whole cloud in chunks of ``num_points`` (each chunk a random,
+   seeded subset, padded by repetition), so every observed point gets a prediction;
+2. labels each point with its most likely part and takes that part's NPCS;
+3. sets each part's NPCS -> NAOCS scale and translation ``G_s, G_t`` to the median of the
+   per-point predictions over the points labelled with that part (over all points when a
+   part received no point);
+4. votes every joint's axis and pivot in NAOCS (:mod:`.voting`) from the points associated
+   with it (the most likely ``min_votes`` points by association probability when too few
+   points were labelled).
+
+Per-point weights are the segmentation confidences (softmax probability of the chosen part).
+:class:`DirectVotingPredictor` gives the camera-space joints of the direct-voting baseline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...geometry._checks import check_generator
+from ...model.articulated import JointType
+from ...solvers.types import Correspondences, Observation
+from .voting import JointVote, vote_joints
+
+__all__ = ["REFINE_OPTIONS", "Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
+
+REFINE_OPTIONS = (None, "none", "template", "auto")
+"""Values of ``LearnedProvider(refine=...)``."""
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Raw per-point network output for ``N`` observed points (numpy, float64).
+
+    Attributes
+    ----------
+    seg_prob : (N, M)
+        Part probabilities.
+    npcs : (N, M, 3) or None
+        NPCS for every part hypothesis (ANCSH network only).
+    scale : (N, M) or None
+        NPCS -> NAOCS scale per hypothesis.
+    translation : (N, M, 3) or None
+    assoc_prob : (N, K + 1)
+        Joint-association probabilities (column 0 = none).
+    joint : (N, 7)
+        Joint votes (NAOCS for ANCSH; camera frame with the distance in metres for direct voting).
+    """
+
+    seg_prob: np.ndarray
+    npcs: np.ndarray | None
+    scale: np.ndarray | None
+    translation: np.ndarray | None
+    assoc_prob: np.ndarray
+    joint: np.ndarray
+
+
+def predict_points(model, points_cam: np.ndarray, num_points: int, rng) -> Prediction:
+    """Run ``model`` over all ``(N, 3)`` camera-frame points in seeded chunks of ``num_points``.
+
+    Points are shuffled and split into ``ceil(N / num_points)`` equal-size chunks, each padded
+    to ``num_points`` with random repeats of its cloud, and evaluated as one batch on the device
+    of the model's parameters.
+    """
+    import torch
+
+    rng = check_generator(rng)
+    N = points_cam.shape[0]
+    if N == 0:
+        raise ValueError("points_cam: no points")
+    chunks = int(np.ceil(N / num_points))
+    order = rng.permutation(N)
+    parts = np.array_split(order, chunks)
+    batch = np.empty((chunks, num_points), dtype=np.int64)
+    for c, idx in enumerate(parts):
+        pad = rng.choice(N, size=num_points - idx.size, replace=N < num_points - idx.size) if idx.size < num_points else []
+        batch[c] = np.concatenate([idx, np.asarray(pad, dtype=np.int64)])
+    from ..devices import model_device
+
+    x = torch.from_numpy(points_cam[batch].astype(np.float32)).to(model_device(model))
+    model.eval()
+    with torch.no_grad():
+        out = {k: v.double().cpu().numpy() for k, v in model(x).items()}
+
+    def scatter(key, fn=None):
+        if key not in out:
+            return None
+        v = out[key]
+        if fn is not None:
+            v = fn(v)
+        res = np.empty((N, *v.shape[2:]))
+        for c, idx in enumerate(parts):
+            res[idx] = v[c, : idx.size]
+        return res
+
+    return Prediction(
+        seg_prob=scatter("seg_logits", _softmax),
+        npcs=scatter("npcs"),
+        scale=scatter("scale"),
+        translation=scatter("translation"),
+        assoc_prob=scatter("assoc_logits", _softmax),
+        joint=scatter("joint"),
+    )
+
+
+def _softmax(x: np.ndarray) -> np.ndarray:
+    e = np.exp(x - x.max(-1, keepdims=True))
+    return e / e.sum(-1, keepdims=True)
+
+
+def _joint_sets(assoc_prob: np.ndarray, K: int, min_votes: int) -> np.ndarray:
+    """Association labels where every joint has at least ``min_votes`` voters (most likely points)."""
+    assoc = assoc_prob.argmax(1)
+    for k in range(K):
+        if np.count_nonzero(assoc == k + 1) < min_votes:
+            top = np.argsort(-assoc_prob[:, k + 1], kind="stable")[:min_votes]
+            assoc[top] = k + 1
+    return assoc
+
+
+@dataclass(frozen=True)
+class Inference:
+    """One pass of :class:`LearnedProvider` over an observation.
+
+    Attributes
+    ----------
+    correspondences : Correspondences
+        What the solvers use.
+    prediction : Prediction
+        The network's raw per-point output behind them.
+    votes : tuple of JointVote
+        The NAOCS joint votes (one per joint).
+    """
+
+    correspondences: Correspondences
+    prediction: Prediction
+    votes: tuple
+
+
+def _place(network, device) -> None:
+    """Move a loaded network's model to ``device`` (``None``: leave it where it is)."""
+    if device is not None:
+        from ..devices import resolve_device
+
+        network.model.to(resolve_device(device))
+
+
+class LearnedProvider:
+    """Correspondences from the ANCSH network.
+
+    Parameters
+    ----------
+    source : str, Path or LoadedNetwork
+        Category name (shipped weights), a weights/checkpoint file, or a loaded network.
+    seed : int
+        Seeds the chunking of large clouds (results are deterministic per observation).
+    num_threads : int, optional
+        torch intra-op threads (default: leave torch's setting).
+    min_votes : int
+        Least voters per joint.
+    refine : str or None
+        What :meth:`refine` does with a fit of these correspondences: ``"template"`` refines it against
+        the category template (:func:`ancsh.solvers.icp.category.refine_fit`, the nearest training
+        instance of the network's category; kept only where its score on the observed points beats the
+        fit's), ``None`` / ``"none"`` leaves it, ``"auto"`` refines where it was measured to help
+        (:func:`ancsh.data.templates.refine_default`).
+    device : str or torch.device, optional
+        Where the network runs: ``"cpu"``, ``"cuda"``, ``"auto"`` (:func:`~ancsh.learned.devices.resolve_device`);
+        the network is moved there. Default: where it is (the CPU for a loaded file).
+    """
+
+    def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
+                 refine: str | None = None, device=None):
+        from ..network.weights import LoadedNetwork, load_network
+
+        self.network = source if isinstance(source, LoadedNetwork) else load_network(source)
+        if self.network.kind != "ancsh":
+            raise ValueError(f"source: expected an ANCSH network, got a {self.network.kind!r} network")
+        _place(self.network, device)
+        if num_threads is not None:
+            import torch
+
+            torch.set_num_threads(int(num_threads))
+        self.seed = int(seed)
+        self.min_votes = int(min_votes)
+        self.joint_types = tuple(JointType.REVOLUTE if r else JointType.PRISMATIC for r in self.network.revolute)
+        if refine not in REFINE_OPTIONS:
+            raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {refine!r}")
+        self.refine_option = None if refine == "none" else refine
+
+    @property
+    def category(self) -> str | None:
+        """The network's category (from its training config)."""
+        return getattr(self.network.config, "category", None)
+
+    def refines(self, refine: str | None = "provider") -> bool:
+        """Whether :meth:`refine` refines (``refine``: an override of the provider's option, as there)."""
+        from ...data.templates import refine_default
+
+        option = self.refine_option if refine == "provider" else refine
+        if option not in REFINE_OPTIONS:
+            raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {option!r}")
+        if option == "auto":
+            return self.category is not None and refine_default(self.category)
+        return option == "template"
+
+    def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0):
+        """A fit of this provider's correspondences, refined against the category template when enabled.
+
+        Parameters
+        ----------
+        observation : Observation
+        corr : Correspondences
+            What :meth:`correspond` gave for ``observation``.
+        fit : FitResult
+            Their fit (an articulated formulation, e.g. ``exact_reduced``).
+        refine : str or None
+            Overrides the provider's ``refine`` option (default: use it).
+        rng : numpy.random.Generator or int
+
+        Returns
+        -------
+        TemplateRefinement or None
+            ``None`` when refinement is off; else its outcome (``.result`` is the fit to use).
+        """
+        if not self.refines(refine):
+            return None
+        from ...data.templates import load_template_library
+        from ...solvers.icp.category import refine_fit
+
+        if self.category is None:
+            raise ValueError("refine: the network's config names no category, so there is no template library")
+        return refine_fit(observation, fit, corr, load_template_library(self.category), rng=rng)
+
+    @property
+    def num_parts(self) -> int:
+        return self.network.num_parts
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.joint_types)
+
+    def check_structure(self, part_names, joint_types, where: str = "object") -> None:
+        """Refuse an object whose structure this network does not predict.
+
+        Parameters
+        ----------
+        part_names : sequence of str
+            The object's parts (label order).
+        joint_types : sequence of JointType or str
+            The object's joint types (joint order).
+        where : str
+            What the object is, for the message.
+
+        Raises
+        ------
+        ValueError
+            When the part count or the joint types differ (a 2-part cabinet against a 4-part
+            drawer network would otherwise be fitted and scored on the wrong parts).
+        """
+        types = tuple(JointType(t) for t in joint_types)
+        category = getattr(self.network.config, "category", "?")
+        if len(part_names) != self.num_parts or types != self.joint_types:
+            raise ValueError(
+                f"{where}: has {len(part_names)} parts and joints {[t.value for t in types]}, but the {category} network "
+                f"predicts {self.num_parts} parts and joints {[t.value for t in self.joint_types]}"
+            )
+
+    def predict(self, points_cam) -> Prediction:
+        """Raw per-point predictions for ``(N, 3)`` camera-frame points (metres)."""
+        pts = Observation(points_cam).points_cam
+        return predict_points(self.network.model, pts, self.network.config.num_points, self.seed)
+
+    def correspond(self, observation: Observation) -> Correspondences:
+        """Per-point part labels, NPCS, per-part ``G_s, G_t`` and voted NAOCS joints for ``observation``."""
+        return self.infer(observation).correspondences
+
+    def infer(self, observation: Observation) -> "Inference":
+        """:meth:`correspond`'s correspondences with the raw prediction and the joint votes behind them."""
+        if not isinstance(observation, Observation):
+            raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
+        if observation.num_points == 0:
+            raise ValueError("observation: no points")
+        pred = self.predict(observation.points_cam)
+        M, K = self.num_parts, self.num_joints
+        N = observation.num_points
+        labels = pred.seg_prob.argmax(1)
+        rows = np.arange(N)
+        npcs = pred.npcs[rows, labels]
+        scale = np.empty(M)
+        trans = np.empty((M, 3))
+        for j in range(M):
+            sel = labels == j if np.any(labels == j) else np.ones(N, dtype=bool)
+            scale[j] = np.median(pred.scale[sel, j])
+            trans[j] = np.median(pred.translation[sel, j], axis=0)
+        naocs = scale[labels, None] * npcs + trans[labels]
+        assoc = _joint_sets(pred.assoc_prob, K, min(self.min_votes, N))
+        votes = vote_joints(naocs, assoc, pred.joint, self.network.revolute, min_votes=1)
+        corr = Correspondences(
+            part_labels=labels,
+            npcs=npcs,
+            npcs_scale=scale,
+            npcs_translation=trans,
+            joint_types=self.joint_types,
+            joint_parents=self.network.joint_parents,
+            joint_children=self.network.joint_children,
+            joint_axes_naocs=np.array([v.axis for v in votes]).reshape(K, 3),
+            joint_pivots_naocs=np.array([v.pivot for v in votes]).reshape(K, 3),
+            weights=pred.seg_prob[rows, labels],
+        )
+        return Inference(corr, pred, tuple(votes))
+
+
+class DirectVotingPredictor:
+    """Camera-space joint axes and pivots from the direct joint-voting baseline network.
+
+    Parameters
+    ----------
+    source : str, Path or LoadedNetwork
+        Category name (looks up ``<category>_direct_voting.pt``) or a file.
+    seed : int
+    min_votes : int
+    device : str or torch.device, optional
+        As for :class:`LearnedProvider`.
+    """
+
+    def __init__(self, source, *, seed: int = 0, min_votes: int = 5, device=None):
+        from ..network.weights import LoadedNetwork, load_network
+
+        self.network = source if isinstance(source, LoadedNetwork) else load_network(source, kind="direct_voting")
+        if self.network.kind != "direct_voting":
+            raise ValueError(f"source: expected a direct_voting network, got a {self.network.kind!r} network")
+        _place(self.network, device)
+        self.seed = int(seed)
+        self.min_votes = int(min_votes)
+
+    def joints(self, observation: Observation) -> tuple[np.ndarray, np.ndarray, tuple[JointVote, ...]]:
+        """``(axes_cam (K, 3), pivots_cam (K, 3) metres, votes)`` for an observation."""
+        if not isinstance(observation, Observation):
+            raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
+        if observation.num_points == 0:
+            raise ValueError("observation: no points")
+        pts = observation.points_cam
+        pred = predict_points(self.network.model, pts, self.network.config.num_points, self.seed)
+        K = len(self.network.revolute)
+        assoc = _joint_sets(pred.assoc_prob, K, min(self.min_votes, pts.shape[0]))
+        votes = vote_joints(pts, assoc, pred.joint, self.network.revolute, min_votes=1)
+        return np.array([v.axis for v in votes]).reshape(K, 3), np.array([v.pivot for v in votes]).reshape(K, 3), votes
