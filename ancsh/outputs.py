@@ -5,6 +5,8 @@
   ``docs/results/`` is rewritten only with ``--update-docs`` (or an explicit ``--out`` there).
 - Every JSON result carries :func:`provenance`: the ancsh version and, where a network was used,
   the SHA-256 of its weights file (the schema is documented in ``docs/json_schema.md``).
+- Files are written atomically (:func:`write_bytes_atomically`: a temporary file and a rename in the
+  target folder, so a failed write leaves the old file or none, never half of one).
 
 numpy-free and light: imported by the command-line modules at parse time.
 """
@@ -12,9 +14,12 @@ numpy-free and light: imported by the command-line modules at parse time.
 from __future__ import annotations
 
 import datetime
+import os
+import tempfile
 from pathlib import Path
 
-__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "json_safe", "provenance"]
+__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "json_safe", "provenance",
+           "write_bytes_atomically"]
 
 #: Parent of the fresh output folders (relative to the working directory).
 RESULTS_ROOT = Path("ancsh_results")
@@ -103,3 +108,18 @@ def json_safe(x):
     if isinstance(x, np.integer):
         return int(x)
     return x
+
+
+def write_bytes_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename: a failed write leaves
+    the old file (or none), never half a file. Creates the parent folders."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

@@ -185,7 +185,8 @@ def run_import(args) -> int:
 def run_ranges(args) -> int:
     from pathlib import Path
 
-    from ..data.catalog import write_bytes_atomically, load_catalog, ranges_report
+    from ..data.catalog import load_catalog, ranges_report
+    from ..outputs import write_bytes_atomically
 
     catalog = load_catalog(None if args.catalog == "builtin" else args.catalog)
     command = f"ancsh data ranges --catalog {args.catalog} --instances {args.instances} --out {args.out}"

@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..outputs import write_bytes_atomically
 from .importer import ImportedObject, ImportRejected, _guess_category, _object_name, assign_splits, import_object
 
 __all__ = [
@@ -166,21 +165,6 @@ def build_catalog(paths, category: str | None = None, *, overrides: dict | None 
         except ValueError as exc:  # a broken file: recorded with the loader's message, the others go on
             rejected.append(Rejection(name, category or _guess_category(urdf), f"unreadable: {exc}"))
     return Catalog(tuple(assign_splits(objects)), tuple(rejected), command)
-
-
-def write_bytes_atomically(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename: a failed write leaves
-    the old file (or none), never half a file. Creates the parent folders."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_catalog(catalog: Catalog, path) -> Path:

@@ -576,7 +576,7 @@ def write_report(report: dict, summary: dict, path, *, command: str, calibration
     text = "\n".join(lines) + "\n"
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    from ..data.catalog import write_bytes_atomically
+    from ..outputs import write_bytes_atomically
 
     write_bytes_atomically(path, text.encode())
     payload = {"command": command, "config": cfg, "tracker": report["tracker"], "machine": report["machine"],

@@ -6,14 +6,15 @@ import json
 import numpy as np
 import pytest
 
+from ancsh.cli.bench import fit as bench_cli
 from ancsh.studies import fit as bench
 
 
 def test_registers_a_fit_parser():
     parser = argparse.ArgumentParser()
-    bench.register(parser.add_subparsers())
+    bench_cli.register(parser.add_subparsers())
     args = parser.parse_args(["fit", "--quick", "--levels", "none,high"])
-    assert args.func is bench.run and args.quick and args.levels == "none,high"
+    assert args.func is bench_cli.run and args.quick and args.levels == "none,high"
 
 
 def test_quick_path_writes_markdown_and_json(tmp_path, capsys):

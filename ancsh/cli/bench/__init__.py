@@ -13,7 +13,7 @@ import importlib
 # Modules that contribute ``ancsh bench <name>`` sub-commands, in help order.
 BENCH_MODULES = [
     "ancsh.cli.data:register_bench",
-    "ancsh.studies.fit",
+    "ancsh.cli.bench.fit",
     "ancsh.studies.learned_cost",
     "ancsh.studies.uncertainty_calibration",
     "ancsh.studies.refinement",

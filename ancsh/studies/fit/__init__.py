@@ -1,0 +1,14 @@
+"""``ancsh bench fit``: every fitting formulation and the official baseline, side by side.
+
+:mod:`.measure` renders the frames, corrupts their correspondences and fits every method (records);
+:mod:`.report` writes ``fit_benchmark.md`` / ``.json`` from them. The command's arguments are in
+:mod:`ancsh.cli.bench.fit`."""
+
+from __future__ import annotations
+
+from .measure import (BenchConfig, BenchFrame, Method, QUICK, FULL, THIN_PARTS, available_methods, evaluate_fit,
+                      load_frames, run_benchmark)
+from .report import headline, overall, summarize, write_report
+
+__all__ = ["BenchConfig", "BenchFrame", "Method", "QUICK", "FULL", "THIN_PARTS", "available_methods", "evaluate_fit",
+           "load_frames", "run_benchmark", "headline", "overall", "summarize", "write_report"]
