@@ -129,11 +129,17 @@ def save_frame_figure(frame, out) -> Path:
     return save_figure(draw_frame(frame), out)
 
 
-def save_figure(fig, out) -> Path:
-    """Save a figure, creating the folder; the format comes from the suffix (e.g. ``.png``)."""
+def save_figure(fig, out, **savefig) -> Path:
+    """Save a figure atomically (a temporary file and a rename), creating the folder; the format comes from
+    the suffix (e.g. ``.png``); ``savefig`` are matplotlib's ``savefig`` options (``dpi``, ...)."""
+    import io
+
+    from ..outputs import write_bytes_atomically
+
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=out.suffix.lstrip(".") or "png", **savefig)
+    write_bytes_atomically(out, buffer.getvalue())
     return out
 
 

@@ -292,7 +292,7 @@ def _worse_share(result: dict, threshold: float = 2.0) -> tuple[float, float]:
 def write_summary(results: list[dict], path, *, command: str, folder) -> Path:
     """Write the side-by-side summary of :func:`run_template_refinement`'s results."""
     from .._machine import describe_machine, machine_facts
-    from .table1 import refine_summary_line
+    from .table1.report import refine_summary_line
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,21 +1,21 @@
 """The one writer of the studies' reports: what made a report (command, date, machine) and atomic writes.
 
 Every study writes its markdown, JSON and pictures through :func:`write_text`, :func:`write_json` and
-:func:`save_figure` (a temporary file and a rename in the target folder: an interrupted study leaves the old
-report or none, never half of one, and a symbolic link at the target is replaced, not followed) and stamps them
-with a :class:`Provenance` -- the command that produced the report, the UTC date and the machine facts measured
-when it ran (:mod:`ancsh._machine`) -- so that anyone can re-run it.
+``save_figure`` (:func:`ancsh.data.show.save_figure`): a temporary file and a rename in the target folder, so an
+interrupted study leaves the old report or none, never half of one, and a symbolic link at the target is replaced,
+not followed. A :class:`Provenance` stamps a report with the command that produced it, the UTC date and the machine
+facts measured when it ran (:mod:`ancsh._machine`), so that anyone can re-run it.
 """
 
 from __future__ import annotations
 
 import datetime
-import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._machine import describe_machine, machine_facts
+from ..data.show import save_figure  # (the one figure writer: atomic, format from the suffix)
 from ..outputs import write_bytes_atomically
 
 __all__ = ["Provenance", "save_figure", "utc_date", "write_json", "write_text"]
@@ -61,12 +61,3 @@ def write_json(path, data, **dumps) -> Path:
     """Write ``json.dumps(data, **dumps)`` plus a newline when indented, atomically; returns the path."""
     text = json.dumps(data, **dumps)
     return write_text(path, text + "\n" if dumps.get("indent") is not None else text)
-
-
-def save_figure(fig, path, **savefig) -> Path:
-    """Save a matplotlib figure to ``path`` atomically (format from the suffix); returns the path."""
-    path = Path(path)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format=path.suffix.lstrip(".") or "png", **savefig)
-    write_bytes_atomically(path, buffer.getvalue())
-    return path

@@ -112,7 +112,7 @@ def measure_scaling(*, gen_frames: int = 64, chunk: int = 8, eval_frames: int = 
     """Time generation and evaluation on every executor and worker count (see the module docstring)."""
     from ..data.generate import GenerationConfig, _FrameWorker
     from ..executors import LocalExecutor, import_ray, make_executor, start_ray
-    from .table1 import METHODS, _FrameEvaluator
+    from .table1.measure import METHODS, _FrameEvaluator
     from ..learned.network.weights import weights_path
 
     if "ray" in executors:

@@ -1,0 +1,113 @@
+"""Statistics of the learned evaluation's per-frame records: means / medians per method, part and joint, and the occlusion bins."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .measure import BUDGET_METRICS, JOINT_METRICS, PART_METRICS
+
+__all__ = ["OCCLUSION_EDGES", "occlusion_bins", "summarize"]
+
+__all__ = ["summarize"]
+
+
+# --------------------------------------------------------------------------------------------
+# statistics
+# --------------------------------------------------------------------------------------------
+def _stats(values: np.ndarray) -> dict:
+    """Mean / median over frames per column (:func:`ancsh.evaluation.aggregate`: NaN entries left
+    out; ``None`` where a column has no finite entry)."""
+    from ...evaluation import aggregate
+
+    out = {"mean": [], "median": []}
+    for col in np.asarray(values, dtype=float).T:
+        a = aggregate(col).to_dict()
+        out["mean"].append(a["mean"])
+        out["median"].append(a["median"])
+    return out
+
+
+def summarize(evaluation: dict) -> dict:
+    """Means and medians per method, part and joint; Table 2 rows; timings; occlusion bins."""
+    recs = evaluation["records"]
+    s = evaluation["settings"]
+    M, K = len(s["part_names"]), len(s["joint_names"])
+    out = {"methods": {}, "table2": {}, "timing": {}}
+    for key in s["methods"]:
+        ok = [r["methods"][key] for r in recs if r["methods"][key]["ok"]]
+        row = {"frames": len(recs), "failures": len(recs) - len(ok)}
+        for name in PART_METRICS:
+            vals = np.array([[p.get(name, np.nan) for p in e["parts"]] for e in ok]).reshape(-1, M)
+            if name.startswith("iou"):
+                vals = 100.0 * vals
+            row[name] = _stats(vals)
+        for name in JOINT_METRICS:
+            row[name] = _stats(np.array([[j[name] for j in e["joints"]] for e in ok]).reshape(-1, K))
+        fit_ms = [r["methods"][key]["fit_ms"] for r in recs]
+        row["fit_ms"] = {"mean": float(np.mean(fit_ms)), "median": float(np.median(fit_ms))} if fit_ms else None
+        refs = [r["methods"][key]["refine"] for r in recs if "refine" in r["methods"][key]]
+        if refs:
+            choices = [x["choice"] for x in refs]
+            ms = [x["refine_ms"] for x in refs]
+            row["refine"] = {
+                "frames": len(refs), "accepted": int(sum(x["accepted"] for x in refs)),
+                "choices": {c: choices.count(c) for c in ("input", "articulated", "base")},
+                "scales": {str(sc): sum(1 for x in refs if x["accepted"] and x["scale"] == sc)
+                           for sc in sorted({x["scale"] for x in refs if x["accepted"]})},
+                "refine_ms": {"mean": float(np.mean(ms)), "median": float(np.median(ms))},
+            }
+        out["methods"][key] = row
+    nj = [r["naocs_joints"] for r in recs if "naocs_joints" in r]
+    if nj:
+        out["table2"]["naocs_vote"] = {
+            name: _stats(np.array([[j[name] for j in d] for d in nj]).reshape(-1, K)) for name in ("axis_deg", "line_dist")
+        }
+    bud = [r["budget"] for r in recs if "budget" in r]
+    if bud:
+        out["budget"] = {
+            name: _stats(np.array([[p[name] for p in b["parts"]] for b in bud]).reshape(-1, M)) for name in BUDGET_METRICS
+        }
+        out["budget"]["seg_acc"] = _stats(np.array([[b["seg_acc"]] for b in bud]))
+    dv = [r["direct_voting"] for r in recs if "direct_voting" in r]
+    if dv:
+        out["table2"]["direct_voting"] = {
+            name: _stats(np.array([[j[name] for j in d["joints"]] for d in dv]).reshape(-1, K))
+            for name in ("axis_deg", "line_dist")
+        }
+        out["timing"]["direct_voting_network_ms"] = float(np.mean([d["network_ms"] for d in dv]))
+    for name in ("network_ms", "generate_ms"):
+        vals = [r[name] for r in recs]
+        out["timing"][name] = {"mean": float(np.mean(vals)), "median": float(np.median(vals))} if vals else None
+    out["timing"]["wall_s"] = evaluation["timing"]["wall_s"]
+    out["occlusion"] = occlusion_bins(evaluation)
+    return out
+
+
+OCCLUSION_EDGES = tuple(np.round(np.arange(0.0, 1.0001, 0.05), 2))
+
+
+def occlusion_bins(evaluation: dict, edges=OCCLUSION_EDGES) -> dict:
+    """Mean rotation / translation error per part and method in bins of the part's visible-area ratio.
+
+    Returns ``{"edges": [...], "parts": [{"name", "counts", <method>: {"rot_deg": [...], "trans": [...]}}]}``
+    (``None`` for empty bins; failed fits left out).
+    """
+    recs = evaluation["records"]
+    s = evaluation["settings"]
+    edges = np.asarray(edges, dtype=float)
+    out = {"edges": edges.tolist(), "parts": []}
+    for j, name in enumerate(s["part_names"]):
+        vis = np.array([r["visibility"][j] for r in recs])
+        idx = np.clip(np.digitize(vis, edges) - 1, 0, len(edges) - 2)
+        part = {"name": name, "counts": np.bincount(idx, minlength=len(edges) - 1).tolist()}
+        for key in s["methods"]:
+            m = {}
+            for metric in ("rot_deg", "trans"):
+                vals = np.array([r["methods"][key]["parts"][j][metric] if r["methods"][key]["ok"] else np.nan for r in recs])
+                m[metric] = []
+                for b in range(len(edges) - 1):
+                    v = vals[(idx == b) & np.isfinite(vals)]
+                    m[metric].append(float(np.mean(v)) if v.size else None)
+            part[key] = m
+        out["parts"].append(part)
+    return out
