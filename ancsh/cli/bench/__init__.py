@@ -15,7 +15,7 @@ BENCH_MODULES = [
     "ancsh.cli.data:register_bench",
     "ancsh.cli.bench.fit",
     "ancsh.studies.learned_cost",
-    "ancsh.studies.uncertainty_calibration",
+    "ancsh.cli.bench.uncertainty",
     "ancsh.studies.refinement",
     "ancsh.studies.train_test_gap",
     "ancsh.studies.gpu_check:register_bench",
