@@ -595,7 +595,7 @@ def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
     either side of rest (its own limits are one training instance's): every template frame's joint state within
     3 degrees of the truth, and the template's absolute state goes past its own upper limit."""
     from ancsh.data.templates import load_template_library
-    from ancsh.studies.tracking import BenchConfig, _sequences
+    from ancsh.studies.tracking.measure import BenchConfig, _sequences
 
     config = BenchConfig(categories=("laptop",), providers=("oracle",), sequences=3, length=40, gap=3)
     *_, provider, _, frames = list(_sequences(config, 0, 3))[2]
@@ -618,15 +618,17 @@ def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
 @pytest.mark.skipif(not (shared_data_dir() / "partnet_mobility").is_dir(),
                     reason="the scenario's template is a shared PartNet-Mobility laptop (shared data not available)")
 def test_network_frames_correct_the_carried_templates_joint_state():
-    """Scenario: the benchmark's ninth learned laptop sequence (seed 0), where the template refinement (a real
-    laptop of the library, from the shared data) settles about 7 degrees from the network's joint state (the
+    """Scenario: the benchmark's eighth learned laptop sequence (seed 0), where the carried template (a real
+    laptop of the library, from the shared data) settles a few degrees off the object's joint state (the
     template's lid is not the object's). With
     ``template_states`` the network frames' joint states pull the template frames' toward theirs: frames 10-20
-    within 2.5 degrees of the truth on average; without, the template's offset stays (above 4)."""
+    within 1.5 degrees of the truth on average (about 1); without, the template's offset stays (above 2.3, about 2.8).
+    (Not the ninth sequence: its frame-0 refinement is accepted or rejected by the part tolerance depending on
+    float-level differences of the cold fit -- CPU kernels, 1e-7 m of point noise -- so it was not reproducible.)"""
     from ancsh.learned.inference.provider import LearnedProvider
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0, sequence=SequenceMotion(length=40)))
-    frames = [gen.frame(8 * 40 + t) for t in range(21)]
+    frames = [gen.frame(7 * 40 + t) for t in range(21)]
     provider = LearnedProvider("laptop", num_threads=1)
     late = {}
     for states in (True, False):
@@ -637,7 +639,7 @@ def test_network_frames_correct_the_carried_templates_joint_state():
             assert out.ok and out.source in ("network", "template")
             errors.append(abs(np.degrees(out.joint_states[0] - fr.gt.joint_states[0])))
         late[states] = float(np.mean(errors[10:]))
-    assert late[True] < 2.5 < 4.0 < late[False], late
+    assert late[True] < 1.5 < 2.3 < late[False], late
     with pytest.raises(ValueError, match="template_states"):
         TrackerConfig(template_states=1)
 
