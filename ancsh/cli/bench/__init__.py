@@ -20,7 +20,7 @@ BENCH_MODULES = [
     "ancsh.studies.train_test_gap",
     "ancsh.studies.gpu_check:register_bench",
     "ancsh.studies.scaling:register_bench",
-    "ancsh.studies.tracking",
+    "ancsh.cli.bench.tracking",
 ]
 
 
