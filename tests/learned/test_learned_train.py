@@ -244,7 +244,7 @@ def test_best_checkpoint_follows_the_pose_score_not_the_validation_loss(tmp_path
 
 def test_ablation_report_compares_pose_validation_at_equal_steps(tmp_path, tiny_config):
     """`bench learned-ablation`: each run's pose-validation history, side by side by step."""
-    from ancsh.studies.learned_cost import ablation, write_ablation_report
+    from ancsh.studies.ablation import ablation, write_ablation_report
 
     for name, scores in (("a", {500: 12.5, 1000: 10.25}), ("b", {500: 12.5, 1500: 30.0})):
         run = tmp_path / name
@@ -261,7 +261,7 @@ def test_ablation_report_compares_pose_validation_at_equal_steps(tmp_path, tiny_
 
 def test_ablation_baseline_row_is_the_start_weights_on_the_same_frames(tmp_path, tiny_config):
     """`bench learned-ablation --baseline`: the weights a fine-tune started from, first, on the runs' test frames."""
-    from ancsh.studies.learned_cost import ablation, write_ablation_report
+    from ancsh.studies.ablation import ablation, write_ablation_report
     from ancsh.studies.table1 import evaluate_category, summarize
 
     run = tmp_path / "a"

@@ -14,7 +14,7 @@ import importlib
 BENCH_MODULES = [
     "ancsh.cli.data:register_bench",
     "ancsh.cli.bench.fit",
-    "ancsh.studies.learned_cost",
+    "ancsh.cli.bench.learned",
     "ancsh.cli.bench.uncertainty",
     "ancsh.studies.refinement",
     "ancsh.studies.train_test_gap",
