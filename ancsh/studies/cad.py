@@ -30,6 +30,7 @@ from ..geometry.rotations import exp_so3
 from ..geometry.transforms import Sim3
 from ..model.articulated import ArticulatedModel, sample_surface
 from ..solvers.icp.template import ArticulatedPose
+from .report import write_text
 
 __all__ = [
     "EvalConfig",
@@ -445,9 +446,9 @@ def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: 
         lines += ["## Skipped objects", ""] + [f"- {s}" for s in meta["skipped"]] + [""]
     text = "\n".join(lines)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+    write_text(path, text)
     payload = {"command": command, "meta": meta, "records": [_rounded(r.to_dict()) for r in records]}
-    path.with_suffix(".json").write_text(json.dumps(payload, separators=(",", ":")))
+    write_text(path.with_suffix(".json"), json.dumps(payload, separators=(",", ":")))
     return text
 
 

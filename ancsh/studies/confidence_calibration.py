@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..learned.inference.confidence import FEATURES, GOOD_ROTATION_DEG, fit_features, probability_good
+from .report import save_figure, write_text
 
 __all__ = ["choose_calibrator", "collect", "constant_calibrator", "fit_calibrator", "reliability", "write_report"]
 
@@ -143,12 +144,13 @@ def write_report(category: str, calibration: dict, rel: dict, out_dir, *, comman
     ax.set_ylim(0, 1)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(paths["png"], dpi=90)
+    save_figure(fig, paths["png"], dpi=90)
     plt.close(fig)
-    paths["json"].write_text(json.dumps(calibration, indent=1) + "\n")
+    write_text(paths["json"], json.dumps(calibration, indent=1) + "\n")
     rows = "\n".join(f"| {b['lo']:.1f}-{b['hi']:.1f} | {b['frames']} | {b['predicted']:.3f} | {b['observed']:.3f} |"
                      for b in rel["bins"])
-    paths["md"].write_text(
+    write_text(
+        paths["md"],
         f"# {category}: how far to trust a prediction\n\nCommand: `{command}`\n\n"
         f"A logistic regression (scikit-learn) of whether every part's rotation error is below "
         f"{GOOD_ROTATION_DEG:g} deg on the fit's own evidence ({', '.join(FEATURES)}), trained on "

@@ -14,75 +14,15 @@ side-by-side runs a few dozen) and installs it in ``ancsh/data/templates/refine_
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
-import datetime
-import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..outputs import output_flags
+from .report import utc_date, write_text
 
-__all__ = ["HELPS_RULE", "RefineDefault", "defaults_from_reports", "install_defaults", "refinement_helps", "register",
-           "refinement_rows", "run_template_refinement", "write_summary"]
-
-
-def register(sub) -> None:
-    """Add ``ancsh bench template-refinement`` to the ``bench`` sub-parsers."""
-    p = sub.add_parser("template-refinement", help="ANCSH-exact with and without the category-template refinement, "
-                       "side by side (shipped weights)")
-    p.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
-    p.add_argument("--frames", type=int, default=100, help="procedural test frames per category (default 100)")
-    p.add_argument("--real-frames", type=int, default=50,
-                   help="real test-split frames per category where the shipped catalog has test objects (default 50; 0 = none)")
-    p.add_argument("--out", type=Path, help="folder (default: a fresh ancsh_results/template-refinement-<time>/)")
-    p.add_argument("--update-docs", action="store_true", help="write into docs/results/ (when --out is not given)")
-    p.add_argument("--no-progress", action="store_true")
-    p.set_defaults(func=run)
-    d = sub.add_parser("refine-defaults", help="decide refine='auto' per category from the full evaluations "
-                       "(ancsh evaluate --refine template reports) and optionally install it",
-                       description="Read each category's <category>.json of `ancsh evaluate --refine template` in "
-                       "--reports, apply the rule (every part's mean rotation error lower, no joint's mean state error "
-                       "more than 5 % higher, on the procedural test split) where the report is of the shipped weights, "
-                       "print the decisions; --install writes ancsh/data/templates/refine_defaults.json (categories "
-                       "without such a report: off).")
-    d.add_argument("--reports", type=Path, required=True, metavar="DIR", help="the evaluation reports (e.g. docs/results)")
-    d.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
-    d.add_argument("--install", action="store_true", help="write ancsh/data/templates/refine_defaults.json")
-    d.set_defaults(func=run_defaults)
-
-
-def run(args: argparse.Namespace) -> int:
-    from ..outputs import DOCS_RESULTS, fresh_output_dir
-    from ..learned.network.weights import shipped_categories
-
-    cats = list(args.categories) if args.categories else list(shipped_categories())
-    if args.frames < 1 or args.real_frames < 0:
-        raise ValueError(f"--frames, --real-frames: expected >= 1 and >= 0, got {args.frames} and {args.real_frames}")
-    parts = ["bench", "template-refinement"]
-    if args.categories:
-        parts += ["--categories", *args.categories]
-    if args.frames != 100:
-        parts += ["--frames", str(args.frames)]
-    if args.real_frames != 50:
-        parts += ["--real-frames", str(args.real_frames)]
-    parts += output_flags(args.out, update_docs=args.update_docs)
-    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
-    if args.out is not None:
-        summary_path, folder = args.out / "template_refinement.md", args.out
-    elif args.update_docs:
-        summary_path, folder = DOCS_RESULTS / "template_refinement.md", DOCS_RESULTS / "template_refinement"
-    else:
-        folder = fresh_output_dir("template-refinement")
-        summary_path = folder / "template_refinement.md"
-    results = run_template_refinement(cats, frames=args.frames, real_frames=args.real_frames, out_dir=folder,
-                                      command=command, progress=not args.no_progress)
-    path = write_summary(results, summary_path, command=command, folder=folder)
-    print(path.read_text())
-    print(f"wrote {path} and the per-category reports in {folder}")
-    return 0
+__all__ = ["HELPS_RULE", "RefineDefault", "defaults_from_reports", "install_defaults", "refinement_helps", "refinement_rows", "run_template_refinement", "write_summary"]
 
 
 HELPS_RULE = ("on where, on the procedural test split of the category's full evaluation (`ancsh evaluate --refine "
@@ -152,8 +92,8 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     import json
 
     from ..data.procedural import GENERATOR_VERSION
-    from .targets import is_shipped
     from ..learned.network.weights import shipped_categories
+    from .targets import is_shipped
 
     reports_dir = Path(reports_dir)
     if not reports_dir.is_dir():
@@ -206,26 +146,6 @@ def install_defaults(decisions: list[RefineDefault], command: str, path=None) ->
                                   "categories": {d.category: d.on for d in decisions}, "evidence": evidence},
                                  indent=1) + "\n")
     return target
-
-
-def run_defaults(args: argparse.Namespace) -> int:
-    parts = ["bench", "refine-defaults", "--reports", str(args.reports)]
-    if args.categories:
-        parts += ["--categories", *args.categories]
-    if args.install:
-        parts.append("--install")
-    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
-    decisions = defaults_from_reports(args.reports, args.categories)
-    print(f"refine='auto' per category ({HELPS_RULE}):")
-    for d in decisions:
-        nums = ""
-        if d.rot_deg:
-            nums = (f"; rotation {_fmt(d.rot_deg, '.2f')} -> {_fmt(d.rot_deg_refined, '.2f')} deg, joint state "
-                    f"{_fmt(d.state_err, '.3g')} -> {_fmt(d.state_err_refined, '.3g')} ({d.frames} frames)")
-        print(f"  {d.category}: {'on' if d.on else 'off'} -- {d.reason}{nums}")
-    if args.install:
-        print(f"installed {install_defaults(decisions, command)}")
-    return 0
 
 
 def run_template_refinement(categories, *, frames: int, real_frames: int, out_dir, command: str,
@@ -296,7 +216,7 @@ def write_summary(results: list[dict], path, *, command: str, folder) -> Path:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    date = utc_date()
     lines = [
         "# Category-template refinement: ANCSH-exact with and without it",
         "",
@@ -333,5 +253,5 @@ def write_summary(results: list[dict], path, *, command: str, folder) -> Path:
               f"refine-defaults --reports docs/results --install` ({HELPS_RULE}; "
               "`ancsh/data/templates/refine_defaults.json`)."]
     lines.append("")
-    path.write_text("\n".join(lines))
+    write_text(path, "\n".join(lines))
     return path

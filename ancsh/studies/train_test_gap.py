@@ -11,60 +11,14 @@ where the shipped catalog has objects of the category, on the real one.
 
 from __future__ import annotations
 
-import argparse
-import datetime
 import json
-import shlex
 from pathlib import Path
 
 import numpy as np
 
-from ..outputs import output_flags
+from .report import utc_date, write_text
 
-__all__ = ["gap_rows", "register", "run_gap", "write_gap_report"]
-
-def register(sub) -> None:
-    """Add ``ancsh bench train-test-gap`` to the ``bench`` sub-parsers."""
-    p = sub.add_parser("train-test-gap", help="the shipped networks on new views of their training instances "
-                       "beside the held-out test instances (under-fitting or generalisation?)")
-    p.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
-    p.add_argument("--frames", type=int, default=200, help="procedural frames per category and instance set (default 200)")
-    p.add_argument("--real-frames", type=int, default=100,
-                   help="real frames per category and instance set where the shipped catalog has objects of both "
-                   "sets (default 100; 0 = none)")
-    p.add_argument("--seed", type=int, default=3, help="frame seed of both instance sets (default 3: neither the "
-                   "training data's nor the evaluations' frames)")
-    p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/train-test-gap-<time>/)")
-    p.add_argument("--update-docs", action="store_true", help="write docs/results/train_test_gap.md (when --out is not given)")
-    p.add_argument("--no-progress", action="store_true")
-    p.set_defaults(func=run)
-
-
-def run(args: argparse.Namespace) -> int:
-    from ..outputs import report_path
-    from ..learned.network.weights import shipped_categories
-
-    if args.frames < 1 or args.real_frames < 0:
-        raise ValueError(f"--frames, --real-frames: expected >= 1 and >= 0, got {args.frames} and {args.real_frames}")
-    cats = list(args.categories) if args.categories else list(shipped_categories())
-    parts = ["bench", "train-test-gap"]
-    if args.categories:
-        parts += ["--categories", *args.categories]
-    if args.frames != 200:
-        parts += ["--frames", str(args.frames)]
-    if args.real_frames != 100:
-        parts += ["--real-frames", str(args.real_frames)]
-    if args.seed != 3:
-        parts += ["--seed", str(args.seed)]
-    parts += output_flags(args.out, update_docs=args.update_docs)
-    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
-    path = report_path(args.out, update_docs=args.update_docs, docs_name="train_test_gap.md", command="train-test-gap")
-    results = run_gap(cats, frames=args.frames, real_frames=args.real_frames, seed=args.seed,
-                      progress=not args.no_progress)
-    write_gap_report(results, path, command=command)
-    print(path.read_text())
-    print(f"wrote {path} and {path.with_suffix('.json')}")
-    return 0
+__all__ = ["gap_rows", "run_gap", "write_gap_report"]
 
 
 def run_gap(categories, *, frames: int, real_frames: int, seed: int, progress: bool = True) -> list[dict]:
@@ -134,7 +88,7 @@ def write_gap_report(results: list[dict], path, *, command: str) -> Path:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    date = utc_date()
     first = results[0]["settings"] if results else {}
     lines = [
         "# The shipped networks on their training instances and on unseen ones",
@@ -160,12 +114,12 @@ def write_gap_report(results: list[dict], path, *, command: str) -> Path:
         *gap_rows(results),
         "",
     ]
-    path.write_text("\n".join(lines))
+    write_text(path, "\n".join(lines))
     payload = {"command": command, "date": date, "results": [
         {k: r[k] for k in ("category", "split", "instances")} | {
             "frames": r["settings"]["frames"], "weights_sha256": r["settings"]["weights_sha256"],
             "rot_deg": _means(r, "rot_deg").tolist(), "npcs_rot_deg": _means(r, "npcs_rot_deg").tolist(),
             "axis_deg": r["summary"]["methods"]["exact_reduced"]["axis_deg"]["mean"],
             "state_err": r["summary"]["methods"]["exact_reduced"]["state_err"]["mean"]} for r in results]}
-    path.with_suffix(".json").write_text(json.dumps(payload, indent=1, default=float) + "\n")
+    write_text(path.with_suffix(".json"), json.dumps(payload, indent=1, default=float) + "\n")
     return path

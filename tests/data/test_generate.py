@@ -215,7 +215,7 @@ def test_bench_render_prints_rates(capsys, tmp_path):
 
 
 def test_render_target_verdict_states_what_was_measured():
-    from ancsh.cli.data import render_target_verdict
+    from ancsh.studies.render import render_target_verdict
 
     assert render_target_verdict({"laptop": 60.0, "oven": 40.0}, 640, 480).endswith("met here by 1 of 2 categories (laptop).")
     assert render_target_verdict({"laptop": 60.0}, 640, 480).endswith("met here by 1 of 1 categories.")

@@ -52,7 +52,7 @@ def test_move_puts_every_tensor_of_a_batch_on_the_device(tiny_arrays):
 @pytest.mark.slow
 def test_gpu_check_script_runs(capsys):
     """The GPU check, CPU against CPU (where no GPU is): every comparison is exact and it passes."""
-    from ancsh.studies.gpu_check import main as gpu_check
+    from ancsh.cli.bench.gpu_check import main as gpu_check
 
     assert gpu_check(["--device", "cpu", "--steps", "2"]) == 0
     out = capsys.readouterr().out

@@ -12,14 +12,14 @@ import importlib
 
 # Modules that contribute ``ancsh bench <name>`` sub-commands, in help order.
 BENCH_MODULES = [
-    "ancsh.cli.data:register_bench",
+    "ancsh.cli.bench.render:register_bench",
     "ancsh.cli.bench.fit",
     "ancsh.cli.bench.learned",
     "ancsh.cli.bench.uncertainty",
-    "ancsh.studies.refinement",
-    "ancsh.studies.train_test_gap",
-    "ancsh.studies.gpu_check:register_bench",
-    "ancsh.studies.scaling:register_bench",
+    "ancsh.cli.bench.refinement",
+    "ancsh.cli.bench.train_test_gap",
+    "ancsh.cli.bench.gpu_check:register_bench",
+    "ancsh.cli.bench.scaling:register_bench",
     "ancsh.cli.bench.tracking",
 ]
 

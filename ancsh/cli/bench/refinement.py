@@ -1,0 +1,88 @@
+"""``ancsh bench template-refinement`` and ``ancsh bench refine-defaults``: the arguments of :mod:`ancsh.studies.refinement`."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+
+from ...outputs import output_flags
+
+
+def register(sub) -> None:
+    """Add ``ancsh bench template-refinement`` to the ``bench`` sub-parsers."""
+    p = sub.add_parser("template-refinement", help="ANCSH-exact with and without the category-template refinement, "
+                       "side by side (shipped weights)")
+    p.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
+    p.add_argument("--frames", type=int, default=100, help="procedural test frames per category (default 100)")
+    p.add_argument("--real-frames", type=int, default=50,
+                   help="real test-split frames per category where the shipped catalog has test objects (default 50; 0 = none)")
+    p.add_argument("--out", type=Path, help="folder (default: a fresh ancsh_results/template-refinement-<time>/)")
+    p.add_argument("--update-docs", action="store_true", help="write into docs/results/ (when --out is not given)")
+    p.add_argument("--no-progress", action="store_true")
+    p.set_defaults(func=run)
+    d = sub.add_parser("refine-defaults", help="decide refine='auto' per category from the full evaluations "
+                       "(ancsh evaluate --refine template reports) and optionally install it",
+                       description="Read each category's <category>.json of `ancsh evaluate --refine template` in "
+                       "--reports, apply the rule (every part's mean rotation error lower, no joint's mean state error "
+                       "more than 5 % higher, on the procedural test split) where the report is of the shipped weights, "
+                       "print the decisions; --install writes ancsh/data/templates/refine_defaults.json (categories "
+                       "without such a report: off).")
+    d.add_argument("--reports", type=Path, required=True, metavar="DIR", help="the evaluation reports (e.g. docs/results)")
+    d.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
+    d.add_argument("--install", action="store_true", help="write ancsh/data/templates/refine_defaults.json")
+    d.set_defaults(func=run_defaults)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ...learned.network.weights import shipped_categories
+    from ...outputs import DOCS_RESULTS, fresh_output_dir
+    from ...studies.refinement import run_template_refinement, write_summary
+
+    cats = list(args.categories) if args.categories else list(shipped_categories())
+    if args.frames < 1 or args.real_frames < 0:
+        raise ValueError(f"--frames, --real-frames: expected >= 1 and >= 0, got {args.frames} and {args.real_frames}")
+    parts = ["bench", "template-refinement"]
+    if args.categories:
+        parts += ["--categories", *args.categories]
+    if args.frames != 100:
+        parts += ["--frames", str(args.frames)]
+    if args.real_frames != 50:
+        parts += ["--real-frames", str(args.real_frames)]
+    parts += output_flags(args.out, update_docs=args.update_docs)
+    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
+    if args.out is not None:
+        summary_path, folder = args.out / "template_refinement.md", args.out
+    elif args.update_docs:
+        summary_path, folder = DOCS_RESULTS / "template_refinement.md", DOCS_RESULTS / "template_refinement"
+    else:
+        folder = fresh_output_dir("template-refinement")
+        summary_path = folder / "template_refinement.md"
+    results = run_template_refinement(cats, frames=args.frames, real_frames=args.real_frames, out_dir=folder,
+                                      command=command, progress=not args.no_progress)
+    path = write_summary(results, summary_path, command=command, folder=folder)
+    print(path.read_text())
+    print(f"wrote {path} and the per-category reports in {folder}")
+    return 0
+
+
+def run_defaults(args: argparse.Namespace) -> int:
+    from ...studies.refinement import HELPS_RULE, _fmt, defaults_from_reports, install_defaults
+
+    parts = ["bench", "refine-defaults", "--reports", str(args.reports)]
+    if args.categories:
+        parts += ["--categories", *args.categories]
+    if args.install:
+        parts.append("--install")
+    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
+    decisions = defaults_from_reports(args.reports, args.categories)
+    print(f"refine='auto' per category ({HELPS_RULE}):")
+    for d in decisions:
+        nums = ""
+        if d.rot_deg:
+            nums = (f"; rotation {_fmt(d.rot_deg, '.2f')} -> {_fmt(d.rot_deg_refined, '.2f')} deg, joint state "
+                    f"{_fmt(d.state_err, '.3g')} -> {_fmt(d.state_err_refined, '.3g')} ({d.frames} frames)")
+        print(f"  {d.category}: {'on' if d.on else 'off'} -- {d.reason}{nums}")
+    if args.install:
+        print(f"installed {install_defaults(decisions, command)}")
+    return 0
