@@ -141,8 +141,9 @@ def test_template_selection_picks_the_true_instance(scene):
 def test_templates_without_their_urdf_are_skipped(scene, tmp_path, monkeypatch):
     """Without the shared data folder, real templates are not chosen (procedural ones still are), and a
     library of none available leaves the fit as it is, with the reason."""
+    shipped = load_template_library("laptop").to_dict()  # read before the shared data folder is emptied
     monkeypatch.setenv("ANCSH_SHARED_DATA", str(tmp_path))  # an empty shared data folder
-    laptop = TemplateLibrary.from_dict(load_template_library("laptop").to_dict())  # a fresh copy: no cached checks
+    laptop = TemplateLibrary.from_dict(shipped)  # a fresh copy: no cached checks
     real = [i for i, e in enumerate(laptop.entries) if e.source == "real"]
     assert real and not any(laptop.available(i) for i in real)
     assert all(laptop.available(i) for i, e in enumerate(laptop.entries) if e.source == "procedural")
