@@ -308,7 +308,7 @@ def test_category_tracker_inflates_a_learned_providers_uncertainty_as_predict_do
     ``ancsh predict``; the raw covariances stay available."""
     import types
 
-    import ancsh.solvers.uncertainty as unc
+    import ancsh.solvers.inflation as unc
 
     table = {"providers": {"learned": {"laptop": {"joint_state": 3.0, "rotation": 2.0, "weights_sha256": "abc"}}}}
     (tmp_path / "inflation.json").write_text(json.dumps(table))
@@ -333,7 +333,7 @@ def test_category_tracker_inflates_warm_frames_by_the_maps_of_their_source(tmp_p
     (``learned-tracked-carried``), the single-frame ones otherwise (a network frame here) and on cold frames."""
     import types
 
-    import ancsh.solvers.uncertainty as unc
+    import ancsh.solvers.inflation as unc
 
     table = {"providers": {"learned": {"laptop": {"joint_state": 3.0, "weights_sha256": "abc"}},
                            "learned-tracked-carried": {"laptop": {"joint_state": 7.0, "weights_sha256": "abc"}}}}
@@ -795,7 +795,7 @@ def test_tracking_benchmark_calibrates_tracked_frames_and_tests_the_installed_ma
     sequences give maps per frame source under ``oracle-realistic-tracked-<source>`` whose calibration
     coverage is nearer the targets than the raw one (carried rows are not observations: raw far too
     confident); installed, the benchmark's own (other) sequences report the carried frames with them."""
-    import ancsh.solvers.uncertainty as unc
+    import ancsh.solvers.inflation as unc
     from ancsh.studies.tracking import BenchConfig, calibrate, run_benchmark, summarize, write_report
     from ancsh.studies.uncertainty_calibration import COVERAGE_TARGETS, CalibrationConfig, install
 

@@ -225,7 +225,7 @@ def _json_default(o):
 
 def install(summary: dict, config: CalibrationConfig, command: str, path=None) -> Path:
     """Write the measured maps (merged per provider and category into an existing table)."""
-    from ...solvers.uncertainty import INFLATION_PATH, load_inflation_table
+    from ...solvers.inflation import INFLATION_PATH, load_inflation_table
 
     path = INFLATION_PATH if path is None else Path(path)
     table = load_inflation_table(path)
