@@ -1,6 +1,6 @@
 """The layout of docs/ARCHITECTURE.md, enforced: imports run from a higher floor to a lower one (or within one
-floor), no module imports itself through others (no circles), and the old module names of the 0.1 re-layout
-still import, with a deprecation warning."""
+floor), no module imports itself through others (no circles), modules over 700 lines say why, and the old module
+names of the 0.1 re-layout still import, with a deprecation warning."""
 
 from __future__ import annotations
 
@@ -13,6 +13,9 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "ancsh"
+
+# Modules over this many lines say why, on a line of their docstring's first paragraph that starts with "Long:".
+MAX_LINES = 700
 
 # Floors from the bottom up (docs/ARCHITECTURE.md's picture). A module belongs to the floor of the longest prefix
 # of its name listed here; it may import its own floor and the floors below it, never one above.
@@ -140,6 +143,30 @@ def test_every_module_is_on_a_floor_and_no_import_runs_upward():
 
 def test_no_module_imports_itself_through_others():
     assert circles(import_graph()) == []
+
+
+def unexplained_long_modules(paths) -> list[str]:
+    """Modules over :data:`MAX_LINES` lines without a "Long:" line in their docstring's first paragraph."""
+    found = []
+    for path in paths:
+        text = Path(path).read_text()
+        if text.count("\n") > MAX_LINES:
+            doc = ast.get_docstring(ast.parse(text)) or ""
+            if not any(line.startswith("Long:") for line in doc.split("\n\n")[0].splitlines()):
+                found.append(f"{Path(path).name} ({text.count(chr(10))} lines)")
+    return found
+
+
+def test_the_long_module_check_asks_for_a_reason(tmp_path):
+    body = "x = 1\n" * (MAX_LINES + 1)
+    bare, explained = tmp_path / "bare.py", tmp_path / "explained.py"
+    bare.write_text('"""A module."""\n' + body)
+    explained.write_text('"""A module.\nLong: one table of data."""\n' + body)
+    assert unexplained_long_modules([bare, explained]) == [f"bare.py ({MAX_LINES + 2} lines)"]
+
+
+def test_long_modules_say_why():
+    assert unexplained_long_modules(sorted(PACKAGE.rglob("*.py"))) == []
 
 
 @pytest.mark.parametrize("old", sorted(importlib.import_module("ancsh._moved").MOVED))
