@@ -44,7 +44,7 @@ MOVED = {
     "ancsh.scaling": ("ancsh.studies.scaling", "ancsh.cli.bench.scaling"),
     "ancsh.tracking.bench": ("ancsh.studies.tracking", "ancsh.studies.tracking.measure", "ancsh.studies.tracking.statistics",
                              "ancsh.studies.tracking.report", "ancsh.cli.bench.tracking"),
-    "ancsh.solvers.icp.evaluate": "ancsh.studies.cad",
+    "ancsh.solvers.icp.evaluate": ("ancsh.studies.cad", "ancsh.studies.cad.measure", "ancsh.studies.cad.report"),
     "ancsh.learned.pointnet2": "ancsh.learned.network.pointnet2",
     "ancsh.learned.config": "ancsh.learned.network.config",
     "ancsh.learned.weights": "ancsh.learned.network.weights",

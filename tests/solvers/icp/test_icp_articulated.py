@@ -9,7 +9,7 @@ from ancsh.data.render import Intrinsics, ModelRenderer, backproject, object_ext
 from ancsh.geometry.rotations import exp_so3, geodesic_angle
 from ancsh.geometry.transforms import Sim3
 from ancsh.solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, auto_init, reduced_step
-from ancsh.studies.cad import _orbit_pose, perturbed_init
+from ancsh.studies.cad.measure import _orbit_pose, perturbed_init
 from ancsh.solvers.icp.template import ArticulatedPose, TemplateProvider
 from ancsh.solvers.types import FitStatus
 

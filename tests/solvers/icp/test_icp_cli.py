@@ -10,7 +10,7 @@ from ancsh.data.paths import shared_data_dir
 from ancsh.data.render import Intrinsics, ModelRenderer, object_extent
 from ancsh.geometry.rotations import exp_so3
 from ancsh.geometry.transforms import Sim3
-from ancsh.studies.cad import _orbit_pose
+from ancsh.studies.cad.measure import _orbit_pose
 
 URDF = shared_data_dir() / "partnet_mobility" / "drawer_20453" / "mobility.urdf"
 pytestmark = pytest.mark.skipif(not URDF.is_file(), reason="shared PartNet-Mobility data not available")

@@ -9,7 +9,7 @@ from ancsh.data.procedural import make_object
 from ancsh.data.render import Intrinsics, ModelRenderer, backproject, object_extent
 from ancsh.geometry.rotations import log_so3
 from ancsh.solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, icp_uncertainty
-from ancsh.studies.cad import _orbit_pose
+from ancsh.studies.cad.measure import _orbit_pose
 from ancsh.solvers.icp.template import ArticulatedPose, ModelSurface, TemplateProvider
 from ancsh.solvers.uncertainty import FitUncertainty
 

@@ -1,4 +1,4 @@
-"""``ancsh evaluate-cad``: articulated ICP vs rigid ICP baselines on rendered view sequences.
+"""Measuring ``ancsh evaluate-cad``: articulated ICP vs rigid ICP baselines on rendered view sequences.
 
 Protocol (like the real-data sequences of the paper, Michel et al. 2015): every object is
 held at one fixed articulation (joint states drawn uniformly in their limits) while a
@@ -17,32 +17,21 @@ whole chain is correct when all parts are.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .._machine import describe_machine, machine_facts
-from ..geometry.metrics import ad_error, joint_state_error
-from ..geometry.rotations import exp_so3
-from ..geometry.transforms import Sim3
-from ..model.articulated import ArticulatedModel, sample_surface
-from ..solvers.icp.template import ArticulatedPose
-from .report import write_text
+from ..._machine import machine_facts
+from ...geometry.metrics import ad_error, joint_state_error
+from ...geometry.rotations import exp_so3
+from ...geometry.transforms import Sim3
+from ...model.articulated import ArticulatedModel, sample_surface
+from ...solvers.icp.template import ArticulatedPose
 
-__all__ = [
-    "EvalConfig",
-    "FrameRecord",
-    "SequenceFrame",
-    "ad_correct",
-    "evaluation_objects",
-    "perturbed_init",
-    "render_sequence",
-    "run_evaluation",
-    "write_report",
-]
+__all__ = ["EvalConfig", "FrameRecord", "SequenceFrame", "PartPoints", "METHODS", "AD_THRESHOLD", "ad_correct",
+           "evaluation_objects", "perturbed_init", "render_sequence", "run_evaluation"]
 
 METHODS = ("articulated_icp", "per_part_icp", "whole_object_icp", "per_part_icp_gt_labels")
 AD_THRESHOLD = 0.1
@@ -138,13 +127,13 @@ def evaluation_objects(config: EvalConfig) -> tuple[list[tuple[str, ArticulatedM
     """``([(name, model), ...], skipped messages)``: procedural instances, then shared URDFs."""
     objects, skipped = [], []
     if config.procedural:
-        from ..data.procedural import make_object
+        from ...data.procedural import make_object
 
         for category, seed in config.procedural:
             objects.append((f"procedural/{category}_{seed}", make_object(category, seed)))
     if config.shared:
-        from ..data.paths import shared_data_dir, shared_objects
-        from ..data.urdf import load_urdf
+        from ...data.paths import shared_data_dir, shared_objects
+        from ...data.urdf import load_urdf
 
         root = shared_data_dir()
         paths = list(shared_objects())
@@ -171,7 +160,7 @@ def evaluation_objects(config: EvalConfig) -> tuple[list[tuple[str, ArticulatedM
 
 
 def _orbit_pose(model: ArticulatedModel, q, center_base, diagonal, azimuth, elevation, distance) -> Sim3:
-    from ..data.render import look_at
+    from ...data.render import look_at
 
     R = model.R_canon_base  # base -> canonical (+y up, +z front)
     d = np.array([np.cos(elevation) * np.sin(azimuth), np.sin(elevation), np.cos(elevation) * np.cos(azimuth)])
@@ -201,9 +190,9 @@ def render_sequence(model: ArticulatedModel, q, frames: int, rng, *, noise: bool
     points : int
         Subsample size per frame (all points when fewer).
     """
-    from ..data.noise import DepthNoise, apply_noise
-    from ..data.render import Intrinsics, ModelRenderer, backproject, object_extent
-    from ..geometry._checks import check_generator
+    from ...data.noise import DepthNoise, apply_noise
+    from ...data.render import Intrinsics, ModelRenderer, backproject, object_extent
+    from ...geometry._checks import check_generator
 
     rng = check_generator(rng)
     intr = intrinsics if intrinsics is not None else Intrinsics.kinect(320, 240)
@@ -247,7 +236,7 @@ def perturbed_init(model: ArticulatedModel, T_cam_base: Sim3, rng, *, angle_deg=
     object's diagonal in a random direction; joint states are uniform in their limits
     (``+-pi`` for unlimited revolute joints).
     """
-    from ..data.render import object_extent
+    from ...data.render import object_extent
 
     q_rand = model.random_states(rng)
     center, diag = object_extent(model, model.rest_states)
@@ -299,10 +288,10 @@ class _ObjectEvaluator:
         self.objects, _ = evaluation_objects(config)
 
     def __call__(self, oi: int) -> list:
-        from ..data.render import Intrinsics, object_extent
-        from ..solvers.icp.articulated import articulated_icp
-        from ..solvers.icp.rigid import RigidIcpConfig, per_part_icp, whole_object_icp
-        from ..solvers.icp.template import ModelSurface
+        from ...data.render import Intrinsics, object_extent
+        from ...solvers.icp.articulated import articulated_icp
+        from ...solvers.icp.rigid import RigidIcpConfig, per_part_icp, whole_object_icp
+        from ...solvers.icp.template import ModelSurface
 
         config = self.config
         name, model = self.objects[oi]
@@ -350,7 +339,7 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
     the records (all but ``time_s``) do not depend on it. ``progress(name, noise, records)`` is called
     for each object and noise setting as its records arrive (in object order).
     """
-    from ..executors import LocalExecutor, RayExecutor
+    from ...executors import LocalExecutor, RayExecutor
 
     bad = [m for m in methods if m not in METHODS]
     if bad:
@@ -381,107 +370,3 @@ def run_evaluation(config: EvalConfig = EvalConfig(), *, methods=METHODS, progre
     return records, meta
 
 
-def write_report(records, meta, path, *, command: str, methods=METHODS, wall_s: float | None = None) -> str:
-    """Write the markdown report (and ``.json`` next to it); returns the markdown text."""
-    path = Path(path)
-    joint_types = {o["name"]: [t for _, t in o["joints"]] for o in meta["objects"]}
-    lines = [
-        "# CAD-based fitting: articulated ICP vs rigid ICP",
-        "",
-        f"Generated by `{command}`" + (f" in {wall_s / 60:.1f} min" if wall_s else "") + ".",
-        "",
-        _protocol_text(meta),
-        "",
-        "## Headline: AD accuracy of the whole kinematic chain (all frames, all objects)",
-        "",
-        "| method | chain AD acc. (no noise) | chain AD acc. (noise) | part AD acc. (no noise) | part AD acc. (noise) | median ms/frame |",
-        "| --- | --- | --- | --- | --- | --- |",
-    ]
-    for method in methods:
-        cells = []
-        for key in ("chain", "part"):
-            for noise in (False, True):
-                rs = [r for r in records if r.method == method and r.noise == noise]
-                v = np.mean([r.chain_correct for r in rs]) if key == "chain" else np.mean([c for r in rs for c in r.part_correct])
-                cells.append(f"{100 * v:.1f}%" if rs else "-")
-        rs = [r for r in records if r.method == method]
-        cells.append(f"{1e3 * np.median([r.time_s for r in rs]):.0f}" if rs else "-")
-        lines.append(f"| {method} | " + " | ".join(cells) + " |")
-    lines += ["", "Targets: chain AD accuracy >= 95% without noise and >= 90% with noise; articulated ICP ahead of both rigid baselines.", ""]
-    lines += ["## Per object", "",
-              "Chain AD accuracy / per-part AD accuracy (part order as listed) / median joint-state error "
-              "(degrees for revolute; for prismatic joints hundredths of the model unit, i.e. cm for metric "
-              "models -- PartNet-Mobility objects are roughly unit-sized, not metric) / median ms per frame "
-              f"(wall time on {describe_machine(meta.get('machine'))}).", ""]
-    objects = [o["name"] for o in meta["objects"]]
-    for noise in (False, True):
-        lines += [f"### {'With' if noise else 'Without'} sensor noise", "",
-                  "| object | method | chain | parts | joint error | ms |", "| --- | --- | --- | --- | --- | --- |"]
-        for name in objects:
-            for method in methods:
-                rs = [r for r in records if r.object == name and r.method == method and r.noise == noise]
-                if not rs:
-                    continue
-                chain = np.mean([r.chain_correct for r in rs])
-                parts = np.mean([r.part_correct for r in rs], axis=0)
-                jt = joint_types[name]
-                jerr = np.nanmedian([r.joint_errors for r in rs], axis=0)
-                js = ", ".join(f"{e:.1f}°" if t == "revolute" else f"{100 * e:.1f} cm" for e, t in zip(jerr, jt))
-                lines.append(
-                    f"| {name} | {method} | {100 * chain:.0f}% | {' '.join(f'{100 * p:.0f}%' for p in parts)} | {js} | "
-                    f"{1e3 * np.median([r.time_s for r in rs]):.0f} |"
-                )
-        lines.append("")
-    fails = [r for r in records if r.method == "articulated_icp" and not r.chain_correct]
-    if fails:
-        lines += ["## Frames articulated ICP gets wrong", "",
-                  "AD / part diameter of every part (parts as in the tables above) and the joint-state errors.", "",
-                  "| object | noise | frame | status | AD / diameter | joint errors |", "| --- | --- | --- | --- | --- | --- |"]
-        for r in fails:
-            ad = " ".join(f"{v:.3f}" for v in r.ad_over_diameter)
-            je = " ".join(f"{v:.3g}" for v in r.joint_errors)
-            lines.append(f"| {r.object} | {'yes' if r.noise else 'no'} | {r.frame} | {r.status} | {ad} | {je} |")
-        lines.append("")
-    if meta.get("skipped"):
-        lines += ["## Skipped objects", ""] + [f"- {s}" for s in meta["skipped"]] + [""]
-    text = "\n".join(lines)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_text(path, text)
-    payload = {"command": command, "meta": meta, "records": [_rounded(r.to_dict()) for r in records]}
-    write_text(path.with_suffix(".json"), json.dumps(payload, separators=(",", ":")))
-    return text
-
-
-def _rounded(value):
-    """Floats rounded to 6 significant digits, recursively (a compact JSON)."""
-    if isinstance(value, float):
-        return float(f"{value:.6g}")
-    if isinstance(value, dict):
-        return {k: _rounded(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_rounded(v) for v in value]
-    return value
-
-
-def _protocol_text(meta) -> str:
-    cfg = meta["config"]
-    return (
-        "Protocol: every object is held at one random articulation (joint states uniform in their limits) "
-        f"while a camera orbits it ({cfg['frames']} views per sequence, azimuth swept over 120 degrees around the "
-        "direction that shows all parts best -- a view in which some part covers fewer than 100 pixels moves "
-        "halfway towards that direction, up to 3 times -- elevation 20-40 degrees, distance 1.6-2.2 object diagonals, "
-        f"{cfg['image_size'][0]}x{cfg['image_size'][1]} Kinect-like intrinsics); each sequence is rendered once "
-        "without and once with Kinect-like depth noise (axial sigma 0.0012 + 0.0019 (z - 0.4)^2 m, 50% edge "
-        f"dropout) and subsampled to {cfg['points']} points per frame. Initialisation (no tracking; frames are "
-        "independent): the true base pose perturbed by 15-30 degrees about a random axis through the object centre "
-        "and 5% of the object diagonal in translation, every joint state drawn uniformly in its limits. "
-        "AD (Michel et al. 2015): a part is correct when the mean distance between 500 of its surface points under "
-        "the estimated and the true pose is below 10% of the part diameter; the chain is correct when every part is.\n\n"
-        "Methods: `articulated_icp` (closest-visible-point template correspondences + the solver core's "
-        "reduced-coordinate solve with a point-to-plane term; multi-start over joint states, per-joint restarts, "
-        "a rescue search over turned orientations when no start explains 80% of the points); `per_part_icp` "
-        "(open3d point-to-plane ICP of each part, segmentation = template labels at the initial estimate); "
-        "`whole_object_icp` (the model frozen at the initial joint states, one rigid point-to-plane ICP); "
-        "`per_part_icp_gt_labels` (per-part ICP with ground-truth segmentation, an upper bound for that baseline). "
-        "The rigid baselines gate correspondences at 10% of the object diagonal."
-    )
