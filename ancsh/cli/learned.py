@@ -114,76 +114,13 @@ def register_weights(sub) -> None:
 
 
 def run_weights(args: argparse.Namespace) -> int:
-    import datetime
-
     from ..learned.network.weights import weights_summary
-
-    def f(v, spec):
-        return "-" if v is None or (isinstance(v, float) and v != v) else format(v, spec)
+    from ..studies.report import Provenance
+    from ..studies.weights import target_tables, weights_tables, write_weights_report
 
     rows = weights_summary()
-
-    def train_minutes(r):  # "parent + own" for a fine-tuned file
-        own = f(r["train_min"], ".0f")
-        return own if not r["parent_min"] else f"{r['parent_min']:.0f} + {own} (fine-tuned from step {r['parent_step']})"
-
-    lines = [
-        "| weights | kind | parts | size (MB) | step shipped / trained | training (min) | test frames | seg. acc. "
-        "(majority) | NPCS error (all-zero) | assoc. acc. | joint-axis error (°) |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| `{r['name']}.pt` | {r['kind']} | {r['parts']} | {r['size_mb']:.1f} | {f(r['step'], 'd')} / "
-            f"{f(r['trained_steps'], 'd')} | {train_minutes(r)} | {f(r['test_frames'], 'd')} | "
-            f"{f(r['seg_acc'], '.3f')} ({f(r['seg_acc_majority'], '.3f')}) | {f(r['npcs_err'], '.4f')} "
-            f"({f(r['npcs_err_zero'], '.3f')}) | {f(r['assoc_acc'], '.3f')} | {f(r['axis_err_deg'], '.2f')} |"
-        )
-    curves = [
-        "| weights | training (min) | validation NPCS error, last | power-law exponent | training time for 2x lower "
-        "error | for 5x lower error |",
-        "|---|---|---|---|---|---|",
-    ]
-    def hours(factor, minutes, cap=1000.0):  # beyond cap x the run's time a power law says only "flat"
-        if factor == float("inf"):
-            return "not reached (flat curve)"
-        if factor > cap:
-            return f"> {cap * minutes / 60:.0f} h (> {cap:.0f}x: flat curve)"
-        return f"{factor * minutes / 60:.0f} h ({factor:.0f}x)"
-
-    for r in rows:
-        c = r["curve"]
-        if c is not None:
-            curves.append(
-                f"| `{r['name']}.pt` | {f(r['train_min'], '.0f')} | {c['fitted_final']:.4f} | {c['exponent']:.2f} | "
-                f"{hours(c['time_factor_2x'], r['train_min'])} | {hours(c['time_factor_5x'], r['train_min'])} |"
-            )
-    pose = [
-        "| weights | pose validations (step: rotation + joint axis, °) | best (step) | last / best |",
-        "|---|---|---|---|",
-    ]
-    for r in rows:
-        pc = r["pose_curve"]
-        if pc:
-            best = min(pc, key=lambda p: p["score"])
-            history = ", ".join(f"{p['step']}: {p['score']:.1f}" for p in pc)
-            pose.append(f"| `{r['name']}.pt` | {history} | "
-                        f"{best['score']:.1f} ({best['step']}) | {f(pc[-1]['score'] / best['score'], '.2f')} |")
-    targets, limits = [], []
-    if args.reports is not None:
-        from ..studies.targets import (budget_projection, collect_targets, limit_lines, roll_gains, target_lines,
-                              train_test_ratios, unshipped_minutes)
-
-        target_rows, missing = collect_targets(args.reports)
-        ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh"}
-        minutes = {c: (r["train_min"], r["parent_min"]) for c, r in ancsh_rows.items()}
-        targets = target_lines(target_rows, missing, minutes)
-        gains = roll_gains(args.reports / "roll_equivariance.json")
-        unshipped = unshipped_minutes()
-        gaps = train_test_ratios(args.reports / "train_test_gap.json")
-        limits = limit_lines([budget_projection(t, ancsh_rows[t.category], gains.get(t.category, float("nan")),
-                                                unshipped.get(t.category, 0.0), gaps.get(t.category, float("nan")))
-                              for t in target_rows if t.category in ancsh_rows])
+    lines, curves, pose = weights_tables(rows)
+    targets, limits = target_tables(args.reports, rows) if args.reports is not None else ([], [])
     print("\n".join(lines))
     print("\n".join(curves))
     if len(pose) > 2:
@@ -192,89 +129,12 @@ def run_weights(args: argparse.Namespace) -> int:
         print("\n".join(targets))
         print("\n".join(limits))
     if args.out is not None:
-        date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         cmd = _command(["weights", *(["--reports", str(args.reports)] if args.reports is not None else []),
                         "--out", str(args.out)])
-        text = [
-            "# Shipped networks", "",
-            f"Generated {date} by `{cmd}`.", "",
-            "Held-out scores are those stored in each weights file at export (the test split's instances, never "
-            "seen in training), beside trivial baselines in parentheses. NPCS error: mean distance in NPCS units "
-            "(unit part diagonal). Joint-axis error: the network's per-point axis votes in NAOCS (direct voting: "
-            f"in the camera frame). {training_settings(rows)} Training times are the wall times recorded in each "
-            "run's history on the machine that trained it, not measured here. "
-            "Each file's config, history (CSV), curves (PNG) and test metrics ship beside it in `ancsh/weights/`.",
-            "", *lines, "",
-            "## Learning curves: what more training time would buy", "",
-            "A power law `err = a·t^b` fitted (least squares in log-log) to the validation NPCS error of the "
-            "second half of each run's history (`ancsh.learned.network.weights.learning_curve_fit`), and the training "
-            "time it projects for a 2x and a 5x lower error at the same settings and on the same machine. 'last' is the "
-            "fit at the end of the run. Extrapolating this far is an order-of-magnitude guide only (curves "
-            "usually flatten, so the projections are optimistic). The NPCS error is only a proxy for the pose: "
-            "the fitted part rotations follow the network's NPCS *orientation* error (see *Where the rotation "
-            "error comes from* in each `docs/results/<category>.md`), which a lower mean NPCS error does not "
-            "guarantee (eyeglasses, 50 -> 90 min: NPCS error 0.044 -> 0.040, exact-fit rotation errors up).", "",
-            *curves, "",
-        ]
-        if len(pose) > 2:
-            text += [
-                "## Pose validation: the quantity users get, during training", "",
-                "Runs with a pose validation (`TrainConfig.pose_val_every`) fit every few hundred steps the validation "
-                "instances' frames (64, never test instances) through the full pipeline and record the mean fitted "
-                "part rotation error plus joint-axis error (`pose_score`, the number `best.pt` minimises). The shipped "
-                "file is the best row. Its frame-to-frame noise is about ±1°, so only differences beyond that mean "
-                "anything; a last/best ratio near 1 with no trend says that more steps of the same training buy "
-                "little.", "",
-                *pose, "",
-            ]
-        if targets:
-            text += [
-                f"## Table 1 targets: the shipped networks through the full pipeline (reports in `{args.reports}`)", "",
-                "Read back from each category's `ancsh evaluate` report (`ancsh.studies.targets`), not re-measured: "
-                "per part, the mean ANCSH-exact (reduced) rotation error on the procedural test split beside the "
-                "paper's Table 1 ANCSH row (its CAD datasets, not our instances), the joint-axis error beside the "
-                "paper's, and the real test split's rotation error over the procedural one (goal: at most 1.25x per "
-                "part), and the same fits refined against the category template where the report has that row "
-                "(`ancsh evaluate --refine template`, an option of the learned provider). Training: minutes of one core spent on the shipped network, + those of the network it was "
-                "fine-tuned from, against the budget of 4 core-hours (240 min) per "
-                "category. A report marked stale evaluated "
-                "other weights than the shipped file, or frames of an older generator.", "",
-                *targets, "",
-                "## What limits the targets: more of the same training within the budget", "",
-                "Per category (`ancsh.studies.targets.budget_projection`): the factor by which the worst part's "
-                "rotation error must fall to meet the paper's; the training minutes left of the 240 (the shipped lineage's and "
-                "the runs not shipped, `ancsh/weights/unshipped_training.json`); and what a power "
-                "law fitted to the shipped run's own history projects at the budget's end, as a multiple of today's "
-                "error -- from the validation NPCS error (the learning-curve table above) and from the pose "
-                "validations (the quantity judged; exponent >= 0: no longer falling, projected 1.00). The power "
-                "laws are extrapolations (optimistic: curves flatten), the NPCS error is only a proxy, and the pose "
-                "validations carry about ±1° of noise each. Roll gain: how far the fitted rotation follows a camera "
-                "roll (1 = the network reads the orientation from the shape; `roll_equivariance.md` in the reports "
-                "folder, shipped weights only; '-' when not measured on them). Rotation, test / training "
-                "instances: the mean fitted rotation error on the held-out test instances over that on new views "
-                "of the training instances, averaged over parts (`train_test_gap.md` in the reports folder, "
-                "`ancsh bench train-test-gap`): near 1, the network errs as much on the objects it trained on -- "
-                "under-fitted, and more data of the same kind would not help. A category projected not to reach "
-                "its target needs another lever than more steps of the same training.", "",
-                *limits, "",
-            ]
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text("\n".join(text))
+        write_weights_report(args.out, rows, (lines, curves, pose), targets, limits, reports=args.reports,
+                             provenance=Provenance(cmd))
         print(f"wrote {args.out}")
     return 0
-
-
-def training_settings(rows: list[dict]) -> str:
-    """The training settings stored in the weights files (:func:`~ancsh.learned.network.weights.weights_summary` rows),
-    as a sentence: one clause per distinct setting, naming its files when they differ."""
-    groups: dict[tuple, list[str]] = {}
-    for r in rows:
-        groups.setdefault((r["num_threads"], r["batch_size"], r["num_points"]), []).append(f"`{r['name']}.pt`")
-    clauses = [f"{t} torch thread(s), steps of batch {b}, {p} points" for t, b, p in groups]
-    if len(groups) <= 1:
-        return f"Trained (each file's config) with {clauses[0]}." if groups else ""
-    return "Trained (each file's config) with " + "; ".join(
-        f"{c} ({', '.join(names)})" for c, names in zip(clauses, groups.values())) + "."
 
 
 def _command(argv_tail: list[str]) -> str:

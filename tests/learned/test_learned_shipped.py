@@ -109,7 +109,7 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
 
 
 def test_training_settings_sentence_comes_from_the_files_configs():
-    from ancsh.cli.learned import training_settings
+    from ancsh.studies.weights import training_settings
 
     row = lambda name, threads: {"name": name, "num_threads": threads, "batch_size": 16, "num_points": 1024}  # noqa: E731
     assert training_settings([row("a", 1), row("b", 1)]) == \
