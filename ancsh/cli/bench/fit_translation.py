@@ -1,0 +1,66 @@
+"""``python -m ancsh.cli.bench.fit_translation``: the measurements of ``docs/results/fit_translation.md``
+(:mod:`ancsh.studies.fit_translation`).
+
+``measure --variant causes|reverse --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
+tables; ``evaluate-symmetric ARGS`` runs ``ancsh ARGS`` (e.g. ``evaluate --category laptop ...``) with the previous
+default scale estimator of the exact fits (``FitConfig(scale_estimator="symmetric")``), for the page's
+before/after rows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m ancsh.cli.bench.fit_translation",
+                                description="The fit's translation error by cause (docs/results/fit_translation.md).")
+    sub = p.add_subparsers(dest="what", required=True)
+    m = sub.add_parser("measure", help="fit the fit benchmark's frames with every method of a variant")
+    m.add_argument("--variant", choices=("causes", "reverse"), default="causes")
+    m.add_argument("--frames", type=int, default=8, help="test frames per category (default 8)")
+    m.add_argument("--categories", default="", help="comma-separated (default: the paper's five)")
+    m.add_argument("--out", required=True, help="records JSON")
+    t = sub.add_parser("tables", help="the page's markdown tables of a records file")
+    t.add_argument("records")
+    e = sub.add_parser("evaluate-symmetric", help="an ancsh command with the previous default scale estimator")
+    e.add_argument("ancsh_args", nargs=argparse.REMAINDER)
+    args = p.parse_args(argv)
+    if args.what == "measure":
+        from ...studies.fit_translation import measure
+        from ...studies.report import write_json
+
+        cats = tuple(c for c in args.categories.split(",") if c)
+        recs = measure(args.frames, cats, variant=args.variant, progress=lambda line: print(line, flush=True))
+        print(f"wrote {write_json(args.out, recs)}")
+        return 0
+    if args.what == "tables":
+        from ...studies.fit_translation import tables
+
+        with open(args.records) as f:
+            print("\n".join(tables(json.load(f))))
+        return 0
+    return _evaluate_symmetric(args.ancsh_args)
+
+
+def _evaluate_symmetric(ancsh_args: list[str]) -> int:
+    """``ancsh ancsh_args`` with ``ancsh.solvers.FitConfig()`` defaulting to the symmetric scale estimator."""
+    import ancsh.solvers
+    from ...solvers.fit import FitConfig
+    from .. import main as ancsh_main
+
+    class _Symmetric:
+        paper = staticmethod(FitConfig.paper)
+
+        def __new__(cls, **kw):
+            kw.setdefault("scale_estimator", "symmetric")
+            return FitConfig(**kw)
+
+    ancsh.solvers.FitConfig = _Symmetric
+    return ancsh_main(ancsh_args)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

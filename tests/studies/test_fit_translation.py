@@ -1,0 +1,43 @@
+"""The fit-translation study: its tables from known records, its variants, and one real frame through it."""
+
+import numpy as np
+import pytest
+
+from ancsh.cli.bench.fit_translation import main
+from ancsh.studies.fit_translation import measure, tables
+
+
+def _record(method, level, cat, trans, rot=1.0):
+    part = dict(name="p", rot=rot, trans=trans, scale_rel=0.01, signed_scale=-0.01, centroid_trans=trans / 2, lever=0.3)
+    return dict(cat=cat, frame=0, level=level, method=method, ok=True, parts=[part, dict(part, trans=3 * trans)])
+
+
+def test_tables_average_parts_and_frames_per_method_and_level():
+    recs = [_record("a", "low", "laptop", 0.01), _record("a", "low", "laptop", 0.03), _record("b", "low", "laptop", 0.1),
+            dict(cat="laptop", frame=1, level="low", method="b", ok=False)]
+    lines = tables(recs)
+    assert lines[0] == "\n## low: all parts mean"
+    # method a: parts 0.01, 0.03 and 0.03, 0.09 -> mean 0.04; per part 0.02 and 0.06
+    assert "| a | 1.00 | 0.0400 | 0.0100 | 0.0100 | -0.0100 |" in lines  # centroid: 0.005, 0.015 in both parts
+    assert "| laptop | a | 0.0200, 0.0600 | 0.0100, 0.0100 | 1.00, 1.00 | -0.0100, -0.0100 |" in lines
+    assert any(line.startswith("| b | 1.00 | 0.2000 |") for line in lines)  # the failed fit is left out
+
+
+def test_an_unknown_variant_is_refused():
+    with pytest.raises(ValueError, match="variant"):
+        measure(1, ("laptop",), variant="nope")
+
+
+@pytest.mark.slow
+def test_one_frame_through_the_reverse_variant(tmp_path, capsys):
+    out = tmp_path / "recs.json"
+    assert main(["measure", "--variant", "reverse", "--frames", "1", "--categories", "laptop", "--out", str(out)]) == 0
+    assert main(["tables", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "## high: all parts mean" in text and "| exact reverse scale |" in text
+    import json
+
+    recs = json.loads(out.read_text())
+    assert {r["level"] for r in recs} == {"low", "realistic", "high"} and all(r["ok"] for r in recs)
+    gt = [p["trans"] for r in recs if r["method"] == "gt_refit reverse" for p in r["parts"]]
+    assert np.all(np.isfinite(gt)) and max(gt) < 0.1  # the oracle's true inliers: a good fit
