@@ -104,6 +104,3 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ancsh {args.command}: error: cannot read or write{where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -3,7 +3,7 @@
 The library's default is the CPU (the tested one); the commands' ``--device`` defaults to ``"auto"``,
 which picks CUDA when torch sees a CUDA device and is the CPU everywhere else. The network's
 operations create their tensors on the device of their input, so the same code runs on either;
-``python -m ancsh.studies.gpu_check`` compares a CUDA run with a CPU run on a machine with a GPU.
+``python -m ancsh.cli.bench.gpu_check`` compares a CUDA run with a CPU run on a machine with a GPU.
 """
 
 from __future__ import annotations

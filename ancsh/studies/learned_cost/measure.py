@@ -1,12 +1,12 @@
 """Benchmarks of the network size against cost and accuracy (prints numbers, asserts nothing).
 
-``python -m ancsh.studies.learned_cost timing`` -- training-step and single-frame forward times for
+``python -m ancsh.cli.bench.learned timing`` -- training-step and single-frame forward times for
 several widths / sampling settings (batch 16, 1024 points by default).
 
-``python -m ancsh.studies.learned_cost accuracy --data DIR --steps S`` -- short equal-step training
+``python -m ancsh.cli.bench.learned accuracy --data DIR --steps S`` -- short equal-step training
 runs at several widths on the same data, validation metrics on held-out instances.
 
-``python -m ancsh.studies.learned_cost pipeline --data DIR --weights laptop`` -- the learned provider
+``python -m ancsh.cli.bench.learned pipeline --data DIR --weights laptop`` -- the learned provider
 followed by each fitting formulation on test frames: per-part rotation/translation errors,
 joint-state error, and the time of the network and of each fit.
 
