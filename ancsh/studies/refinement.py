@@ -142,10 +142,9 @@ def install_defaults(decisions: list[RefineDefault], command: str, path=None) ->
     target = Path(path) if path is not None else Path(__file__).resolve().parents[1] / "data" / "templates" / "refine_defaults.json"
     evidence = {d.category: {k: v for k, v in dataclasses.asdict(d).items() if k not in ("category", "on")}
                 for d in decisions}
-    target.write_text(json.dumps({"measured_by": command, "rule": HELPS_RULE,
-                                  "categories": {d.category: d.on for d in decisions}, "evidence": evidence},
-                                 indent=1) + "\n")
-    return target
+    return write_text(target, json.dumps({"measured_by": command, "rule": HELPS_RULE,
+                                          "categories": {d.category: d.on for d in decisions}, "evidence": evidence},
+                                         indent=1) + "\n")
 
 
 def run_template_refinement(categories, *, frames: int, real_frames: int, out_dir, command: str,

@@ -228,10 +228,13 @@ def save_records(measured: dict, path) -> Path:
                         shape = {"error": (0, dof), "covariance": (0, dof, dof), "correlated": (0, dof, dof)}.get(f, (0,))
                         v = np.array([getattr(r, f) for r in recs]) if recs else np.zeros(shape)
                         arrays[f"{cat}/{p}/{split}/{q}/{f}"] = v
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
+    import io
+
+    from ...outputs import write_bytes_atomically
+
+    path, buffer = Path(path), io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    write_bytes_atomically(path, buffer.getvalue())
     return path
 
 
