@@ -33,8 +33,8 @@ MOVED = {
     "ancsh.learned.gap_bench": ("ancsh.studies.train_test_gap", "ancsh.cli.bench.train_test_gap"),
     "ancsh.learned.refine_bench": ("ancsh.studies.refinement", "ancsh.cli.bench.refinement"),
     "ancsh.learned.gpu_check": ("ancsh.studies.gpu_check", "ancsh.cli.bench.gpu_check"),
-    "ancsh.learned.evaluate": ("ancsh.studies.table1", "ancsh.studies.table1.measure", "ancsh.studies.table1.statistics",
-                               "ancsh.studies.table1.report"),
+    "ancsh.learned.evaluate": ("ancsh.studies.table1", "ancsh.studies.table1.measure",
+                               "ancsh.studies.table1.statistics", "ancsh.studies.table1.report"),
     "ancsh.learned.equivariance": "ancsh.studies.equivariance",
     "ancsh.learned.targets": "ancsh.studies.targets",
     "ancsh.uncertainty_calibration": ("ancsh.studies.uncertainty_calibration",
@@ -42,8 +42,9 @@ MOVED = {
                                       "ancsh.studies.uncertainty_calibration.statistics",
                                       "ancsh.studies.uncertainty_calibration.report", "ancsh.cli.bench.uncertainty"),
     "ancsh.scaling": ("ancsh.studies.scaling", "ancsh.cli.bench.scaling"),
-    "ancsh.tracking.bench": ("ancsh.studies.tracking", "ancsh.studies.tracking.measure", "ancsh.studies.tracking.statistics",
-                             "ancsh.studies.tracking.report", "ancsh.cli.bench.tracking"),
+    "ancsh.tracking.bench": ("ancsh.studies.tracking", "ancsh.studies.tracking.measure",
+                             "ancsh.studies.tracking.statistics", "ancsh.studies.tracking.report",
+                             "ancsh.cli.bench.tracking"),
     "ancsh.solvers.icp.evaluate": ("ancsh.studies.cad", "ancsh.studies.cad.measure", "ancsh.studies.cad.report"),
     "ancsh.learned.pointnet2": "ancsh.learned.network.pointnet2",
     "ancsh.learned.config": "ancsh.learned.network.config",
@@ -57,6 +58,13 @@ MOVED = {
     "ancsh.learned.provider": "ancsh.learned.inference.provider",
     "ancsh.learned.predict": "ancsh.learned.inference.predict",
     "ancsh.learned.confidence": ("ancsh.learned.inference.confidence", "ancsh.studies.confidence_calibration"),
+}
+
+# module -> {name: the module it moved to}: names that left a module which itself stayed
+MOVED_NAMES = {
+    "ancsh.data.catalog": {"ranges_report": "ancsh.studies.catalog_reports",
+                           "write_import_report": "ancsh.studies.catalog_reports"},
+    "ancsh.data.measure": {"ranges_table": "ancsh.studies.catalog_reports"},
 }
 
 REMOVED_IN = "0.2"
@@ -101,6 +109,20 @@ def _split_view(name: str, modules: list) -> types.ModuleType:
 
     view.__getattr__ = __getattr__
     return view
+
+
+def moved_names(module: str):
+    """A module ``__getattr__`` answering the names of :data:`MOVED_NAMES` that left ``module``, with a warning."""
+    moved = MOVED_NAMES.get(module, {})
+
+    def __getattr__(name: str):
+        if name not in moved:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        warnings.warn(f"{module}.{name} moved to {moved[name]}; the old name stops working in ancsh {REMOVED_IN}",
+                      DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(moved[name]), name)
+
+    return __getattr__
 
 
 def install() -> None:

@@ -162,7 +162,8 @@ def run_import(args) -> int:
     import shlex
     from pathlib import Path
 
-    from ..data.catalog import build_catalog, draw_preview_sheet, write_catalog, write_import_report
+    from ..data.catalog import build_catalog, draw_preview_sheet, write_catalog
+    from ..studies.catalog_reports import write_import_report
     from ..data.importer import load_overrides
 
     overrides = load_overrides(args.override) if args.override else None
@@ -185,7 +186,8 @@ def run_import(args) -> int:
 def run_ranges(args) -> int:
     from pathlib import Path
 
-    from ..data.catalog import load_catalog, ranges_report
+    from ..data.catalog import load_catalog
+    from ..studies.catalog_reports import ranges_report
     from ..outputs import write_bytes_atomically
 
     catalog = load_catalog(None if args.catalog == "builtin" else args.catalog)

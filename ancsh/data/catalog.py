@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _moved
 from ..outputs import write_bytes_atomically
 from .importer import ImportedObject, ImportRejected, _guess_category, _object_name, assign_splits, import_object
 
@@ -30,10 +31,8 @@ __all__ = [
     "builtin_catalog_path",
     "draw_preview_sheet",
     "load_catalog",
-    "ranges_report",
     "write_bytes_atomically",
     "write_catalog",
-    "write_import_report",
 ]
 
 CATALOG_VERSION = 1
@@ -174,50 +173,6 @@ def write_catalog(catalog: Catalog, path) -> Path:
     return path
 
 
-def write_import_report(catalog: Catalog, path) -> Path:
-    """A markdown table of every object and its outcome (atomic)."""
-    from .conventions import rest_diagonal
-
-    lines = [
-        "# Import of real objects into the category conventions",
-        "",
-        f"Produced by `{catalog.command or 'ancsh data import'}`.",
-        "",
-        "Each object either takes its category's convention (`ancsh.data.conventions`: parts and joints, state 0 "
-        "closed / perpendicular measured on the geometry, direction, rest state, NAOCS front, part order, metric "
-        "scale) or is rejected with the reason. `zero` is the file's joint value that became the category's "
-        "state 0 (file units: radians or the file's length unit).",
-        "",
-    ]
-    counts = {}
-    for o in catalog.objects:
-        counts.setdefault(o.category, {"train": 0, "test": 0})[o.split] += 1
-    lines += ["| category | imported | train | test | rejected |", "|---|---|---|---|---|"]
-    rej = {}
-    for r in catalog.rejected:
-        rej[r.category or "(none)"] = rej.get(r.category or "(none)", 0) + 1
-    for cat in sorted(set(counts) | set(rej)):
-        c = counts.get(cat, {"train": 0, "test": 0})
-        lines.append(f"| {cat} | {c['train'] + c['test']} | {c['train']} | {c['test']} | {rej.get(cat, 0)} |")
-    lines += ["", "## Imported", "", "| object | category | split | zero (file) | sign | front turned | scale | rest diagonal (m) | notes |",
-              "|---|---|---|---|---|---|---|---|---|"]
-    for o in sorted(catalog.objects, key=lambda o: (o.category, o.name)):
-        try:
-            diag = f"{rest_diagonal(o.model()):.3f}"
-        except (ValueError, FileNotFoundError) as exc:
-            diag = f"({exc})"
-        zero = ", ".join(f"{z:.3f}" for z in o.zero)
-        sign = ", ".join(f"{s:+d}" for s in o.sign)
-        lines.append(f"| {o.name} | {o.category} | {o.split} | {zero} | {sign} | {'yes' if o.flip_front else 'no'} | "
-                     f"{o.scale:.4f} | {diag} | {'; '.join(o.notes)} |")
-    lines += ["", "## Rejected", "", "| object | category | reason |", "|---|---|---|"]
-    for r in sorted(catalog.rejected, key=lambda r: r.name):
-        lines.append(f"| {r.name} | {r.category or '-'} | {r.reason} |")
-    path = Path(path)
-    write_bytes_atomically(path, ("\n".join(lines) + "\n").encode())
-    return path
-
-
 def _open_states(model) -> np.ndarray:
     """A clearly moved state: each joint 60 % of the way from rest to its far limit."""
     q = model.rest_states.copy()
@@ -291,34 +246,5 @@ def draw_preview_sheet(objects, out, *, title: str = "", points_per_part: int = 
     return out
 
 
-def ranges_report(catalog: Catalog, *, procedural_instances: int = 60, command: str = "") -> str:
-    """Markdown: per category, the real objects' measured variation beside the generator's.
-
-    Real objects are measured after import (metres, canonical orientation, rest state); the
-    generator over its first ``procedural_instances`` training instances
-    (:func:`ancsh.data.measure.procedural_summary`). Categories without real objects are left out.
-    """
-    from .conventions import convention
-    from .measure import measure_instance, procedural_summary, ranges_table, summarize
-    from .procedural import CATEGORIES
-
-    lines = [
-        "# Real objects' variation beside the procedural generators'",
-        "",
-        f"Produced by `{command or 'ancsh data ranges'}`.",
-        "",
-        "Each category's real objects (every imported object of the catalog, both splits, after import: metres, "
-        "NAOCS orientation, rest state) and the generator's first training instances, measured by the same "
-        "function (`ancsh.data.measure.measure_instance`, on the geometry). Numbers are `min - max (median)`; "
-        "labels are shares. Unitless ratios compare directly; `width`/`height`/`depth`/`diagonal` are metres.",
-        "",
-    ]
-    for category in catalog.categories:
-        objs = catalog.instances(category)
-        conv = convention(category)
-        real = summarize([measure_instance(o.model(), conv) for o in objs])
-        columns = {f"real ({len(objs)})": real}
-        if category in CATEGORIES:
-            columns[f"procedural ({procedural_instances})"] = procedural_summary(category, procedural_instances)
-        lines += [f"## {category}", "", ranges_table(columns)]
-    return "\n".join(lines)
+# ranges_report, write_import_report: moved to ancsh.studies.catalog_reports (importable from here until 0.2)
+__getattr__ = _moved.moved_names(__name__)

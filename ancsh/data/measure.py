@@ -44,10 +44,11 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .. import _moved
 from ..model.articulated import ArticulatedModel
 from .conventions import CategoryConvention, part_vertices_canonical
 
-__all__ = ["measure_instance", "procedural_summary", "ranges_table", "summarize"]
+__all__ = ["measure_instance", "procedural_summary", "summarize"]
 
 # Share of a door's points (least moving first) that locate its hinge line.
 _HINGE_QUANTILE = 0.05
@@ -243,30 +244,5 @@ def procedural_summary(category: str, n: int, split: str = "train") -> dict:
     return summarize([measure_instance(make_object(category, s), conv) for s in seeds[:n]])
 
 
-def _cell(entry) -> str:
-    if entry is None:
-        return "-"
-    if "shares" in entry:
-        return ", ".join(f"{k} {100 * f:.0f} %" for k, f in entry["shares"].items())
-    return f"{entry['min']:.3g} - {entry['max']:.3g} ({entry['median']:.3g})"
-
-
-def ranges_table(summaries: Mapping[str, Mapping]) -> str:
-    """A Markdown table with one row per measured key and one column per summary.
-
-    Parameters
-    ----------
-    summaries : mapping of str to dict
-        Column label (e.g. ``"real (15)"``, ``"procedural (200)"``) -> :func:`summarize` result.
-
-    Returns
-    -------
-    str
-        Numbers as ``min - max (median)``, labels as their shares; ``-`` where a column lacks a key.
-    """
-    if not summaries:
-        raise ValueError("summaries: need at least one column")
-    keys = list(dict.fromkeys(k for s in summaries.values() for k in s))
-    lines = ["| measurement | " + " | ".join(summaries) + " |", "|---" * (len(summaries) + 1) + "|"]
-    lines += [f"| {k} | " + " | ".join(_cell(s.get(k)) for s in summaries.values()) + " |" for k in keys]
-    return "\n".join(lines) + "\n"
+# ranges_table: moved to ancsh.studies.catalog_reports (importable from here until 0.2)
+__getattr__ = _moved.moved_names(__name__)

@@ -20,11 +20,11 @@ from ancsh.data.catalog import (
     draw_preview_sheet,
     load_catalog,
     write_catalog,
-    write_import_report,
 )
 from ancsh.data.conventions import convention, convention_violations, rest_diagonal
 from ancsh.data.importer import ImportedObject, ImportRejected, assign_splits, import_object, load_overrides
 from ancsh.data.paths import shared_data_dir
+from ancsh.studies.catalog_reports import write_import_report
 
 def test_state_zero_direction_and_scale_are_found_from_geometry(tmp_path, make_oven_urdf):
     urdf = make_oven_urdf(tmp_path / "oven_a")
@@ -207,7 +207,7 @@ def test_the_builtin_catalog_is_shipped():
 
 
 def test_ranges_report_puts_real_objects_beside_the_generator(tmp_path, make_oven_urdf):
-    from ancsh.data.catalog import ranges_report
+    from ancsh.studies.catalog_reports import ranges_report
 
     objs = [import_object(make_oven_urdf(tmp_path / f"oven_{i}"), "oven") for i in range(2)]
     text = ranges_report(Catalog(tuple(assign_splits(objs))), procedural_instances=3, command="test")

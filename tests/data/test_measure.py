@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ancsh.data.conventions import convention
-from ancsh.data.measure import measure_instance, procedural_summary, ranges_table, summarize
+from ancsh.data.measure import measure_instance, procedural_summary, summarize
+from ancsh.studies.catalog_reports import ranges_table
 from ancsh.data.procedural import _door
 from ancsh.data.procedural import _mesh as m
 from ancsh.data.procedural import make_object
