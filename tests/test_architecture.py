@@ -191,11 +191,11 @@ def test_old_module_names_still_import_with_a_deprecation_warning(old):
         assert module is importlib.import_module(new) and module.__spec__.name == new
 
 
-@pytest.mark.parametrize("module, name", sorted((m, n) for m, names in
-                                                importlib.import_module("ancsh._moved").MOVED_NAMES.items() for n in names))
-def test_names_that_left_a_module_still_import_from_it_with_a_warning(module, name):
-    from ancsh._moved import MOVED_NAMES
+MOVED_NAMES = importlib.import_module("ancsh._moved").MOVED_NAMES
 
+
+@pytest.mark.parametrize("module, name", sorted((m, n) for m, names in MOVED_NAMES.items() for n in names))
+def test_names_that_left_a_module_still_import_from_it_with_a_warning(module, name):
     old = importlib.import_module(module)
     with pytest.warns(DeprecationWarning, match=f"{module}.{name} moved"):
         value = getattr(old, name)
