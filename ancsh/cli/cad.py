@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from ..outputs import write_bytes_atomically
+
 
 def register(sub) -> None:
     p = sub.add_parser("fit-cad", help="fit a known URDF model (pose + joint states) to a depth image by articulated ICP")
@@ -126,7 +128,7 @@ def run_fit(args) -> int:
         from ..outputs import json_safe
 
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.out).write_text(json.dumps(json_safe(payload), indent=1, allow_nan=False))
+        write_bytes_atomically(Path(args.out), json.dumps(json_safe(payload), indent=1, allow_nan=False).encode())
         print(f"wrote {args.out}")
     if args.png:
         draw_fit(model, result, points, intr, args.png)
@@ -154,6 +156,7 @@ def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None =
     import numpy as np
 
     from ..data.render import project
+    from ..data.show import save_figure
     from ..model.articulated import sample_surface_with_normals
 
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
@@ -174,8 +177,7 @@ def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None =
     ax.legend(loc="upper right", markerscale=6, fontsize=7)
     ax.set_title(title or f"{model.name}: {result.status.value}")
     fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path, dpi=100)
     plt.close(fig)
 
 

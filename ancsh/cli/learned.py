@@ -10,7 +10,7 @@ import json
 import shlex
 from pathlib import Path
 
-from ..outputs import output_flags
+from ..outputs import output_flags, write_bytes_atomically
 
 
 def register(sub) -> None:
@@ -193,8 +193,7 @@ def run_predict(args: argparse.Namespace) -> int:
             absolute = "" if j["state_abs"] is None else f", absolute {j['state_abs'] * f:.1f} {unit}"
             print(f"  joint {j['name']:12s} ({j['type']}) state {j['state'] * f:.1f} {unit} relative to rest{absolute}")
     if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(data, indent=1) + "\n")
+        write_bytes_atomically(args.out, (json.dumps(data, indent=1) + "\n").encode())
         print(f"  result: {args.out}")
     if args.png is not None:
         print(f"  picture: {save_figure(draw_prediction(depth, pred, intr, rgb=rgb), args.png)}")
@@ -237,7 +236,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
         data["input"] = {"depth": str(path), "intrinsics": intr.to_json(), "depth_scale": args.depth_scale,
                          "max_depth": args.max_depth, "seed": args.seed, "pixel": args.pixel, "box": args.box,
                          "isolate": not args.no_isolate}
-        (out / f"{path.stem}.json").write_text(json.dumps(data, indent=1) + "\n")
+        write_bytes_atomically(out / f"{path.stem}.json", (json.dumps(data, indent=1) + "\n").encode())
         if args.png is not None:
             save_figure(draw_prediction(depth, pred, intr), args.png / f"{path.stem}.png")
         statuses[path.name] = pred.result.status.value
@@ -277,7 +276,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
           f"wrote {paths['md']}, {paths['png']}")
     if args.install:
         target = calibration_path(args.category)
-        target.write_text(paths["json"].read_text())
+        write_bytes_atomically(target, paths["json"].read_bytes())
         print(f"installed {target}")
     return 0
 

@@ -131,12 +131,15 @@ def save_frame_figure(frame, out) -> Path:
 
 def save_figure(fig, out, **savefig) -> Path:
     """Save a figure atomically (a temporary file and a rename), creating the folder; the format comes from
-    the suffix (e.g. ``.png``); ``savefig`` are matplotlib's ``savefig`` options (``dpi``, ...)."""
+    the suffix (e.g. ``.png``; a name without one gets ``.png``, as matplotlib does); ``savefig`` are
+    matplotlib's ``savefig`` options (``dpi``, ...). Returns the path written."""
     import io
 
     from ..outputs import write_bytes_atomically
 
     out = Path(out)
+    if not out.suffix:
+        out = out.with_name(out.name + ".png")
     buffer = io.BytesIO()
     fig.savefig(buffer, format=out.suffix.lstrip(".") or "png", **savefig)
     write_bytes_atomically(out, buffer.getvalue())
