@@ -109,6 +109,24 @@ def test_an_unwritable_out_is_a_clear_error(depth_files, capsys):
     assert code == 2 and "file" in err and "Traceback" not in err
 
 
+def test_predict_outputs_replace_a_symlink_instead_of_writing_through_it(depth_files, capsys):
+    """A symlinked --out / --png inside the output folder points at another folder's files: they stay untouched."""
+    d = depth_files
+    other = d / "other"
+    other.mkdir()
+    (other / "keep.json").write_text("keep")
+    (other / "keep.png").write_text("keep")
+    out = d / "out"
+    out.mkdir()
+    (out / "r.json").symlink_to(other / "keep.json")
+    (out / "r.png").symlink_to(other / "keep.png")
+    main(["predict", "--depth", str(d / "d.npy"), "--intrinsics", str(d / "K.json"), "--category", "laptop",
+          "--no-isolate", "--out", str(out / "r.json"), "--png", str(out / "r.png")])
+    assert (other / "keep.json").read_text() == "keep" and (other / "keep.png").read_text() == "keep"
+    assert not (out / "r.json").is_symlink() and json.loads((out / "r.json").read_text())["category"] == "laptop"
+    assert not (out / "r.png").is_symlink() and (out / "r.png").read_bytes()[:4] == b"\x89PNG"
+
+
 def test_continuous_joints_are_reported_within_a_turn():
     from ancsh.model.articulated import ArticulatedModel, Joint, JointType, Part
     from ancsh.cli.cad import _wrapped_states
