@@ -72,6 +72,17 @@ def test_bad_numbers_name_the_option(argv, option, tmp_path, monkeypatch, capsys
     assert not (tmp_path / RESULTS_ROOT).exists()  # refused before anything was written
 
 
+@pytest.mark.parametrize("value", ["0", "-1", "nan"])
+def test_train_refuses_a_time_limit_that_is_not_positive(value, tmp_path, capsys):
+    """It used to train a step and stop, silently."""
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "--category", "laptop", "--data", str(tmp_path), "--out", str(tmp_path / "run"),
+              "--time-limit-min", value])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "--time-limit-min: expected a positive number" in err
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.fixture
 def depth_files(tmp_path):
     K = {"fx": 8.0, "fy": 8.0, "cx": 4.0, "cy": 3.0, "width": 8, "height": 6}

@@ -29,6 +29,19 @@ def non_negative_int(text: str) -> int:
     return value
 
 
+def positive_float(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text}")
+    return value
+
+
 def add_executor_arguments(parser, *, workers_default: int, workers_help: str) -> None:
     """Add ``--workers``, ``--executor`` and ``--ray-address`` to a command's parser."""
     parser.add_argument("--workers", type=positive_int, default=workers_default, help=workers_help)

@@ -12,6 +12,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from ._args import positive_float
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -32,7 +34,7 @@ def register(sub) -> None:
     p.add_argument("--compile", action=argparse.BooleanOptionalAction, default=None,
                    help="override config.compile: train with torch.compile (same function, fewer CPU-seconds per step "
                    "after a one-off compilation; needs a C++ compiler); --no-compile switches it off")
-    p.add_argument("--time-limit-min", type=float, help="stop (with a checkpoint) after this many minutes")
+    p.add_argument("--time-limit-min", type=positive_float, help="stop (with a checkpoint) after this many minutes")
     p.add_argument("--test-data", type=Path, help="held-out test shards: evaluate best.pt against trivial baselines")
     p.add_argument("--export", type=Path, help="write compact weights of best.pt here after training, with the "
                    "run's config, history and curves beside it (<stem>_config.json, _history.csv, _curves.png)")

@@ -50,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geometry._checks import check_bool
 from ..geometry.rotations import axis_angle_matrix
 from ..model.articulated import ArticulatedModel
 from ..model.edit import reparameterized, restructured, scaled, with_orientation
@@ -153,7 +154,7 @@ class ImportedObject:
                 joint_types={str(k): str(v) for k, v in dict(d["joint_types"]).items()},
                 moving_links=tuple(str(x) for x in d["moving_links"]),
                 zero=tuple(float(z) for z in d["zero"]), sign=tuple(int(s) for s in d["sign"]),
-                flip_front=bool(d["flip_front"]), scale=float(d["scale"]), split=str(d["split"]),
+                flip_front=check_bool(d["flip_front"], "flip_front"), scale=float(d["scale"]), split=str(d["split"]),
                 notes=tuple(str(n) for n in d.get("notes", ())),
             )
         except (KeyError, TypeError, ValueError) as exc:
@@ -388,6 +389,8 @@ def load_overrides(path) -> dict:
         unknown = set(entry) - _OVERRIDE_KEYS
         if unknown:
             raise ValueError(f"override: {path}: entry {name!r} has unknown key(s) {sorted(unknown)}; known: {sorted(_OVERRIDE_KEYS)}")
+        if "flip_front" in entry:
+            check_bool(entry["flip_front"], f"override: {path}: entry {name!r}: flip_front")
     return data
 
 
@@ -474,7 +477,8 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
     probe = _try_build(build, moving, zeros, signs, False, 1.0, conv, name)
     verts = part_vertices_canonical(probe, probe.rest_states)
     wrong = sum(not _side_ok(verts[0], verts[k + 1], jc.side) for k, jc in enumerate(conv.joints))
-    flip = bool(override.get("flip_front", wrong > conv.num_joints / 2))
+    flip = (check_bool(override["flip_front"], f"{name}: override flip_front") if "flip_front" in override
+            else bool(wrong > conv.num_joints / 2))
     if "flip_front" in override:
         notes.append(f"flip_front={flip} from override")
     # role order: sort moving parts by the ordering axis at rest

@@ -78,6 +78,15 @@ def test_bad_files_and_overrides_name_the_object(tmp_path, make_oven_urdf):
         load_overrides(bad)
     with pytest.raises(ValueError, match="not among the imported"):
         build_catalog([good], "oven", overrides={"oven_zz": {"flip_front": True}})
+    bad.write_text(json.dumps({"oven_d": {"flip_front": "no"}}))  # a string is not a bool ("no" used to read as True)
+    with pytest.raises(ValueError, match="override.json.*oven_d.*flip_front: expected a bool, got 'no'"):
+        load_overrides(bad)
+    with pytest.raises(ValueError, match="oven_d: override flip_front: expected a bool"):
+        import_object(good, "oven", override={"flip_front": 1})
+    entry = import_object(good, "oven").to_dict()
+    assert ImportedObject.from_dict(entry).flip_front is entry["flip_front"]
+    with pytest.raises(ValueError, match="malformed object entry 'oven_d'.*flip_front: expected a bool, got 'no'"):
+        ImportedObject.from_dict(dict(entry, flip_front="no"))
 
 
 def test_a_missing_mesh_names_the_object_and_a_catalog_records_it(tmp_path, make_oven_urdf):
