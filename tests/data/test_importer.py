@@ -8,7 +8,6 @@ tests need no shared data; the tests on the shared PartNet-Mobility objects skip
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ...geometry._checks import check_bool, check_choice, check_generator, check_number, check_positive
+from ...geometry._checks import check_bool, check_choice, check_generator, check_number
 from ...geometry.boxes import OrientedBox
 from ...geometry.rotations import axis_angle_matrix
 from ...geometry.transforms import Sim3
