@@ -124,7 +124,18 @@ def _urdfs(paths) -> list[Path]:
             out.append(p)
         else:
             raise ValueError(f"paths: {p} does not exist")
-    return out
+    unique, seen = [], {}
+    for urdf in out:  # a path given twice (or inside a folder also given) is imported once
+        key = urdf.resolve()
+        if key not in seen:
+            seen[key] = urdf
+            unique.append(urdf)
+    by_name = {}
+    for urdf in unique:  # two different objects of one name would be one catalog entry twice
+        other = by_name.setdefault(_object_name(urdf), urdf)
+        if other is not urdf:
+            raise ValueError(f"paths: {other} and {urdf} are both object {_object_name(urdf)!r}; import them apart")
+    return unique
 
 
 def build_catalog(paths, category: str | None = None, *, overrides: dict | None = None, command: str = "",
@@ -144,7 +155,8 @@ def build_catalog(paths, category: str | None = None, *, overrides: dict | None 
 
     Objects the category cannot hold (:class:`~ancsh.data.importer.ImportRejected`) and broken
     files (malformed XML, missing meshes: ``unreadable: ...``) are listed in ``rejected`` with
-    the reason; the others are imported.
+    the reason; the others are imported. A file reached twice (the same folder given twice) is
+    imported once; two different files of one object name are an error.
     """
     urdfs = _urdfs(paths)
     overrides = dict(overrides or {})

@@ -246,3 +246,13 @@ def test_the_import_hands_over_the_model_its_record_rebuilds(tmp_path, make_oven
     for a, b in zip(carried.joints, fresh.joints):
         assert (a.lower, a.upper, a.rest) == (b.lower, b.upper, b.rest) and a.origin.allclose(b.origin, atol=0)
         np.testing.assert_array_equal(a.axis, b.axis)
+
+
+def test_a_folder_given_twice_is_imported_once(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "objects" / "oven_a")
+    catalog = build_catalog([urdf.parent, urdf.parent, urdf], "oven")
+    assert [o.name for o in catalog.objects] + [r.name for r in catalog.rejected] == ["oven_a"]
+    other = make_oven_urdf(tmp_path / "elsewhere" / "oven_a")  # another object of the same name
+    with pytest.raises(ValueError, match="both object 'oven_a'"):
+        build_catalog([urdf.parent, other.parent], "oven")
+
