@@ -81,6 +81,10 @@ def constant_calibrator(good) -> dict:
             "good_rate": rate, "model": "constant"}
 
 
+#: Fit frames of each outcome (good and bad) a logistic regression needs at least: one per feature.
+MIN_FRAMES_PER_OUTCOME = len(FEATURES)
+
+
 def choose_calibrator(X_fit, good_fit, X_check, good_check) -> tuple[dict, dict]:
     """The logistic regression of ``(X_fit, good_fit)`` where it beats the constant base rate on the check frames,
     else that constant.
@@ -88,7 +92,8 @@ def choose_calibrator(X_fit, good_fit, X_check, good_check) -> tuple[dict, dict]
     Both are fitted on the fit frames only and compared by their Brier score on the check frames: where the
     fit's evidence does not separate good from bad fits better than the base rate (e.g. 96 % good fits
     leave little to predict), a regression only adds noise to ``p_good``. Fit frames of one outcome only (every
-    fit good) give the constant directly (:func:`constant_calibrator`'s add-one rate).
+    fit good), or fewer than :data:`MIN_FRAMES_PER_OUTCOME` of one outcome, give the constant directly
+    (:func:`constant_calibrator`'s add-one rate): a regression of five features on three frames is noise.
 
     Returns
     -------
@@ -98,7 +103,7 @@ def choose_calibrator(X_fit, good_fit, X_check, good_check) -> tuple[dict, dict]
     """
     constant = constant_calibrator(good_fit)
     y = np.asarray(good_fit, dtype=bool)
-    if y.all() or not y.any():  # one outcome only: nothing for a regression to separate
+    if min(int(y.sum()), int((~y).sum())) < MIN_FRAMES_PER_OUTCOME:  # (nearly) one outcome: nothing to separate
         rel = reliability(constant, X_check, good_check)
         return dict(constant, brier_check={"constant": rel["brier"]}), rel
     logistic = dict(fit_calibrator(X_fit, good_fit), model="logistic")
@@ -170,8 +175,8 @@ def _model_sentence(calibration: dict) -> str:
         return ""
     if calibration.get("model") == "constant" and "logistic" not in b:
         return (f"Installed: **a constant** {calibration['good_rate']:.3f} for every fit: the fitting frames held one "
-                "outcome only (no regression can separate them), so the rate is estimated with one pseudo-fit of each "
-                "kind, (k + 1) / (n + 2).\n\n")
+                f"outcome only, or fewer than {MIN_FRAMES_PER_OUTCOME} frames of one (no regression can separate them), "
+                "so the rate is estimated with one pseudo-fit of each kind, (k + 1) / (n + 2).\n\n")
     if calibration.get("model") == "constant":
         return (f"Installed: **the constant base rate** {calibration['good_rate']:.2f} of the fitting frames for every fit. The "
                 f"regression did not beat it on the check frames (Brier {b['logistic']:.4f} vs {b['constant']:.4f}): the fit's "
