@@ -8,9 +8,12 @@ a learned correspondence provider:
 - :mod:`ancsh.model` -- articulated models, forward kinematics, ANCSH ground truth;
 - :mod:`ancsh.data` -- procedural objects, URDF loading, rendering, HDF5 datasets;
 - :mod:`ancsh.solvers` -- energy terms, CasADi/IPOPT and scipy back ends, fitting;
-- :mod:`ancsh.learned` -- the PointNet++ ANCSH network (the only package importing torch).
+- :mod:`ancsh.evaluation` -- the paper's metrics of one fit against ground truth;
+- :mod:`ancsh.learned` -- the PointNet++ ANCSH network (the only package importing torch);
+- :mod:`ancsh.tracking` -- trackers over depth sequences.
 
-Sub-packages are imported lazily so that ``import ancsh`` stays fast.
+The studies that write ``docs/results/`` are :mod:`ancsh.studies`, the commands :mod:`ancsh.cli`
+(``docs/ARCHITECTURE.md``). Sub-packages are imported lazily so that ``import ancsh`` stays fast.
 
 Prediction on a depth image is one call, :func:`predict` (``ancsh predict`` on the command line).
 """
@@ -24,7 +27,7 @@ from ._version import __version__  # noqa: F401  (ancsh.__version__)
 
 _moved.install()  # old module names (before the 0.1 re-layout) stay importable for one release
 
-_SUBPACKAGES = ("geometry", "model", "data", "solvers", "learned")
+_SUBPACKAGES = ("geometry", "model", "data", "solvers", "evaluation", "learned", "tracking", "studies", "cli")
 
 
 def predict(depth, intrinsics, category: str, **options):

@@ -6,6 +6,7 @@ The package was re-laid out (``docs/ARCHITECTURE.md``): studies moved to :mod:`a
 appended to ``sys.meta_path`` answers an old name with the module at its new place -- the same module object, so
 monkeypatching through the old name patches the new module -- and warns once per old name. A module that was
 split (its library part and its study part) answers with a read-only view of its new modules, looked up in order.
+Names that left a module which stayed answer from it through :func:`moved_names` (:data:`MOVED_NAMES`).
 """
 
 from __future__ import annotations
