@@ -138,6 +138,27 @@ def test_predict_outputs_replace_a_symlink_instead_of_writing_through_it(depth_f
     assert not (out / "r.png").is_symlink() and (out / "r.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_predict_refuses_weights_of_another_category(depth_files, capsys):
+    """--category laptop with the drawer's network used to fit four parts and call them a laptop."""
+    from ancsh.learned.inference.predict import predict_depth
+    from ancsh.learned.network.weights import weights_path
+
+    d = depth_files
+    code = main(["predict", "--depth", str(d / "d.npy"), "--intrinsics", str(d / "K.json"), "--category", "laptop",
+                 "--no-isolate", "--weights", str(weights_path("drawer")), "--out", str(d / "r.json")])
+    err = capsys.readouterr().err
+    assert code == 2 and "holds a drawer network, not a laptop one" in err and "Traceback" not in err
+    assert not (d / "r.json").exists()
+    with pytest.raises(ValueError, match="holds a drawer network, not a laptop one"):
+        predict_depth(np.full((6, 8), 1.0), _intrinsics(d), "laptop", weights=weights_path("drawer"), isolate=False)
+
+
+def _intrinsics(folder):
+    from ancsh.data.images import read_intrinsics
+
+    return read_intrinsics(folder / "K.json")
+
+
 def test_continuous_joints_are_reported_within_a_turn():
     from ancsh.model.articulated import ArticulatedModel, Joint, JointType, Part
     from ancsh.cli.cad import _wrapped_states

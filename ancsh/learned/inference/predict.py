@@ -228,6 +228,19 @@ class DepthPrediction:
 
 
 
+def _check_weights_category(provider, category: str, weights) -> None:
+    """Refuse a weights file trained for another category or predicting another structure than ``category``'s."""
+    from ...data.conventions import convention
+
+    if provider.category is not None and provider.category != category:
+        raise ValueError(f"weights: {weights} holds a {provider.category} network, not a {category} one")
+    try:
+        conv = convention(category)
+    except (KeyError, ValueError):  # a category without a convention: only the network's own category is known
+        return
+    provider.check_structure(conv.part_names, conv.joint_types, where=f"weights: category {category}")
+
+
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
                   seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
@@ -293,6 +306,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
 
             raise missing_weights_error(category)
         provider = LearnedProvider(category if weights is None else weights, seed=seed, refine="auto", device=device)
+        if weights is not None:
+            _check_weights_category(provider, category, weights)
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
