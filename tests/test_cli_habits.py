@@ -153,6 +153,19 @@ def test_predict_refuses_weights_of_another_category(depth_files, capsys):
         predict_depth(np.full((6, 8), 1.0), _intrinsics(d), "laptop", weights=weights_path("drawer"), isolate=False)
 
 
+def test_evaluate_checks_the_real_split_before_the_procedural_one(tmp_path, monkeypatch, capsys):
+    """A catalog without real test objects of the category used to fail only after the whole procedural run."""
+    import ancsh.studies.table1 as table1
+
+    catalog = tmp_path / "catalog.json"
+    catalog.write_text(json.dumps({"version": 1, "command": "", "objects": [], "rejected": []}))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(table1, "evaluate_category", lambda *a, **k: pytest.fail("the procedural split was evaluated"))
+    assert main(["evaluate", "--category", "laptop", "--frames", "2", "--real", str(catalog)]) == 2
+    assert "--real: the catalog" in (err := capsys.readouterr().err) and "no real test object of 'laptop'" in err
+    assert not (tmp_path / RESULTS_ROOT).exists()
+
+
 def _intrinsics(folder):
     from ancsh.data.images import read_intrinsics
 

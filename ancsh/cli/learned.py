@@ -294,6 +294,13 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
+    if args.real:  # checked before the procedural evaluation, not after it
+        from ..data.generate import FrameGenerator, GenerationConfig
+
+        gen = FrameGenerator(GenerationConfig(category=args.category, split="test", seed=args.seed, real=args.real,
+                                              real_fraction=1.0))
+        if not gen.real_instances:
+            raise ValueError(f"--real: the catalog {args.real!r} has no real test object of {args.category!r}")
     from ._args import executor_from_args
 
     executor = executor_from_args(args)
