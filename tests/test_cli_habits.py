@@ -138,6 +138,23 @@ def test_predict_outputs_replace_a_symlink_instead_of_writing_through_it(depth_f
     assert not (out / "r.png").is_symlink() and (out / "r.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.parametrize("argv", [
+    ["predict", "--depth", "d.npy", "--intrinsics", "K.json", "--category", "laptop"],
+    ["track", "--depth", "frames", "--intrinsics", "K.json", "--category", "laptop"],
+    ["evaluate", "--category", "laptop"],
+    ["demo"],
+    ["fit-cad", "--urdf", "x.urdf", "--depth", "d.npy", "--intrinsics", "K.json"],
+    ["bench", "fit"],
+    ["bench", "tracking"],
+    ["bench", "uncertainty"],
+])
+def test_a_negative_seed_is_refused_naming_the_option(argv, capsys):
+    """`track --seed -1` used to stop with numpy's "expected non-negative integer", naming no option."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv + ["--seed", "-1"])
+    assert exc.value.code == 2 and "--seed: expected a non-negative integer, got -1" in capsys.readouterr().err
+
+
 def test_predict_refuses_weights_of_another_category(depth_files, capsys):
     """--category laptop with the drawer's network used to fit four parts and call them a laptop."""
     from ancsh.learned.inference.predict import predict_depth

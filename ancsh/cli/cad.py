@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from ..outputs import write_bytes_atomically
+from ._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -33,7 +34,7 @@ def register(sub) -> None:
     p.add_argument("--depth-scale", type=float, default=0.001, help="PNG depth units per model unit (default 0.001)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (model units)")
     p.add_argument("--points", type=int, default=3000, help="observed points used by ICP (default 3000)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--out", default=None, help="write the result as JSON here")
     p.add_argument("--png", default=None, help="draw the fitted model over the depth points here")
     p.set_defaults(func=run_fit)

@@ -14,12 +14,14 @@ import sys
 import time
 from pathlib import Path
 
+from ._args import non_negative_int
+
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="full pipeline on built-in data: render, predict, fit, per-part error table, pictures")
     p.add_argument("--categories", default="all", help="comma-separated procedural categories (default: all = the paper's five)")
     p.add_argument("--frame", type=int, default=0, help="frame index of the held-out test stream (default 0)")
-    p.add_argument("--seed", type=int, default=0, help="base seed of the test frames (default 0)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="base seed of the test frames (default 0)")
     p.add_argument("--provider", choices=("auto", "learned", "oracle"), default="auto",
                    help="correspondences: shipped network weights, oracle (corrupted ground truth), "
                         "or auto = learned where weights are shipped (default)")

@@ -11,6 +11,7 @@ import shlex
 from pathlib import Path
 
 from ..outputs import output_flags, write_bytes_atomically
+from ._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -41,7 +42,7 @@ def register(sub) -> None:
     p.add_argument("--refine", choices=("auto", "template", "none"), default="auto",
                    help="refine the fit against the category template (articulated ICP, kept where its score on the "
                    "points is better): 'auto' (default) where measured to help (ancsh/data/templates/refine_defaults.json)")
-    p.add_argument("--seed", type=int, default=0, help="sampling / RANSAC seed (default 0)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
@@ -66,7 +67,7 @@ def register(sub) -> None:
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
     e.add_argument("--time-limit-min", type=float, help="stop after this many minutes, keeping the frames done")
-    e.add_argument("--seed", type=int, default=0, help="base seed of the test frames (default 0)")
+    e.add_argument("--seed", type=non_negative_int, default=0, help="base seed of the test frames (default 0)")
     e.add_argument("--weights", type=Path, help="ANCSH weights file instead of the shipped ones")
     e.add_argument("--direct-weights", type=Path, help="direct-voting weights (default: shipped, if any)")
     e.add_argument("--threads", type=int, default=1, help="torch threads per worker (default 1)")
@@ -90,7 +91,7 @@ def register(sub) -> None:
     )
     c.add_argument("--category", required=True)
     c.add_argument("--frames", type=int, default=300, help="rendered frames, half to fit, half to measure (default 300)")
-    c.add_argument("--seed", type=int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")
+    c.add_argument("--seed", type=non_negative_int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")
     c.add_argument("--out", type=Path, help="report folder (default: a fresh ancsh_results/calibrate-<category>-<time>/)")
     c.add_argument("--update-docs", action="store_true", help="write the report into docs/results/ (when --out is not given)")
     c.add_argument("--install", action="store_true", help="write ancsh/weights/<category>_confidence.json")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 from ...outputs import output_flags
+from .._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -20,7 +21,7 @@ def register(sub) -> None:
     p.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
     p.add_argument("--official-hypotheses", type=int, default=None,
                    help="RANSAC hypotheses of the official baseline (default: the official 200)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=non_negative_int, default=0)
     p.set_defaults(func=run)
 
 

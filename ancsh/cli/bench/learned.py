@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 
 from ...studies.learned_cost.measure import SETTINGS, STEP_VARIANTS
+from .._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -24,13 +25,13 @@ def register(sub) -> None:
                    help="also these weights files or checkpoints (e.g. oven_aug=oven:runs/oven_aug/best.pt)")
     r.add_argument("--frames", type=int, default=30, help="test frames per network (default 30)")
     r.add_argument("--angle", type=float, default=10.0, help="roll in degrees (default 10)")
-    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--seed", type=non_negative_int, default=0)
     r.add_argument("--out", type=Path, help="Markdown file; default: a fresh folder bench_out/roll_equivariance_<UTC time>/")
     r.set_defaults(func=run_roll)
     a = sub.add_parser("learned-ablation", help="held-out errors of training runs through the full pipeline (loss ablation)")
     a.add_argument("--runs", nargs="+", required=True, metavar="NAME=RUN_DIR", help="run directories of `ancsh train`")
     a.add_argument("--frames", type=int, default=300, help="rendered test frames per checkpoint (default 300)")
-    a.add_argument("--seed", type=int, default=0)
+    a.add_argument("--seed", type=non_negative_int, default=0)
     a.add_argument("--baseline", metavar="WEIGHTS", help="also evaluate the weights the runs started from, as a row "
                    "'start': 'builtin' (the shipped network of the runs' category) or a weights file")
     a.add_argument("--train-commands", nargs="*", default=(), help="the commands that made the runs (for the report)")

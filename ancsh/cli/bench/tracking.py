@@ -6,6 +6,7 @@ import json
 import time
 
 from ...outputs import output_flags
+from .._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -21,14 +22,14 @@ def register(sub) -> None:
     p.add_argument("--urdf-sequences", type=int, default=1, help="URDF sequences (default 1)")
     p.add_argument("--gap", type=int, default=3, help="blank frames in the middle of each sequence (default 3)")
     p.add_argument("-k", "--network-every", type=int, default=3, help="network on every k-th tracked frame (default 3)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--tracker", default=None, metavar="JSON",
                    help="TrackerConfig settings of the tracking side, a JSON object, e.g. '{\"temporal_weight\": 0.1}' "
                         "(default: TrackerConfig's defaults)")
     p.add_argument("--calibration-sequences", type=int, default=0,
                    help="first measure inflation maps of tracked frames' standard deviations on this many other "
                         "sequences per procedural object (default 0: none)")
-    p.add_argument("--calibration-seed", type=int, default=1001, help="frame seed of the calibration sequences (default 1001)")
+    p.add_argument("--calibration-seed", type=non_negative_int, default=1001, help="frame seed of the calibration sequences (default 1001)")
     p.add_argument("--install", action="store_true",
                    help="install the measured maps in ancsh/weights/uncertainty_inflation.json before the benchmark's "
                         "sequences run (needs --calibration-sequences)")

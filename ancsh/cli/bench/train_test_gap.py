@@ -7,6 +7,7 @@ import shlex
 from pathlib import Path
 
 from ...outputs import output_flags
+from .._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -18,7 +19,7 @@ def register(sub) -> None:
     p.add_argument("--real-frames", type=int, default=100,
                    help="real frames per category and instance set where the shipped catalog has objects of both "
                    "sets (default 100; 0 = none)")
-    p.add_argument("--seed", type=int, default=3, help="frame seed of both instance sets (default 3: neither the "
+    p.add_argument("--seed", type=non_negative_int, default=3, help="frame seed of both instance sets (default 3: neither the "
                    "training data's nor the evaluations' frames)")
     p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/train-test-gap-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/train_test_gap.md (when --out is not given)")

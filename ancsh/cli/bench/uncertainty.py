@@ -6,6 +6,7 @@ import time
 
 from ...outputs import output_flags
 from ...studies.uncertainty_calibration.measure import CALIBRATION_FRAMES_PER_TEST_FRAME, DEFAULT_PROVIDERS, PROVIDERS
+from .._args import non_negative_int
 
 
 def register(sub) -> None:
@@ -16,8 +17,8 @@ def register(sub) -> None:
                    help=f"calibration frames per category (default {CALIBRATION_FRAMES_PER_TEST_FRAME} x --frames)")
     p.add_argument("--categories", default=None, help="comma-separated (default: every category with shipped weights)")
     p.add_argument("--providers", default=None, help=f"comma-separated from {','.join(PROVIDERS)} (default: {','.join(DEFAULT_PROVIDERS)})")
-    p.add_argument("--seed", type=int, default=0, help="test frame seed (default 0, as ancsh evaluate)")
-    p.add_argument("--calibration-seed", type=int, default=1001)
+    p.add_argument("--seed", type=non_negative_int, default=0, help="test frame seed (default 0, as ancsh evaluate)")
+    p.add_argument("--calibration-seed", type=non_negative_int, default=1001)
     p.add_argument("--out", default=None, help="markdown path (default: a fresh ancsh_results/bench-uncertainty-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/uncertainty_calibration.md")
     p.add_argument("--install", action="store_true", help="write the maps to ancsh/weights/uncertainty_inflation.json")
