@@ -183,6 +183,42 @@ def test_evaluate_checks_the_real_split_before_the_procedural_one(tmp_path, monk
     assert not (tmp_path / RESULTS_ROOT).exists()
 
 
+def test_an_unwritable_picture_format_is_refused_before_the_fit(depth_files, monkeypatch, capsys):
+    """--png p.xyz used to be refused only after the whole fit."""
+    import ancsh.learned.inference.predict as predict
+
+    d = depth_files
+    monkeypatch.setattr(predict, "predict_depth", lambda *a, **k: pytest.fail("fitted before checking --png"))
+    assert main(["predict", "--depth", str(d / "d.npy"), "--intrinsics", str(d / "K.json"), "--category", "laptop",
+                 "--png", str(d / "p.xyz")]) == 2
+    assert "--png: cannot write a .xyz picture" in (err := capsys.readouterr().err) and ".png" in err
+    assert main(["fit-cad", "--urdf", str(d / "K.json"), "--depth", str(d / "d.npy"), "--intrinsics", str(d / "K.json"),
+                 "--png", str(d / "p.xyz")]) == 2
+    assert "--png: cannot write a .xyz picture" in capsys.readouterr().err
+
+
+def test_track_refuses_zero_points(depth_files, capsys):
+    """track --points 0 used to mark every frame lost."""
+    with pytest.raises(SystemExit) as exc:
+        main(["track", "--depth", str(depth_files), "--intrinsics", str(depth_files / "K.json"), "--category", "laptop",
+              "--points", "0"])
+    assert exc.value.code == 2 and "--points: expected a positive integer, got 0" in capsys.readouterr().err
+
+
+def test_a_folder_prediction_goes_past_a_subfolder_and_a_dangling_link(depth_files, capsys):
+    d = depth_files
+    frames = d / "frames"
+    frames.mkdir()
+    np.save(frames / "a.npy", np.full((6, 8), 1.0))
+    (frames / "b.npy").mkdir()  # a folder named like an image: not an image
+    (frames / "c.npy").symlink_to(d / "gone.npy")  # a dangling link: an error for that entry only
+    code = main(["predict", "--depth", str(frames), "--intrinsics", str(d / "K.json"), "--category", "laptop",
+                 "--no-isolate", "--out", str(d / "out")])
+    out = capsys.readouterr().out
+    assert code == 1 and "a.npy: " in out and "c.npy: error:" in out and "b.npy" not in out
+    assert (d / "out" / "a.json").is_file() and not (d / "out" / "c.json").exists()
+
+
 def _intrinsics(folder):
     from ancsh.data.images import read_intrinsics
 

@@ -42,6 +42,19 @@ def positive_float(text: str) -> float:
     return value
 
 
+def check_picture_path(path, option: str) -> None:
+    """Refuse a picture path whose suffix matplotlib cannot write, before any work is done (no suffix: ``.png``)."""
+    from pathlib import Path
+
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if suffix and suffix not in formats:
+        raise ValueError(f"{option}: cannot write a .{suffix} picture ({path}); use one of "
+                         f"{', '.join('.' + f for f in sorted(formats))}")
+
+
 def add_executor_arguments(parser, *, workers_default: int, workers_help: str) -> None:
     """Add ``--workers``, ``--executor`` and ``--ray-address`` to a command's parser."""
     parser.add_argument("--workers", type=positive_int, default=workers_default, help=workers_help)

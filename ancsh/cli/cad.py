@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from ..outputs import write_bytes_atomically
-from ._args import non_negative_int
+from ._args import check_picture_path, non_negative_int
 
 
 def register(sub) -> None:
@@ -82,6 +82,8 @@ def run_fit(args) -> int:
     from ..solvers.types import Observation
     from ..solvers.icp.articulated import articulated_icp, auto_init
 
+    if args.png:  # before any work
+        check_picture_path(args.png, "--png")
     urdf = Path(args.urdf)
     if not urdf.is_file():
         raise FileNotFoundError(f"urdf: no such file {str(urdf)!r}")

@@ -11,7 +11,7 @@ import shlex
 from pathlib import Path
 
 from ..outputs import output_flags, write_bytes_atomically
-from ._args import non_negative_int
+from ._args import check_picture_path, non_negative_int
 
 
 def register(sub) -> None:
@@ -157,6 +157,8 @@ def run_predict(args: argparse.Namespace) -> int:
 
     if args.points < 1:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
+    if args.png is not None and not args.depth.is_dir():
+        check_picture_path(args.png, "--png")
     _device(args)  # a missing CUDA device is the first thing to hear about
     hint = parse_hint(args.pixel, args.box)
     intr = read_intrinsics(args.intrinsics)
@@ -207,10 +209,10 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
 
     from ..data.show import save_figure
     from ..outputs import fresh_output_dir
-    from ..learned.inference.predict import draw_prediction, predict_depth, read_depth
+    from ..learned.inference.predict import check_weights_category, draw_prediction, predict_depth, read_depth
     from ..learned.inference.provider import LearnedProvider
 
-    files = sorted(p for p in args.depth.iterdir() if p.suffix.lower() in (".png", ".npy"))
+    files = sorted(p for p in args.depth.iterdir() if p.suffix.lower() in (".png", ".npy") and not p.is_dir())
     if not files:
         raise ValueError(f"--depth: the folder {args.depth} holds no .png or .npy depth image")
     if args.rgb is not None:
@@ -223,6 +225,8 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
         args.png.mkdir(parents=True, exist_ok=True)
     provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine,
                                device=_device(args))
+    if args.weights is not None:
+        check_weights_category(provider, args.category, args.weights)
     statuses = {}
     for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
         try:
@@ -230,7 +234,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
             pred = predict_depth(depth, intr, args.category, max_depth=args.max_depth, provider=provider,
                                  formulation=args.formulation, num_points=args.points, seed=args.seed,
                                  isolate=not args.no_isolate, hint=hint)
-        except ValueError as exc:  # one bad image does not stop the others
+        except (ValueError, OSError) as exc:  # one bad image (or a dangling link) does not stop the others
             statuses[path.name] = f"error: {exc}"
             continue
         data = pred.to_json()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from ._args import non_negative_int
+from ._args import non_negative_int, positive_int
 
 __all__ = ["register"]
 
@@ -27,7 +27,7 @@ def register(sub) -> None:
     p.add_argument("--mask-dir", default=None, help="object masks named like the frames (skip isolation)")
     p.add_argument("--no-isolate", dest="isolate", action="store_false", help="use every valid pixel (no isolation)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore pixels deeper than this (metres)")
-    p.add_argument("--points", type=int, default=1024, help="points sampled per frame (default 1024)")
+    p.add_argument("--points", type=positive_int, default=1024, help="points sampled per frame (default 1024)")
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--quiet", action="store_true", help="no per-frame line on the terminal")
     p.set_defaults(func=run)

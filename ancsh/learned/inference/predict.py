@@ -28,6 +28,7 @@ __all__ = [
     "MAX_RELATIVE_RESIDUAL",
     "DepthPrediction",
     "check_plausibility",
+    "check_weights_category",
     "part_quality",
     "depth_to_points",
     "draw_prediction",
@@ -228,7 +229,7 @@ class DepthPrediction:
 
 
 
-def _check_weights_category(provider, category: str, weights) -> None:
+def check_weights_category(provider, category: str, weights) -> None:
     """Refuse a weights file trained for another category or predicting another structure than ``category``'s."""
     from ...data.conventions import convention
 
@@ -307,7 +308,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
             raise missing_weights_error(category)
         provider = LearnedProvider(category if weights is None else weights, seed=seed, refine="auto", device=device)
         if weights is not None:
-            _check_weights_category(provider, category, weights)
+            check_weights_category(provider, category, weights)
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
