@@ -219,6 +219,18 @@ def test_a_folder_prediction_goes_past_a_subfolder_and_a_dangling_link(depth_fil
     assert (d / "out" / "a.json").is_file() and not (d / "out" / "c.json").exists()
 
 
+def test_a_broken_train_config_names_its_file(tmp_path, capsys):
+    config = tmp_path / "broken_config.json"
+    config.write_text("{ not json")
+    assert main(["train", "--category", "laptop", "--config", str(config), "--data", str(tmp_path),
+                 "--out", str(tmp_path / "run")]) == 2
+    assert "config: " in (err := capsys.readouterr().err) and "broken_config.json is not valid JSON" in err
+    config.write_text("[1, 2]")
+    assert main(["train", "--category", "laptop", "--config", str(config), "--data", str(tmp_path),
+                 "--out", str(tmp_path / "run")]) == 2
+    assert "must hold a JSON object" in capsys.readouterr().err
+
+
 def _intrinsics(folder):
     from ancsh.data.images import read_intrinsics
 

@@ -180,7 +180,7 @@ def run_import(args) -> int:
             draw_preview_sheet(catalog.instances(cat), out / "previews" / f"{cat}.png", title=f"{cat}: rest state and a moved state")
     print(f"{out}: {len(catalog.objects)} objects imported, {len(catalog.rejected)} rejected "
           f"(reasons in {out / 'import_report.md'})")
-    return 0
+    return 0 if catalog.objects else 1  # every object rejected: the catalog holds nothing to use
 
 
 def run_ranges(args) -> int:

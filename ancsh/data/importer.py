@@ -259,7 +259,9 @@ def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links
     semantics = {s for j in conv.joints for s in j.semantics}
     mobility = _mobility_joints(path)
     if forced_links is not None:
-        moving = [str(x) for x in forced_links]
+        if isinstance(forced_links, str) or not all(isinstance(x, str) for x in forced_links):
+            raise ValueError(f"{name}: override moving_links: expected a list of link names, got {forced_links!r}")
+        moving = list(forced_links)
         unknown = [x for x in moving if x not in joints]
         if unknown:
             raise ValueError(f"{name}: override moving_links names unknown link(s) {unknown}")
@@ -391,6 +393,10 @@ def load_overrides(path) -> dict:
             raise ValueError(f"override: {path}: entry {name!r} has unknown key(s) {sorted(unknown)}; known: {sorted(_OVERRIDE_KEYS)}")
         if "flip_front" in entry:
             check_bool(entry["flip_front"], f"override: {path}: entry {name!r}: flip_front")
+        links = entry.get("moving_links", [])
+        if not isinstance(links, list) or not all(isinstance(link, str) for link in links):
+            raise ValueError(f"override: {path}: entry {name!r}: moving_links: expected a list of link names "
+                             f"(e.g. [\"link_1\"]), got {links!r}")
     return data
 
 

@@ -155,9 +155,9 @@ def test_import_cli_writes_catalog_report_and_previews(tmp_path, make_oven_urdf)
     make_oven_urdf(tmp_path / "objs" / "oven_2", drawer=True)
     out = tmp_path / "cat"
     assert main(["data", "import", str(tmp_path / "objs" / "oven_1" / "model.urdf"),
-                 str(tmp_path / "objs" / "oven_2" / "model.urdf"), "--category", "drawer", "--out", str(out)]) == 0
-    catalog = load_catalog(out)
-    assert not catalog.objects and len(catalog.rejected) == 2  # an oven is not a drawer cabinet
+                 str(tmp_path / "objs" / "oven_2" / "model.urdf"), "--category", "drawer", "--out", str(out)]) == 1
+    catalog = load_catalog(out)  # written all the same: the report says why each was rejected
+    assert not catalog.objects and len(catalog.rejected) == 2  # an oven is not a drawer cabinet: nothing imported, exit 1
     assert "needs 3" in (out / "import_report.md").read_text()
 
 
@@ -246,6 +246,17 @@ def test_the_import_hands_over_the_model_its_record_rebuilds(tmp_path, make_oven
     for a, b in zip(carried.joints, fresh.joints):
         assert (a.lower, a.upper, a.rest) == (b.lower, b.upper, b.rest) and a.origin.allclose(b.origin, atol=0)
         np.testing.assert_array_equal(a.axis, b.axis)
+
+
+def test_moving_links_must_be_a_list_of_names(tmp_path, make_oven_urdf):
+    """A bare string used to be iterated letter by letter."""
+    good = make_oven_urdf(tmp_path / "oven_d")
+    with pytest.raises(ValueError, match="oven_d: override moving_links: expected a list of link names"):
+        import_object(good, "oven", override={"moving_links": "door"})
+    bad = tmp_path / "override.json"
+    bad.write_text(json.dumps({"oven_d": {"moving_links": "link_1"}}))
+    with pytest.raises(ValueError, match="override.json.*'oven_d': moving_links: expected a list of link names"):
+        load_overrides(bad)
 
 
 def test_a_folder_given_twice_is_imported_once(tmp_path, make_oven_urdf):

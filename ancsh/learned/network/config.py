@@ -218,7 +218,13 @@ class TrainConfig:
 
     @classmethod
     def from_json(cls, path, **overrides) -> "TrainConfig":
-        return cls.from_dict(json.loads(Path(path).read_text()), **overrides)
+        try:
+            data = json.loads(Path(path).read_text())
+        except json.JSONDecodeError as exc:
+            raise ValueError(f"config: {path} is not valid JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"config: {path} must hold a JSON object of settings, got {type(data).__name__}")
+        return cls.from_dict(data, **overrides)
 
     def to_json(self, path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
