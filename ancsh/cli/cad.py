@@ -134,8 +134,7 @@ def run_fit(args) -> int:
         write_bytes_atomically(Path(args.out), json.dumps(json_safe(payload), indent=1, allow_nan=False).encode())
         print(f"wrote {args.out}")
     if args.png:
-        draw_fit(model, result, points, intr, args.png)
-        print(f"wrote {args.png}")
+        print(f"wrote {draw_fit(model, result, points, intr, args.png)}")
     return 0 if result.ok else 1
 
 
@@ -150,8 +149,9 @@ def _wrapped_states(model, q):
     return q
 
 
-def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None = None) -> None:
-    """Image-plane picture: observed points (grey) and the fitted model's surface per part (colours)."""
+def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None = None) -> Path:
+    """Image-plane picture: observed points (grey) and the fitted model's surface per part (colours); returns the
+    path written (``.png`` added to a name without a suffix)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,8 +180,9 @@ def draw_fit(model, result, points_cam, intrinsics, path, *, title: str | None =
     ax.legend(loc="upper right", markerscale=6, fontsize=7)
     ax.set_title(title or f"{model.name}: {result.status.value}")
     fig.tight_layout()
-    save_figure(fig, path, dpi=100)
+    path = save_figure(fig, path, dpi=100)
     plt.close(fig)
+    return path
 
 
 def run_evaluate(args) -> int:

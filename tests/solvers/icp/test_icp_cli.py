@@ -47,6 +47,10 @@ def test_fit_cad_writes_result_and_picture(scene, capsys):
     assert 0 < u["joints"][0]["state_std"] < 1e-3 and len(u["parts"]) == model.num_parts
     assert all(p["scale_std"] == 0 for p in u["parts"])  # the model's scale is known
     assert (d / "v.png").stat().st_size > 0
+    capsys.readouterr()
+    main(["fit-cad", "--urdf", str(URDF), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json"),
+          "--init", str(d / "init.json"), "--points", "800", "--png", str(d / "view")])
+    assert f"wrote {d / 'view.png'}" in capsys.readouterr().out and (d / "view.png").is_file()  # the path it wrote
 
 
 def test_fit_cad_errors(scene, capsys):
