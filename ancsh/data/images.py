@@ -19,25 +19,53 @@ __all__ = ["MAX_PLAUSIBLE_DEPTH", "read_depth", "read_mask", "read_rgb", "read_i
 MAX_PLAUSIBLE_DEPTH = 20.0
 
 _DEPTH_PNG_MODES = ("I;16", "I;16B", "I;16L", "I")
+#: Largest image (pixels) read: far beyond any depth sensor (8192 x 8192); a file claiming more is refused before
+#: its pixels are decoded or allocated (a crafted header can claim 20000 x 20000 or 100000 x 100000).
+MAX_IMAGE_PIXELS = 8192 * 8192
 
 
 def _open_image(path: Path, argument: str, convert: str | None = None) -> tuple[np.ndarray, str]:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as im:
+        with Image.open(path) as im:  # reads the header only
+            width, height = im.size
+            if width * height > MAX_IMAGE_PIXELS:
+                raise ValueError(f"{argument}: {path} claims {width} x {height} pixels, more than any depth image "
+                                 f"({MAX_IMAGE_PIXELS} pixels at most); not read")
             mode = im.mode
             data = np.asarray(im if convert is None else im.convert(convert))
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+    except ValueError as exc:
+        if str(exc).startswith(f"{argument}: "):
+            raise
+        raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
+    except Image.DecompressionBombError:  # PIL's own limit, met in the header before ours
+        raise ValueError(f"{argument}: {path} claims more pixels than any depth image ({MAX_IMAGE_PIXELS} at "
+                         "most); not read") from None
+    except (UnidentifiedImageError, OSError, SyntaxError) as exc:
         raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
     return data, mode
 
 
-def _load_npy(path: Path, argument: str) -> np.ndarray:
+def _load_npy(path: Path, argument: str, what: str = "depth array") -> np.ndarray:
+    """A numeric (or bool) ``.npy`` array; its header is checked before anything is allocated (type, size)."""
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as f:
+            version = fmt.read_magic(f)
+            read_header = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+            shape, _, dtype = read_header(f)
+    except (ValueError, OSError, EOFError, SyntaxError, TypeError):
+        raise ValueError(f"{argument}: {path} is not a {what} (no readable .npy header)") from None
+    if dtype.hasobject or not (np.issubdtype(dtype, np.number) or dtype == np.bool_):
+        raise ValueError(f"{argument}: {path} is not a {what} (it holds {dtype} values, not numbers)")
+    if float(np.prod(shape, dtype=np.float64)) > MAX_IMAGE_PIXELS:
+        raise ValueError(f"{argument}: {path} claims an array of shape {tuple(shape)}, more than any image "
+                         f"({MAX_IMAGE_PIXELS} values at most); not read")
     try:
         return np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as exc:
-        raise ValueError(f"{argument}: {path} is not a readable .npy array ({exc})") from None
+        raise ValueError(f"{argument}: {path} is not a {what} ({exc})") from None
 
 
 def read_json(path, *, argument: str):
@@ -108,7 +136,7 @@ def read_mask(path, shape, *, argument: str = "mask") -> np.ndarray:
     if not path.is_file():
         raise FileNotFoundError(f"{argument}: no such file {path}")
     if path.suffix.lower() == ".npy":
-        m = _load_npy(path, argument)
+        m = _load_npy(path, argument, what="mask array")
     else:
         m, _ = _open_image(path, argument)
     if m.ndim == 3:  # RGB(A) mask: any nonzero channel
