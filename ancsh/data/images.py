@@ -28,22 +28,22 @@ def _open_image(path: Path, argument: str, convert: str | None = None) -> tuple[
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as im:  # reads the header only
-            width, height = im.size
-            if width * height > MAX_IMAGE_PIXELS:
-                raise ValueError(f"{argument}: {path} claims {width} x {height} pixels, more than any depth image "
-                                 f"({MAX_IMAGE_PIXELS} pixels at most); not read")
-            mode = im.mode
-            data = np.asarray(im if convert is None else im.convert(convert))
-    except ValueError as exc:
-        if str(exc).startswith(f"{argument}: "):
-            raise
-        raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
+        im = Image.open(path)  # reads the header only
     except Image.DecompressionBombError:  # PIL's own limit, met in the header before ours
         raise ValueError(f"{argument}: {path} claims more pixels than any depth image ({MAX_IMAGE_PIXELS} at "
                          "most); not read") from None
-    except (UnidentifiedImageError, OSError, SyntaxError) as exc:
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
         raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
+    with im:
+        width, height = im.size
+        if width * height > MAX_IMAGE_PIXELS:
+            raise ValueError(f"{argument}: {path} claims {width} x {height} pixels, more than any depth image "
+                             f"({MAX_IMAGE_PIXELS} pixels at most); not read")
+        try:
+            mode = im.mode
+            data = np.asarray(im if convert is None else im.convert(convert))
+        except (OSError, SyntaxError, ValueError) as exc:
+            raise ValueError(f"{argument}: {path} is not a readable image ({type(exc).__name__})") from None
     return data, mode
 
 
