@@ -21,7 +21,7 @@ def register(sub) -> None:
         "into HDF5 shards. Re-running the same command resumes an interrupted run.",
     )
     src = g.add_mutually_exclusive_group(required=True)
-    src.add_argument("--category", help="procedural category: eyeglasses, oven, washing_machine, laptop, drawer, microwave, safe")
+    src.add_argument("--category", help="procedural category: eyeglasses, oven, washing_machine, laptop, drawer, microwave, safe, box")
     src.add_argument("--urdf", help="path of a URDF object (e.g. a PartNet-Mobility mobility.urdf)")
     g.add_argument("--split", default="train", choices=("train", "test"), help="instance split (default train)")
     g.add_argument("--real", default=None, metavar="CATALOG",

@@ -279,6 +279,15 @@ _CONVENTIONS = (
         source_categories=("Safe",),
         in_paper=False,
     ),
+    CategoryConvention(
+        "box",
+        ("base", "lid"),
+        (JointConvention("lid_hinge", REVOLUTE, "base", "lid", "closed", "opens", 0.0, "top", ("rotation_lid", "lid")),),
+        (0.12, 1.15),
+        "lid closed (0)",
+        source_categories=("Box",),
+        in_paper=False,
+    ),
 )
 
 #: ``CONVENTIONS[name]`` -> :class:`CategoryConvention`, every category with a convention.
@@ -431,6 +440,7 @@ def convention_violations(model: ArticulatedModel, conv: CategoryConvention, *, 
 #: off ~22 %; swung in by 0.5 rad any door is far above.
 CLOSED_ALIGNMENT_FACTOR = 1.25
 _TURN_SAMPLES = 721
+_LIMIT_SAMPLES = 121
 
 
 def _child_vertices_at(model, k, qs) -> np.ndarray:
@@ -467,26 +477,65 @@ def _box_volumes(v: np.ndarray) -> np.ndarray:
 def _aligned_child_volume(model, k) -> float:
     """The smallest axis-aligned box volume of joint ``k``'s child over a full turn about the
     joint (its limits do not apply: this probes the part's shape, not a reachable state)."""
-    return float(_box_volumes(_child_vertices_at(model, k, np.linspace(-np.pi, np.pi, _TURN_SAMPLES))).min())
+    qs = np.linspace(-np.pi, np.pi, _TURN_SAMPLES)
+    vols = _box_volumes(_child_vertices_at(model, k, qs))
+    step = qs[1] - qs[0]  # then finer around the best, so the result does not depend on the grid's phase
+    fine = qs[int(np.argmin(vols))] + np.linspace(-step, step, 41)
+    return float(min(vols.min(), _box_volumes(_child_vertices_at(model, k, fine)).min()))
 
 
 def closed_scores(model, k, qs) -> np.ndarray:
     """Box volume around base and part at each state ``qs`` of joint ``k``; infinite where a
-    revolute part is not aligned with the canonical axes (:data:`CLOSED_ALIGNMENT_FACTOR`).
+    revolute part is not aligned with the canonical axes (:data:`CLOSED_ALIGNMENT_FACTOR`),
+    unless the part never closes aligned (:func:`_closes_aligned`).
 
     Returns
     -------
     (len(qs),) float64
         Model units cubed.
     """
+    out, aligned = _pair_volumes(model, k, qs)
+    if model.joints[k].is_revolute and _closes_aligned(model, k):
+        out[~aligned] = np.inf
+    return out
+
+
+def closing_scores(model, k, qs) -> np.ndarray:
+    """:func:`closed_scores` weighted by how far a revolute part is from its aligned pose (its own
+    box over its smallest over a full turn): the importer's choice of state 0. An arched lid's
+    box around base and part shrinks a little as the lid tilts open; its own box grows faster.
+
+    Returns
+    -------
+    (len(qs),) float64
+    """
+    out = closed_scores(model, k, qs)
+    if model.joints[k].is_revolute:
+        out = out * _box_volumes(_child_vertices_at(model, k, qs)) / _aligned_child_volume(model, k)
+    return out
+
+
+def _pair_volumes(model, k, qs) -> tuple[np.ndarray, np.ndarray]:
+    """Box volume around base and part at each state ``qs`` of joint ``k``, and whether the part
+    is aligned with the canonical axes there (:data:`CLOSED_ALIGNMENT_FACTOR`)."""
     child = _child_vertices_at(model, k, qs)
     base = part_vertices_canonical(model, model.rest_states)[model.base_index]
     lo = np.minimum(child.min(axis=1), base.min(axis=0))
     hi = np.maximum(child.max(axis=1), base.max(axis=0))
-    out = np.prod(hi - lo, axis=1)
-    if model.joints[k].is_revolute:
-        out[_box_volumes(child) > CLOSED_ALIGNMENT_FACTOR * _aligned_child_volume(model, k)] = np.inf
-    return out
+    aligned = _box_volumes(child) <= CLOSED_ALIGNMENT_FACTOR * _aligned_child_volume(model, k)
+    return np.prod(hi - lo, axis=1), aligned
+
+
+def _closes_aligned(model, k) -> bool:
+    """Whether joint ``k``'s part closes aligned with the canonical axes: the smallest box among
+    its aligned states within the limits is at most :data:`CLOSED_ALIGNMENT_FACTOR` above the
+    smallest box of all its states there. A lid closing on a sloping top is aligned only when
+    it stands open, far from closed; then closed is simply the smallest box."""
+    joint = model.joints[k]
+    lo = joint.lower if np.isfinite(joint.lower) else -np.pi
+    hi = joint.upper if np.isfinite(joint.upper) else np.pi
+    vols, aligned = _pair_volumes(model, k, np.linspace(lo, hi, _LIMIT_SAMPLES))
+    return bool(aligned.any()) and vols[aligned].min() <= CLOSED_ALIGNMENT_FACTOR * vols.min()
 
 
 def _joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg) -> list[str]:
@@ -515,11 +564,14 @@ def _joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg) -> list[str]:
     if hi <= 0.0:
         out.append(f"joint {joint.name!r}: the state cannot increase from 0 (upper limit {hi:.4g}), so it cannot {jc.positive.rstrip('s')}")
     elif step > 0:
-        q1 = min(hi, step)
-        b1, c1 = _joint_pair(model, k, _with_state(model, k, q1))
-        if jc.positive == "opens":
-            ok = box_volume(b1, c1) > box_volume(base0, child0)
+        if jc.positive == "opens":  # somewhere over the whole positive range: the first step may
+            # leave the box unchanged (a lid's front edge rising within the body's height)
+            vol0 = box_volume(base0, child0)
+            ok = any(box_volume(*_joint_pair(model, k, _with_state(model, k, q))) > vol0 * (1 + 1e-9)
+                     for q in np.linspace(0.0, hi, 13)[1:])
         else:  # folds: the far end of the part comes closer to the base's centre line (x = centre)
+            q1 = min(hi, step)
+            b1, c1 = _joint_pair(model, k, _with_state(model, k, q1))
             cx = (base0.min(axis=0)[0] + base0.max(axis=0)[0]) / 2
             ok = abs(c1.mean(axis=0)[0] - cx) < abs(child0.mean(axis=0)[0] - cx)
         if not ok:

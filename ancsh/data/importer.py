@@ -59,7 +59,7 @@ from .conventions import (
     UP,
     CategoryConvention,
     _joint_pair,
-    closed_scores,
+    closing_scores,
     _horizontal_angle_to_front_deg,
     _side_ok,
     _with_state,
@@ -84,6 +84,7 @@ MIN_REAL_FOR_TRAINING = 2
 _KIND = {"hinge": "revolute", "slider": "prismatic"}
 _OVERRIDE_KEYS = {"zero", "sign", "flip_front", "diagonal_m", "moving_links", "reject"}
 _GRID = 241
+_SIDE_SAMPLES = 12  # states per side of state 0 when finding the opening direction
 
 
 class ImportRejected(ValueError):
@@ -322,7 +323,7 @@ def _find_zero(model, k, jc) -> float:
     if jc.zero == "closed":
         vol0 = box_volume(*_joint_pair(model, k, model.rest_states))
         tie = 1e-6  # ties (flat minima) go to the state nearest the file's 0
-        q, value = _argbest(lambda qs: closed_scores(model, k, qs) / vol0 + tie * np.abs(qs), lo, hi)
+        q, value = _argbest(lambda qs: closing_scores(model, k, qs) / vol0 + tie * np.abs(qs), lo, hi)
         if np.isfinite(value):
             return q
 
@@ -339,21 +340,34 @@ def _find_zero(model, k, jc) -> float:
 
 
 def _find_sign(model, k, jc, zero) -> int:
+    """+1 or -1: the direction from ``zero`` in which the state opens or folds.
+
+    ``opens``: the side whose states, over its whole range within the limits, grow the box
+    around base and part the most (the mean growth times the side's length); the first step
+    alone can leave the box unchanged (a lid's front edge rising within the body's height) or
+    grow it by swinging the part into the body where a file's limits allow a little of that.
+    ``folds``: the first step that brings the part's centre towards the base's centre line.
+    """
     lo, hi = _limits(model.joints[k])
-    step = min(0.2, 0.25 * (hi - lo)) if model.joints[k].is_revolute else 0.1 * (hi - lo)
     base0, child0 = _joint_pair(model, k, _with_state(model, k, zero))
     gains = {}
-    for s in (1, -1):
-        q = zero + s * step
-        if not lo - 1e-12 <= q <= hi + 1e-12:
-            q = min(max(q, lo), hi)
+    if jc.positive == "opens":
+        vol0 = box_volume(base0, child0)
+        for s, end in ((1, hi), (-1, lo)):
+            length = abs(end - zero)
+            if length < 1e-9:
+                continue
+            qs = zero + s * length * np.arange(1, _SIDE_SAMPLES + 1) / _SIDE_SAMPLES
+            vols = [box_volume(*_joint_pair(model, k, _with_state(model, k, q))) for q in qs]
+            gains[s] = (np.mean(vols) / vol0 - 1.0) * length
+    else:
+        step = min(0.2, 0.25 * (hi - lo)) if model.joints[k].is_revolute else 0.1 * (hi - lo)
+        cx = (base0.min(axis=0)[0] + base0.max(axis=0)[0]) / 2
+        for s in (1, -1):
+            q = min(max(zero + s * step, lo), hi)
             if abs(q - zero) < 1e-9:
                 continue
-        base, child = _joint_pair(model, k, _with_state(model, k, q))
-        if jc.positive == "opens":
-            gains[s] = box_volume(base, child) / box_volume(base0, child0) - 1.0
-        else:
-            cx = (base0.min(axis=0)[0] + base0.max(axis=0)[0]) / 2
+            base, child = _joint_pair(model, k, _with_state(model, k, q))
             gains[s] = abs(child0.mean(axis=0)[0] - cx) - abs(child.mean(axis=0)[0] - cx)
     if not gains:
         raise ImportRejected(model.name, f"joint {model.joints[k].name!r} has no range to move in")

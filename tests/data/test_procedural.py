@@ -127,6 +127,30 @@ def test_laptop_display_opens_upwards_to_the_front(objects):
         assert rest[1][:, 2].mean() < rest[0][:, 2].min() + 0.03
 
 
+def test_box_lid_closes_the_top_and_opens_backwards_over_the_hinge(objects):
+    caps = shells = 0
+    for model in objects["box"]:
+        base, lid = _world_vertices(model, [0.0])
+        (b_lo, b_hi), (l_lo, l_hi) = _bounds(base), _bounds(lid)
+        # closed: the lid is the top of the object and covers the body's walls (their top edges)
+        assert l_hi[1] >= b_hi[1] - 1e-9
+        w_lo, w_hi = _bounds(base[base[:, 1] >= b_hi[1] - 1e-9])
+        assert l_lo[0] <= w_lo[0] + 1e-3 and l_hi[0] >= w_hi[0] - 1e-3
+        if l_lo[1] < b_hi[1] - 1e-3:
+            caps += 1  # a cap's rim hangs over the body's walls
+        else:
+            shells += 1
+        thick = l_hi[1] - l_lo[1]
+        # upright at 90 degrees: standing above the back edge, as thin along z as it was along y
+        _, up = _world_vertices(model, [np.pi / 2])
+        assert np.ptp(up[:, 2]) <= thick + 1e-6 and up[:, 2].mean() < b_lo[2] + 0.25 * (b_hi[2] - b_lo[2])
+        assert up[:, 1].min() >= l_lo[1] - 0.007  # the hinge's offset behind the back face at most
+        if model.joints[0].upper >= np.pi:  # flat open: behind the body
+            _, flat = _world_vertices(model, [np.pi])
+            assert flat[:, 2].max() <= b_lo[2] + 0.007
+    assert caps and shells
+
+
 def test_eyeglasses_temples_at_rest_are_at_right_angles_to_the_frame(objects):
     for model in objects["eyeglasses"]:
         verts = _world_vertices(model, model.rest_states)
