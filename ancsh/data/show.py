@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["draw_fit", "draw_frame", "save_figure", "save_frame_figure"]
+__all__ = ["draw_fit", "draw_fit_on_image", "draw_frame", "save_figure", "save_frame_figure"]
 
 # Box edges as pairs of corner indices (corner order of OrientedBox.corners: sx, sy, sz signs).
 _BOX_EDGES = [(0, 1), (2, 3), (4, 5), (6, 7), (0, 2), (1, 3), (4, 6), (5, 7), (0, 4), (1, 5), (2, 6), (3, 7)]
@@ -165,6 +165,29 @@ def _draw_boxes_and_axes(ax, boxes, pivots, axes, length: float, *, style: str, 
     return drawn
 
 
+def draw_fit_on_image(ax, result, intrinsics, length: float) -> None:
+    """A fit's amodal boxes (part colours) and joint axes (black, ``length`` metres) projected onto an
+    image axis (pixels; parts behind the camera are left out)."""
+    _draw_boxes_and_axes(ax, result.boxes_cam, result.joint_pivots_cam, result.joint_axes_cam, length, style="-",
+                         to_plot=_image_projector(intrinsics))
+
+
+def _image_projector(intrinsics):
+    """``p (N, 3) camera frame -> (u, v)`` pixel arrays; points behind the camera (a failed fit) become
+    NaN, which matplotlib leaves out."""
+    from .render import project
+
+    def to_image(p):
+        p = np.atleast_2d(p)
+        uv = np.full((len(p), 2), np.nan)
+        front = p[:, 2] > 1e-6
+        if np.any(front):
+            uv[front] = project(p[front], intrinsics)[0]
+        return uv[:, 0], uv[:, 1]
+
+    return to_image
+
+
 def draw_fit(points_cam, result, intrinsics, *, labels=None, gt=None, title: str = "", fig=None):
     """Draw a fit: estimated amodal boxes and joint axes over the points (and ground truth if given).
 
@@ -187,8 +210,6 @@ def draw_fit(points_cam, result, intrinsics, *, labels=None, gt=None, title: str
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
-    from .render import project
-
     pts = np.asarray(points_cam, dtype=np.float64)
     fig = fig or Figure(figsize=(13, 5.5), dpi=100)
     colors = "0.6" if labels is None else colormaps["tab10"](np.asarray(labels) % 10)
@@ -210,15 +231,7 @@ def draw_fit(points_cam, result, intrinsics, *, labels=None, gt=None, title: str
     ax.set_title("camera frame: estimate solid" + (", ground truth dashed" if gt is not None else ""), fontsize=9)
 
     ax = fig.add_subplot(1, 2, 2)
-
-    def to_image(p):
-        # Points behind the camera (a failed fit) become NaN, which matplotlib leaves out.
-        p = np.atleast_2d(p)
-        uv = np.full((len(p), 2), np.nan)
-        front = p[:, 2] > 1e-6
-        if np.any(front):
-            uv[front] = project(p[front], intrinsics)[0]
-        return uv[:, 0], uv[:, 1]
+    to_image = _image_projector(intrinsics)
 
     u, v = to_image(pts)
     ax.scatter(u, v, c=colors, s=3)

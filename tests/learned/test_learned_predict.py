@@ -65,7 +65,7 @@ def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rend
         unc = data["uncertainty"]
         assert unc["inflation"]["source"] == "raw"  # weights other than the shipped ones: no measured factors
         assert len(unc["parts"]) == len(data["parts"]) and len(unc["joints"]) == len(data["joints"])
-    assert set(data["timings_ms"]) == {"backproject", "network", "fit", "total"}
+    assert set(data["timings_ms"]) == {"isolate", "backproject", "network", "fit", "total"}
 
 
 def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, rendered):

@@ -21,6 +21,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.gpu_check:register_bench",
     "ancsh.cli.bench.scaling:register_bench",
     "ancsh.cli.bench.tracking",
+    "ancsh.cli.bench.real_frames",
 ]
 
 

@@ -135,7 +135,7 @@ class DepthPrediction:
         The weights file used.
     valid_pixels : int
     timings_ms : dict
-        ``backproject``, ``network``, ``fit``, ``total`` (milliseconds).
+        ``isolate`` (0 with a mask), ``backproject``, ``network``, ``fit``, ``total`` (milliseconds).
     joint_types : tuple of str
         ``"revolute"`` / ``"prismatic"`` per joint.
     joint_parents, joint_children : tuple of int
@@ -316,11 +316,13 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
                          "(divide by 1000)")
     notes = []
     isolation = None
+    t_iso = 0.0
     t0 = time.perf_counter()
     if mask is None and isolate:
         from ...data.isolate import isolate_object
 
         isolation = isolate_object(d, intrinsics, category, hint=hint, max_depth=max_depth, rng=seed)
+        t_iso = time.perf_counter() - t0
         mask = isolation.mask
         notes.append(isolation.summary())
     elif mask is not None and hint is not None:
@@ -371,7 +373,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     return DepthPrediction(
         category=str(category), result=result, points_cam=pts, pixels=pixels, part_labels=labels,
         part_names=part_names, joint_names=joint_names, weights=str(provider.network.source), valid_pixels=valid,
-        timings_ms={"backproject": 1e3 * t_bp, "network": 1e3 * t_net, "fit": 1e3 * result.time_s,
+        timings_ms={"isolate": 1e3 * t_iso, "backproject": 1e3 * (t_bp - t_iso), "network": 1e3 * t_net, "fit": 1e3 * result.time_s,
                     "total": 1e3 * (time.perf_counter() - t_start)},
         joint_types=types,
         joint_parents=tuple(int(p) for p in parents),
@@ -590,8 +592,9 @@ def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, 
         ax.imshow(np.asarray(rgb), interpolation="nearest", zorder=0, extent=extent)
     for coll in ax.collections:
         coll.set_alpha(0.35)
-    ax.set_xlim(xlim)
-    ax.set_ylim(ylim)
+    # the whole image, or more where the projected boxes reach beyond it
+    ax.set_xlim(min(xlim[0], extent[0]), max(xlim[1], extent[1]))
+    ax.set_ylim(max(ylim[0], extent[2]), min(ylim[1], extent[3]))
     if rgb is None:
         fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8)
     _draw_isolation(ax, prediction.isolation)

@@ -1,0 +1,87 @@
+"""Real-frame folders (ancsh.data.real_frames) and the real-frame benchmark (ancsh bench real-frames), on rendered
+frames laid out as real ones: a held-out laptop with its measured opening, and a frame of nothing but a floor."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ancsh.cli import main
+from ancsh.data.generate import FrameGenerator, GenerationConfig
+from ancsh.data.real_frames import load_real_frame
+from ancsh.data.render import Intrinsics
+
+
+def _write_frame(folder, depth, intr, objects, **extra):
+    folder.mkdir(parents=True)
+    Image.fromarray(np.round(depth * 1000).astype(np.uint16)).save(folder / "depth.png")
+    (folder / "K.json").write_text(json.dumps(intr.to_json()))
+    truth = {"schema": "real-frame-truth/1", "objects": objects, **extra}
+    (folder / "truth.json").write_text(json.dumps(truth))
+    return folder
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    root = tmp_path_factory.mktemp("real_frames")
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
+    frame = gen.frame(2)
+    _, renderer = gen.instance(frame.instance_index)
+    depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
+    mask = depth > 0
+    laptop = _write_frame(root / "laptop_frame", depth, frame.intrinsics,
+                          [{"category": "laptop", "mask": "mask_laptop.png", "joint_state_deg": float(np.degrees(frame.joint_states_abs[0])),
+                            "uncertainty_deg": 0.0}])
+    Image.fromarray(mask.astype(np.uint8) * 255).save(laptop / "mask_laptop.png")
+    intr = Intrinsics()
+    v = np.arange(intr.height)[:, None] * np.ones((1, intr.width))
+    floor = 1.0 / (0.4 + 0.0015 * v)  # a floor tilted away from the camera, 0.7..2.5 m
+    negative = _write_frame(root / "floor_only", floor, intr, [])
+    return laptop, negative, frame
+
+
+def test_a_folder_reads_with_its_objects_and_bad_folders_name_what_is_wrong(frames, tmp_path):
+    laptop, negative, frame = frames
+    f = load_real_frame(laptop)
+    assert f.name == "laptop_frame" and not f.negative and f.rgb is None
+    assert f.objects[0].category == "laptop" and f.objects[0].mask.sum() == np.count_nonzero(f.depth > 0)
+    assert load_real_frame(negative).negative
+    depth = np.full((48, 64), 1.0)
+    small = Intrinsics(fx=60, fy=60, cx=32, cy=24, width=64, height=48)
+    bad = _write_frame(tmp_path / "schema", depth, small, [], schema="real-frame-truth/2")
+    with pytest.raises(ValueError, match="schema"):
+        load_real_frame(bad)
+    bad = _write_frame(tmp_path / "escape", depth, small, [{"category": "laptop", "mask": "../mask.png"}])
+    with pytest.raises(ValueError, match=r"objects\[0\]\.mask: expected a file name inside"):
+        load_real_frame(bad)
+    bad = _write_frame(tmp_path / "size", depth, Intrinsics(fx=60, fy=60, cx=32, cy=24, width=640, height=480), [])
+    with pytest.raises(ValueError, match="depth is 64x48 pixels, the intrinsics say 640x480"):
+        load_real_frame(bad)
+    bad = _write_frame(tmp_path / "objects", depth, small, {"category": "laptop"})
+    with pytest.raises(ValueError, match="objects: expected a list"):
+        load_real_frame(bad)
+
+
+def test_the_benchmark_runs_each_mode_and_judges_the_negative_frame(frames, tmp_path, capsys):
+    laptop, negative, frame = frames
+    out = tmp_path / "report" / "real_frames.md"
+    assert main(["bench", "real-frames", str(laptop), str(negative), "--categories", "laptop", "--out", str(out),
+                 "--quiet"]) == 0
+    data = json.loads(out.with_suffix(".json").read_text())
+    assert data["command"].startswith("ancsh bench real-frames ")
+    recs = {(r["frame"], r["mode"]): r for r in data["records"]}
+    assert set(recs) == {("laptop_frame", "mask"), ("laptop_frame", "auto"), ("laptop_frame", "pixel"), ("floor_only", "auto")}
+    for r in data["records"]:
+        assert r["exit_code"] == (0 if r["ok"] else 1)
+    assert recs[("laptop_frame", "mask")]["mask_iou"] is None and recs[("laptop_frame", "mask")]["timings_ms"]["isolate"] == 0
+    for mode in ("auto", "pixel"):  # the only thing in view: isolation finds it
+        assert recs[("laptop_frame", mode)]["mask_iou"] > 0.9
+    truth = np.degrees(frame.joint_states_abs[0])
+    r = recs[("laptop_frame", "mask")]
+    assert r["ok"] and abs(r["joint_state"][0] - truth) == pytest.approx(r["joint_state_error_deg"]) and r["joint_state_error_deg"] < 15
+    assert not recs[("floor_only", "auto")]["ok"]  # nothing but a floor: no laptop
+    text = out.read_text()
+    assert "| floor_only | laptop | auto |" in text and "none of any category (negative)" in text
+    assert (out.parent / "real_frames_laptop_frame.png").stat().st_size > 0
+    assert (out.parent / "real_frames_floor_only.png").stat().st_size > 0
