@@ -94,7 +94,11 @@ def register(sub) -> None:
     c.add_argument("--seed", type=non_negative_int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")
     c.add_argument("--out", type=Path, help="report folder (default: a fresh ancsh_results/calibrate-<category>-<time>/)")
     c.add_argument("--update-docs", action="store_true", help="write the report into docs/results/ (when --out is not given)")
-    c.add_argument("--install", action="store_true", help="write ancsh/weights/<category>_confidence.json")
+    c.add_argument("--install", action="store_true", help="write ancsh/weights/<category>_confidence.json "
+                   "(with --object: <category>_object.json)")
+    c.add_argument("--object", action="store_true", help="calibrate p_object instead: whether the fitted pixels are an "
+                   "object of the category at all, against the other categories' objects and clutter "
+                   "(ancsh.studies.object_evidence; --frames counts the category's frames, about as many others are added)")
     c.add_argument("--no-progress", action="store_true")
     c.set_defaults(func=run_calibrate)
     register_weights(sub)
@@ -266,6 +270,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
         from ..learned.network.weights import missing_weights_error
 
         raise missing_weights_error(args.category)
+    if args.object:
+        return _run_calibrate_object(args)
     data = collect(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
     fit_half = np.arange(len(data["good"])) % 2 == 0
     calibration, rel = choose_calibrator(data["X"][fit_half], data["good"][fit_half], data["X"][~fit_half], data["good"][~fit_half])
@@ -281,6 +287,38 @@ def run_calibrate(args: argparse.Namespace) -> int:
           f"wrote {paths['md']}, {paths['png']}")
     if args.install:
         target = calibration_path(args.category)
+        write_bytes_atomically(target, paths["json"].read_bytes())
+        print(f"installed {target}")
+    return 0
+
+
+def _run_calibrate_object(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ..learned.inference.confidence import object_calibration_path
+    from ..learned.inference.predict import MIN_P_OBJECT
+    from ..learned.network.weights import weights_path
+    from ..outputs import DOCS_RESULTS, file_sha256, fresh_output_dir
+    from ..studies.object_evidence import collect_object_evidence, fit_object_calibrator, measure, write_object_report
+
+    if args.frames < 8:
+        raise ValueError(f"--frames: expected at least 8 frames with --object, got {args.frames}")
+    data = collect_object_evidence(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
+    half = np.arange(len(data["is_object"])) % 2 == 0
+    calibration = fit_object_calibrator(data["X"][half], data["is_object"][half])
+    calibration["weights_sha256"] = file_sha256(weights_path(args.category))
+    source = [s for s, h in zip(data["source"], half) if not h]
+    check = measure(calibration, data["X"][~half], data["is_object"][~half], source, MIN_P_OBJECT)
+    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
+    parts = ["calibrate", "--category", args.category, "--object", "--frames", str(args.frames)]
+    parts += ["--seed", str(args.seed)] if args.seed != 7 else []
+    parts += output_flags(args.out, update_docs=args.update_docs)
+    parts += ["--install"] if args.install else []
+    paths = write_object_report(args.category, calibration, check, data, out, command=_command(parts), threshold=MIN_P_OBJECT)
+    print(f"{args.category}: {100 * check['_all']['true_accept']:.0f}% of its objects accepted, "
+          f"{100 * check['_all']['false_accept']:.0f}% of other things; wrote {paths['md']}")
+    if args.install:
+        target = object_calibration_path(args.category)
         write_bytes_atomically(target, paths["json"].read_bytes())
         print(f"installed {target}")
     return 0

@@ -1,20 +1,28 @@
-"""Find the object in a depth image without a mask: remove supporting planes, cluster, choose.
+"""Find the object in a depth image without a mask: remove supporting planes, segment, rank candidates.
 
-:func:`isolate_object` back-projects the valid pixels, removes large planes (tables, floors,
-walls: open3d ``segment_plane``, kept only when the plane is wider than any object of the
-category), clusters what is left with scikit-learn's ``DBSCAN`` and chooses one cluster:
+:func:`isolate_object` works on the organised image, subsampled to about
+:data:`TARGET_GRID_PIXELS` pixels (a 1280x720 frame every 6th pixel): it removes planes wider than
+any object of the category (floors, table tops, stair treads and risers, walls: RANSAC planes whose
+connected pieces are wider than the category's largest size times :data:`SIZE_FACTOR`, or wider than
+a typical one and running out of the image), splits the
+rest into connected segments where neighbouring pixels' depths jump (more than a few grid spacings
+at that depth), and ranks the segments as candidates:
 
-- with an :class:`ObjectHint`: the cluster under the pixel ``(u, v)``, or with most points in the box;
-- without one: among the clusters whose size fits the category's ``diagonal_range``, the one
-  nearest the image centre (ties: more points); when none fits, the one whose size is closest.
+- with an :class:`ObjectHint`: the segment under the pixel ``(u, v)`` (or the nearest one), or
+  with most pixels in the box;
+- without one: segments whose size fits the category's ``diagonal_range`` first, nearer the
+  image centre first (in tenths of the image; within one, more pixels first); then the rest,
+  closest in size first.
 
-The result is a pixel mask plus what was found (:class:`Isolation`), so a picture can show the
-choice. A mask given by the user always wins over this (``ancsh predict --mask``).
+The result is a pixel mask of the first candidate plus every candidate (:class:`Isolation`:
+``labels`` and the ranked ``order``), so that a caller who can judge a candidate (the category's
+network and fit, :func:`ancsh.learned.inference.predict.predict_depth`) may verify several and
+choose. A mask given by the user always wins over this (``ancsh predict --mask``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,10 +30,38 @@ from .render import Intrinsics, valid_depth_pixels
 
 __all__ = ["ObjectHint", "Cluster", "Isolation", "isolate_object", "parse_hint"]
 
-#: Clusters and planes are found on at most this many points (the rest follow their nearest one).
-MAX_WORK_POINTS = 20000
-#: Size factor: a cluster fits the category when its diagonal is in ``[lo / f, hi * f]``.
+# the opening that parts a support plane from a face touching it (radius 2 grid pixels)
+_DISK = np.array([[0, 1, 1, 1, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 1, 1, 1, 0]], dtype=bool)
+
+#: Planes and segments are found on the image subsampled to about this many pixels.
+TARGET_GRID_PIXELS = 30000
+#: Size factor: a segment fits the category when its diagonal is in ``[lo / f, hi * f]``; a plane
+#: piece wider than ``hi * f`` is a support.
 SIZE_FACTOR = 1.5
+#: Neighbouring grid pixels belong to one segment when their depths differ by less than this many
+#: grid spacings at that depth plus :data:`JUMP_NOISE_M` (a surface up to ~75 degrees from facing the camera).
+JUMP_SPACINGS = 4.0
+JUMP_NOISE_M = 0.006
+#: Plane inlier distance (metres; at least 2 % of the category's smallest size).
+PLANE_THRESHOLD_M = 0.012
+#: A plane's inliers turn with it: their surface normal within ~37 degrees of the plane's (cosine), normals
+#: measured across NORMAL_SPAN grid pixels on each side.
+PLANE_NORMAL_COS = 0.8
+NORMAL_SPAN = 2
+#: Pixels this near (metres) to two support planes are support too (the rounded edge between them).
+CORNER_MARGIN_M = 0.03
+#: Plane RANSAC runs on at most this many of the free grid pixels (the inliers are then counted on all).
+RANSAC_POINTS = 3000
+RANSAC_ITERATIONS = 120
+#: Planes are searched at most this many times, and only while the best holds this share of the grid.
+MAX_PLANES = 8
+MIN_PLANE_FRACTION = 0.03
+#: A plane piece running out of the image touches its border on at least this many grid pixels.
+BORDER_PIXELS = 10
+#: Two candidate segments (of different depths of plane removal) are one when their IoU reaches this.
+SAME_SEGMENT_IOU = 0.9
+#: Segments smaller than this many grid pixels are noise.
+MIN_SEGMENT_GRID_PIXELS = 20
 
 
 @dataclass(frozen=True)
@@ -69,16 +105,18 @@ def parse_hint(pixel: str | None = None, box: str | None = None) -> ObjectHint |
 
 @dataclass(frozen=True)
 class Cluster:
-    """One candidate object: its pixel count, size (diagonal, metres) and image centroid ``(u, v)``."""
+    """One candidate object: its pixel count (about), size (diagonal, metres), image centroid ``(u, v)``, whether
+    its size fits the category and how many support planes were removed when it was found (``level``)."""
 
     pixels: int
     diagonal: float
     centroid_uv: tuple
     fits_category: bool
+    level: int = 0
 
     def to_dict(self) -> dict:
         return {"pixels": self.pixels, "diagonal_m": self.diagonal, "centroid_uv": list(self.centroid_uv),
-                "fits_category": self.fits_category}
+                "fits_category": self.fits_category, "planes_removed": self.level}
 
 
 @dataclass(frozen=True)
@@ -90,14 +128,24 @@ class Isolation:
     mask : (H, W) bool
         Pixels of the chosen object (all ``False`` when nothing was found).
     labels : (H, W) int64
-        ``-2`` no depth, ``-1`` removed (plane or DBSCAN noise), ``c >= 0`` cluster ``c``.
+        ``-2`` no depth, ``-1`` removed (a support plane or a tiny piece), ``c >= 0`` segment ``c``.
     clusters : tuple of Cluster
+        The segments (candidates).
     chosen : int or None
-        Index of the chosen cluster.
+        Index of the chosen segment.
     planes : int
         Supporting planes removed.
     reason : str
-        Why that cluster was chosen.
+        Why that segment was chosen.
+    order : tuple of int
+        Every segment, best candidate first (``order[0] == chosen``).
+    stride : int
+        The grid's subsampling (pixels).
+    verified : tuple of dict
+        Candidates a caller judged (:meth:`with_choice`), each ``{"segment", "status", "score", ...}``.
+    segments : tuple of (h, w) bool
+        Each candidate's pixels on the subsampled grid (:meth:`mask_of` gives full resolution). Candidates come
+        from every depth of plane removal; ``labels`` shows the deepest one's.
     """
 
     mask: np.ndarray
@@ -106,22 +154,40 @@ class Isolation:
     chosen: int | None = None
     planes: int = 0
     reason: str = ""
+    order: tuple = ()
+    stride: int = 1
+    verified: tuple = ()
+    segments: tuple = field(default=(), repr=False)
+    _upsample: object = field(default=None, repr=False, compare=False)
+
+    def mask_of(self, c: int) -> np.ndarray:
+        """Full-resolution pixels (H, W) bool of candidate segment ``c``."""
+        if self._upsample is None or not 0 <= c < len(self.segments):
+            return self.labels == c
+        return self._upsample(self.segments[c])
+
+    def with_choice(self, chosen, reason: str, verified=()) -> "Isolation":
+        """This isolation with segment ``chosen`` (or ``None``: none is the object) chosen by a caller's verification."""
+        from dataclasses import replace
+
+        mask = self.mask_of(chosen) if chosen is not None else np.zeros_like(self.mask)
+        return replace(self, mask=mask, chosen=chosen, reason=reason, verified=tuple(verified))
 
     def summary(self) -> str:
         if self.chosen is None:
             return f"isolation: no object found ({self.reason})"
         c = self.clusters[self.chosen]
-        return (f"isolation: {self.planes} plane(s) removed, {len(self.clusters)} cluster(s); chose cluster "
+        return (f"isolation: {self.planes} plane(s) removed, {len(self.clusters)} segment(s); chose segment "
                 f"{self.chosen} ({c.pixels} pixels, {c.diagonal:.2f} m across): {self.reason}")
 
     def to_dict(self) -> dict:
         return {"planes_removed": self.planes, "clusters": [c.to_dict() for c in self.clusters], "chosen": self.chosen,
-                "reason": self.reason}
+                "reason": self.reason, "order": list(self.order), "stride": self.stride, "verified": list(self.verified)}
 
 
 def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: ObjectHint | None = None,
                    max_depth: float | None = None, rng=0) -> Isolation:
-    """Mask of the object of ``category`` in a depth image (see the module docstring).
+    """Candidate segments of the object of ``category`` in a depth image (see the module docstring).
 
     Parameters
     ----------
@@ -129,17 +195,21 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         Metres, 0 = no measurement.
     intrinsics : Intrinsics
     category : str
-        A procedural category (its ``diagonal_range`` sizes the planes, clusters and the choice);
+        A procedural category (its ``diagonal_range`` sizes the planes, segments and the ranking);
         other names use 0.1..2 m.
     hint : ObjectHint, optional
     max_depth : float, optional
         Metres; deeper pixels are ignored.
     rng : numpy.random.Generator or int
-        Subsampling and plane RANSAC seed.
+        Plane RANSAC seed.
+
+    Returns
+    -------
+    Isolation
+        ``mask`` = the first candidate's pixels (full resolution).
     """
     import open3d as o3d
-    from sklearn.cluster import DBSCAN
-    from sklearn.neighbors import NearestNeighbors
+    from scipy.ndimage import binary_dilation, binary_opening
 
     from ..geometry._checks import check_generator
     from .procedural import CATEGORY_INFO
@@ -150,82 +220,206 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     d, valid = valid_depth_pixels(depth, intrinsics)
     if max_depth is not None:
         valid &= d <= max_depth
+    H, W = d.shape
     labels = np.full(d.shape, -2, dtype=np.int64)
-    vs, us = np.nonzero(valid)
-    if us.size < 10:
-        return Isolation(np.zeros(d.shape, dtype=bool), labels, reason=f"{us.size} valid pixels")
-    z = d[vs, us]
-    pts = np.stack([(us - intrinsics.cx) / intrinsics.fx * z, (vs - intrinsics.cy) / intrinsics.fy * z, z], axis=1)
-    work = rng.choice(us.size, size=min(us.size, MAX_WORK_POINTS), replace=False)
-    wp = pts[work]
-    keep = np.ones(len(wp), dtype=bool)
-    # --- supporting planes: wider than any object of the category ---------------------------------
+    labels[valid] = -1
+    if np.count_nonzero(valid) < 10:
+        return Isolation(np.zeros(d.shape, dtype=bool), labels, reason=f"{np.count_nonzero(valid)} valid pixels")
+    # --- the organised grid -------------------------------------------------------------------------
+    s = max(1, int(round(np.sqrt(H * W / TARGET_GRID_PIXELS))))
+    g = np.where(valid, d, 0.0)[::s, ::s]
+    gv = g > 0
+    vv, uu = np.mgrid[0:H:s, 0:W:s]
+    P = np.stack([(uu - intrinsics.cx) / intrinsics.fx * g, (vv - intrinsics.cy) / intrinsics.fy * g, g], axis=-1)
+    jump = JUMP_SPACINGS * s * g / min(intrinsics.fx, intrinsics.fy) + JUMP_NOISE_M  # per grid pixel (metres)
+    right = gv[:, :-1] & gv[:, 1:] & (np.abs(g[:, :-1] - g[:, 1:]) < np.minimum(jump[:, :-1], jump[:, 1:]))
+    down = gv[:-1, :] & gv[1:, :] & (np.abs(g[:-1, :] - g[1:, :]) < np.minimum(jump[:-1, :], jump[1:, :]))
+    # surface normals from the grid neighbours two pixels away on each side (where the pixels between are joined)
+    normals = np.zeros(P.shape)
+    normal_ok = np.zeros(gv.shape, dtype=bool)
+    k = NORMAL_SPAN
+    if min(gv.shape) > 2 * k:
+        rj = np.ones(gv.shape, dtype=bool)[:, :-2 * k].copy()
+        for i in range(2 * k):
+            rj &= right[:, i:right.shape[1] - 2 * k + i + 1]
+        dj = np.ones(gv.shape, dtype=bool)[:-2 * k, :].copy()
+        for i in range(2 * k):
+            dj &= down[i:down.shape[0] - 2 * k + i + 1, :]
+        joined = rj[k:-k, :] & dj[:, k:-k]
+        n = np.cross(P[k:-k, 2 * k:] - P[k:-k, :-2 * k], P[2 * k:, k:-k] - P[:-2 * k, k:-k])
+        length = np.linalg.norm(n, axis=-1)
+        good = joined & (length > 0)
+        normals[k:-k, k:-k][good] = n[good] / length[good][:, None]
+        normal_ok[k:-k, k:-k] = good
+    # --- supporting planes: connected pieces wider than any object of the category ----------------------
+    support = np.zeros(gv.shape, dtype=bool)
+    tried = np.zeros(gv.shape, dtype=bool)  # planes that were no support: kept, but not searched again
     planes = 0
-    thresh = max(0.01, 0.02 * lo)
-    for _ in range(3):
-        idx = np.flatnonzero(keep)
-        if idx.size < 50:
+    thresh = max(PLANE_THRESHOLD_M, 0.02 * lo)
+    typical = np.sqrt(lo * hi)
+    idx = np.flatnonzero(gv.ravel())
+    flat = P.reshape(-1, 3)
+    border = np.zeros(gv.shape, dtype=bool)
+    border[[0, -1], :] = True
+    border[:, [0, -1]] = True
+    near = []  # per support plane: grid pixels within CORNER_MARGIN_M of it
+    supports = []  # the support after each removal
+    for _ in range(MAX_PLANES):
+        free = idx[~(support | tried).ravel()[idx]]
+        if free.size < 50:
             break
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(wp[idx]))
+        sample = free if free.size <= RANSAC_POINTS else rng.choice(free, RANSAC_POINTS, replace=False)
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(flat[sample]))
         o3d.utility.random.seed(int(rng.integers(2**31)))
-        _, inl = pc.segment_plane(distance_threshold=thresh, ransac_n=3, num_iterations=300)
-        inl = _refine_plane(wp[idx], np.asarray(inl, dtype=np.int64), thresh)
-        if inl.size < 0.1 * idx.size or inl.size < 50:
+        model, _ = pc.segment_plane(distance_threshold=thresh, ransac_n=3, num_iterations=RANSAC_ITERATIONS)
+        a, b, c_, e = model  # the sample's plane, then its inliers among all free pixels, refitted
+        inl = np.flatnonzero(np.abs(flat[free] @ np.array([a, b, c_]) + e) < thresh * np.linalg.norm([a, b, c_]))
+        inl = _refine_plane(flat[free], inl, thresh)
+        if inl.size < max(50, MIN_PLANE_FRACTION * idx.size):
             break
-        if _extent(wp[idx[inl]]) <= SIZE_FACTOR * hi:
-            break  # a face of the object, not a support
-        keep[idx[inl]] = False
-        planes += 1
-    rest = np.flatnonzero(keep)
-    wlab = np.full(len(wp), -1, dtype=np.int64)
-    if rest.size >= 10:
-        nn = NearestNeighbors(n_neighbors=min(5, rest.size)).fit(wp[rest])
-        spacing = float(np.median(nn.kneighbors(wp[rest])[0][:, -1]))
-        eps = max(3.0 * spacing, 0.02 * lo, 0.005)
-        wlab[rest] = DBSCAN(eps=eps, min_samples=5).fit_predict(wp[rest])
-    # every pixel takes the label of its nearest work point (planes/noise: -1)
-    nn = NearestNeighbors(n_neighbors=1).fit(wp)
-    near = nn.kneighbors(pts, return_distance=False)[:, 0]
-    plab = wlab[near]
-    labels[vs, us] = plab
-    clusters = []
-    for c in range(int(plab.max()) + 1 if plab.size else 0):
-        sel = plab == c
-        if np.count_nonzero(sel) < 20:
-            labels[vs[sel], us[sel]] = -1
-            clusters.append(Cluster(int(np.count_nonzero(sel)), 0.0, (float("nan"), float("nan")), False))
-            continue
-        diag = _extent(pts[sel], diagonal=True)
-        clusters.append(Cluster(int(np.count_nonzero(sel)), diag, (float(us[sel].mean()), float(vs[sel].mean())),
-                                bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR)))
-    usable = [c for c, cl in enumerate(clusters) if cl.pixels >= 20]
-    if not usable:
-        return Isolation(np.zeros(d.shape, dtype=bool), labels, tuple(clusters), None, planes,
-                         "nothing left after removing planes and noise")
-    chosen, reason = _choose(clusters, usable, labels, intrinsics, hint, lo, hi)
-    return Isolation(labels == chosen, labels, tuple(clusters), chosen, planes, reason)
+        on = np.zeros(gv.size, dtype=bool)
+        on[free[inl]] = True
+        on = on.reshape(gv.shape)
+        # only where the surface turns like the plane: an object's face crossing it (a lid leaning on a
+        # riser) is not part of the support
+        q = flat[free[inl]]
+        normal = np.linalg.svd(q - q.mean(axis=0), full_matrices=False)[2][-1]
+        on &= ~normal_ok | (np.abs(normals @ normal) >= PLANE_NORMAL_COS)
+        # pieces of the plane after an opening: a face touching the support along a thin contact (a lid
+        # leaning on a riser, in its plane) comes apart from it; the contact strip goes back to the support
+        opened = binary_opening(on, structure=_DISK, border_value=1)
+        n_pieces, pieces = _components(opened, right, down)
+        removed = False
+        piece_sizes = np.bincount(pieces[pieces >= 0], minlength=n_pieces)
+        for c in np.flatnonzero(piece_sizes >= 20):
+            sel = pieces == c
+            q = P[sel]
+            if np.linalg.norm(q.max(axis=0) - q.min(axis=0)) <= typical:
+                continue  # its box is no wider than a typical object: no support by either rule
+            extent = _extent(q)
+            # wider than any object of the category, or wider than a typical one and running out of the
+            # image (a table top, a floor, a stair tread: an object's face rarely reaches the border)
+            if extent > SIZE_FACTOR * hi or (extent > typical and np.count_nonzero(sel & border) >= BORDER_PIXELS):
+                support |= on & binary_dilation(sel, structure=_DISK)
+                removed = True
+        tried |= on & ~support
+        if removed:
+            supports.append(support.copy())
+            p = flat[free[inl]]
+            c0 = p.mean(axis=0)
+            near.append(np.abs((P - c0) @ np.linalg.svd(p - c0, full_matrices=False)[2][-1]) < CORNER_MARGIN_M)
+        planes += int(removed)
+    # where two supports meet (a stair's nosing, a table's edge against a wall) the surface is neither
+    # plane: pixels near two of them are support too, so that objects standing there come apart
+    for k in range(1, len(supports)):
+        supports[k] = supports[k] | (gv & (np.sum(near[: k + 1], axis=0) >= 2))
+    # --- candidate segments at every depth of plane removal --------------------------------------------
+    # (a plane removed late may take an object's face with it: a lid leaning on a stair's riser)
+    levels = supports or [support]
+    gi = np.minimum((np.arange(H) + s // 2) // s, g.shape[0] - 1)
+    gj = np.minimum((np.arange(W) + s // 2) // s, g.shape[1] - 1)
+    near_d = g[gi[:, None], gj[None, :]]
+    near_jump = jump[gi[:, None], gj[None, :]]
+    agree_depth = valid & (np.abs(d - near_d) < near_jump)
+
+    def upsample(grid_mask):
+        """Full-resolution pixels of a grid segment: their grid pixel is in it and their depth agrees."""
+        return agree_depth & grid_mask[gi[:, None], gj[None, :]]
+
+    segments, clusters, counts = [], [], []
+    for level, sup in enumerate(levels):
+        n_seg, seg = _components(gv & ~sup, right, down)
+        sizes = np.bincount(seg[seg >= 0], minlength=n_seg)
+        for c in np.flatnonzero(sizes >= MIN_SEGMENT_GRID_PIXELS):
+            sel = seg == c
+            n = int(sizes[c])
+            if any(min(n, m) >= SAME_SEGMENT_IOU * max(n, m)  # a same segment has a like count
+                   and np.count_nonzero(sel & o) >= SAME_SEGMENT_IOU * np.count_nonzero(sel | o)
+                   for o, m in zip(segments, counts)):
+                continue
+            counts.append(n)
+            diag = _extent(P[sel], diagonal=True)
+            segments.append(sel)
+            clusters.append(Cluster(int(sizes[c]) * s * s, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
+                                    bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR), level=planes if not supports else level + 1))
+    # labels for pictures and box hints: the segments of the deepest level
+    final = np.full(gv.shape, -1, dtype=np.int64)
+    for c, sel in enumerate(segments):
+        if clusters[c].level == clusters[-1].level if clusters else False:
+            final[sel] = c
+    near_seg = final[gi[:, None], gj[None, :]]
+    labels[agree_depth & (near_seg >= 0)] = near_seg[agree_depth & (near_seg >= 0)]
+    if not clusters:
+        return Isolation(np.zeros(d.shape, dtype=bool), labels, (), None, planes,
+                         "nothing left after removing planes and small pieces", stride=s)
+    order, reason = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
+    return Isolation(upsample(segments[order[0]]), labels, tuple(clusters), order[0], planes, reason, order=tuple(order),
+                     stride=s, segments=tuple(segments), _upsample=upsample)
 
 
-def _choose(clusters, usable, labels, intr, hint, lo, hi):
+def _components(on: np.ndarray, right: np.ndarray, down: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of the grid pixels ``on`` (4-neighbours joined where ``right`` / ``down``
+    say their depths agree); ``(count, labels)`` with -1 off ``on``."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    h, w = on.shape
+    ids = np.full(on.shape, -1, dtype=np.int64)
+    ids[on] = np.arange(np.count_nonzero(on))
+    r = right & on[:, :-1] & on[:, 1:]
+    dn = down & on[:-1, :] & on[1:, :]
+    a = np.concatenate([ids[:, :-1][r], ids[:-1, :][dn]])
+    b = np.concatenate([ids[:, 1:][r], ids[1:, :][dn]])
+    n = int(np.count_nonzero(on))
+    if n == 0:
+        return 0, ids
+    count, lab = connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)
+    out = np.full(on.shape, -1, dtype=np.int64)
+    out[on] = lab
+    return int(count), out
+
+
+def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str]:
+    """Candidate order (first = the choice) and why the first was chosen."""
+    every = list(range(len(clusters)))
+    centre = np.array([(intr.width - 1) / 2.0, (intr.height - 1) / 2.0])
+    mid = np.sqrt(lo * hi)
+
+    def prior(c):
+        dist = np.linalg.norm(np.asarray(clusters[c].centroid_uv) - centre) / max(intr.width, intr.height)
+        size_gap = abs(np.log(max(clusters[c].diagonal, 1e-6) / mid))
+        # centrality in tenths of the image: pieces of one object from different depths of plane removal
+        # sit alike, and the largest of them comes first
+        return (not clusters[c].fits_category, round(dist, 1) if clusters[c].fits_category else size_gap,
+                -clusters[c].pixels)
+
+    order = sorted(every, key=prior)
     if hint is not None and hint.pixel is not None:
         u, v = hint.pixel
-        vv, uu = np.nonzero(labels >= 0)
-        k = int(np.argmin((uu - u) ** 2 + (vv - v) ** 2))
-        return int(labels[vv[k], uu[k]]), f"under the hint pixel ({u:g}, {v:g})"
+        i = int(np.clip(round(v), 0, len(gi) - 1))
+        j = int(np.clip(round(u), 0, len(gj) - 1))
+        under = [c for c in order if segments[c][gi[i], gj[j]]]
+        if under:  # the largest segment under the pixel whose size fits, else the smallest one
+            under.sort(key=lambda c: (not clusters[c].fits_category,
+                                      -clusters[c].pixels if clusters[c].fits_category else clusters[c].pixels))
+            return under + [c for c in order if c not in under], f"under the hint pixel ({u:g}, {v:g})"
+        dist = [min(np.hypot(*(np.argwhere(segments[c]) - [gi[i], gj[j]]).T)) for c in every]
+        first = int(np.argmin(dist))
+        return [first] + [c for c in order if c != first], f"nearest the hint pixel ({u:g}, {v:g})"
     if hint is not None:
         u0, v0, u1, v1 = hint.box
-        counts = [np.count_nonzero(labels[int(max(v0, 0)):int(v1) + 1, int(max(u0, 0)):int(u1) + 1] == c) for c in usable]
-        if max(counts) > 0:
-            return usable[int(np.argmax(counts))], "most pixels in the hint box"
-    fit = [c for c in usable if clusters[c].fits_category]
-    centre = np.array([(intr.width - 1) / 2.0, (intr.height - 1) / 2.0])
-    if fit:
-        dist = [np.linalg.norm(np.asarray(clusters[c].centroid_uv) - centre) / max(intr.width, intr.height) for c in fit]
-        order = sorted(range(len(fit)), key=lambda i: (round(dist[i], 2), -clusters[fit[i]].pixels))
-        return fit[order[0]], f"size fits the category ({lo}..{hi} m, x{SIZE_FACTOR}) and nearest the image centre"
-    mid = np.sqrt(lo * hi)
-    best = min(usable, key=lambda c: abs(np.log(max(clusters[c].diagonal, 1e-6) / mid)))
-    return best, "no cluster fits the category's size: the closest in size"
+        rows = (gi >= gi[int(np.clip(v0, 0, len(gi) - 1))]) & (gi <= gi[int(np.clip(v1, 0, len(gi) - 1))])
+        cols = (gj >= gj[int(np.clip(u0, 0, len(gj) - 1))]) & (gj <= gj[int(np.clip(u1, 0, len(gj) - 1))])
+        r = np.unique(gi[rows])
+        q = np.unique(gj[cols])
+        inside = [np.count_nonzero(segments[c][np.ix_(r, q)]) / max(np.count_nonzero(segments[c]), 1) for c in every]
+        counts = [np.count_nonzero(segments[c][np.ix_(r, q)]) for c in every]
+        if max(counts) > 0:  # mostly inside the box, then most pixels in it
+            first = max(every, key=lambda c: (round(inside[c], 1), counts[c]))
+            return [first] + [c for c in order if c != first], "most pixels in the hint box"
+    if clusters[order[0]].fits_category:
+        return order, f"size fits the category ({lo}..{hi} m, x{SIZE_FACTOR}) and nearest the image centre"
+    return order, "no segment fits the category's size: the closest in size"
 
 
 def _refine_plane(points: np.ndarray, inliers: np.ndarray, thresh: float, rounds: int = 3) -> np.ndarray:
@@ -246,7 +440,8 @@ def _refine_plane(points: np.ndarray, inliers: np.ndarray, thresh: float, rounds
 def _extent(points: np.ndarray, *, diagonal: bool = False) -> float:
     """Largest robust extent (2nd-98th percentile along principal axes) or the diagonal of those extents."""
     p = points - points.mean(axis=0)
-    _, _, Vt = np.linalg.svd(p[:: max(1, len(p) // 5000)], full_matrices=False)
+    p = p[:: max(1, len(p) // 2000)]
+    _, _, Vt = np.linalg.svd(p, full_matrices=False)
     q = p @ Vt.T
     ext = np.percentile(q, 98, axis=0) - np.percentile(q, 2, axis=0)
     return float(np.linalg.norm(ext)) if diagonal else float(ext.max())

@@ -304,6 +304,8 @@ class FitStatus(str, Enum):
     IMPLAUSIBLE_SIZE = "implausible_size"  # the fitted object's size is outside its category's range
     TOO_FEW_INLIERS = "too_few_inliers"  # too small a share of the points agrees with the fit
     LARGE_RESIDUAL = "large_residual"  # the points lie far from the fitted parts (far above validation frames)
+    NO_OBJECT = "no_object"  # no candidate segment of the image passed the checks: the object is not found
+    NOT_THIS_CATEGORY = "not_this_category"  # the fitted segment does not look like an object of the category
 
 
 @dataclass(frozen=True)

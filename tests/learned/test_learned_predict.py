@@ -53,7 +53,8 @@ def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rend
     assert code == (0 if data["ok"] else 1)  # a failed status exits non-zero
     assert data["points"] == 256 and data["valid_pixels"] > 256
     assert data["status"] in {"success", "max_iter", "infeasible", "numerical_failure", "too_few_points", "degenerate",
-                              "implausible_size", "too_few_inliers", "large_residual"}
+                              "implausible_size", "too_few_inliers", "large_residual", "no_object",
+                              "not_this_category"}
     assert [p["name"] for p in data["parts"]] == list(frame.part_names)
     assert [j["name"] for j in data["joints"]] == list(frame.joint_names)
     assert data["input"]["intrinsics"] == frame.intrinsics.to_json()
@@ -65,7 +66,7 @@ def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rend
         unc = data["uncertainty"]
         assert unc["inflation"]["source"] == "raw"  # weights other than the shipped ones: no measured factors
         assert len(unc["parts"]) == len(data["parts"]) and len(unc["joints"]) == len(data["joints"])
-    assert set(data["timings_ms"]) == {"isolate", "backproject", "network", "fit", "total"}
+    assert set(data["timings_ms"]) == {"isolate", "verify", "backproject", "network", "fit", "render_compare", "total"}
 
 
 def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, rendered):

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "calibration_path", "fit_features", "probability_good"]
+__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "OBJECT_FEATURES", "calibration_path", "fit_features", "object_calibration_path",
+           "object_features", "probability_good"]
 
 FEATURES = ("inlier_ratio_min", "residual_rel_max", "seg_margin_min", "seg_margin_mean", "log_points")
 #: A fit is "good" when every part's rotation error is below this (degrees).
@@ -61,3 +62,37 @@ def probability_good(calibration: dict, x) -> float:
     return float(expit(z @ np.asarray(calibration["coef"]) + calibration["intercept"]))
 
 
+
+
+# --- is it the category's object at all? -------------------------------------------------------------
+#: Features of P(the fitted segment is an object of the category) (:mod:`ancsh.studies.object_evidence`):
+#: render-and-compare of the fitted category template (:func:`ancsh.solvers.render_compare.compare_fit`: the
+#: share of the segment's pixels it explains, the share of its own pixels the sensor sees through, the
+#: median residual relative to the object's size), the fitted object's size against the category's typical
+#: one (log ratio, and its absolute value), and the fit's lowest part inlier ratio and mean segmentation margin.
+OBJECT_FEATURES = ("explained", "see_through", "residual_rel", "log_size_ratio", "abs_log_size_ratio",
+                   "inlier_ratio_min", "seg_margin_mean")
+
+
+def object_calibration_path(category: str) -> Path:
+    """``ancsh/weights/<category>_object.json``."""
+    from ..network.weights import WEIGHTS_DIR
+
+    return WEIGHTS_DIR / f"{category}_object.json"
+
+
+def object_features(comparison, diagonal: float, quality, category: str) -> np.ndarray:
+    """``(len(OBJECT_FEATURES),)`` float64 from a :class:`~ancsh.solvers.render_compare.DepthComparison`, the fitted
+    object's diagonal (metres) and the fit's per-part quality (NaN entries count as worst)."""
+    from ...data.procedural import CATEGORY_INFO
+
+    size = CATEGORY_INFO[category].typical_size
+    base = fit_features(quality, category)
+
+    def clean(x, worst):
+        return float(x) if x is not None and np.isfinite(x) else worst
+
+    ratio = float(np.log(max(diagonal, 1e-6) / size))
+    return np.array([clean(comparison.explained, 0.0), clean(comparison.see_through, 1.0),
+                     min(clean(comparison.median_abs_residual_m, size) / max(diagonal, 1e-6), 1.0), ratio, abs(ratio),
+                     base[0], base[3]])

@@ -20,13 +20,27 @@ import numpy as np
 
 from ...data.images import read_depth, read_intrinsics, read_mask  # noqa: F401 - re-exported
 from ...data.render import Intrinsics
+from .checks import (  # noqa: F401 - re-exported
+    MAX_RELATIVE_RESIDUAL,
+    MIN_INLIER_RATIO,
+    MIN_P_OBJECT,
+    SIZE_TOLERANCE,
+    check_confidence,
+    check_plausibility,
+    object_diagonal,
+    part_quality,
+)
+from .picture import draw_prediction  # noqa: F401 - re-exported
 
 __all__ = [
     "MIN_POINTS",
     "SIZE_TOLERANCE",
     "MIN_INLIER_RATIO",
     "MAX_RELATIVE_RESIDUAL",
+    "MAX_VERIFIED",
+    "MIN_P_OBJECT",
     "DepthPrediction",
+    "check_confidence",
     "check_plausibility",
     "check_weights_category",
     "part_quality",
@@ -41,15 +55,8 @@ __all__ = [
 
 #: Fewer valid points than this: no fit is tried (status ``too_few_points``).
 MIN_POINTS = 100
-#: A fit is plausible when the object's box diagonal lies in the category's rest-state range
-#: ``diagonal_range`` widened by this factor both ways (articulation changes the box, and real
-#: objects vary beyond the procedural ones).
-SIZE_TOLERANCE = 1.5
-#: Smallest share of inlier points, overall and for every part with at least 20 points.
-MIN_INLIER_RATIO = 0.5
-#: Largest median residual of a part (with at least 20 points) as a fraction of the category's typical
-#: size: on noisy rendered validation frames of the five categories it stays within 0.01-0.08.
-MAX_RELATIVE_RESIDUAL = 0.25
+#: Isolation without a hint fits at most this many candidate segments and keeps the best supported.
+MAX_VERIFIED = 5
 
 
 # --------------------------------------------------------------------------------------------
@@ -135,7 +142,8 @@ class DepthPrediction:
         The weights file used.
     valid_pixels : int
     timings_ms : dict
-        ``isolate`` (0 with a mask), ``backproject``, ``network``, ``fit``, ``total`` (milliseconds).
+        ``isolate`` (segmenting the image; 0 with a mask), ``verify`` (fitting the candidate segments, all
+        of them), ``backproject``, ``network``, ``fit`` (the chosen candidate's), ``total`` (milliseconds).
     joint_types : tuple of str
         ``"revolute"`` / ``"prismatic"`` per joint.
     joint_parents, joint_children : tuple of int
@@ -154,6 +162,12 @@ class DepthPrediction:
     p_good : float or None
         Calibrated probability that every part's rotation error is below 10 deg
         (:mod:`ancsh.learned.inference.confidence`); ``None`` without a calibration for the category or a fit.
+    p_object : float or None
+        Calibrated probability that the fitted pixels are an object of the category (render-and-compare and
+        size, :mod:`ancsh.studies.object_evidence`); ``None`` without that calibration or a fit.
+    render_compare : DepthComparison or None
+        The fitted category template rendered and compared with the observed depth
+        (:func:`ancsh.solvers.render_compare.compare_fit`), where there is a mask or an isolated segment.
     """
 
     category: str
@@ -176,6 +190,8 @@ class DepthPrediction:
     isolation: object = None
     part_quality: tuple = ()
     p_good: float | None = None
+    p_object: float | None = None
+    render_compare: object = None
 
     def to_json(self) -> dict:
         """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
@@ -214,7 +230,9 @@ class DepthPrediction:
             "max_constraint_violation": float(r.max_constraint_violation),
             "points": int(self.points_cam.shape[0]), "valid_pixels": int(self.valid_pixels),
             "confidence": {"p_good": self.p_good, "good": "every part's rotation error below 10 deg",
-                           "calibration": "ancsh calibrate (docs/results/<category>_confidence.md)"},
+                           "calibration": "ancsh calibrate (docs/results/<category>_confidence.md)",
+                           "p_object": self.p_object, "object": "the fitted pixels are an object of the category"},
+            "render_compare": None if self.render_compare is None else self.render_compare.to_dict(),
             "notes": list(self.notes), "isolation": None if self.isolation is None else self.isolation.to_dict(),
             "parts": parts, "joints": joints,
             "uncertainty": None if getattr(r, "uncertainty", None) is None else r.uncertainty.to_dict(),
@@ -293,8 +311,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         Bad inputs (shapes, empty depth after masking, depths that look like millimetres, unknown formulation).
     """
     from ...data.images import MAX_PLAUSIBLE_DEPTH
-    from ...solvers import FORMULATIONS, Observation, fit
-    from ...solvers.types import FitResult, FitStatus
+    from ...solvers import FORMULATIONS
     from .provider import LearnedProvider
     from ..network.weights import weights_path
 
@@ -316,72 +333,189 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
                          "(divide by 1000)")
     notes = []
     isolation = None
-    t_iso = 0.0
+    t_iso = t_verify = 0.0
+    part_names, joint_names = _names(category, provider.network.num_parts, len(provider.network.revolute))
     t0 = time.perf_counter()
     if mask is None and isolate:
         from ...data.isolate import isolate_object
 
         isolation = isolate_object(d, intrinsics, category, hint=hint, max_depth=max_depth, rng=seed)
         t_iso = time.perf_counter() - t0
-        mask = isolation.mask
-        notes.append(isolation.summary())
     elif mask is not None and hint is not None:
         notes.append("a mask was given: the hint is ignored")
-    if isolation is not None and isolation.chosen is None:  # nothing but planes / noise: no object to fit
-        pts, pixels, valid = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), 0
+    if isolation is None:  # a mask (or every valid pixel): one attempt
+        best = _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
+    elif isolation.chosen is None:  # nothing but planes / noise: no object to fit
+        best = _attempt(d, intrinsics, None, category, provider, formulation, num_points, seed, max_depth, refine,
+                        why=f"no object found ({isolation.reason})")
     else:
-        pts, pixels, valid = depth_to_points(d, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points,
-                                             rng=seed)
-    t_bp = time.perf_counter() - t0
-    if 0 < valid < num_points:
-        notes.append(f"{valid} valid pixels, fewer than the {num_points} points asked for: all of them are used "
-                     f"(the network pads its input to {provider.network.config.num_points} points with repeats)")
-    part_names, joint_names = _names(category, provider.network.num_parts, len(provider.network.revolute))
-    if valid < MIN_POINTS:
-        K = len(joint_names)
-        why = f"no object found ({isolation.reason})" if valid == 0 else f"{valid} valid points"
-        result = FitResult.failure(FitStatus.TOO_FEW_POINTS, f"check min_points: {why}, at least "
-                                   f"{MIN_POINTS} are needed for a fit", formulation=formulation, solver="none",
-                                   num_joints=K, num_points=len(pts))
-        labels = np.zeros(len(pts), dtype=np.int64)
-        quality = ()
-        p_good = None
-        t_net = 0.0
-        types = tuple("revolute" if r else "prismatic" for r in provider.network.revolute)
-        parents, children = provider.network.joint_parents, provider.network.joint_children
-    else:
-        obs = Observation(pts)
         t0 = time.perf_counter()
-        corr, raw = infer(provider, obs)
-        t_net = time.perf_counter() - t0
-        result = fit(obs, corr, formulation, rng=seed)
-        template_fit = False
-        if result.ok and formulation != "per_part":
-            refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
-            if refined is not None:
-                result, template_fit = refined.result, refined.accepted
-                notes.append(f"category-template refinement: {'kept' if refined.accepted else 'not kept'} "
-                             f"({refined.reason}; template {refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")
-        labels = np.asarray(corr.part_labels)
-        quality = part_quality(result, pts, corr, raw)
-        result = check_plausibility(result, labels, category, quality)
-        result = inflate_uncertainty(result, category, provider, template=template_fit)
-        p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
-        types = tuple(t.value for t in corr.joint_types)
-        parents, children = corr.joint_parents, corr.joint_children
+        best, isolation = _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points,
+                                             seed, max_depth, refine)
+        t_verify = time.perf_counter() - t0
+    if isolation is not None:
+        notes.append(isolation.summary())
+    notes += best["notes"]
+    if 0 < best["valid"] < num_points:
+        notes.append(f"{best['valid']} valid pixels, fewer than the {num_points} points asked for: all of them are used "
+                     f"(the network pads its input to {provider.network.config.num_points} points with repeats)")
+    result = best["result"]
+    t_net = best["t_net"]
+    pts, pixels, valid, labels, quality, p_good = (best[k] for k in ("pts", "pixels", "valid", "labels", "quality", "p_good"))
+    types, parents, children = best["types"], best["parents"], best["children"]
+    t_bp = best["t_bp"]
     rest, rest_text = _rest_states(category, len(joint_names))
     return DepthPrediction(
         category=str(category), result=result, points_cam=pts, pixels=pixels, part_labels=labels,
         part_names=part_names, joint_names=joint_names, weights=str(provider.network.source), valid_pixels=valid,
-        timings_ms={"isolate": 1e3 * t_iso, "backproject": 1e3 * (t_bp - t_iso), "network": 1e3 * t_net, "fit": 1e3 * result.time_s,
+        timings_ms={"isolate": 1e3 * t_iso, "verify": 1e3 * t_verify, "backproject": 1e3 * t_bp, "network": 1e3 * t_net,
+                    "fit": 1e3 * result.time_s, "render_compare": 1e3 * best["t_compare"],
                     "total": 1e3 * (time.perf_counter() - t_start)},
         joint_types=types,
         joint_parents=tuple(int(p) for p in parents),
         joint_children=tuple(int(c) for c in children),
         joint_rest=rest, rest_description=rest_text,
         weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
-        part_quality=quality, p_good=p_good,
+        part_quality=quality, p_good=p_good, p_object=best["p_object"], render_compare=best["comparison"],
     )
+
+
+def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
+             object_gate: bool = True) -> dict:
+    """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit (one candidate).
+
+    ``object_gate=False`` measures the object evidence without letting ``p_object`` fail the fit (for the
+    study that calibrates ``p_object``)."""
+    from ...solvers import Observation, fit
+    from ...solvers.types import FitResult, FitStatus
+
+    t0 = time.perf_counter()
+    if why is not None:
+        pts, pixels, valid = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), 0
+    else:
+        pts, pixels, valid = depth_to_points(d, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points, rng=seed)
+    t_bp = time.perf_counter() - t0
+    notes = []
+    if valid < MIN_POINTS:
+        K = len(provider.network.revolute)
+        why = why or f"{valid} valid points"
+        result = FitResult.failure(FitStatus.TOO_FEW_POINTS, f"check min_points: {why}, at least "
+                                   f"{MIN_POINTS} are needed for a fit", formulation=formulation, solver="none",
+                                   num_joints=K, num_points=len(pts))
+        return {"result": result, "pts": pts, "pixels": pixels, "valid": valid, "labels": np.zeros(len(pts), dtype=np.int64),
+                "quality": (), "p_good": None, "p_object": None, "comparison": None, "t_compare": 0.0, "t_net": 0.0,
+                "t_bp": t_bp, "notes": notes,
+                "types": tuple("revolute" if r else "prismatic" for r in provider.network.revolute),
+                "parents": provider.network.joint_parents, "children": provider.network.joint_children}
+    obs = Observation(pts)
+    t0 = time.perf_counter()
+    corr, raw = infer(provider, obs)
+    t_net = time.perf_counter() - t0
+    result = fit(obs, corr, formulation, rng=seed)
+    template_fit = False
+    if result.ok and formulation != "per_part":
+        refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
+        if refined is not None:
+            result, template_fit = refined.result, refined.accepted
+            notes.append(f"category-template refinement: {'kept' if refined.accepted else 'not kept'} "
+                         f"({refined.reason}; template {refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")
+    labels = np.asarray(corr.part_labels)
+    quality = part_quality(result, pts, corr, raw)
+    result = check_plausibility(result, labels, category, quality)
+    result = inflate_uncertainty(result, category, provider, template=template_fit)
+    p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
+    comparison, p_object, t_rc = None, None, 0.0
+    if result.ok and mask is not None:
+        t0 = time.perf_counter()
+        comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider)
+        t_rc = time.perf_counter() - t0
+    if object_gate:
+        result = check_confidence(result, p_object)
+    return {"result": result, "pts": pts, "pixels": pixels, "valid": valid, "labels": labels, "quality": quality,
+            "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
+            "t_net": t_net, "t_bp": t_bp, "notes": notes,
+            "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
+
+
+def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider) -> tuple:
+    """Render-and-compare of the fit (:func:`ancsh.solvers.render_compare.compare_fit`) and the calibrated
+    P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
+    import json
+
+    from ...data.procedural import CATEGORY_INFO
+    from ...data.templates import load_template_library
+    from ...solvers.render_compare import compare_fit
+    from .confidence import object_calibration_path, object_features, probability_good
+
+    if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
+        return None, None
+    try:
+        comparison, _ = compare_fit(result, corr, load_template_library(category), depth, intrinsics, mask)
+    except ValueError:  # a fit without the joints or boxes a template needs
+        return None, None
+    if comparison is None:
+        return None, None
+    path = object_calibration_path(category)
+    if not path.is_file():
+        return comparison, None
+    calibration = json.loads(path.read_text())
+    if calibration.get("weights_sha256") != getattr(provider.network, "sha256", None):
+        return comparison, None
+    x = object_features(comparison, object_diagonal(result.boxes_cam), quality, category)
+    return comparison, probability_good(calibration, x)
+
+
+def _score(attempt) -> float:
+    """How well a candidate's fit is supported (higher is better; -1 for a failed fit): its calibrated
+    ``p_object`` where there is one, else the share of its pixels its rendered template explains times the
+    share it does not see through, else 0."""
+    if attempt["p_object"] is not None:
+        return float(attempt["p_object"]) if attempt["result"].ok else -1.0 + 1e-3 * float(attempt["p_object"])
+    if not attempt["result"].ok:
+        return -1.0
+    c = attempt["comparison"]
+    if c is None or not (np.isfinite(c.explained) and np.isfinite(c.see_through)):
+        return 0.0
+    return float(c.explained * (1.0 - c.see_through))
+
+
+def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points, seed, max_depth,
+                       refine) -> tuple[dict, object]:
+    """Fit the isolation's candidates and choose (the module's verification; see :func:`predict_depth`).
+
+    With a hint the first candidate (the segment under the hint) is the user's choice: it is fitted
+    and judged alone. Without one, up to :data:`MAX_VERIFIED` candidates whose size fits the category
+    (or the first, when none does) are fitted; the best-supported fit that passes every check wins.
+    When none passes, the best-supported one comes back with status ``no_object``.
+    """
+    import dataclasses
+
+    from ...solvers.types import FitStatus
+
+    if hint is not None:
+        chosen = isolation.order[:1]
+    else:
+        chosen = [c for c in isolation.order if isolation.clusters[c].fits_category][:MAX_VERIFIED] or isolation.order[:1]
+    attempts, verified = {}, []
+    for c in chosen:
+        a = _attempt(d, intrinsics, isolation.mask_of(c), category, provider, formulation, num_points, seed, max_depth, refine)
+        attempts[c] = a
+        verified.append({"segment": int(c), "status": a["result"].status.value, "p_good": a["p_good"],
+                         "p_object": a["p_object"], "score": _score(a), "diagonal_m": isolation.clusters[c].diagonal,
+                         "render_compare": None if a["comparison"] is None else a["comparison"].to_dict()})
+    best = max(attempts, key=lambda c: _score(attempts[c]))
+    a = attempts[best]
+    if hint is not None:
+        return a, isolation.with_choice(best, isolation.reason, verified)
+    if a["result"].ok:
+        why = (f"{isolation.reason}; of {len(attempts)} candidate(s) fitted, segment {best} is the best supported"
+               if len(attempts) > 1 else isolation.reason)
+        return a, isolation.with_choice(best, why, verified)
+    failures = "; ".join(f"segment {v['segment']} ({v['diagonal_m']:.2f} m): {v['status']}" for v in verified)
+    a = dict(a)
+    a["result"] = dataclasses.replace(a["result"], status=FitStatus.NO_OBJECT, message=(
+        f"check object: no candidate passed its checks, the {category} is not found ({failures})"))
+    return a, isolation.with_choice(best, f"no candidate passed: the best supported shown ({failures})", verified)
 
 
 def inflate_uncertainty(result, category: str, provider, *, template: bool = False, tracked: str | None = None):
@@ -435,102 +569,6 @@ def infer(provider, observation):
     return corr, getattr(provider, "last_prediction", None)
 
 
-def part_quality(result, points_cam, corr, prediction=None) -> tuple:
-    """Per-part evidence for a fit (see :attr:`DepthPrediction.part_quality`); NaN where undefined.
-
-    Parameters
-    ----------
-    result : FitResult
-    points_cam : (N, 3) float64
-        Observed points, camera frame, metres.
-    corr : Correspondences
-        Their part labels and NPCS.
-    prediction : Prediction, optional
-        The network's raw output (for the segmentation margin).
-    """
-    labels = np.asarray(corr.part_labels)
-    inl = np.asarray(result.inliers, dtype=bool)
-    margin = np.full(len(labels), np.nan)
-    if prediction is not None and prediction.seg_prob.shape[0] == len(labels) and prediction.seg_prob.shape[1] > 1:
-        top2 = np.sort(prediction.seg_prob, axis=1)[:, -2:]
-        margin = top2[:, 1] - top2[:, 0]
-    out = []
-    for j in range(corr.num_parts):
-        sel = labels == j
-        n = int(np.count_nonzero(sel))
-        rec = {"points": n, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": float("nan")}
-        if n:
-            rec["seg_margin"] = float(np.mean(margin[sel])) if np.isfinite(margin[sel]).all() else float("nan")
-            if inl.shape == labels.shape:
-                rec["inlier_ratio"] = float(inl[sel].mean())
-            if j < len(result.T_cam_npcs):
-                fitted = result.T_cam_npcs[j].apply(np.asarray(corr.npcs)[sel])
-                rec["residual_m"] = float(np.median(np.linalg.norm(fitted - points_cam[sel], axis=1)))
-        out.append(rec)
-    return tuple(out)
-
-
-def check_plausibility(result, part_labels, category: str, quality=()):
-    """The fit with a failed status naming the first check it fails (or unchanged).
-
-    Checks, in order: ``too_few_inliers`` (under :data:`MIN_INLIER_RATIO` of all points, or of a
-    part's points for parts with at least 20 points), ``implausible_size`` (the diagonal of the
-    box around all part boxes, in the base part's box frame, outside the category's
-    ``diagonal_range`` widened by :data:`SIZE_TOLERANCE`), ``large_residual`` (a part's median
-    residual above :data:`MAX_RELATIVE_RESIDUAL` of the category's typical size); the last two
-    only for the procedural categories.
-
-    Parameters
-    ----------
-    result : FitResult
-    part_labels : (N,) int
-        The predicted part of each observed point.
-    category : str
-    quality : sequence of dict, optional
-        :func:`part_quality` of the fit (for the residual check).
-    """
-    import dataclasses
-
-    from ...data.procedural import CATEGORY_INFO
-    from ...solvers.types import FitStatus
-
-    if not result.ok:
-        return result
-    labels = np.asarray(part_labels)
-    inl = np.asarray(result.inliers, dtype=bool)
-    if inl.shape == labels.shape and inl.size:
-        ratios = {j: float(inl[labels == j].mean()) for j in np.unique(labels) if np.count_nonzero(labels == j) >= 20}
-        worst = min(ratios, key=ratios.get) if ratios else None
-        if inl.mean() < MIN_INLIER_RATIO or (worst is not None and ratios[worst] < MIN_INLIER_RATIO):
-            return dataclasses.replace(result, status=FitStatus.TOO_FEW_INLIERS, message=(
-                f"check inliers: {100 * inl.mean():.0f}% of the points are inliers (part {worst}: "
-                f"{100 * ratios.get(worst, float('nan')):.0f}%), at least {100 * MIN_INLIER_RATIO:.0f}% are needed"))
-    info = CATEGORY_INFO.get(category)
-    if info is not None and result.boxes_cam:
-        lo, hi = info.diagonal_range
-        diag = object_diagonal(result.boxes_cam)
-        if not lo / SIZE_TOLERANCE <= diag <= hi * SIZE_TOLERANCE:
-            return dataclasses.replace(result, status=FitStatus.IMPLAUSIBLE_SIZE, message=(
-                f"check size: the fitted {category} is {diag:.3g} m across, outside {lo / SIZE_TOLERANCE:.3g}"
-                f"..{hi * SIZE_TOLERANCE:.3g} m (the category's {lo}..{hi} m, widened {SIZE_TOLERANCE}x)"))
-    if info is not None:
-        limit = MAX_RELATIVE_RESIDUAL * info.typical_size
-        for j, q in enumerate(quality):
-            if q["points"] >= 20 and q["residual_m"] > limit:
-                name = info.part_names[j] if j < len(info.part_names) else f"part{j}"
-                return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
-                    f"check residual: part {name}'s points lie {1e3 * q['residual_m']:.0f} mm (median) from the fit, "
-                    f"above {1e3 * limit:.0f} mm ({MAX_RELATIVE_RESIDUAL} of a typical {category})"))
-    return result
-
-
-def object_diagonal(boxes) -> float:
-    """Diagonal (metres) of the box around all part boxes, aligned with the first part's box."""
-    R = boxes[0].rotation
-    corners = np.concatenate([b.corners() for b in boxes]) @ R
-    return float(np.linalg.norm(np.ptp(corners, axis=0)))
-
-
 def _rest_states(category: str, K: int) -> tuple[tuple, str]:
     """Rest joint states of a procedural category (NaN otherwise) and their description."""
     from ...data.procedural import CATEGORY_INFO, load_instance
@@ -549,67 +587,3 @@ def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
     if info is not None and len(info.part_names) == M and len(info.joint_names) == K:
         return tuple(info.part_names), tuple(info.joint_names)
     return tuple(f"part{j}" for j in range(M)), tuple(f"joint{k}" for k in range(K))
-
-
-# --------------------------------------------------------------------------------------------
-# picture
-# --------------------------------------------------------------------------------------------
-def draw_prediction(depth, prediction: DepthPrediction, intrinsics: Intrinsics, *, title: str = "", rgb=None):
-    """Boxes and joint axes over the point cloud (3D) and projected on the depth (or colour) image.
-
-    Uses :func:`ancsh.data.show.draw_fit` and puts the depth image, or ``rgb`` when given
-    (``(H, W, 3)`` uint8, registered to the depth), under its image-plane panel; a legend names the
-    parts. Returns a matplotlib ``Figure`` (Agg).
-    """
-    from matplotlib import colormaps
-    from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
-
-    from ...data.show import draw_fit
-
-    r = prediction.result
-    fig = Figure(figsize=(14, 6), dpi=100)
-    if prediction.points_cam.shape[0] == 0:  # nothing fitted: the depth image and the isolation only
-        ax = fig.add_subplot(1, 1, 1)
-        d = np.asarray(depth, dtype=np.float64)
-        ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest")
-        _draw_isolation(ax, prediction.isolation)
-        ax.set_title(title or f"{prediction.category}: {r.status.value}: {r.message}", fontsize=9)
-        return fig
-    title = title or (f"{prediction.category}: {r.formulation} fit, status {r.status.value} "
-                      f"({prediction.points_cam.shape[0]} points)")
-    draw_fit(prediction.points_cam, r, intrinsics, labels=prediction.part_labels, title=title, fig=fig)
-    handles = [Line2D([], [], marker="o", linestyle="", color=colormaps["tab10"](j % 10), label=name)
-               for j, name in enumerate(prediction.part_names)]
-    fig.axes[0].legend(handles=handles, loc="upper left", fontsize=8, title="parts", title_fontsize=8)
-    ax = fig.axes[-1]
-    xlim, ylim = ax.get_xlim(), ax.get_ylim()
-    d = np.asarray(depth, dtype=np.float64)
-    extent = (-0.5, d.shape[1] - 0.5, d.shape[0] - 0.5, -0.5)
-    if rgb is None:
-        im = ax.imshow(np.ma.masked_where(d <= 0, d), cmap="gray", interpolation="nearest", zorder=0, extent=extent)
-    else:
-        ax.imshow(np.asarray(rgb), interpolation="nearest", zorder=0, extent=extent)
-    for coll in ax.collections:
-        coll.set_alpha(0.35)
-    # the whole image, or more where the projected boxes reach beyond it
-    ax.set_xlim(min(xlim[0], extent[0]), max(xlim[1], extent[1]))
-    ax.set_ylim(max(ylim[0], extent[2]), min(ylim[1], extent[3]))
-    if rgb is None:
-        fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8)
-    _draw_isolation(ax, prediction.isolation)
-    ax.set_title(("colour" if rgb is not None else "depth") + " image: boxes (part colours) and joint axes (black) projected"
-                 + ("; isolated object outlined in red, other clusters in blue" if prediction.isolation is not None else ""),
-                 fontsize=9)
-    return fig
-
-
-def _draw_isolation(ax, isolation) -> None:
-    """Outline the chosen cluster (red) and the others (blue) of an :class:`~ancsh.data.isolate.Isolation`."""
-    if isolation is None:
-        return
-    others = (isolation.labels >= 0) & ~isolation.mask
-    if others.any():
-        ax.contour(others.astype(float), levels=[0.5], colors="tab:blue", linewidths=0.8)
-    if isolation.mask.any():
-        ax.contour(isolation.mask.astype(float), levels=[0.5], colors="red", linewidths=1.2)

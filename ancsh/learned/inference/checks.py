@@ -1,0 +1,140 @@
+"""The checks a fit of ``ancsh predict`` passes before it is a ``success``: per-part evidence, plausibility, object evidence.
+
+:func:`part_quality` measures each part's evidence (points, inliers, residual, segmentation margin);
+:func:`check_plausibility` fails a fit whose inliers, size or residual are implausible for the category;
+:func:`check_confidence` fails a fit whose calibrated ``p_object`` says the pixels are not the category's object.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["MAX_RELATIVE_RESIDUAL", "MIN_INLIER_RATIO", "MIN_P_OBJECT", "SIZE_TOLERANCE", "check_confidence",
+           "check_plausibility", "object_diagonal", "part_quality"]
+
+#: A fit is plausible when the object's box diagonal lies in the category's rest-state range
+#: ``diagonal_range`` widened by this factor both ways (articulation changes the box, and real
+#: objects vary beyond the procedural ones).
+SIZE_TOLERANCE = 1.5
+#: Smallest share of inlier points, overall and for every part with at least 20 points.
+MIN_INLIER_RATIO = 0.5
+#: Largest median residual of a part (with at least 20 points) as a fraction of the category's typical
+#: size: on noisy rendered validation frames of the five categories it stays within 0.01-0.08.
+MAX_RELATIVE_RESIDUAL = 0.25
+#: A fit whose calibrated probability of being an object of the category (``p_object``, render-and-compare and
+#: size; :mod:`ancsh.studies.object_evidence`) is below this is reported as ``not_this_category``.
+MIN_P_OBJECT = 0.5
+
+
+def part_quality(result, points_cam, corr, prediction=None) -> tuple:
+    """Per-part evidence for a fit (see :attr:`DepthPrediction.part_quality`); NaN where undefined.
+
+    Parameters
+    ----------
+    result : FitResult
+    points_cam : (N, 3) float64
+        Observed points, camera frame, metres.
+    corr : Correspondences
+        Their part labels and NPCS.
+    prediction : Prediction, optional
+        The network's raw output (for the segmentation margin).
+    """
+    labels = np.asarray(corr.part_labels)
+    inl = np.asarray(result.inliers, dtype=bool)
+    margin = np.full(len(labels), np.nan)
+    if prediction is not None and prediction.seg_prob.shape[0] == len(labels) and prediction.seg_prob.shape[1] > 1:
+        top2 = np.sort(prediction.seg_prob, axis=1)[:, -2:]
+        margin = top2[:, 1] - top2[:, 0]
+    out = []
+    for j in range(corr.num_parts):
+        sel = labels == j
+        n = int(np.count_nonzero(sel))
+        rec = {"points": n, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": float("nan")}
+        if n:
+            rec["seg_margin"] = float(np.mean(margin[sel])) if np.isfinite(margin[sel]).all() else float("nan")
+            if inl.shape == labels.shape:
+                rec["inlier_ratio"] = float(inl[sel].mean())
+            if j < len(result.T_cam_npcs):
+                fitted = result.T_cam_npcs[j].apply(np.asarray(corr.npcs)[sel])
+                rec["residual_m"] = float(np.median(np.linalg.norm(fitted - points_cam[sel], axis=1)))
+        out.append(rec)
+    return tuple(out)
+
+
+def check_plausibility(result, part_labels, category: str, quality=()):
+    """The fit with a failed status naming the first check it fails (or unchanged).
+
+    Checks, in order: ``too_few_inliers`` (under :data:`MIN_INLIER_RATIO` of all points, or of a
+    part's points for parts with at least 20 points), ``implausible_size`` (the diagonal of the
+    box around all part boxes, in the base part's box frame, outside the category's
+    ``diagonal_range`` widened by :data:`SIZE_TOLERANCE`), ``large_residual`` (a part's median
+    residual above :data:`MAX_RELATIVE_RESIDUAL` of the category's typical size); the last two
+    only for the procedural categories.
+
+    Parameters
+    ----------
+    result : FitResult
+    part_labels : (N,) int
+        The predicted part of each observed point.
+    category : str
+    quality : sequence of dict, optional
+        :func:`part_quality` of the fit (for the residual check).
+    """
+    import dataclasses
+
+    from ...data.procedural import CATEGORY_INFO
+    from ...solvers.types import FitStatus
+
+    if not result.ok:
+        return result
+    labels = np.asarray(part_labels)
+    inl = np.asarray(result.inliers, dtype=bool)
+    if inl.shape == labels.shape and inl.size:
+        ratios = {j: float(inl[labels == j].mean()) for j in np.unique(labels) if np.count_nonzero(labels == j) >= 20}
+        worst = min(ratios, key=ratios.get) if ratios else None
+        if inl.mean() < MIN_INLIER_RATIO or (worst is not None and ratios[worst] < MIN_INLIER_RATIO):
+            return dataclasses.replace(result, status=FitStatus.TOO_FEW_INLIERS, message=(
+                f"check inliers: {100 * inl.mean():.0f}% of the points are inliers (part {worst}: "
+                f"{100 * ratios.get(worst, float('nan')):.0f}%), at least {100 * MIN_INLIER_RATIO:.0f}% are needed"))
+    info = CATEGORY_INFO.get(category)
+    if info is not None and result.boxes_cam:
+        lo, hi = info.diagonal_range
+        diag = object_diagonal(result.boxes_cam)
+        if not lo / SIZE_TOLERANCE <= diag <= hi * SIZE_TOLERANCE:
+            return dataclasses.replace(result, status=FitStatus.IMPLAUSIBLE_SIZE, message=(
+                f"check size: the fitted {category} is {diag:.3g} m across, outside {lo / SIZE_TOLERANCE:.3g}"
+                f"..{hi * SIZE_TOLERANCE:.3g} m (the category's {lo}..{hi} m, widened {SIZE_TOLERANCE}x)"))
+    if info is not None:
+        limit = MAX_RELATIVE_RESIDUAL * info.typical_size
+        for j, q in enumerate(quality):
+            if q["points"] >= 20 and q["residual_m"] > limit:
+                name = info.part_names[j] if j < len(info.part_names) else f"part{j}"
+                return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
+                    f"check residual: part {name}'s points lie {1e3 * q['residual_m']:.0f} mm (median) from the fit, "
+                    f"above {1e3 * limit:.0f} mm ({MAX_RELATIVE_RESIDUAL} of a typical {category})"))
+    return result
+
+
+def object_diagonal(boxes) -> float:
+    """Diagonal (metres) of the box around all part boxes, aligned with the first part's box."""
+    R = boxes[0].rotation
+    corners = np.concatenate([b.corners() for b in boxes]) @ R
+    return float(np.linalg.norm(np.ptp(corners, axis=0)))
+
+
+def check_confidence(result, p_object):
+    """The fit with status ``not_this_category`` when its calibrated ``p_object`` is below :data:`MIN_P_OBJECT`
+    (or unchanged).
+
+    ``p_good`` does not gate the status: it is calibrated on renders of the category alone, where the
+    evidence it uses varies little, so outside them (a noise-free render, another sensor) it swings to 0
+    or 1 on small changes; it is reported for what it is."""
+    import dataclasses
+
+    from ...solvers.types import FitStatus
+
+    if result.ok and p_object is not None and p_object < MIN_P_OBJECT:
+        return dataclasses.replace(result, status=FitStatus.NOT_THIS_CATEGORY, message=(
+            f"check object: the calibrated probability that the fitted segment is an object of this category is "
+            f"{p_object:.2f}, below {MIN_P_OBJECT} (render-and-compare and size against the category's objects)"))
+    return result

@@ -1,0 +1,159 @@
+"""Render-and-compare: does a fitted model explain the depth the sensor saw?
+
+:func:`render_fit` reshapes the category template nearest to a fit (:mod:`ancsh.solvers.icp.category`)
+to the fitted part boxes, poses it at the fitted object pose and joint states and renders its depth
+from the input camera with the project's renderer (:class:`ancsh.data.render.ModelRenderer`).
+:func:`compare_depth` compares a model depth image with the observed one:
+
+- **explained**: the share of the object's observed pixels where the model's surface lies within
+  the tolerance of the observed depth;
+- **see-through**: the share of the model's pixels (where the sensor measured something) where the sensor
+  saw *beyond* the model's surface by more than the tolerance (free space where the model claims a solid:
+  the model cannot be there); pixels where the sensor saw something nearer are occlusions and count as
+  neither, pixels without a measurement (holes, or nothing behind a rendered object) are left out;
+- **median residual**: the median of ``|observed - model|`` over the object's pixels where both have depth;
+- the per-pixel residual map ``observed - model`` (metres, NaN where either has no depth).
+
+The tolerance grows with depth (:data:`ABS_TOLERANCE_M` plus :data:`REL_TOLERANCE` of the depth):
+sensor noise and a template that is not the instance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["ABS_TOLERANCE_M", "REL_TOLERANCE", "DepthComparison", "compare_depth", "compare_fit", "crop_intrinsics",
+           "mask_window", "render_fit"]
+
+#: Depth agreement tolerance: this many metres plus :data:`REL_TOLERANCE` times the depth.
+ABS_TOLERANCE_M = 0.015
+REL_TOLERANCE = 0.02
+
+
+@dataclass(frozen=True)
+class DepthComparison:
+    """What :func:`compare_depth` measured (see the module docstring).
+
+    Attributes
+    ----------
+    explained : float
+        Share of the object's observed pixels the model explains (0..1; NaN without object pixels).
+    see_through : float
+        Share of the model's pixels where the sensor saw beyond the model (0..1; NaN without model pixels).
+    median_abs_residual_m : float
+        Metres, over the object's pixels where the model has depth (NaN when there are none).
+    object_pixels : int
+        The object's pixels with a measurement.
+    model_pixels : int
+        The model's pixels with a measurement.
+    residual : (H, W) float64
+        ``observed - model`` in metres; NaN where either has no depth.
+    """
+
+    explained: float
+    see_through: float
+    median_abs_residual_m: float
+    object_pixels: int
+    model_pixels: int
+    residual: np.ndarray
+
+    def to_dict(self) -> dict:
+        return {"explained": self.explained, "see_through": self.see_through,
+                "median_abs_residual_m": self.median_abs_residual_m, "object_pixels": self.object_pixels,
+                "model_pixels": self.model_pixels}
+
+
+def compare_depth(model_depth, observed_depth, object_mask) -> DepthComparison:
+    """Compare a rendered model depth with the observed depth (module docstring).
+
+    Parameters
+    ----------
+    model_depth, observed_depth : (H, W) float64
+        Metres, 0 = nothing rendered / no measurement.
+    object_mask : (H, W) bool
+        The object's observed pixels.
+    """
+    m = np.asarray(model_depth, dtype=np.float64)
+    o = np.asarray(observed_depth, dtype=np.float64)
+    mask = np.asarray(object_mask, dtype=bool)
+    if m.shape != o.shape or mask.shape != o.shape:
+        raise ValueError(f"model_depth, observed_depth, object_mask: expected one shape, got {m.shape}, {o.shape}, {mask.shape}")
+    has_m, has_o = m > 0, o > 0
+    both = has_m & has_o
+    residual = np.full(o.shape, np.nan)
+    residual[both] = o[both] - m[both]
+    tol = ABS_TOLERANCE_M + REL_TOLERANCE * np.where(has_o, o, m)
+    obj = mask & has_o
+    n_obj, n_model = int(np.count_nonzero(obj)), int(np.count_nonzero(both))
+    explained = float(np.count_nonzero(obj & both & (np.abs(o - m) <= tol)) / n_obj) if n_obj else float("nan")
+    see_through = float(np.count_nonzero(both & (o - m > tol)) / n_model) if n_model else float("nan")
+    on_obj = obj & both
+    med = float(np.median(np.abs(residual[on_obj]))) if on_obj.any() else float("nan")
+    return DepthComparison(explained, see_through, med, n_obj, n_model, residual)
+
+
+def crop_intrinsics(intrinsics, box):
+    """The intrinsics of the image window ``box = (u0, v0, u1, v1)`` (pixels, end exclusive)."""
+    from ..data.render import Intrinsics
+
+    u0, v0, u1, v1 = (int(x) for x in box)
+    return Intrinsics(fx=intrinsics.fx, fy=intrinsics.fy, cx=intrinsics.cx - u0, cy=intrinsics.cy - v0,
+                      width=u1 - u0, height=v1 - v0)
+
+
+def mask_window(mask, margin: float = 0.5) -> tuple:
+    """``(u0, v0, u1, v1)``: the mask's bounding box grown by ``margin`` of its size on each side, inside the image."""
+    vs, us = np.nonzero(mask)
+    H, W = mask.shape
+    du, dv = margin * (us.max() - us.min() + 1), margin * (vs.max() - vs.min() + 1)
+    return (max(0, int(us.min() - du)), max(0, int(vs.min() - dv)), min(W, int(us.max() + du) + 1),
+            min(H, int(vs.max() + dv) + 1))
+
+
+def compare_fit(fit, corr, templates, depth, intrinsics, object_mask):
+    """:func:`render_fit` in the window around ``object_mask`` (:func:`mask_window`) and :func:`compare_depth` there.
+
+    Returns
+    -------
+    (DepthComparison or None, str)
+        ``None`` when no template is available; the template's name. The residual map covers the window.
+    """
+    u0, v0, u1, v1 = mask_window(object_mask)
+    model_depth, name = render_fit(fit, corr, templates, crop_intrinsics(intrinsics, (u0, v0, u1, v1)))
+    if model_depth is None:
+        return None, name
+    return compare_depth(model_depth, np.asarray(depth)[v0:v1, u0:u1], np.asarray(object_mask)[v0:v1, u0:u1]), name
+
+
+def render_fit(fit, corr, templates, intrinsics):
+    """Depth image ``(H, W)`` (metres, 0 = background) of the category template nearest to ``fit``, reshaped to
+    its part boxes and posed at its object pose and joint states, seen from ``intrinsics``; and the template's name.
+
+    Parameters
+    ----------
+    fit : FitResult
+        A successful articulated fit (part poses, boxes, camera joints and states).
+    corr : Correspondences
+        What it was fitted to (joint tree and types).
+    templates : TemplateLibrary
+        The category's templates (:func:`ancsh.data.templates.load_template_library`).
+    intrinsics : Intrinsics
+
+    Returns
+    -------
+    (ndarray or None, str)
+        ``None`` when no template is available here.
+    """
+    from ..data.render import ModelRenderer
+    from .icp.category import fitted_layout, fitted_template
+
+    layout = fitted_layout(fit, corr)
+    nearest = templates.nearest(layout.centres, layout.sizes, count=1)
+    if not nearest:
+        return None, "none"
+    ft = fitted_template(templates.model(nearest[0]), layout)
+    model = ft.model
+    q = np.clip(model.rest_states + fit.joint_states, model.lower_limits, model.upper_limits)
+    return ModelRenderer(model).render(q, layout.T_cam_B, intrinsics).depth, ft.source

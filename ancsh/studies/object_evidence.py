@@ -1,0 +1,183 @@
+"""``ancsh calibrate --object``: is the fitted segment an object of the category at all?
+
+The confidence model of :mod:`ancsh.studies.confidence_calibration` (``p_good``) is trained on renders of
+the category only: it says how good a fit of a *laptop* is, not whether the pixels were a laptop (on a real
+frame without one, the laptop network fitted a mug with ``p_good`` 0.99). This study trains the second
+model, ``p_object``: a logistic regression (scikit-learn) on :data:`~ancsh.learned.inference.confidence.OBJECT_FEATURES`
+(render-and-compare of the fitted category template, the fitted size, the fit's inliers and segmentation
+margin) with
+
+- **positives**: rendered, noisy depth frames of the category's held-out instances, each object's pixels as
+  the mask, as ``ancsh predict --mask`` sees them;
+- **negatives**: the same of every *other* procedural category (their held-out instances; as many frames in
+  all as positives), and as many rendered clutter frames the size of the category's objects: boxes, slabs,
+  cylinders, spheres and pieces of wall or table top, alone and in pairs.
+
+Only fits that pass the plausibility checks count (the others fail before ``p_object`` is asked). Half of
+the frames (alternating) fit the model, the other half measure it; ``--install`` writes
+``ancsh/weights/<category>_object.json``, which :func:`ancsh.learned.inference.predict.predict_depth` uses.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..learned.inference.confidence import OBJECT_FEATURES, object_features, probability_good
+from .report import Provenance, write_text
+
+__all__ = ["clutter_model", "collect_object_evidence", "fit_object_calibrator", "write_object_report"]
+
+
+def clutter_model(rng, size: float):
+    """A rigid clutter object about ``size`` metres across: a box, slab, cylinder, sphere or a piece of wall, or two of them."""
+    import trimesh
+
+    from ..model.articulated import ArticulatedModel, Part
+
+    def piece():
+        kind = rng.choice(["box", "slab", "cylinder", "sphere", "wall"])
+        s = size * rng.uniform(0.4, 1.0)
+        if kind == "box":
+            return trimesh.creation.box(s * rng.uniform(0.3, 1.0, 3))
+        if kind == "wall":  # a piece of a wall or a table top, larger than the objects
+            return trimesh.creation.box(s * np.array([rng.uniform(1.5, 3.0), 0.02, rng.uniform(1.0, 2.0)]))
+        if kind == "slab":
+            return trimesh.creation.box(s * np.array([1.0, rng.uniform(0.02, 0.1), rng.uniform(0.5, 1.0)]))
+        if kind == "cylinder":
+            return trimesh.creation.cylinder(radius=s * rng.uniform(0.1, 0.4), height=s, sections=24)
+        return trimesh.creation.icosphere(subdivisions=2, radius=s * rng.uniform(0.2, 0.5))
+
+    meshes = [piece()]
+    if rng.random() < 0.5:
+        m = piece()
+        m.apply_translation(rng.normal(0.0, 0.3 * size, 3))
+        meshes.append(m)
+    mesh = trimesh.util.concatenate(meshes)
+    mesh.apply_translation(-mesh.bounds.mean(axis=0))
+    return ArticulatedModel((Part("clutter", mesh),), (), name="clutter")
+
+
+def _features(depth, intrinsics, mask, category, provider, seed):
+    """The object features of ``ancsh predict --mask`` on one depth image, or ``None`` when the fit fails its checks."""
+    from ..learned.inference.predict import _attempt, object_diagonal
+
+    a = _attempt(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None, "provider",
+                 object_gate=False)
+    if not a["result"].ok or a["comparison"] is None:
+        return None
+    return object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category)
+
+
+def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progress: bool = True) -> dict:
+    """Features of positives and negatives (module docstring): ``frames`` positive frames, about as many negatives.
+
+    Returns
+    -------
+    dict
+        ``{"X": (F, D), "is_object": (F,) bool, "source": [str], "failed": {source: count}}``.
+    """
+    from tqdm import tqdm
+
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..data.noise import DepthNoise, apply_noise
+    from ..data.procedural import CATEGORIES, CATEGORY_INFO
+    from ..data.render import ModelRenderer, sample_viewpoint
+    from ..learned.inference.provider import LearnedProvider
+
+    if isinstance(frames, bool) or int(frames) != frames or frames < 8:
+        raise ValueError(f"frames: expected an integer >= 8, got {frames!r}")
+    provider = LearnedProvider(category, seed=seed, refine="auto")
+    others = [c for c in CATEGORIES if c != category]
+    per_other = max(4, int(frames) // len(others))
+    n_clutter = int(frames)
+    jobs = [(category, i) for i in range(int(frames))] + [(c, i) for c in others for i in range(per_other)]
+    jobs += [("clutter", i) for i in range(n_clutter)]
+    rng = np.random.default_rng(seed)
+    noise = DepthNoise()
+    gens = {}
+    X, y, src, failed = [], [], [], {}
+    for source, i in tqdm(jobs, desc=f"object evidence {category}", disable=not progress, dynamic_ncols=True):
+        if source == "clutter":
+            model = clutter_model(rng, CATEGORY_INFO[category].typical_size)
+            T = sample_viewpoint(category, rng, model, np.zeros(0))
+            from ..data.render import Intrinsics
+
+            intr = Intrinsics()
+            depth = ModelRenderer(model).render(np.zeros(0), T, intr).depth
+        else:
+            gen = gens.setdefault(source, FrameGenerator(GenerationConfig(category=source, split="test", seed=seed)))
+            frame = gen.frame(i)
+            _, renderer = gen.instance(frame.instance_index)
+            intr = frame.intrinsics
+            depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, intr).depth
+        depth = apply_noise(depth, noise, rng)
+        mask = depth > 0
+        x = _features(depth, intr, mask, category, provider, i) if mask.sum() >= 100 else None
+        if x is None:
+            failed[source] = failed.get(source, 0) + 1
+            continue
+        X.append(x)
+        y.append(source == category)
+        src.append(source)
+    return {"X": np.asarray(X).reshape(-1, len(OBJECT_FEATURES)), "is_object": np.asarray(y, dtype=bool), "source": src,
+            "failed": failed}
+
+
+def fit_object_calibrator(X, is_object) -> dict:
+    """Standardised logistic regression of ``is_object`` on ``X`` (the format of the ``p_good`` calibration)."""
+    from sklearn.linear_model import LogisticRegression
+
+    X = np.asarray(X, dtype=np.float64)
+    y = np.asarray(is_object, dtype=bool)
+    if y.all() or not y.any():
+        raise ValueError("is_object: both objects of the category and other things are needed")
+    mean, scale = X.mean(axis=0), X.std(axis=0)
+    scale[scale == 0] = 1.0
+    model = LogisticRegression(C=1.0, max_iter=2000, class_weight="balanced").fit((X - mean) / scale, y)
+    return {"features": list(OBJECT_FEATURES), "meaning": "P(the fitted pixels are an object of the category)",
+            "mean": mean.tolist(), "scale": scale.tolist(), "coef": model.coef_[0].tolist(),
+            "intercept": float(model.intercept_[0]), "frames": int(len(y)), "object_rate": float(y.mean())}
+
+
+def measure(calibration: dict, X, is_object, source, threshold: float) -> dict:
+    """Per source on the check frames: frames and the share accepted (``p_object >= threshold``)."""
+    p = np.array([probability_good(calibration, x) for x in np.asarray(X)])
+    out = {}
+    for s in sorted(set(source)):
+        sel = np.array([t == s for t in source])
+        out[s] = {"frames": int(sel.sum()), "accepted": float(np.mean(p[sel] >= threshold)), "p_mean": float(p[sel].mean())}
+    y = np.asarray(is_object, dtype=bool)
+    out["_all"] = {"true_accept": float(np.mean(p[y] >= threshold)) if y.any() else float("nan"),
+                   "false_accept": float(np.mean(p[~y] >= threshold)) if (~y).any() else float("nan")}
+    return out
+
+
+def write_object_report(category: str, calibration: dict, check: dict, data: dict, out_dir, *, command: str,
+                        threshold: float) -> dict:
+    """``<category>_object.md`` and ``<category>_object.json`` in ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    prov = Provenance(command)
+    paths = {"md": out / f"{category}_object.md", "json": out / f"{category}_object.json"}
+    write_text(paths["json"], json.dumps(calibration, indent=1) + "\n")
+    rows = "\n".join(f"| {s} | {'yes' if s == category else 'no'} | {r['frames']} | {r['p_mean']:.2f} | {100 * r['accepted']:.0f}% |"
+                     for s, r in check.items() if s != "_all")
+    failed = ", ".join(f"{s} {n}" for s, n in sorted(data["failed"].items())) or "none"
+    coef = ", ".join(f"{f} {c:+.2f}" for f, c in zip(calibration["features"], calibration["coef"]))
+    write_text(paths["md"], (
+        f"# {category}: is it an object of the category? (`p_object`)\n\n"
+        f"Command: `{command}`  \nDate: {prov.date}; machine: {prov.machine_text}  \n"
+        "Study: `ancsh.studies.object_evidence`\n\n"
+        f"A logistic regression (scikit-learn, balanced classes) on {', '.join(OBJECT_FEATURES)} of the {category} "
+        f"network's fit to masked, noisy renders: the {category}'s held-out instances (objects) against the other "
+        "categories' held-out instances and rendered clutter of the category's size (not objects). Fits that fail "
+        f"the plausibility checks never reach `p_object` and are left out (failed: {failed}). Fitted on "
+        f"{calibration['frames']} frames, measured on the other half; `ancsh predict` reports `not_this_category` "
+        f"below {threshold}.\n\n"
+        f"On the check frames: {100 * check['_all']['true_accept']:.0f}% of the {category}'s fits accepted, "
+        f"{100 * check['_all']['false_accept']:.0f}% of the others'.\n\n"
+        "| source | object | check frames | mean p_object | accepted |\n|---|---|---|---|---|\n" + rows + "\n\n"
+        f"Standardised coefficients: {coef}; intercept {calibration['intercept']:+.2f}.\n"))
+    return paths

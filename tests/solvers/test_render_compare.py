@@ -1,0 +1,68 @@
+"""Render-and-compare (ancsh.solvers.render_compare): what a fitted model explains of the observed depth."""
+
+import numpy as np
+import pytest
+
+from ancsh.data.generate import FrameGenerator, GenerationConfig
+from ancsh.learned.inference.predict import predict_depth
+from ancsh.solvers.render_compare import compare_depth, crop_intrinsics, mask_window
+
+
+def test_explained_see_through_and_occlusion_are_told_apart():
+    observed = np.full((10, 10), 1.0)
+    observed[:, 8:] = 0.0  # no measurement
+    mask = np.zeros((10, 10), dtype=bool)
+    mask[:, :6] = True
+    model = np.zeros((10, 10))
+    model[:, :4] = 1.005  # explains 4 of the 6 object columns
+    model[:, 4:6] = 0.7  # the sensor sees 30 cm beyond: see-through
+    model[:, 6:8] = 1.3  # the sensor saw something nearer: an occlusion, neither
+    c = compare_depth(model, observed, mask)
+    assert c.object_pixels == 60 and c.model_pixels == 80
+    assert c.explained == pytest.approx(40 / 60)
+    assert c.see_through == pytest.approx(20 / 80)
+    assert c.median_abs_residual_m == pytest.approx(0.005)
+    assert np.isnan(c.residual[0, 9]) and c.residual[0, 5] == pytest.approx(0.3)
+    with pytest.raises(ValueError, match="one shape"):
+        compare_depth(model[:5], observed, mask)
+
+
+def test_a_crop_keeps_the_projection():
+    from ancsh.data.render import Intrinsics, project
+
+    intr = Intrinsics()
+    mask = np.zeros((intr.height, intr.width), dtype=bool)
+    mask[100:140, 200:260] = True
+    box = mask_window(mask)
+    assert box == (170, 80, 290, 160)
+    crop = crop_intrinsics(intr, box)
+    p = np.array([[0.1, -0.05, 1.2]])
+    assert project(p, crop)[0] + np.array([box[0], box[1]]) == pytest.approx(project(p, intr)[0])
+
+
+def test_a_good_fit_explains_its_object_and_a_displaced_scene_does_not():
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=5))
+    frame = gen.frame(0)
+    _, renderer = gen.instance(frame.instance_index)
+    depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
+    mask = depth > 0
+    pred = predict_depth(depth, frame.intrinsics, "laptop", mask=mask)
+    assert pred.result.ok and pred.render_compare is not None
+    assert pred.render_compare.explained > 0.6 and pred.render_compare.see_through < 0.2
+    data = pred.to_json()
+    assert data["render_compare"]["explained"] == pytest.approx(pred.render_compare.explained)
+    # the same fit against the scene pushed 30 cm back: the sensor sees through the model everywhere
+    from ancsh.solvers.render_compare import compare_depth as cmp
+
+    far = np.where(mask, depth + 0.3, 0.0)
+    from ancsh.data.templates import load_template_library
+    from ancsh.learned.inference.predict import infer
+    from ancsh.learned.inference.provider import LearnedProvider
+    from ancsh.solvers import Observation
+    from ancsh.solvers.render_compare import render_fit
+
+    provider = LearnedProvider("laptop", seed=0)
+    corr, _ = infer(provider, Observation(pred.points_cam))
+    model_depth, _ = render_fit(pred.result, corr, load_template_library("laptop"), frame.intrinsics)
+    moved = cmp(model_depth, far, mask)
+    assert moved.explained < 0.05 and moved.see_through > 0.8
