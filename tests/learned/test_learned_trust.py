@@ -111,6 +111,44 @@ def test_a_bare_wall_never_reports_success(tmp_path, capsys):
     assert code == 1 and json.loads((tmp_path / "r2.json").read_text())["status"] == "implausible_size"
 
 
+def test_a_table_with_a_bottle_but_no_laptop_is_no_laptop(table_scene, provider):
+    """Without the laptop the candidates are the bottle and pieces of the table: each fails a check
+    (its size, or p_object: it does not look like a laptop), so the answer is no_object, listing them."""
+    depth, intr, source, _ = table_scene
+    empty = np.where(source == 0, 0.0, depth)  # the laptop's pixels without a measurement
+    pred = predict_depth(empty, intr, "laptop", provider=provider)
+    assert pred.result.status.value in ("no_object", "too_few_points") and not pred.result.ok
+    if pred.result.status.value == "no_object":
+        assert "segment" in pred.result.message and pred.isolation.verified
+        assert all(v["status"] != "success" for v in pred.isolation.verified)
+
+
+def test_candidates_come_from_every_depth_of_plane_removal_and_a_hint_box_chooses(table_scene):
+    depth, intr, source, _ = table_scene
+    iso = isolate_object(depth, intr, "laptop")
+    assert sorted(iso.order) == list(range(len(iso.clusters))) and iso.order[0] == iso.chosen
+    assert len({c.level for c in iso.clusters}) >= 1 and iso.stride >= 1
+    for c in range(len(iso.clusters)):
+        m = iso.mask_of(c)
+        assert m.shape == depth.shape and m.any() and not (m & (depth <= 0)).any()
+    bottle = source == 2
+    vs, us = np.nonzero(bottle)
+    boxed = isolate_object(depth, intr, "laptop", hint=ObjectHint(box=(us.min(), vs.min(), us.max(), vs.max())))
+    assert np.count_nonzero(boxed.mask & bottle) > 0.9 * np.count_nonzero(bottle)
+
+
+def test_a_table_running_out_of_the_image_is_a_support_even_for_a_large_category(table_scene):
+    """The table (1.8 x 1.2 m, cut by the image border) is narrower than the largest oven times 1.5, but wider
+    than a typical oven and it runs out of the image: it is removed, and the laptop is a segment of its own."""
+    depth, intr, source, _ = table_scene
+    iso = isolate_object(depth, intr, "oven")
+    assert iso.planes >= 1
+    laptop = source == 0
+    best = max(range(len(iso.clusters)), key=lambda c: np.count_nonzero(iso.mask_of(c) & laptop))
+    m = iso.mask_of(best)
+    assert np.count_nonzero(m & laptop) > 0.8 * np.count_nonzero(laptop) and np.count_nonzero(m & (source == 1)) < 0.1 * m.sum()
+
+
 def test_twenty_valid_pixels_are_too_few_points(table_scene, provider):
     depth, intr, source, _ = table_scene
     few = np.zeros_like(depth)
