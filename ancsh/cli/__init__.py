@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from .._version import __version__
@@ -85,9 +86,27 @@ def _add_examples(subparsers, prefix: str) -> None:
                 _add_examples(action, f"{key} ")
 
 
+#: Options whose value may start with a minus sign (pixel coordinates left of or above the image):
+#: ``--pixel -5,-5`` is read as ``--pixel=-5,-5`` (argparse would take ``-5,-5`` for an option).
+_SIGNED_VALUE_OPTIONS = ("--pixel", "--box")
+
+
+def _join_signed_values(argv: list[str]) -> list[str]:
+    out, i = [], 0
+    while i < len(argv):
+        a = argv[i]
+        if a in _SIGNED_VALUE_OPTIONS and i + 1 < len(argv) and re.match(r"-[0-9.]", argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(_join_signed_values(list(sys.argv[1:] if argv is None else argv)))
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

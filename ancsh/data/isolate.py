@@ -221,6 +221,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     if max_depth is not None:
         valid &= d <= max_depth
     H, W = d.shape
+    _check_hint_inside(hint, W, H)
     labels = np.full(d.shape, -2, dtype=np.int64)
     labels[valid] = -1
     if np.count_nonzero(valid) < 10:
@@ -355,6 +356,20 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     order, reason = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
     return Isolation(upsample(segments[order[0]]), labels, tuple(clusters), order[0], planes, reason, order=tuple(order),
                      stride=s, segments=tuple(segments), _upsample=upsample)
+
+
+def _check_hint_inside(hint, W: int, H: int) -> None:
+    """Refuse a hint pixel outside the image, or a hint box that does not overlap it (a hint is never ignored)."""
+    if hint is None:
+        return
+    if hint.pixel is not None:
+        u, v = hint.pixel
+        if not (-0.5 <= u < W - 0.5 and -0.5 <= v < H - 0.5):
+            raise ValueError(f"--pixel: ({u:g}, {v:g}) lies outside the {W}x{H} image")
+    else:
+        u0, v0, u1, v1 = hint.box
+        if u1 < 0 or v1 < 0 or u0 > W - 1 or v0 > H - 1:
+            raise ValueError(f"--box: ({u0:g}, {v0:g}, {u1:g}, {v1:g}) does not overlap the {W}x{H} image")
 
 
 def _components(on: np.ndarray, right: np.ndarray, down: np.ndarray) -> tuple[int, np.ndarray]:

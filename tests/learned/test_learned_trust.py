@@ -86,6 +86,17 @@ def test_prediction_without_a_mask_is_plausible_on_the_table_scene(table_scene, 
     assert np.all(source[masked.pixels[:, 1], masked.pixels[:, 0]] == 2)
 
 
+def test_a_hint_outside_the_image_is_refused_naming_the_option(table_scene, tmp_path, capsys):
+    depth, intr, _, _ = table_scene
+    with pytest.raises(ValueError, match=r"--pixel: \(400, 10\) lies outside the 320x240 image"):
+        isolate_object(depth, intr, "laptop", hint=ObjectHint(pixel=(400, 10)))
+    with pytest.raises(ValueError, match="--box: .* does not overlap the 320x240 image"):
+        isolate_object(depth, intr, "laptop", hint=ObjectHint(box=(330, 10, 400, 50)))
+    args = _files(tmp_path, depth, intr)
+    assert main(["predict", *args, "--category", "laptop", "--pixel", "-5,-5"]) == 2
+    assert "--pixel: (-5, -5) lies outside the 320x240 image" in capsys.readouterr().err
+
+
 def test_hint_parsing_names_the_option():
     assert parse_hint("10,20", None).pixel == (10.0, 20.0)
     assert parse_hint(None, "1,2,30,40").box == (1.0, 2.0, 30.0, 40.0)
