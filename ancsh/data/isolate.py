@@ -284,7 +284,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         # only where the surface turns like the plane: an object's face crossing it (a lid leaning on a
         # riser) is not part of the support
         q = flat[free[inl]]
-        normal = np.linalg.svd(q - q.mean(axis=0), full_matrices=False)[2][-1]
+        normal = _principal_axes(q - q.mean(axis=0))[:, -1]
         on &= ~normal_ok | (np.abs(normals @ normal) >= PLANE_NORMAL_COS)
         # pieces of the plane after an opening: a face touching the support along a thin contact (a lid
         # leaning on a riser, in its plane) comes apart from it; the contact strip goes back to the support
@@ -306,9 +306,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         tried |= on & ~support
         if removed:
             supports.append(support.copy())
-            p = flat[free[inl]]
-            c0 = p.mean(axis=0)
-            near.append(np.abs((P - c0) @ np.linalg.svd(p - c0, full_matrices=False)[2][-1]) < CORNER_MARGIN_M)
+            near.append(np.abs((P - q.mean(axis=0)) @ normal) < CORNER_MARGIN_M)
         planes += int(removed)
     # where two supports meet (a stair's nosing, a table's edge against a wall) the surface is neither
     # plane: pixels near two of them are support too, so that objects standing there come apart
@@ -327,13 +325,17 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         """Full-resolution pixels of a grid segment: their grid pixel is in it and their depth agrees."""
         return agree_depth & grid_mask[gi[:, None], gj[None, :]]
 
-    segments, clusters, counts = [], [], []
+    segments, clusters, counts, seen = [], [], [], set()
     for level, sup in enumerate(levels):
         n_seg, seg = _components(gv & ~sup, right, down)
         sizes = np.bincount(seg[seg >= 0], minlength=n_seg)
         for c in np.flatnonzero(sizes >= MIN_SEGMENT_GRID_PIXELS):
             sel = seg == c
             n = int(sizes[c])
+            key = hash(np.flatnonzero(sel).tobytes())
+            if key in seen:  # the same segment as at an earlier depth (a plane removed elsewhere)
+                continue
+            seen.add(key)
             if any(min(n, m) >= SAME_SEGMENT_IOU * max(n, m)  # a same segment has a like count
                    and np.count_nonzero(sel & o) >= SAME_SEGMENT_IOU * np.count_nonzero(sel | o)
                    for o, m in zip(segments, counts)):
@@ -444,7 +446,7 @@ def _refine_plane(points: np.ndarray, inliers: np.ndarray, thresh: float, rounds
             break
         p = points[inliers]
         c = p.mean(axis=0)
-        normal = np.linalg.svd(p - c, full_matrices=False)[2][-1]
+        normal = _principal_axes(p - c)[:, -1]
         new = np.flatnonzero(np.abs((points - c) @ normal) < thresh)
         if np.array_equal(new, inliers):
             break
@@ -456,7 +458,13 @@ def _extent(points: np.ndarray, *, diagonal: bool = False) -> float:
     """Largest robust extent (2nd-98th percentile along principal axes) or the diagonal of those extents."""
     p = points - points.mean(axis=0)
     p = p[:: max(1, len(p) // 2000)]
-    _, _, Vt = np.linalg.svd(p, full_matrices=False)
-    q = p @ Vt.T
-    ext = np.percentile(q, 98, axis=0) - np.percentile(q, 2, axis=0)
+    q = np.sort(p @ _principal_axes(p), axis=0)
+    n = len(q) - 1
+    ext = q[int(round(0.98 * n))] - q[int(round(0.02 * n))]
     return float(np.linalg.norm(ext)) if diagonal else float(ext.max())
+
+
+def _principal_axes(centred: np.ndarray) -> np.ndarray:
+    """(3, 3) principal axes (columns, largest variance first) of centred points, from their 3x3 scatter."""
+    _, vecs = np.linalg.eigh(centred.T @ centred)
+    return vecs[:, ::-1]
