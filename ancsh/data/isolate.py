@@ -143,6 +143,8 @@ class Isolation:
         The grid's subsampling (pixels).
     verified : tuple of dict
         Candidates a caller judged (:meth:`with_choice`), each ``{"segment", "status", "score", ...}``.
+    hinted : tuple of int
+        The candidates a hint points at (under the pixel, or in the box), best first; empty without a hint.
     segments : tuple of (h, w) bool
         Each candidate's pixels on the subsampled grid (:meth:`mask_of` gives full resolution). Candidates come
         from every depth of plane removal; ``labels`` shows the deepest one's.
@@ -157,6 +159,7 @@ class Isolation:
     order: tuple = ()
     stride: int = 1
     verified: tuple = ()
+    hinted: tuple = ()
     segments: tuple = field(default=(), repr=False)
     _upsample: object = field(default=None, repr=False, compare=False)
 
@@ -182,7 +185,8 @@ class Isolation:
 
     def to_dict(self) -> dict:
         return {"planes_removed": self.planes, "clusters": [c.to_dict() for c in self.clusters], "chosen": self.chosen,
-                "reason": self.reason, "order": list(self.order), "stride": self.stride, "verified": list(self.verified)}
+                "reason": self.reason, "order": list(self.order), "stride": self.stride, "hinted": list(self.hinted),
+                "verified": list(self.verified)}
 
 
 def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: ObjectHint | None = None,
@@ -355,9 +359,9 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     if not clusters:
         return Isolation(np.zeros(d.shape, dtype=bool), labels, (), None, planes,
                          "nothing left after removing planes and small pieces", stride=s)
-    order, reason = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
+    order, reason, hinted = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
     return Isolation(upsample(segments[order[0]]), labels, tuple(clusters), order[0], planes, reason, order=tuple(order),
-                     stride=s, segments=tuple(segments), _upsample=upsample)
+                     stride=s, hinted=tuple(hinted), segments=tuple(segments), _upsample=upsample)
 
 
 def _check_hint_inside(hint, W: int, H: int) -> None:
@@ -396,8 +400,8 @@ def _components(on: np.ndarray, right: np.ndarray, down: np.ndarray) -> tuple[in
     return int(count), out
 
 
-def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str]:
-    """Candidate order (first = the choice) and why the first was chosen."""
+def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str, list]:
+    """Candidate order (first = the choice), why the first was chosen, and the candidates a hint points at."""
     every = list(range(len(clusters)))
     centre = np.array([(intr.width - 1) / 2.0, (intr.height - 1) / 2.0])
     mid = np.sqrt(lo * hi)
@@ -419,10 +423,10 @@ def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str]:
         if under:  # the largest segment under the pixel whose size fits, else the smallest one
             under.sort(key=lambda c: (not clusters[c].fits_category,
                                       -clusters[c].pixels if clusters[c].fits_category else clusters[c].pixels))
-            return under + [c for c in order if c not in under], f"under the hint pixel ({u:g}, {v:g})"
+            return under + [c for c in order if c not in under], f"under the hint pixel ({u:g}, {v:g})", under
         dist = [min(np.hypot(*(np.argwhere(segments[c]) - [gi[i], gj[j]]).T)) for c in every]
         first = int(np.argmin(dist))
-        return [first] + [c for c in order if c != first], f"nearest the hint pixel ({u:g}, {v:g})"
+        return [first] + [c for c in order if c != first], f"nearest the hint pixel ({u:g}, {v:g})", [first]
     if hint is not None:
         u0, v0, u1, v1 = hint.box
         rows = (gi >= gi[int(np.clip(v0, 0, len(gi) - 1))]) & (gi <= gi[int(np.clip(v1, 0, len(gi) - 1))])
@@ -432,11 +436,11 @@ def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str]:
         inside = [np.count_nonzero(segments[c][np.ix_(r, q)]) / max(np.count_nonzero(segments[c]), 1) for c in every]
         counts = [np.count_nonzero(segments[c][np.ix_(r, q)]) for c in every]
         if max(counts) > 0:  # mostly inside the box, then most pixels in it
-            first = max(every, key=lambda c: (round(inside[c], 1), counts[c]))
-            return [first] + [c for c in order if c != first], "most pixels in the hint box"
+            ranked = sorted((c for c in every if counts[c] > 0), key=lambda c: (-round(inside[c], 1), -counts[c]))
+            return ranked + [c for c in order if c not in ranked], "most pixels in the hint box", ranked
     if clusters[order[0]].fits_category:
-        return order, f"size fits the category ({lo}..{hi} m, x{SIZE_FACTOR}) and nearest the image centre"
-    return order, "no segment fits the category's size: the closest in size"
+        return order, f"size fits the category ({lo}..{hi} m, x{SIZE_FACTOR}) and nearest the image centre", []
+    return order, "no segment fits the category's size: the closest in size", []
 
 
 def _refine_plane(points: np.ndarray, inliers: np.ndarray, thresh: float, rounds: int = 3) -> np.ndarray:

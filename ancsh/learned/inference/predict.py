@@ -483,17 +483,18 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
                        refine) -> tuple[dict, object]:
     """Fit the isolation's candidates and choose (the module's verification; see :func:`predict_depth`).
 
-    With a hint the first candidate (the segment under the hint) is the user's choice: it is fitted
-    and judged alone. Without one, up to :data:`MAX_VERIFIED` candidates whose size fits the category
-    (or the first, when none does) are fitted; the best-supported fit that passes every check wins.
-    When none passes, the best-supported one comes back with status ``no_object``.
+    With a hint, the candidates it points at (the segments under the pixel, from every depth of plane
+    removal, or those in the box; up to :data:`MAX_VERIFIED`) are fitted. Without one, up to
+    :data:`MAX_VERIFIED` candidates whose size fits the category (or the first, when none does) are
+    fitted. The best-supported fit that passes every check wins; when none passes, the best-supported
+    one comes back with status ``no_object``.
     """
     import dataclasses
 
     from ...solvers.types import FitStatus
 
     if hint is not None:
-        chosen = isolation.order[:1]
+        chosen = list(isolation.hinted[:MAX_VERIFIED]) or isolation.order[:1]
     else:
         chosen = [c for c in isolation.order if isolation.clusters[c].fits_category][:MAX_VERIFIED] or isolation.order[:1]
     attempts, verified = {}, []
@@ -505,8 +506,6 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
                          "render_compare": None if a["comparison"] is None else a["comparison"].to_dict()})
     best = max(attempts, key=lambda c: _score(attempts[c]))
     a = attempts[best]
-    if hint is not None:
-        return a, isolation.with_choice(best, isolation.reason, verified)
     if a["result"].ok:
         why = (f"{isolation.reason}; of {len(attempts)} candidate(s) fitted, segment {best} is the best supported"
                if len(attempts) > 1 else isolation.reason)
