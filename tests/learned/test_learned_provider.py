@@ -87,3 +87,15 @@ def test_weights_round_trip_and_errors(tiny_weights, tmp_path, tiny_arrays):
     assert weights_path("laptop").name == "laptop.pt"
     with pytest.raises(ValueError, match="observation"):
         LearnedProvider(net).correspond(np.zeros((3, 3)))
+
+
+def test_every_joint_keeps_its_voters_when_joints_compete_for_the_same_points():
+    """Three joints whose most likely points are the same five (a drawer network on an odd view): forcing
+    voters for the third must not take the second's, which left a joint without a vote and crashed."""
+    from ancsh.learned.inference.provider import _joint_sets
+
+    p = np.zeros((50, 4))
+    p[:, 0] = 1.0
+    p[:5, 1], p[:5, 2], p[:5, 3] = 0.9, 0.8, 0.95
+    counts = np.bincount(_joint_sets(p, 3, 4), minlength=4)
+    assert counts[1:].min() >= 4 and counts.sum() == 50

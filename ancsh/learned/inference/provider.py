@@ -117,10 +117,19 @@ def _softmax(x: np.ndarray) -> np.ndarray:
 def _joint_sets(assoc_prob: np.ndarray, K: int, min_votes: int) -> np.ndarray:
     """Association labels where every joint has at least ``min_votes`` voters (most likely points)."""
     assoc = assoc_prob.argmax(1)
+    counts = np.bincount(assoc, minlength=K + 1)
     for k in range(K):
-        if np.count_nonzero(assoc == k + 1) < min_votes:
-            top = np.argsort(-assoc_prob[:, k + 1], kind="stable")[:min_votes]
-            assoc[top] = k + 1
+        if counts[k + 1] < min_votes:
+            # the most likely points of joint k, never taken from a joint they would leave short of voters
+            free = np.flatnonzero((assoc == k + 1) | (assoc == 0) | (counts[assoc] > min_votes))
+            top = free[np.argsort(-assoc_prob[free, k + 1], kind="stable")]
+            for i in top:
+                if assoc[i] == 0 or (assoc[i] != k + 1 and counts[assoc[i]] > min_votes):
+                    counts[assoc[i]] -= 1
+                    assoc[i] = k + 1
+                    counts[k + 1] += 1
+                if counts[k + 1] >= min_votes:
+                    break
     return assoc
 
 
@@ -300,7 +309,7 @@ class LearnedProvider:
             scale[j] = np.median(pred.scale[sel, j])
             trans[j] = np.median(pred.translation[sel, j], axis=0)
         naocs = scale[labels, None] * npcs + trans[labels]
-        assoc = _joint_sets(pred.assoc_prob, K, min(self.min_votes, N))
+        assoc = _joint_sets(pred.assoc_prob, K, max(1, min(self.min_votes, N // max(K, 1))))
         votes = vote_joints(naocs, assoc, pred.joint, self.network.revolute, min_votes=1)
         corr = Correspondences(
             part_labels=labels,
@@ -349,6 +358,6 @@ class DirectVotingPredictor:
         pts = observation.points_cam
         pred = predict_points(self.network.model, pts, self.network.config.num_points, self.seed)
         K = len(self.network.revolute)
-        assoc = _joint_sets(pred.assoc_prob, K, min(self.min_votes, pts.shape[0]))
+        assoc = _joint_sets(pred.assoc_prob, K, max(1, min(self.min_votes, pts.shape[0] // max(K, 1))))
         votes = vote_joints(pts, assoc, pred.joint, self.network.revolute, min_votes=1)
         return np.array([v.axis for v in votes]).reshape(K, 3), np.array([v.pivot for v in votes]).reshape(K, 3), votes
