@@ -68,7 +68,7 @@ def _features(depth, intrinsics, mask, category, provider, seed):
                  object_gate=False)
     if not a["result"].ok or a["comparison"] is None:
         return None
-    return object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category)
+    return object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category, a["pts"])
 
 
 def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progress: bool = True) -> dict:

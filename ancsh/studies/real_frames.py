@@ -57,7 +57,8 @@ def _run(frame, category, mode, provider, truth, *, seed, num_points):
                          seed=seed, hint=hint)
     r = pred.result
     rec.update(status=r.status.value, ok=bool(r.ok), exit_code=0 if r.ok else 1, message=r.message,
-               p_good=pred.p_good, points=int(pred.points_cam.shape[0]), notes=list(pred.notes),
+               p_good=pred.p_good, p_object=pred.p_object, points=int(pred.points_cam.shape[0]), notes=list(pred.notes),
+               render_compare=None if pred.render_compare is None else pred.render_compare.to_dict(),
                timings_ms={k: float(v) for k, v in pred.timings_ms.items()})
     iso = pred.isolation
     rec["mask_iou"] = None if (iso is None or truth is None) else _iou(iso.mask, truth.mask)
@@ -185,8 +186,12 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         "with shipped weights runs without a mask and must not report `success`. Exit = the exit code of `ancsh predict` "
         "(0 only for `success`). Mask IoU: the isolated pixels against the true mask. State: the fitted opening in the "
         "category's convention (degrees, 0 = closed); error against the frame's measurement (its uncertainty in the "
-        "frame table). Sizes: each part's fitted amodal box, largest extent first (metres). Times in milliseconds on "
-        "one process.", "",
+        "frame table). p_object: the calibrated probability that the fitted pixels are an object of the category "
+        "(`ancsh calibrate --object`; below 0.5 the status is `not_this_category`); explained / see-through: the fitted "
+        "category template rendered against the depth (`ancsh.solvers.render_compare`). Sizes: each part's fitted amodal "
+        "box, largest extent first (metres). Times in milliseconds on one process: isolate = segmenting the image "
+        "(the budget is 200 ms at 1280x720), verify = fitting the candidate segments, network and fit of the chosen "
+        "one, total with reading and render-and-compare.", "",
         "## Frames", "",
         "| frame | pixels | objects (truth) |",
         "|---|---|---|",
@@ -196,19 +201,22 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
                          f"± {_fmt(o['uncertainty_deg'])}°)" for o in f["objects"]) or "none of any category (negative)"
         lines.append(f"| {f['frame']} | {f['size'][0]}x{f['size'][1]} | {objs} |")
     lines += ["", "## Runs", "",
-              "| frame | category | mode | status | exit | p_good | mask IoU | state (°) | truth (°) | error (°) | part sizes (m) "
-              "| isolate | network | fit | total |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| frame | category | mode | status | exit | p_good | p_object | explained / see-through | mask IoU | state (°) "
+              "| truth (°) | error (°) | part sizes (m) | isolate | verify | network | fit | total |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     truth_of = {(f["frame"], o["category"]): o["joint_state_deg"] for f in results["frames"] for o in f["objects"]}
     for r in recs:
         t = r.get("timings_ms", {})
         sizes = " / ".join("×".join(f"{x:.2f}" for x in s) for s in r.get("part_sizes_m") or []) or "-"
         state = ", ".join(_fmt(s) for s in r.get("joint_state") or []) or "-"
+        rc = r.get("render_compare") or {}
+        compare = f"{_fmt(rc.get('explained'), '.2f')} / {_fmt(rc.get('see_through'), '.2f')}" if rc else "-"
         lines.append(
             f"| {r['frame']} | {r['category']} | {r['mode']} | {r['status']} | {r['exit_code']} | {_fmt(r.get('p_good'), '.2f')} "
-            f"| {_fmt(r.get('mask_iou'), '.2f')} | {state} | {_fmt(truth_of.get((r['frame'], r['category'])))} "
-            f"| {_fmt(r.get('joint_state_error_deg'))} | {sizes} | {_fmt(t.get('isolate'), '.0f')} "
-            f"| {_fmt(t.get('network'), '.0f')} | {_fmt(t.get('fit'), '.0f')} | {_fmt(t.get('total'), '.0f')} |")
+            f"| {_fmt(r.get('p_object'), '.2f')} | {compare} | {_fmt(r.get('mask_iou'), '.2f')} | {state} "
+            f"| {_fmt(truth_of.get((r['frame'], r['category'])))} | {_fmt(r.get('joint_state_error_deg'))} | {sizes} "
+            f"| {_fmt(t.get('isolate'), '.0f')} | {_fmt(t.get('verify'), '.0f')} | {_fmt(t.get('network'), '.0f')} "
+            f"| {_fmt(t.get('fit'), '.0f')} | {_fmt(t.get('total'), '.0f')} |")
     negatives = [r for r in recs if r["truth_category"] is None]
     positives = [r for r in recs if r["truth_category"] is not None]
     lines += ["", "## Summary", ""]

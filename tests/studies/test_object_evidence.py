@@ -45,3 +45,35 @@ def test_calibrate_object_writes_a_report_and_a_model_predict_can_read(tmp_path,
     assert "ancsh calibrate --category laptop --object --frames 8" in text and "| laptop | yes |" in text
     assert main(["calibrate", "--category", "laptop", "--object", "--frames", "5", "--out", str(tmp_path)]) == 2
     assert "--frames: expected at least 8 frames with --object" in capsys.readouterr().err
+
+
+def test_planar_share_tells_a_wall_from_a_corner():
+    from ancsh.learned.inference.confidence import planar_share
+
+    rng = np.random.default_rng(2)
+    wall = np.c_[rng.uniform(-1, 1, (500, 2)), rng.normal(0, 0.002, 500)]
+    corner = np.vstack([wall[:250], np.c_[rng.uniform(-1, 1, 250), np.zeros(250) + rng.normal(0, 0.002, 250),
+                                          rng.uniform(0.1, 1, 250)]])
+    assert planar_share(wall, 0.01) > 0.98
+    assert 0.45 < planar_share(corner, 0.01) < 0.6
+    assert planar_share(wall[:2], 0.01) == 1.0
+
+
+def test_an_object_calibration_of_other_features_is_not_applied(tmp_path, monkeypatch):
+    """A calibration made before a feature was added (7 numbers) is ignored, not misapplied to 8."""
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.learned.inference import confidence
+    from ancsh.learned.inference.predict import predict_depth
+    from ancsh.learned.network.weights import weights_path
+    from ancsh.outputs import file_sha256
+
+    stale = {"features": list(OBJECT_FEATURES[:-1]), "mean": [0.0] * 7, "scale": [1.0] * 7, "coef": [-9.0] * 7,
+             "intercept": -9.0, "weights_sha256": file_sha256(weights_path("laptop"))}
+    (tmp_path / "laptop_object.json").write_text(json.dumps(stale))
+    monkeypatch.setattr(confidence, "object_calibration_path", lambda category: tmp_path / f"{category}_object.json")
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=5))
+    frame = gen.frame(0)
+    _, renderer = gen.instance(frame.instance_index)
+    depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
+    pred = predict_depth(depth, frame.intrinsics, "laptop", mask=depth > 0)
+    assert pred.p_object is None and pred.render_compare is not None and pred.result.ok

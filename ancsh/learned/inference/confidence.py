@@ -69,9 +69,12 @@ def probability_good(calibration: dict, x) -> float:
 #: render-and-compare of the fitted category template (:func:`ancsh.solvers.render_compare.compare_fit`: the
 #: share of the segment's pixels it explains, the share of its own pixels the sensor sees through, the
 #: median residual relative to the object's size), the fitted object's size against the category's typical
-#: one (log ratio, and its absolute value), and the fit's lowest part inlier ratio and mean segmentation margin.
+#: one (log ratio, and its absolute value), the fit's lowest part inlier ratio and mean segmentation margin, and
+#: the share of the points on one plane (a wall, a table top or a face seen head-on explains itself too well).
 OBJECT_FEATURES = ("explained", "see_through", "residual_rel", "log_size_ratio", "abs_log_size_ratio",
-                   "inlier_ratio_min", "seg_margin_mean")
+                   "inlier_ratio_min", "seg_margin_mean", "planar_share")
+#: Points within this share of the object's diagonal (and at least 1 cm) of one plane count for ``planar_share``.
+PLANE_TOLERANCE = 0.02
 
 
 def object_calibration_path(category: str) -> Path:
@@ -81,9 +84,27 @@ def object_calibration_path(category: str) -> Path:
     return WEIGHTS_DIR / f"{category}_object.json"
 
 
-def object_features(comparison, diagonal: float, quality, category: str) -> np.ndarray:
+def planar_share(points, tolerance: float, rng=0, trials: int = 64) -> float:
+    """The largest share of ``points`` (N, 3) within ``tolerance`` metres of one plane (RANSAC over ``trials`` triples)."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) < 3:
+        return 1.0
+    rng = np.random.default_rng(rng)
+    best = 0
+    for _ in range(trials):
+        a, b, c = p[rng.choice(len(p), 3, replace=False)]
+        n = np.cross(b - a, c - a)
+        length = np.linalg.norm(n)
+        if length < 1e-12:
+            continue
+        best = max(best, int(np.count_nonzero(np.abs((p - a) @ (n / length)) < tolerance)))
+    return best / len(p)
+
+
+def object_features(comparison, diagonal: float, quality, category: str, points=None) -> np.ndarray:
     """``(len(OBJECT_FEATURES),)`` float64 from a :class:`~ancsh.solvers.render_compare.DepthComparison`, the fitted
-    object's diagonal (metres) and the fit's per-part quality (NaN entries count as worst)."""
+    object's diagonal (metres), the fit's per-part quality (NaN entries count as worst) and the observed points
+    ``(N, 3)`` (camera frame, metres; without them ``planar_share`` counts as 1)."""
     from ...data.procedural import CATEGORY_INFO
 
     size = CATEGORY_INFO[category].typical_size
@@ -93,6 +114,7 @@ def object_features(comparison, diagonal: float, quality, category: str) -> np.n
         return float(x) if x is not None and np.isfinite(x) else worst
 
     ratio = float(np.log(max(diagonal, 1e-6) / size))
+    flat = 1.0 if points is None else planar_share(points, max(0.01, PLANE_TOLERANCE * diagonal))
     return np.array([clean(comparison.explained, 0.0), clean(comparison.see_through, 1.0),
                      min(clean(comparison.median_abs_residual_m, size) / max(diagonal, 1e-6), 1.0), ratio, abs(ratio),
-                     base[0], base[3]])
+                     base[0], base[3], flat])

@@ -427,7 +427,7 @@ def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, s
     comparison, p_object, t_rc = None, None, 0.0
     if result.ok and mask is not None:
         t0 = time.perf_counter()
-        comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider)
+        comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
         t_rc = time.perf_counter() - t0
     if object_gate:
         result = check_confidence(result, p_object)
@@ -437,7 +437,7 @@ def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, s
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 
-def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider) -> tuple:
+def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
     """Render-and-compare of the fit (:func:`ancsh.solvers.render_compare.compare_fit`) and the calibrated
     P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
     import json
@@ -445,7 +445,7 @@ def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, p
     from ...data.procedural import CATEGORY_INFO
     from ...data.templates import load_template_library
     from ...solvers.render_compare import compare_fit
-    from .confidence import object_calibration_path, object_features, probability_good
+    from .confidence import OBJECT_FEATURES, object_calibration_path, object_features, probability_good
 
     if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
         return None, None
@@ -461,7 +461,9 @@ def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, p
     calibration = json.loads(path.read_text())
     if calibration.get("weights_sha256") != getattr(provider.network, "sha256", None):
         return comparison, None
-    x = object_features(comparison, object_diagonal(result.boxes_cam), quality, category)
+    if calibration.get("features") != list(OBJECT_FEATURES):  # made with other features: recalibrate
+        return comparison, None
+    x = object_features(comparison, object_diagonal(result.boxes_cam), quality, category, points)
     return comparison, probability_good(calibration, x)
 
 
