@@ -15,7 +15,8 @@ import numpy as np
 from ..learned.inference.confidence import FEATURES, GOOD_ROTATION_DEG, fit_features, probability_good
 from .report import save_figure, write_text
 
-__all__ = ["choose_calibrator", "collect", "constant_calibrator", "fit_calibrator", "reliability", "write_report"]
+__all__ = ["choose_calibrator", "collect", "constant_calibrator", "fit_calibrator", "reliability", "standardised_logistic",
+           "write_report"]
 
 
 def collect(category: str, frames: int, *, seed: int = 7, provider=None, progress: bool = True) -> dict:
@@ -49,19 +50,27 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
     return {"X": np.asarray(X), "good": rot < GOOD_ROTATION_DEG, "rot_deg": rot}
 
 
-def fit_calibrator(X, good) -> dict:
-    """Standardised logistic regression (scikit-learn) of ``good`` on ``X``, as plain JSON numbers."""
+def standardised_logistic(X, y, *, balanced: bool = False) -> dict:
+    """A logistic regression (scikit-learn) of ``y`` on ``X`` standardised per feature, as plain JSON numbers
+    ``{"mean", "scale", "coef", "intercept"}`` (:func:`~ancsh.learned.inference.confidence.probability_good` applies
+    it); ``balanced`` weighs both outcomes equally."""
     from sklearn.linear_model import LogisticRegression
 
     X = np.asarray(X, dtype=np.float64)
+    mean, scale = X.mean(axis=0), X.std(axis=0)
+    scale[scale == 0] = 1.0
+    model = LogisticRegression(C=1.0, max_iter=2000, class_weight="balanced" if balanced else None)
+    model.fit((X - mean) / scale, np.asarray(y, dtype=bool))
+    return {"mean": mean.tolist(), "scale": scale.tolist(), "coef": model.coef_[0].tolist(),
+            "intercept": float(model.intercept_[0])}
+
+
+def fit_calibrator(X, good) -> dict:
+    """Standardised logistic regression (scikit-learn) of ``good`` on ``X``, as plain JSON numbers."""
     y = np.asarray(good, dtype=bool)
     if y.all() or not y.any():
         raise ValueError("good: both good and bad fits are needed to calibrate")
-    mean, scale = X.mean(axis=0), X.std(axis=0)
-    scale[scale == 0] = 1.0
-    model = LogisticRegression(C=1.0, max_iter=1000).fit((X - mean) / scale, y)
-    return {"features": list(FEATURES), "good_rotation_deg": GOOD_ROTATION_DEG, "mean": mean.tolist(),
-            "scale": scale.tolist(), "coef": model.coef_[0].tolist(), "intercept": float(model.intercept_[0]),
+    return {"features": list(FEATURES), "good_rotation_deg": GOOD_ROTATION_DEG, **standardised_logistic(X, y),
             "frames": int(len(y)), "good_rate": float(y.mean())}
 
 

@@ -11,7 +11,7 @@ margin) with
   the mask, as ``ancsh predict --mask`` sees them;
 - **negatives**: the same of every *other* procedural category (their held-out instances; as many frames in
   all as positives), and as many rendered clutter frames the size of the category's objects: boxes, slabs,
-  cylinders, spheres and pieces of wall or table top, alone and in pairs.
+  cylinders, spheres and (twice as often) flat pieces of wall, board or table top, alone and in pairs.
 
 Only fits that pass the plausibility checks count (the others fail before ``p_object`` is asked). Half of
 the frames (alternating) fit the model, the other half measure it; ``--install`` writes
@@ -38,12 +38,12 @@ def clutter_model(rng, size: float):
     from ..model.articulated import ArticulatedModel, Part
 
     def piece():
-        kind = rng.choice(["box", "slab", "cylinder", "sphere", "wall"])
+        kind = rng.choice(["box", "slab", "cylinder", "sphere", "wall", "wall"])
         s = size * rng.uniform(0.4, 1.0)
         if kind == "box":
             return trimesh.creation.box(s * rng.uniform(0.3, 1.0, 3))
-        if kind == "wall":  # a piece of a wall or a table top, larger than the objects
-            return trimesh.creation.box(s * np.array([rng.uniform(1.5, 3.0), 0.02, rng.uniform(1.0, 2.0)]))
+        if kind == "wall":  # a piece of a wall, a board or a table top the size of the objects
+            return trimesh.creation.box(s * np.array([rng.uniform(0.8, 2.0), 0.02, rng.uniform(0.6, 1.4)]))
         if kind == "slab":
             return trimesh.creation.box(s * np.array([1.0, rng.uniform(0.02, 0.1), rng.uniform(0.5, 1.0)]))
         if kind == "cylinder":
@@ -128,18 +128,13 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
 
 def fit_object_calibrator(X, is_object) -> dict:
     """Standardised logistic regression of ``is_object`` on ``X`` (the format of the ``p_good`` calibration)."""
-    from sklearn.linear_model import LogisticRegression
+    from .confidence_calibration import standardised_logistic
 
-    X = np.asarray(X, dtype=np.float64)
     y = np.asarray(is_object, dtype=bool)
     if y.all() or not y.any():
         raise ValueError("is_object: both objects of the category and other things are needed")
-    mean, scale = X.mean(axis=0), X.std(axis=0)
-    scale[scale == 0] = 1.0
-    model = LogisticRegression(C=1.0, max_iter=2000, class_weight="balanced").fit((X - mean) / scale, y)
     return {"features": list(OBJECT_FEATURES), "meaning": "P(the fitted pixels are an object of the category)",
-            "mean": mean.tolist(), "scale": scale.tolist(), "coef": model.coef_[0].tolist(),
-            "intercept": float(model.intercept_[0]), "frames": int(len(y)), "object_rate": float(y.mean())}
+            **standardised_logistic(X, y, balanced=True), "frames": int(len(y)), "object_rate": float(y.mean())}
 
 
 def measure(calibration: dict, X, is_object, source, threshold: float) -> dict:

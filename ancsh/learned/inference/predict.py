@@ -266,10 +266,13 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
                   device="cpu") -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
-    Without a ``mask``, the object is isolated first (:func:`ancsh.data.isolate.isolate_object`:
-    supporting planes removed, the rest clustered, one cluster chosen by ``hint`` or by the
-    category's size and centrality). A fit that fails a plausibility check
-    (:func:`check_plausibility`) comes back with a failed status naming the check.
+    Without a ``mask``, the object is found first: :func:`ancsh.data.isolate.isolate_object` proposes
+    candidate segments (supporting planes removed, the rest split at depth jumps) and up to
+    :data:`MAX_VERIFIED` of them (the ones ``hint`` points at, or those whose size fits the category)
+    are fitted and judged; the best supported one that passes every check wins, else the status is
+    ``no_object``. A fit that fails a check comes back with a failed status naming it: plausibility
+    (:func:`check_plausibility`) and, where the category has an object calibration, ``p_object``
+    (:func:`check_confidence`, after render-and-compare of the fitted category template).
 
     Parameters
     ----------
