@@ -25,7 +25,7 @@ EXAMPLES = {
     "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
     "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
     "weights": "ancsh weights --out weights.md",
-    "calibrate": "ancsh calibrate --category laptop --frames 300 --update-docs --install",
+    "calibrate": "ancsh calibrate --category laptop --frames 300 --update-docs --install   # --object: p_object",
     "data": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
     "data generate": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
     "data show": "ancsh data show data/laptop_train --frame 7 --out view.png",
@@ -47,6 +47,7 @@ EXAMPLES = {
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
     "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
+    "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
 }
 
 # Modules that contribute sub-commands, in help order.
