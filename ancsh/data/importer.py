@@ -167,7 +167,11 @@ class ImportedObject:
         from .paths import shared_data_dir
 
         if self.urdf.startswith("shared:"):
-            return shared_data_dir() / self.urdf[len("shared:"):]
+            root = shared_data_dir().resolve()
+            file = (root / self.urdf[len("shared:"):]).resolve()
+            if not file.is_relative_to(root):
+                raise ValueError(f"{self.name}: catalog urdf {self.urdf!r} leaves the shared data folder {root}")
+            return file
         return Path(self.urdf)
 
     @cached_property

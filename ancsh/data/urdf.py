@@ -3,7 +3,8 @@
 What the loader does
 --------------------
 - Parses the file with yourdfpy (meshes are *not* resolved by yourdfpy; this module finds
-  them relative to the URDF, stripping ``package://<name>/`` and ``file://`` prefixes).
+  them relative to the URDF, stripping ``package://<name>/`` and ``file://`` prefixes; a mesh outside the
+  URDF's folder is refused).
 - Every link's ``<visual>`` geometry (meshes, boxes, cylinders, spheres), with its
   ``<origin>`` and mesh ``scale``, is put into the link frame; a link may carry many
   meshes. OBJ files load without materials; glTF/GLB files (ReplicaCAD) load as scenes and
@@ -240,13 +241,21 @@ def _orthonormal(R: np.ndarray) -> np.ndarray:
 
 
 # --- geometry ------------------------------------------------------------------------------
-def _resolve(path: Path, filename: str) -> Path:
+def _resolve(path: Path, filename: str, where: str = "mesh") -> Path:
+    """The mesh file ``filename`` names, inside the URDF's folder; ``ValueError`` for one that lies elsewhere
+    (an absolute path, ``..`` leaving the folder, ``file://``, ``package://x/../..`` or a link pointing out):
+    a URDF must not open files outside its object's folder."""
     name = re.sub(r"^file://", "", filename)
     m = re.match(r"^package://[^/]+/(.*)$", name)
     if m:
         name = m.group(1)
+    folder = path.parent.resolve()
     p = Path(name)
-    return p if p.is_absolute() else path.parent / p
+    file = (folder / p).resolve()
+    if p.is_absolute() or not file.is_relative_to(folder):
+        raise ValueError(f"{path}: {where} mesh file {filename!r} lies outside the object's folder {folder}; "
+                         "meshes are read from inside it only")
+    return file
 
 
 def _link_meshes(path: Path, link) -> list:
@@ -257,7 +266,7 @@ def _link_meshes(path: Path, link) -> list:
         if geom is None:
             raise ValueError(f"{path}: {where} has no <geometry>")
         if geom.mesh is not None:
-            file = _resolve(path, geom.mesh.filename)
+            file = _resolve(path, geom.mesh.filename, where)
             if not file.is_file():
                 raise ValueError(f"{path}: {where} mesh file {geom.mesh.filename!r} not found (looked for {file})")
             mesh = _load_mesh_file(path, where, file)

@@ -33,3 +33,48 @@ def test_nan_in_a_joint_origin_names_the_joint(tmp_path):
     )
     with pytest.raises(ValueError, match=r"nan\.urdf.*joint name='hinge'.*origin.*non-finite"):
         load_urdf(path)
+
+
+@pytest.mark.parametrize("filename", ["{outside}", "../outside.obj", "file://{outside}", "package://x/../../outside.obj",
+                                      "sub/../../outside.obj"])
+def test_a_mesh_outside_the_objects_folder_is_refused_naming_the_link(tmp_path, filename):
+    import trimesh
+
+    outside = tmp_path / "outside.obj"
+    trimesh.creation.box().export(outside)
+    folder = tmp_path / "object"
+    (folder / "sub").mkdir(parents=True)
+    path = folder / "mobility.urdf"
+    path.write_text(f"<robot name='r'><link name='lid'><visual><geometry><mesh filename='{filename.format(outside=outside)}'/>"
+                    "</geometry></visual></link></robot>")
+    with pytest.raises(ValueError, match=r"<link name='lid'>.*lies outside the object's folder"):
+        load_urdf(path)
+
+
+def test_a_mesh_inside_the_folder_still_loads_and_a_link_out_of_it_does_not(tmp_path):
+    import trimesh
+
+    folder = tmp_path / "object"
+    (folder / "meshes").mkdir(parents=True)
+    trimesh.creation.box().export(folder / "meshes" / "a.obj")
+    (tmp_path / "elsewhere.obj").write_text((folder / "meshes" / "a.obj").read_text())
+    (folder / "meshes" / "b.obj").symlink_to(tmp_path / "elsewhere.obj")
+    for name, ok in (("meshes/a.obj", True), ("package://obj/meshes/a.obj", True), ("meshes/b.obj", False)):
+        path = folder / "m.urdf"
+        path.write_text(f"<robot name='r'><link name='a'><visual><geometry><mesh filename='{name}'/></geometry></visual>"
+                        "</link></robot>")
+        if ok:
+            assert load_urdf(path).parts[0].mesh is not None
+        else:
+            with pytest.raises(ValueError, match="outside the object's folder"):
+                load_urdf(path)
+
+
+def test_a_catalog_entry_leaving_the_shared_folder_is_refused(tmp_path, monkeypatch):
+    from ancsh.data.importer import ImportedObject
+
+    monkeypatch.setenv("ANCSH_SHARED_DATA", str(tmp_path / "shared"))
+    obj = ImportedObject(name="x", category="laptop", urdf="shared:../../etc/passwd", joint_types={}, moving_links=("a",),
+                         zero=(0.0,), sign=(1,), flip_front=False, scale=1.0, split="test")
+    with pytest.raises(ValueError, match="x: catalog urdf 'shared:../../etc/passwd' leaves the shared data folder"):
+        obj.urdf_path
