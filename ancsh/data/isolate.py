@@ -128,7 +128,8 @@ class Isolation:
     mask : (H, W) bool
         Pixels of the chosen object (all ``False`` when nothing was found).
     labels : (H, W) int64
-        ``-2`` no depth, ``-1`` removed (a support plane or a tiny piece), ``c >= 0`` segment ``c``.
+        ``-2`` no depth, ``-1`` removed (a support plane or a tiny piece), ``c >= 0`` segment ``c`` (where
+        candidates of several depths of plane removal overlap, the deepest one's).
     clusters : tuple of Cluster
         The segments (candidates).
     chosen : int or None
@@ -147,7 +148,7 @@ class Isolation:
         The candidates a hint points at (under the pixel, or in the box), best first; empty without a hint.
     segments : tuple of (h, w) bool
         Each candidate's pixels on the subsampled grid (:meth:`mask_of` gives full resolution). Candidates come
-        from every depth of plane removal; ``labels`` shows the deepest one's.
+        from every depth of plane removal.
     """
 
     mask: np.ndarray
@@ -349,11 +350,10 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
             segments.append(sel)
             clusters.append(Cluster(int(sizes[c]) * s * s, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
                                     bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR), level=planes if not supports else level + 1))
-    # labels for pictures and box hints: the segments of the deepest level
+    # labels for pictures: every candidate, the deeper ones (smaller pieces) over the shallower
     final = np.full(gv.shape, -1, dtype=np.int64)
-    for c, sel in enumerate(segments):
-        if clusters[c].level == clusters[-1].level if clusters else False:
-            final[sel] = c
+    for c in sorted(range(len(segments)), key=lambda c: clusters[c].level):
+        final[segments[c]] = c
     near_seg = final[gi[:, None], gj[None, :]]
     labels[agree_depth & (near_seg >= 0)] = near_seg[agree_depth & (near_seg >= 0)]
     if not clusters:
