@@ -259,7 +259,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
 def run_calibrate(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..outputs import DOCS_RESULTS, file_sha256, fresh_output_dir
+    from ..outputs import file_sha256
     from ..learned.inference.confidence import calibration_path
     from ..studies.confidence_calibration import choose_calibrator, collect, write_report
     from ..learned.network.weights import weights_path
@@ -276,20 +276,32 @@ def run_calibrate(args: argparse.Namespace) -> int:
     fit_half = np.arange(len(data["good"])) % 2 == 0
     calibration, rel = choose_calibrator(data["X"][fit_half], data["good"][fit_half], data["X"][~fit_half], data["good"][~fit_half])
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))  # it holds for these weights only
-    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
-    parts = ["calibrate", "--category", args.category, "--frames", str(args.frames)]
-    parts += ["--seed", str(args.seed)] if args.seed != 7 else []
-    parts += output_flags(args.out, update_docs=args.update_docs)
-    parts += ["--install"] if args.install else []
-    paths = write_report(args.category, calibration, rel, out, command=_command(parts))
+    out, command = _calibrate_output(args)
+    paths = write_report(args.category, calibration, rel, out, command=command)
     print(f"good fits {100 * rel['good_rate']:.0f}%, {calibration['model']} model, Brier {rel['brier']:.4f} "
           f"(constant {rel['brier_constant']:.4f}); "
           f"wrote {paths['md']}, {paths['png']}")
-    if args.install:
-        target = calibration_path(args.category)
-        write_bytes_atomically(target, paths["json"].read_bytes())
-        print(f"installed {target}")
+    _install_calibration(args, paths["json"], calibration_path(args.category))
     return 0
+
+
+def _calibrate_output(args: argparse.Namespace) -> tuple:
+    """``ancsh calibrate``'s report folder and the command line that reproduces the run."""
+    from ..outputs import DOCS_RESULTS, fresh_output_dir
+
+    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
+    parts = ["calibrate", "--category", args.category] + (["--object"] if args.object else []) + ["--frames", str(args.frames)]
+    parts += ["--seed", str(args.seed)] if args.seed != 7 else []
+    parts += output_flags(args.out, update_docs=args.update_docs)
+    parts += ["--install"] if args.install else []
+    return out, _command(parts)
+
+
+def _install_calibration(args: argparse.Namespace, report_json, target) -> None:
+    """With ``--install``, the calibration the report wrote becomes the shipped one beside the weights."""
+    if args.install:
+        write_bytes_atomically(target, report_json.read_bytes())
+        print(f"installed {target}")
 
 
 def _run_calibrate_object(args: argparse.Namespace) -> int:
@@ -298,7 +310,7 @@ def _run_calibrate_object(args: argparse.Namespace) -> int:
     from ..learned.inference.confidence import object_calibration_path
     from ..learned.inference.predict import MIN_P_OBJECT
     from ..learned.network.weights import weights_path
-    from ..outputs import DOCS_RESULTS, file_sha256, fresh_output_dir
+    from ..outputs import file_sha256
     from ..studies.object_evidence import collect_object_evidence, fit_object_calibrator, measure, write_object_report
 
     if args.frames < 8:
@@ -309,18 +321,11 @@ def _run_calibrate_object(args: argparse.Namespace) -> int:
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))
     source = [s for s, h in zip(data["source"], half) if not h]
     check = measure(calibration, data["X"][~half], data["is_object"][~half], source, MIN_P_OBJECT)
-    out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
-    parts = ["calibrate", "--category", args.category, "--object", "--frames", str(args.frames)]
-    parts += ["--seed", str(args.seed)] if args.seed != 7 else []
-    parts += output_flags(args.out, update_docs=args.update_docs)
-    parts += ["--install"] if args.install else []
-    paths = write_object_report(args.category, calibration, check, data, out, command=_command(parts), threshold=MIN_P_OBJECT)
+    out, command = _calibrate_output(args)
+    paths = write_object_report(args.category, calibration, check, data, out, command=command, threshold=MIN_P_OBJECT)
     print(f"{args.category}: {100 * check['_all']['true_accept']:.0f}% of its objects accepted, "
           f"{100 * check['_all']['false_accept']:.0f}% of other things; wrote {paths['md']}")
-    if args.install:
-        target = object_calibration_path(args.category)
-        write_bytes_atomically(target, paths["json"].read_bytes())
-        print(f"installed {target}")
+    _install_calibration(args, paths["json"], object_calibration_path(args.category))
     return 0
 
 

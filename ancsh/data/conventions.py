@@ -538,6 +538,23 @@ def _closes_aligned(model, k) -> bool:
     return bool(aligned.any()) and vols[aligned].min() <= CLOSED_ALIGNMENT_FACTOR * vols.min()
 
 
+#: States sampled along one side of a state by :func:`side_volumes`.
+SIDE_SAMPLES = 12
+
+
+def side_volumes(model, k, start: float, end: float, samples: int = SIDE_SAMPLES) -> np.ndarray:
+    """Box volume around base and joint ``k``'s part at ``samples`` states evenly spaced from ``start``
+    (excluded) to ``end`` (included), the other joints at rest; the whole of one side, not only its first step.
+
+    Returns
+    -------
+    (samples,) float64
+        Model units cubed.
+    """
+    qs = start + (end - start) * np.arange(1, samples + 1) / samples
+    return np.array([box_volume(*_joint_pair(model, k, _with_state(model, k, q))) for q in qs])
+
+
 def _joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg) -> list[str]:
     joint = model.joints[k]
     out = []
@@ -566,9 +583,7 @@ def _joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg) -> list[str]:
     elif step > 0:
         if jc.positive == "opens":  # somewhere over the whole positive range: the first step may
             # leave the box unchanged (a lid's front edge rising within the body's height)
-            vol0 = box_volume(base0, child0)
-            ok = any(box_volume(*_joint_pair(model, k, _with_state(model, k, q))) > vol0 * (1 + 1e-9)
-                     for q in np.linspace(0.0, hi, 13)[1:])
+            ok = bool(np.any(side_volumes(model, k, 0.0, hi) > box_volume(base0, child0) * (1 + 1e-9)))
         else:  # folds: the far end of the part comes closer to the base's centre line (x = centre)
             q1 = min(hi, step)
             b1, c1 = _joint_pair(model, k, _with_state(model, k, q1))

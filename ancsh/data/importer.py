@@ -60,6 +60,7 @@ from .conventions import (
     CategoryConvention,
     _joint_pair,
     closing_scores,
+    side_volumes,
     _horizontal_angle_to_front_deg,
     _side_ok,
     _with_state,
@@ -84,7 +85,6 @@ MIN_REAL_FOR_TRAINING = 2
 _KIND = {"hinge": "revolute", "slider": "prismatic"}
 _OVERRIDE_KEYS = {"zero", "sign", "flip_front", "diagonal_m", "moving_links", "reject"}
 _GRID = 241
-_SIDE_SAMPLES = 12  # states per side of state 0 when finding the opening direction
 
 
 class ImportRejected(ValueError):
@@ -361,9 +361,7 @@ def _find_sign(model, k, jc, zero) -> int:
             length = abs(end - zero)
             if length < 1e-9:
                 continue
-            qs = zero + s * length * np.arange(1, _SIDE_SAMPLES + 1) / _SIDE_SAMPLES
-            vols = [box_volume(*_joint_pair(model, k, _with_state(model, k, q))) for q in qs]
-            gains[s] = (np.mean(vols) / vol0 - 1.0) * length
+            gains[s] = (np.mean(side_volumes(model, k, zero, end)) / vol0 - 1.0) * length
     else:
         step = min(0.2, 0.25 * (hi - lo)) if model.joints[k].is_revolute else 0.1 * (hi - lo)
         cx = (base0.min(axis=0)[0] + base0.max(axis=0)[0]) / 2

@@ -330,32 +330,29 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         """Full-resolution pixels of a grid segment: their grid pixel is in it and their depth agrees."""
         return agree_depth & grid_mask[gi[:, None], gj[None, :]]
 
-    segments, clusters, counts, seen = [], [], [], set()
+    segments, clusters = [], []
     for level, sup in enumerate(levels):
         n_seg, seg = _components(gv & ~sup, right, down)
         sizes = np.bincount(seg[seg >= 0], minlength=n_seg)
         for c in np.flatnonzero(sizes >= MIN_SEGMENT_GRID_PIXELS):
             sel = seg == c
-            n = int(sizes[c])
-            key = hash(np.flatnonzero(sel).tobytes())
-            if key in seen:  # the same segment as at an earlier depth (a plane removed elsewhere)
-                continue
-            seen.add(key)
-            if any(min(n, m) >= SAME_SEGMENT_IOU * max(n, m)  # a same segment has a like count
+            n = int(sizes[c]) * s * s
+            # the same segment as at an earlier depth (a plane removed elsewhere): a like count, then the IoU
+            if any(min(n, other.pixels) >= SAME_SEGMENT_IOU * max(n, other.pixels)
                    and np.count_nonzero(sel & o) >= SAME_SEGMENT_IOU * np.count_nonzero(sel | o)
-                   for o, m in zip(segments, counts)):
+                   for o, other in zip(segments, clusters)):
                 continue
-            counts.append(n)
             diag = _extent(P[sel], diagonal=True)
             segments.append(sel)
-            clusters.append(Cluster(int(sizes[c]) * s * s, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
-                                    bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR), level=planes if not supports else level + 1))
+            clusters.append(Cluster(n, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
+                                    bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR), level=level + 1 if supports else 0))
     # labels for pictures: every candidate, the deeper ones (smaller pieces) over the shallower
     final = np.full(gv.shape, -1, dtype=np.int64)
     for c in sorted(range(len(segments)), key=lambda c: clusters[c].level):
         final[segments[c]] = c
     near_seg = final[gi[:, None], gj[None, :]]
-    labels[agree_depth & (near_seg >= 0)] = near_seg[agree_depth & (near_seg >= 0)]
+    labelled = agree_depth & (near_seg >= 0)
+    labels[labelled] = near_seg[labelled]
     if not clusters:
         return Isolation(np.zeros(d.shape, dtype=bool), labels, (), None, planes,
                          "nothing left after removing planes and small pieces", stride=s)
