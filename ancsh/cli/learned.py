@@ -39,9 +39,13 @@ def register(sub) -> None:
     p.add_argument("--formulation", default="exact_reduced",
                    help="fitting formulation: per_part, soft, exact_maximal, exact_reduced (default)")
     p.add_argument("--weights", type=Path, help="a weights file instead of the category's shipped weights")
-    p.add_argument("--refine", choices=("auto", "template", "none"), default="auto",
-                   help="refine the fit against the category template (articulated ICP, kept where its score on the "
-                   "points is better): 'auto' (default) where measured to help (ancsh/data/templates/refine_defaults.json)")
+    p.add_argument("--refine", choices=("auto", "template", "network", "none"), default="auto",
+                   help="refine the fit: 'template' against the category template (articulated ICP, kept where its "
+                   "score on the points is better), 'network' with the refinement network on the points in the fit's "
+                   "NAOCS orientation, 'auto' (default) the template where measured to help "
+                   "(ancsh/data/templates/refine_defaults.json)")
+    p.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
+                   "the category's shipped <category>_refine.pt")
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
@@ -61,9 +65,13 @@ def register(sub) -> None:
     e.add_argument("--formulations", nargs="+", metavar="METHOD",
                    help="methods (default all but template): per_part (NPCS), naocs, soft, exact_reduced, exact_maximal, "
                    "template (= --refine template)")
-    e.add_argument("--refine", choices=("template",), help="also refine the exact_reduced fit against the category "
-                   "template (the nearest training instance, articulated ICP; kept where its score on the points is "
-                   "better): the 'ANCSH-exact + category template' row")
+    e.add_argument("--refine", choices=("template", "network"), help="also refine the exact_reduced fit: 'template' "
+                   "against the category template (the nearest training instance, articulated ICP; kept where its score "
+                   "on the points is better), the 'ANCSH-exact + category template' row; 'network' with the refinement "
+                   "network (the points in the fit's NAOCS orientation, two passes), the 'ANCSH-exact + refinement "
+                   "network' row")
+    e.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
+                   "the category's shipped <category>_refine.pt")
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
     e.add_argument("--time-limit-min", type=float, help="stop after this many minutes, keeping the frames done")
@@ -161,6 +169,8 @@ def run_predict(args: argparse.Namespace) -> int:
 
     if args.points < 1:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
+    if args.refiner is not None and args.refine != "network":
+        raise ValueError("--refiner: a refinement network is used with --refine network only")
     if args.png is not None and not args.depth.is_dir():
         check_picture_path(args.png, "--png")
     _device(args)  # a missing CUDA device is the first thing to hear about
@@ -173,7 +183,8 @@ def run_predict(args: argparse.Namespace) -> int:
     rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
-                         isolate=not args.no_isolate, hint=hint, refine=args.refine, device=_device(args))
+                         isolate=not args.no_isolate, hint=hint, refine=args.refine, refiner=args.refiner,
+                         device=_device(args))
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
                      "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed,
@@ -228,7 +239,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     if args.png is not None:
         args.png.mkdir(parents=True, exist_ok=True)
     provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine,
-                               device=_device(args))
+                               refiner=args.refiner, device=_device(args))
     if args.weights is not None:
         check_weights_category(provider, args.category, args.weights)
     statuses = {}
@@ -340,6 +351,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--frames: expected a positive number of frames, got {frames}")
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
+    if args.refiner is not None and args.refine != "network":
+        raise ValueError("--refiner: a refinement network is evaluated with --refine network only")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
     if args.real:  # checked before the procedural evaluation, not after it
@@ -355,7 +368,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     common = dict(
         frames=frames, methods=methods, seed=args.seed, weights=args.weights, direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
-        num_threads=args.threads, progress=not args.no_progress, refine=args.refine, executor=executor,
+        num_threads=args.threads, progress=not args.no_progress, refine=args.refine, refiner=args.refiner, executor=executor,
         device=_device(args),
     )
     with executor.session():  # one Ray connection for both splits
@@ -382,7 +395,7 @@ def _rebuild(args: argparse.Namespace) -> str:
     if args.formulations:
         parts += ["--formulations", *args.formulations]
     for flag, value in (("--frames", args.frames), ("--time-limit-min", args.time_limit_min), ("--weights", args.weights),
-                        ("--direct-weights", args.direct_weights), ("--out", args.out)):
+                        ("--direct-weights", args.direct_weights), ("--refiner", args.refiner), ("--out", args.out)):
         if value is not None:
             parts += [flag, str(value)]
     if args.quick:

@@ -31,6 +31,7 @@ from .checks import (  # noqa: F401 - re-exported
     part_quality,
 )
 from .picture import draw_prediction  # noqa: F401 - re-exported
+from .refine_network import NetworkRefinement
 
 __all__ = [
     "MIN_POINTS",
@@ -263,7 +264,7 @@ def check_weights_category(provider, category: str, weights) -> None:
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
                   seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
-                  device="cpu") -> DepthPrediction:
+                  refiner=None, device="cpu") -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is found first: :func:`ancsh.data.isolate.isolate_object` proposes
@@ -300,9 +301,12 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     hint : ObjectHint, optional
         A pixel or box on the object, for isolation.
     refine : str or None
-        Category-template refinement of the fit (:meth:`LearnedProvider.refine`): ``"template"``,
-        ``"auto"`` (where measured to help), ``None`` / ``"none"`` (off); default: the provider's
-        option (a provider made here: ``"auto"``).
+        Refinement of the fit (:meth:`LearnedProvider.refine`): ``"template"`` (the category template),
+        ``"network"`` (the refinement network), ``"auto"`` (the template where measured to help),
+        ``None`` / ``"none"`` (off); default: the provider's option (a provider made here: ``"auto"``).
+    refiner : str or Path, optional
+        With ``refine="network"`` and no ``provider``: a refinement network's weights file instead of the
+        category's shipped ``<category>_refine.pt``.
     device : str
         Where the network runs without a ``provider``: ``"cpu"`` (default), ``"cuda"`` or ``"auto"``.
 
@@ -326,7 +330,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
             from ..network.weights import missing_weights_error
 
             raise missing_weights_error(category)
-        provider = LearnedProvider(category if weights is None else weights, seed=seed, refine="auto", device=device)
+        provider = LearnedProvider(category if weights is None else weights, seed=seed,
+                                   refine="network" if refine == "network" else "auto", refiner=refiner, device=device)
         if weights is not None:
             check_weights_category(provider, category, weights)
     d = np.asarray(depth, dtype=np.float64)
@@ -418,7 +423,13 @@ def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, s
     template_fit = False
     if result.ok and formulation != "per_part":
         refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
-        if refined is not None:
+        if isinstance(refined, NetworkRefinement):
+            if refined.accepted:
+                result, corr, raw = refined.result, refined.inference.correspondences, refined.inference.prediction
+            notes.append(f"refinement network: {'kept' if refined.accepted else 'not kept'} ({refined.reason}; rotation "
+                         f"moved {', '.join(f'{a:.1f}' for a in refined.rotation_change_deg) or '-'} deg per pass, "
+                         f"{1e3 * refined.time_s:.0f} ms)")
+        elif refined is not None:
             result, template_fit = refined.result, refined.accepted
             notes.append(f"category-template refinement: {'kept' if refined.accepted else 'not kept'} "
                          f"({refined.reason}; template {refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")

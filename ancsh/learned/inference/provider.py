@@ -30,7 +30,7 @@ from .voting import JointVote, vote_joints
 
 __all__ = ["REFINE_OPTIONS", "Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
 
-REFINE_OPTIONS = (None, "none", "template", "auto")
+REFINE_OPTIONS = (None, "none", "template", "network", "auto")
 """Values of ``LearnedProvider(refine=...)``."""
 
 
@@ -177,15 +177,22 @@ class LearnedProvider:
         What :meth:`refine` does with a fit of these correspondences: ``"template"`` refines it against
         the category template (:func:`ancsh.solvers.icp.category.refine_fit`, the nearest training
         instance of the network's category; kept only where its score on the observed points beats the
-        fit's), ``None`` / ``"none"`` leaves it, ``"auto"`` refines where it was measured to help
-        (:func:`ancsh.data.templates.refine_default`).
+        fit's), ``"network"`` runs the refinement network ``refiner`` on the points in the fit's NAOCS
+        orientation and fits again (:func:`~ancsh.learned.inference.refine_network.refine_with_network`),
+        ``None`` / ``"none"`` leaves it, ``"auto"`` refines against the template where that was measured
+        to help (:func:`ancsh.data.templates.refine_default`).
+    refiner : str, Path or LoadedNetwork, optional
+        With ``refine="network"``: the refinement network (default: the category's shipped
+        ``<category>_refine.pt``), loaded when first needed.
+    refine_passes : int
+        Passes of the refinement network.
     device : str or torch.device, optional
         Where the network runs: ``"cpu"``, ``"cuda"``, ``"auto"`` (:func:`~ancsh.learned.devices.resolve_device`);
         the network is moved there. Default: where it is (the CPU for a loaded file).
     """
 
     def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
-                 refine: str | None = None, device=None):
+                 refine: str | None = None, refiner=None, refine_passes: int = 2, device=None):
         from ..network.weights import LoadedNetwork, load_network
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source)
@@ -202,6 +209,37 @@ class LearnedProvider:
         if refine not in REFINE_OPTIONS:
             raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {refine!r}")
         self.refine_option = None if refine == "none" else refine
+        if isinstance(refine_passes, bool) or int(refine_passes) != refine_passes or refine_passes < 1:
+            raise ValueError(f"refine_passes: expected a positive integer, got {refine_passes!r}")
+        self.refine_passes = int(refine_passes)
+        self._refiner_source = refiner
+        self._refiner: LearnedProvider | None = None
+        self._device = device
+        if self.refine_option == "network":
+            self.refiner  # load it now: a missing or wrong refinement network is the first thing to hear about
+        elif refiner is not None:
+            raise ValueError(f"refiner: a refinement network is used with refine='network' only, not refine={refine!r}")
+
+    @property
+    def refiner(self) -> "LearnedProvider":
+        """A provider of the refinement network (``refine="network"``), loaded on first use."""
+        if self._refiner is None:
+            from ..network.weights import LoadedNetwork, load_network, weights_path
+
+            source = self._refiner_source
+            if source is None:
+                if self.category is None or not weights_path(self.category, "refine").is_file():
+                    raise FileNotFoundError(f"refiner: no refinement network is shipped for {self.category!r} "
+                                            f"(expected {weights_path(str(self.category), 'refine')}); give one")
+                source = weights_path(self.category, "refine")
+            net = source if isinstance(source, LoadedNetwork) else load_network(source)
+            if not net.config.is_refiner:
+                raise ValueError(f"refiner: {net.source} is a first-stage network, not a refinement network")
+            if net.num_parts != self.num_parts or not np.array_equal(net.revolute, self.network.revolute):
+                raise ValueError(f"refiner: {net.source} predicts {net.num_parts} parts and joints "
+                                 f"{net.revolute.tolist()}, the first stage {self.num_parts} and {self.network.revolute.tolist()}")
+            self._refiner = LearnedProvider(net, seed=self.seed, min_votes=self.min_votes, device=self._device)
+        return self._refiner
 
     @property
     def category(self) -> str | None:
@@ -217,7 +255,7 @@ class LearnedProvider:
             raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {option!r}")
         if option == "auto":
             return self.category is not None and refine_default(self.category)
-        return option == "template"
+        return option in ("template", "network")
 
     def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0):
         """A fit of this provider's correspondences, refined against the category template when enabled.
@@ -235,11 +273,16 @@ class LearnedProvider:
 
         Returns
         -------
-        TemplateRefinement or None
+        TemplateRefinement, NetworkRefinement or None
             ``None`` when refinement is off; else its outcome (``.result`` is the fit to use).
         """
         if not self.refines(refine):
             return None
+        if (self.refine_option if refine == "provider" else refine) == "network":
+            from .refine_network import refine_with_network
+
+            return refine_with_network(self.refiner, observation, fit, formulation=fit.formulation,
+                                       passes=self.refine_passes, rng=rng)
         from ...data.templates import load_template_library
         from ...solvers.icp.category import refine_fit
 
@@ -281,22 +324,38 @@ class LearnedProvider:
                 f"predicts {self.num_parts} parts and joints {[t.value for t in self.joint_types]}"
             )
 
-    def predict(self, points_cam) -> Prediction:
-        """Raw per-point predictions for ``(N, 3)`` camera-frame points (metres)."""
+    def predict(self, points_cam, *, input_rotation=None) -> Prediction:
+        """Raw per-point predictions for ``(N, 3)`` camera-frame points (metres).
+
+        ``input_rotation`` ``(3, 3)``: the network sees the points rotated by it (a refinement network's
+        input, :attr:`~ancsh.learned.network.config.TrainConfig.refine_perturb_deg`: the transpose of a
+        first fit's ``R_cam_naocs``). Its predictions are canonical (NPCS, NAOCS), so they hold for the
+        unrotated points too.
+        """
         pts = Observation(points_cam).points_cam
+        if input_rotation is None and self.network.config.is_refiner:
+            raise ValueError(f"input_rotation: {self.network.source} is a refinement network; it takes the points "
+                             "rotated into a first fit's NAOCS orientation (use it as refiner=, refine='network')")
+        if input_rotation is not None:
+            R = np.asarray(input_rotation, dtype=np.float64)
+            if R.shape != (3, 3) or not np.all(np.isfinite(R)) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) \
+                    or np.linalg.det(R) < 0:
+                raise ValueError(f"input_rotation: expected a (3, 3) rotation matrix, got {R.tolist()}")
+            pts = pts @ R.T
         return predict_points(self.network.model, pts, self.network.config.num_points, self.seed)
 
-    def correspond(self, observation: Observation) -> Correspondences:
-        """Per-point part labels, NPCS, per-part ``G_s, G_t`` and voted NAOCS joints for ``observation``."""
-        return self.infer(observation).correspondences
+    def correspond(self, observation: Observation, *, input_rotation=None) -> Correspondences:
+        """Per-point part labels, NPCS, per-part ``G_s, G_t`` and voted NAOCS joints for ``observation``
+        (``input_rotation``: as for :meth:`predict`)."""
+        return self.infer(observation, input_rotation=input_rotation).correspondences
 
-    def infer(self, observation: Observation) -> "Inference":
+    def infer(self, observation: Observation, *, input_rotation=None) -> "Inference":
         """:meth:`correspond`'s correspondences with the raw prediction and the joint votes behind them."""
         if not isinstance(observation, Observation):
             raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
         if observation.num_points == 0:
             raise ValueError("observation: no points")
-        pred = self.predict(observation.points_cam)
+        pred = self.predict(observation.points_cam, input_rotation=input_rotation)
         M, K = self.num_parts, self.num_joints
         N = observation.num_points
         labels = pred.seg_prob.argmax(1)

@@ -110,6 +110,16 @@ class TrainConfig:
         lean on the camera frame: their fitted rotation follows a 10° camera roll by only 0.4–0.7
         (oven, washing machine, drawer) against about 1 for the laptop (``ancsh bench
         roll-equivariance``).
+    refine_perturb_deg : float
+        ``0`` (the default): a first-stage network, on camera-frame input. ``> 0``: a **refinement
+        network** (the second stage of CAPTRA / DeepIM): every training and validation frame is rotated
+        into its NAOCS orientation (its truth's ``R_cam_naocs``,
+        :meth:`~ancsh.learned.training.data.TrainingArrays.naocs_rotations`) and then by a random
+        rotation of up to this many degrees (uniform angle, uniform axis) -- what a second pass sees
+        after a first fit whose rotation erred by that much. Translation and scale need no perturbation:
+        the network centres and scales its input. At test time ``LearnedProvider(refine="network")``
+        rotates the observed points by the first fit's ``R_cam_naocs`` transposed. ANCSH networks only;
+        not combined with the camera-rotation augmentation (which it replaces).
     """
 
     category: str = "laptop"
@@ -141,6 +151,7 @@ class TrainConfig:
     compile: bool = False
     augment_roll_deg: float = 0.0
     augment_tilt_deg: float = 0.0
+    refine_perturb_deg: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.category, str) or not self.category:
@@ -197,6 +208,15 @@ class TrainConfig:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= top:
                 raise ValueError(f"{name}: expected a number of degrees in [0, {top:g}], got {v!r}")
             object.__setattr__(self, name, float(v))
+        v = self.refine_perturb_deg
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= 90:
+            raise ValueError(f"refine_perturb_deg: expected a number of degrees in [0, 90], got {v!r}")
+        object.__setattr__(self, "refine_perturb_deg", float(v))
+        if v and self.kind != "ancsh":
+            raise ValueError(f"refine_perturb_deg: a refinement network is an ANCSH network, not {self.kind!r}")
+        if v and (self.augment_roll_deg or self.augment_tilt_deg):
+            raise ValueError("refine_perturb_deg: a refinement network's input is in its NAOCS orientation; "
+                             "set augment_roll_deg and augment_tilt_deg to 0")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"seed: expected a non-negative integer, got {self.seed!r}")
 
@@ -228,6 +248,11 @@ class TrainConfig:
 
     def to_json(self, path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n")
+
+    @property
+    def is_refiner(self) -> bool:
+        """Whether this is a refinement network (input in a perturbed NAOCS orientation)."""
+        return self.refine_perturb_deg > 0
 
     def network_kwargs(self) -> dict:
         """Keyword arguments of :func:`ancsh.learned.network.models.build_network` (besides kind, parts, joints)."""

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from ...geometry._checks import check_generator
-from ...model.articulated import JointType
+from ...model.articulated import JointType, joint_tree_root
 
-__all__ = ["TrainingArrays", "frame_arrays", "stack_frames", "camera_joint_targets", "arrays_from_dataset", "synthetic_arrays"]
+__all__ = ["TrainingArrays", "naocs_rotations", "frame_arrays", "stack_frames", "camera_joint_targets", "arrays_from_dataset", "synthetic_arrays"]
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,17 @@ class TrainingArrays:
         points = t.pop("points")
         return points, Targets(**t)
 
+    @property
+    def root_part(self) -> int:
+        """The part no joint moves (the base: its NPCS orientation is the NAOCS orientation)."""
+        return joint_tree_root(self.num_parts, self.joint_children)
+
+    def naocs_rotations(self, index) -> np.ndarray:
+        """``R_cam_naocs`` ``(B, 3, 3)`` of frames ``index``: :func:`naocs_rotations` of their points."""
+        index = np.asarray(index)
+        naocs = self.scale[index][..., None] * self.npcs[index] + self.translation[index]
+        return naocs_rotations(self.points[index], naocs, self.labels[index] == self.root_part)
+
     def save(self, path) -> None:
         """Write an uncompressed ``.npz`` cache."""
         np.savez(Path(path), **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
@@ -111,6 +122,38 @@ class TrainingArrays:
             kw = {f.name: z[f.name] for f in fields(cls)}
         kw["num_parts"] = int(kw["num_parts"])
         return cls(**kw)
+
+
+def naocs_rotations(points_cam: np.ndarray, naocs: np.ndarray, on_base: np.ndarray) -> np.ndarray:
+    """Each frame's NAOCS orientation in the camera, ``R_cam_naocs``, from its base part's points.
+
+    The base part is posed in the camera as the whole NAOCS is (no joint moves it), so a
+    similarity fit (Umeyama) of its points' NAOCS coordinates to their camera coordinates gives
+    the rotation. A frame whose base shows on fewer than 3 points (or degenerately) is fitted on
+    all its points instead (exact at the rest state only).
+
+    Parameters
+    ----------
+    points_cam : (B, N, 3)
+        Camera frame, metres.
+    naocs : (B, N, 3)
+        The points' NAOCS coordinates.
+    on_base : (B, N) bool
+        Which points lie on the base part.
+
+    Returns
+    -------
+    (B, 3, 3) float64
+        ``points_cam ~= s R_cam_naocs naocs + t`` on the base.
+    """
+    from ...geometry.umeyama import umeyama_batch
+
+    src, dst = np.asarray(naocs, dtype=np.float64), np.asarray(points_cam, dtype=np.float64)
+    R, _, _, valid = umeyama_batch(src, dst, np.asarray(on_base, dtype=np.float64))
+    if not np.all(valid):
+        R_all, _, _, _ = umeyama_batch(src[~valid], dst[~valid])
+        R[~valid] = R_all
+    return R
 
 
 def camera_joint_targets(points_cam: np.ndarray, association: np.ndarray, revolute: np.ndarray, axes_cam: np.ndarray, pivots_cam: np.ndarray) -> np.ndarray:

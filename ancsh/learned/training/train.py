@@ -39,7 +39,7 @@ from .history import HistoryRow, plot_history, write_history_csv
 
 __all__ = ["Trainer", "HistoryRow", "split_by_instance", "evaluate_arrays", "trivial_baselines", "loss_function",
            "neighbourhood_cache", "PoseValidation", "write_history_csv", "plot_history", "camera_rotations",
-           "rotate_batch"]
+           "rotate_batch", "refine_rotations", "input_batch"]
 
 
 def loss_function(config: TrainConfig):
@@ -86,6 +86,55 @@ def camera_rotations(centroids_cam: np.ndarray, roll_rad: float, tilt_rad: float
         tilt = Rotation.from_rotvec(rng.uniform(-tilt_rad, tilt_rad) * perp / np.linalg.norm(perp))
         out[b] = (tilt * roll).as_matrix()
     return out
+
+
+def refine_rotations(R_cam_naocs: np.ndarray, max_rad: float, seeds) -> np.ndarray:
+    """The input rotations of a refinement network's frames (``TrainConfig.refine_perturb_deg``).
+
+    Parameters
+    ----------
+    R_cam_naocs : (B, 3, 3)
+        Each frame's true NAOCS orientation in the camera.
+    max_rad : float
+        Largest perturbation (radians): a uniform angle in ``[0, max_rad]`` about a uniform axis.
+    seeds : sequence of length B
+        One ``np.random.default_rng`` seed per frame.
+
+    Returns
+    -------
+    (B, 3, 3) float64
+        ``dR_b @ R_cam_naocs[b].T``: rotating a frame's points by it leaves them in the NAOCS
+        orientation perturbed by ``dR_b``, as a first fit that erred by ``dR_b.T`` would.
+    """
+    from scipy.spatial.transform import Rotation
+
+    R_cam_naocs = np.asarray(R_cam_naocs, dtype=np.float64)
+    out = np.empty_like(R_cam_naocs)
+    for b, seed in enumerate(seeds):
+        rng = np.random.default_rng(seed)
+        axis = rng.normal(size=3)
+        dR = Rotation.from_rotvec(rng.uniform(0.0, max_rad) * axis / np.linalg.norm(axis)).as_matrix()
+        out[b] = dR @ R_cam_naocs[b].T
+    return out
+
+
+def input_batch(arrays: TrainingArrays, idx, config: TrainConfig, seeds, *, augment: bool = True):
+    """Frames ``idx`` of ``arrays`` as the network of ``config`` takes them: ``(points, Targets)`` tensors,
+    rotated into a refinement network's perturbed NAOCS orientation or, with ``augment``, by the
+    camera-rotation augmentation (one seed per frame)."""
+    points, targets = arrays.batch(idx)
+    if config.is_refiner:
+        rotations = refine_rotations(arrays.naocs_rotations(idx), math.radians(config.refine_perturb_deg), seeds)
+        return rotate_batch(points, targets, rotations)
+    if augment and (config.augment_roll_deg or config.augment_tilt_deg):
+        rotations = camera_rotations(points.double().mean(dim=1).numpy(), math.radians(config.augment_roll_deg),
+                                     math.radians(config.augment_tilt_deg), seeds)
+        return rotate_batch(points, targets, rotations)
+    return points, targets
+
+
+VAL_STREAM = 2**32 - 1
+"""Second seed entry of validation frames' input rotations (training steps use their step number)."""
 
 
 def rotate_batch(points, targets, rotations):
@@ -187,6 +236,9 @@ class PoseValidation:
         """Means over frames: ``pose_rot_deg`` (over parts), ``pose_axis_deg``, ``pose_state_err`` (over joints),
         ``pose_failures`` (failed fits, left out) and ``pose_score = pose_rot_deg + pose_axis_deg``.
 
+        A refinement network (``TrainConfig.refine_perturb_deg``) sees each frame in its true NAOCS
+        orientation perturbed as in training (seeded per frame), i.e. after a simulated first fit.
+
         ``network`` is a :class:`~ancsh.learned.network.weights.LoadedNetwork`.
         """
         from ...evaluation import evaluate_fit
@@ -194,9 +246,13 @@ class PoseValidation:
         from ..inference.provider import LearnedProvider
 
         provider = LearnedProvider(network, seed=self.seed)
+        c = network.config
         rot, axis, state, failures = [], [], [], 0
         for i, (obs, gt) in enumerate(self.frames):
-            r = fit(obs, provider.correspond(obs), self.formulation, rng=self.seed + i)
+            R_in = None
+            if c.is_refiner:  # a first fit that erred by up to refine_perturb_deg
+                R_in = refine_rotations(gt.T_cam_naocs.rotation[None], math.radians(c.refine_perturb_deg), [[self.seed, VAL_STREAM, i]])[0]
+            r = fit(obs, provider.correspond(obs, input_rotation=R_in), self.formulation, rng=self.seed + i)
             ev = evaluate_fit(r, gt)
             if not ev.ok:
                 failures += 1
@@ -250,7 +306,8 @@ def evaluate_arrays(model, arrays: TrainingArrays, config: TrainConfig, batch_si
     try:
         for start in range(0, len(arrays), batch_size):
             idx = np.arange(start, min(start + batch_size, len(arrays)))
-            points, targets = move(arrays.batch(idx), model_device(model))
+            seeds = [[config.seed, VAL_STREAM, int(i)] for i in idx]
+            points, targets = move(input_batch(arrays, idx, config, seeds, augment=False), model_device(model))
             out = model(points)
             total, parts = loss_fn(out, targets)
             pred = out["seg_logits"].argmax(-1)
@@ -417,12 +474,8 @@ class Trainer:
         for g in self.optimizer.param_groups:
             g["lr"] = self.learning_rate(self.step)
         idx = self.dist.local_batch(self.batch_indices(self.step))  # all of it in a single process
-        points, targets = self.train_arrays.batch(idx)
         c = self.config
-        if c.augment_roll_deg or c.augment_tilt_deg:
-            rotations = camera_rotations(points.double().mean(dim=1).numpy(), math.radians(c.augment_roll_deg),
-                                         math.radians(c.augment_tilt_deg), [[c.seed, self.step, int(i)] for i in idx])
-            points, targets = rotate_batch(points, targets, rotations)
+        points, targets = input_batch(self.train_arrays, idx, c, [[c.seed, self.step, int(i)] for i in idx])
         points, targets = move((points, targets), self.device)
         with global_batch(self.dist):
             out = self.step_model(points, move(Neighbourhoods.from_numpy(self.neighbourhoods, idx), self.device))

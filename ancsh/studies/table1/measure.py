@@ -19,6 +19,11 @@ then fit the same network output, so they differ only in how they use it:
     Sec. 4.3 soft joint energies, ``FitConfig.paper()``.
 ``exact_reduced`` / ``exact_maximal`` (ANCSH-exact, ours)
     Joints as exact constraints (IPOPT), default ``FitConfig()``.
+``network`` (ANCSH-exact + refinement network, ours; only when asked for, ``refine="network"``)
+    The ``exact_reduced`` fit refined by the category's refinement network
+    (:func:`ancsh.learned.inference.refine_network.refine_with_network`: the points rotated into the fit's
+    NAOCS orientation, the network run again, the exact fit again; two passes), the ``exact_reduced``
+    fit itself where no pass succeeded.
 ``template`` (ANCSH-exact + category template, ours; only when asked for, ``refine="template"``)
     The ``exact_reduced`` fit refined by articulated ICP against the nearest training instance of the
     category (:func:`ancsh.solvers.icp.category.refine_fit`): kept only where its own score on the
@@ -45,7 +50,7 @@ from ...learned.network.weights import missing_weights_error
 from ...learned.network.weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 from ...outputs import json_safe  # noqa: F401  (re-exported)
 
-__all__ = ["DEFAULT_METHODS", "METHODS", "PAPER_TABLE1", "PAPER_TABLE2", "Method", "TIMING_KEYS", "evaluate_category",
+__all__ = ["DEFAULT_METHODS", "METHODS", "REFINEMENTS", "PAPER_TABLE1", "PAPER_TABLE2", "Method", "TIMING_KEYS", "evaluate_category",
            "fit_method", "fit_naocs", "naocs_correspondences", "npcs_error_budget", "per_point_naocs"]
 
 
@@ -68,12 +73,17 @@ METHODS: dict[str, Method] = {
         Method("exact_reduced", "ANCSH-exact reduced (ours)", "exact_reduced", False),
         Method("exact_maximal", "ANCSH-exact maximal (ours)", "exact_maximal", False),
         Method("template", "ANCSH-exact + category template (ours)", "exact_reduced", False),
+        Method("network", "ANCSH-exact + refinement network (ours)", "exact_reduced", False),
     )
 }
 """Methods of Table 1 by key (``--formulations`` takes these keys)."""
 
-DEFAULT_METHODS = tuple(k for k in METHODS if k != "template")
-"""The methods evaluated by default (the template refinement costs far more per frame: asked for with ``refine``)."""
+REFINEMENTS = ("template", "network")
+"""Methods that refine an ``exact_reduced`` fit (asked for with ``refine``)."""
+
+DEFAULT_METHODS = tuple(k for k in METHODS if k not in REFINEMENTS)
+"""The methods evaluated by default (the refinements cost more per frame or need a refinement network: asked for
+with ``refine``)."""
 
 # The paper's Table 1 (means over ~3000 test images of unseen instances of its CAD datasets; translation
 # and line distance in object units, joint states in degrees or object units for drawers).
@@ -193,8 +203,9 @@ def fit_method(key: str, observation: Observation, corr: Correspondences, *, nao
 
     if key not in METHODS:
         raise ValueError(f"key: expected one of {list(METHODS)}, got {key!r}")
-    if key == "template":
-        raise ValueError("key: 'template' refines an exact_reduced fit; use ancsh.solvers.icp.category.refine_fit")
+    if key in REFINEMENTS:
+        raise ValueError(f"key: {key!r} refines an exact_reduced fit (ancsh.solvers.icp.category.refine_fit, "
+                         "ancsh.learned.inference.refine_network.refine_with_network)")
     m = METHODS[key]
     config = FitConfig.paper() if m.paper_config else FitConfig()
     if key == "naocs":
@@ -292,7 +303,7 @@ class _FrameEvaluator:
     method; ``worker(i)`` returns the frame's record (a pure function of the settings and ``i``)."""
 
     def __init__(self, category: str, seed: int, real, weights: str, direct_weights, num_threads: int, methods: tuple,
-                 device="cpu", instances: str = "test"):
+                 device="cpu", instances: str = "test", refiner=None):
         from ...data.generate import FrameGenerator, GenerationConfig
         from ...learned.inference.provider import DirectVotingPredictor, LearnedProvider
 
@@ -300,7 +311,8 @@ class _FrameEvaluator:
         if real is not None:
             cfg.update(real=real, real_fraction=1.0)
         self.generator = FrameGenerator(GenerationConfig(**cfg))
-        self.provider = LearnedProvider(weights, seed=seed, num_threads=num_threads, device=device)
+        self.provider = LearnedProvider(weights, seed=seed, num_threads=num_threads, device=device,
+                                        refine="network" if "network" in methods else None, refiner=refiner)
         self.voter = None if direct_weights is None else DirectVotingPredictor(direct_weights, seed=seed, device=device)
         self.seed, self.methods = int(seed), tuple(methods)
         self.library = None
@@ -330,7 +342,7 @@ class _FrameEvaluator:
         }
         fits = {}
         for key in self.methods:
-            if key == "template":
+            if key in REFINEMENTS:
                 continue
             r = fits[key] = fit_method(key, obs, corr, naocs=naocs, rng=self.seed + i)
             ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
@@ -347,6 +359,18 @@ class _FrameEvaluator:
                             "refine_ms": 1e3 * ref.time_s, "score_input": ref.score_input,
                             "score_refined": ref.score_refined}
             rec["methods"]["template"] = ev
+        if "network" in self.methods:
+            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=self.seed + i)
+            if base.ok:
+                ref = self.provider.refine(obs, corr, base, refine="network", rng=self.seed + i)
+                ev = evaluate_fit(ref.result, fr.gt, fr.part_names, fr.joint_names).to_dict()
+                ev["fit_ms"] = 1e3 * (base.time_s + ref.time_s)
+                ev["network_refine"] = {"accepted": ref.accepted, "passes": ref.passes,
+                                        "rotation_change_deg": list(ref.rotation_change_deg), "refine_ms": 1e3 * ref.time_s}
+            else:
+                ev = evaluate_fit(base, fr.gt, fr.part_names, fr.joint_names).to_dict()
+                ev["fit_ms"] = 1e3 * base.time_s
+            rec["methods"]["network"] = ev
         if self.voter is not None:
             t0 = time.perf_counter()
             axes, pivots, _ = self.voter.joints(obs)
@@ -373,6 +397,7 @@ def evaluate_category(
     progress: bool = True,
     real: str | None = None,
     refine: str | None = None,
+    refiner=None,
     executor=None,
     device="cpu",
     instances: str = "test",
@@ -400,7 +425,10 @@ def evaluate_category(
         objects of ``category`` instead of the procedural test instances (the real test split).
     refine : str, optional
         ``"template"``: add the ``template`` method (the ``exact_reduced`` fit refined against the
-        category's template library, :func:`ancsh.data.templates.load_template_library`).
+        category's template library, :func:`ancsh.data.templates.load_template_library`); ``"network"``:
+        add the ``network`` method (refined by the refinement network ``refiner``).
+    refiner : str or Path, optional
+        The refinement network of the ``network`` method (default: the category's shipped ``<category>_refine.pt``).
     executor : LocalExecutor or RayExecutor, optional
         Where the frames are evaluated (:mod:`ancsh.executors`; default: in this process). Every
         frame is a pure function of the settings and its index, so the records -- all but the
@@ -429,10 +457,12 @@ def evaluate_category(
     from ...learned.network.weights import available_weights, load_network, weights_path
 
     methods = tuple(methods)
-    if refine not in (None, "template"):
-        raise ValueError(f"refine: expected None or 'template', got {refine!r}")
-    if refine == "template" and "template" not in methods:
-        methods = methods + ("template",)
+    if refine not in (None, *REFINEMENTS):
+        raise ValueError(f"refine: expected None or one of {REFINEMENTS}, got {refine!r}")
+    if refine is not None and refine not in methods:
+        methods = methods + (refine,)
+    if refiner is not None and "network" not in methods:
+        raise ValueError("refiner: a refinement network is evaluated with refine='network' only")
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:
         raise ValueError(f"methods: expected keys of {list(METHODS)}, got {list(methods)}")
@@ -462,6 +492,11 @@ def evaluate_category(
     network = load_network(category if weights is None else weights)  # its file and SHA-256 at load time
     if network.kind != "ancsh":
         raise ValueError(f"weights: expected an ANCSH network, got a {network.kind!r} network")
+    refiner_source = None
+    if "network" in methods:  # loaded here: a missing or mismatched refinement network fails before any frame
+        from ...learned.inference.provider import LearnedProvider
+
+        refiner_source = LearnedProvider(network, refine="network", refiner=refiner).refiner.network.source
     direct = None
     if direct_weights is not None:
         direct = str(load_network(direct_weights, kind="direct_voting").source)
@@ -475,7 +510,8 @@ def evaluate_category(
         from tqdm import tqdm
 
         bar = tqdm(total=int(frames), desc=f"evaluate {category}", unit="frame")
-    worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device, instances)
+    worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device, instances,
+                   refiner_source)
     results = executor.imap(_FrameEvaluator, worker_args, range(int(frames)))
     try:
         for rec in results:
@@ -504,7 +540,7 @@ def evaluate_category(
             "num_points": gen.config.num_points, "generator_version": GENERATOR_VERSION,
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
-            "time_limit_s": time_limit_s, "refine": refine,
+            "time_limit_s": time_limit_s, "refine": refine, "refiner": refiner_source,
             "executor": executor.describe(), "device": device,
         },
         "timing": {"wall_s": time.perf_counter() - start},

@@ -107,7 +107,7 @@ def _budget_section(summary: dict, settings: dict) -> list[str]:
     if "budget" not in summary:
         return []
     b = summary["budget"]
-    fitted = [key for key in ("per_part", "exact_reduced", "template") if key in summary["methods"]]
+    fitted = [key for key in ("per_part", "exact_reduced", "template", "network") if key in summary["methods"]]
     head = "| Part | NPCS head: raw error | NPCS head: orientation error (°) | residual after the similarity |"
     head += "".join(f" {METHODS[k].label}: rotation error (°) |" for k in fitted)
     lines = [
@@ -366,7 +366,7 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real
         md.append(f"| ANCSH network: voted joints in NAOCS, before fitting | {_fmt(nv['axis_deg']['mean'], '.2f')} "
                   f"| {_fmt(nv['line_dist']['mean'], '.3f')} |")
     for key, row in summary["methods"].items():
-        if key in ("soft", "exact_reduced", "exact_maximal", "template"):
+        if key in ("soft", "exact_reduced", "exact_maximal", "template", "network"):
             md.append(f"| {METHODS[key].label} | {_fmt(row['axis_deg']['mean'], '.2f')} | {_fmt(row['line_dist']['mean'], '.3f')} |")
     for name, row in (paper2 or {}).items():
         label = "PointNet++ (direct voting)" if name == "direct_voting" else name
