@@ -250,18 +250,30 @@ def test_continuous_joints_are_reported_within_a_turn():
 
 
 def test_a_full_disk_during_generation_says_so_and_keeps_complete_shards(tmp_path, monkeypatch, capsys):
-    import ancsh.data.generate as generate
+    """The shard is built in memory and written in one plain write: a full disk fails that write (before: a
+    segfault inside HDF5's close), the shards written before stay, no temporary file is left."""
+    import os
+    import stat
 
-    calls = []
+    import ancsh.data.dataset as dataset
 
-    def full(path, *args, **kwargs):
-        calls.append(path)
-        raise OSError(errno.ENOSPC, "No space left on device", str(path))
+    real_fsync, calls = os.fsync, []
 
-    monkeypatch.setattr(generate, "write_shard", full)
+    def full_on_second_shard(fd):
+        if stat.S_ISREG(os.fstat(fd).st_mode):  # a shard's file (the folder is synced too)
+            calls.append(fd)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_fsync(fd)
+
+    monkeypatch.setattr(dataset.os, "fsync", full_on_second_shard)
+    out = tmp_path / "ds"
     code = main(["data", "generate", "--category", "laptop", "--frames", "2", "--shard-size", "1", "--points", "64",
-                 "--width", "160", "--height", "120", "--workers", "1", "--quiet", "--out", str(tmp_path / "ds")])
+                 "--width", "160", "--height", "120", "--workers", "1", "--quiet", "--out", str(out)])
     err = capsys.readouterr().err
-    assert code == 1 and calls and "No space left on device" in err and "resume" in err and "Traceback" not in err
+    assert code == 2 and "No space left on device" in err and "laptop_train_00001.h5" in err and "resume" in err
+    assert "Traceback" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["laptop_train_00000.h5"]
+    assert len(dataset.FrameDataset(out)) == 1
 
 

@@ -93,9 +93,7 @@ def run_fit(args) -> int:
     if args.points < 1:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
     intr = read_intrinsics(args.intrinsics)
-    depth = read_depth(args.depth, depth_scale=args.depth_scale)
-    if depth.shape != (intr.height, intr.width):
-        raise ValueError(f"depth: shape {depth.shape} does not match the intrinsics' {(intr.height, intr.width)}")
+    depth = read_depth(args.depth, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
     mask = depth > 0
     if args.max_depth is not None:
         mask &= depth <= args.max_depth

@@ -147,7 +147,7 @@ def run_generate(args) -> int:
         where = exc.filename or out
         print(f"ancsh data generate: error: cannot write {where}: {exc.strerror or exc}; complete shards are kept in "
               f"{out}; free space (or choose another --out) and run the same command again to resume", file=sys.stderr)
-        return 1
+        return 2
     for s, reason in report.replaced:
         print(f"regenerated shard {report.paths[s].name}: {reason}")
     rate = f" ({report.frames_per_second:.1f} frames/s)" if report.frames_generated else ""

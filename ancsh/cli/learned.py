@@ -178,7 +178,7 @@ def run_predict(args: argparse.Namespace) -> int:
     intr = read_intrinsics(args.intrinsics)
     if args.depth.is_dir():
         return _predict_folder(args, intr, hint)
-    depth = read_depth(args.depth, depth_scale=args.depth_scale)
+    depth = read_depth(args.depth, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
     mask = None if args.mask is None else read_mask(args.mask, depth.shape)
     rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
@@ -245,7 +245,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     statuses = {}
     for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
         try:
-            depth = read_depth(path, depth_scale=args.depth_scale)
+            depth = read_depth(path, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
             pred = predict_depth(depth, intr, args.category, max_depth=args.max_depth, provider=provider,
                                  formulation=args.formulation, num_points=args.points, seed=args.seed,
                                  isolate=not args.no_isolate, hint=hint)

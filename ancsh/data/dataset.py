@@ -60,6 +60,7 @@ detected on reading.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 from dataclasses import dataclass
@@ -318,32 +319,37 @@ def write_shard(path, frames, *, split: str, source: str, config: str, frame_sta
         record = frame_record(fr)
         _check_record_shapes(record, {"N": len(fr.points), "M": fr.num_parts, "K": fr.num_joints}, f"frames[{i}]")
         records.append(record)
+    buffer = io.BytesIO()  # built in memory: a full disk then fails one plain write, not inside HDF5 (a segfault)
+    with h5py.File(buffer, "w") as f:
+        for key, (dtype, _) in FIELDS.items():
+            values = [r[key] for r in records]
+            if dtype == "str":
+                data = np.array(values, dtype=h5py.string_dtype())
+                f.create_dataset(key, data=data).attrs["sha256"] = _digest(values)
+                continue
+            data = np.stack([np.asarray(v) for v in values]).astype(dtype)
+            kwargs = {}
+            if data.size:
+                kwargs = {"chunks": (min(len(data), 64),) + data.shape[1:], "fletcher32": True}
+            f.create_dataset(key, data=data, **kwargs).attrs["sha256"] = _digest(data)
+        f.attrs.update(meta)
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["split"] = split
+        f.attrs["source"] = source
+        f.attrs["config"] = config
+        f.attrs["frame_start"] = int(frame_start)
+        f.attrs["frame_count"] = len(frames)
+        f.attrs["complete"] = True
     tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
     try:
-        with h5py.File(tmp, "w") as f:
-            for key, (dtype, _) in FIELDS.items():
-                values = [r[key] for r in records]
-                if dtype == "str":
-                    data = np.array(values, dtype=h5py.string_dtype())
-                    f.create_dataset(key, data=data).attrs["sha256"] = _digest(values)
-                    continue
-                data = np.stack([np.asarray(v) for v in values]).astype(dtype)
-                kwargs = {}
-                if data.size:
-                    kwargs = {"chunks": (min(len(data), 64),) + data.shape[1:], "fletcher32": True}
-                f.create_dataset(key, data=data, **kwargs).attrs["sha256"] = _digest(data)
-            f.attrs.update(meta)
-            f.attrs["format_version"] = FORMAT_VERSION
-            f.attrs["split"] = split
-            f.attrs["source"] = source
-            f.attrs["config"] = config
-            f.attrs["frame_start"] = int(frame_start)
-            f.attrs["frame_count"] = len(frames)
-            f.flush()
-            f.attrs["complete"] = True
-        _fsync_file(tmp)
+        with open(tmp, "wb") as out:
+            out.write(buffer.getbuffer())
+            out.flush()
+            os.fsync(out.fileno())
         os.replace(tmp, path)
         _fsync_dir(path.parent)
+    except OSError as exc:  # full disk, read-only folder: the complete shards written before stay
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -358,14 +364,6 @@ def _digest(data) -> str:
         return hashlib.sha256(np.ascontiguousarray(data).tobytes()).hexdigest()
     items = [x if isinstance(x, bytes) else str(x).encode() for x in data]
     return hashlib.sha256(b"\0".join(items)).hexdigest()
-
-
-def _fsync_file(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 def _fsync_dir(path: Path) -> None:

@@ -24,7 +24,15 @@ _DEPTH_PNG_MODES = ("I;16", "I;16B", "I;16L", "I")
 MAX_IMAGE_PIXELS = 8192 * 8192
 
 
-def _open_image(path: Path, argument: str, convert: str | None = None) -> tuple[np.ndarray, str]:
+def _check_shape(path: Path, argument: str, claimed: tuple, shape: tuple | None) -> None:
+    """Refuse a file whose header claims another ``(H, W)`` than ``shape`` (the intrinsics'), before decoding it."""
+    if shape is not None and tuple(int(x) for x in claimed) != tuple(int(x) for x in shape):
+        size = f"{claimed[1]}x{claimed[0]}" if len(claimed) == 2 else f"of shape {tuple(claimed)}"
+        raise ValueError(f"{argument}: {path} is {size} pixels, the intrinsics say {shape[1]}x{shape[0]} "
+                         "(mismatched intrinsics file?); not read")
+
+
+def _open_image(path: Path, argument: str, convert: str | None = None, shape: tuple | None = None) -> tuple[np.ndarray, str]:
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -39,6 +47,7 @@ def _open_image(path: Path, argument: str, convert: str | None = None) -> tuple[
         if width * height > MAX_IMAGE_PIXELS:
             raise ValueError(f"{argument}: {path} claims {width} x {height} pixels, more than any depth image "
                              f"({MAX_IMAGE_PIXELS} pixels at most); not read")
+        _check_shape(path, argument, (height, width), shape)
         try:
             mode = im.mode
             data = np.asarray(im if convert is None else im.convert(convert))
@@ -47,7 +56,7 @@ def _open_image(path: Path, argument: str, convert: str | None = None) -> tuple[
     return data, mode
 
 
-def _load_npy(path: Path, argument: str, what: str = "depth array") -> np.ndarray:
+def _load_npy(path: Path, argument: str, what: str = "depth array", expected: tuple | None = None) -> np.ndarray:
     """A numeric (or bool) ``.npy`` array; its header is checked before anything is allocated (type, size)."""
     fmt = np.lib.format
     try:
@@ -62,6 +71,7 @@ def _load_npy(path: Path, argument: str, what: str = "depth array") -> np.ndarra
     if float(np.prod(shape, dtype=np.float64)) > MAX_IMAGE_PIXELS:
         raise ValueError(f"{argument}: {path} claims an array of shape {tuple(shape)}, more than any image "
                          f"({MAX_IMAGE_PIXELS} values at most); not read")
+    _check_shape(path, argument, tuple(shape), expected)
     try:
         return np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as exc:
@@ -79,7 +89,7 @@ def read_json(path, *, argument: str):
         raise ValueError(f"{argument}: {path} is not valid JSON ({exc})") from None
 
 
-def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth") -> np.ndarray:
+def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth", shape: tuple | None = None) -> np.ndarray:
     """Read a depth image as ``(H, W)`` float64 metres (0 = no measurement).
 
     Parameters
@@ -91,11 +101,14 @@ def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth") -> 
         Metres per PNG unit, positive.
     argument : str
         Name of the option in error messages.
+    shape : (H, W), optional
+        The size the intrinsics give: a file whose header claims another is refused before its
+        pixels are decoded.
 
     Raises
     ------
     ValueError
-        Not a 16-bit PNG (an 8-bit PNG holds no usable depth) or a 2-D numeric ``.npy``, negative
+        Another size than ``shape``; not a 16-bit PNG (an 8-bit PNG holds no usable depth) or a 2-D numeric ``.npy``, negative
         depths, or ``.npy`` depths whose median exceeds :data:`MAX_PLAUSIBLE_DEPTH` metres (they
         look like millimetres: the message says to divide by 1000).
     """
@@ -105,7 +118,7 @@ def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth") -> 
     if not (np.isfinite(depth_scale) and depth_scale > 0):
         raise ValueError(f"depth_scale: expected a positive number, got {depth_scale}")
     if path.suffix.lower() == ".npy":
-        d = _load_npy(path, argument)
+        d = _load_npy(path, argument, expected=shape)
         if d.ndim != 2 or not np.issubdtype(d.dtype, np.number):
             raise ValueError(f"{argument}: expected a 2-D numeric array of metres in {path}, got {d.dtype} {d.shape}")
         d = np.where(np.isfinite(d), d, 0.0).astype(np.float64)
@@ -116,7 +129,7 @@ def read_depth(path, *, depth_scale: float = 0.001, argument: str = "depth") -> 
                 "a .npy depth image is in metres: divide it by 1000 (or save a 16-bit PNG of millimetres)"
             )
     elif path.suffix.lower() == ".png":
-        d, mode = _open_image(path, argument)
+        d, mode = _open_image(path, argument, shape=shape)
         if mode not in _DEPTH_PNG_MODES:
             raise ValueError(f"{argument}: expected a 16-bit single-channel PNG in {path}, got mode {mode!r} "
                              "(an 8-bit image cannot hold depth in millimetres)")

@@ -141,10 +141,7 @@ def load_real_frame(folder, *, depth_scale: float = 0.001) -> RealFrame:
     where = f"real frame {folder.name}"
     intr = read_intrinsics(_file(folder, files["intrinsics"], f"{where}: files.intrinsics"), argument=f"{where}: intrinsics")
     depth = read_depth(_file(folder, files["depth"], f"{where}: files.depth"), depth_scale=depth_scale,
-                       argument=f"{where}: depth")
-    if depth.shape != (intr.height, intr.width):
-        raise ValueError(f"{where}: depth is {depth.shape[1]}x{depth.shape[0]} pixels, the intrinsics say "
-                         f"{intr.width}x{intr.height}")
+                       argument=f"{where}: depth", shape=(intr.height, intr.width))
     color = _file(folder, files["color"], f"{where}: files.color")
     rgb = read_rgb(color, depth.shape, argument=f"{where}: color") if color.is_file() else None
     objects = truth.get("objects")

@@ -134,10 +134,7 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
     for i, path in enumerate(files):
         path = Path(path)
         try:
-            depth = read_depth(path, argument=f"frame {i}")
-            if depth.shape != (intrinsics.height, intrinsics.width):
-                raise ValueError(f"frame {i}: {path.name} is {depth.shape[1]}x{depth.shape[0]} pixels, the intrinsics "
-                                 f"say {intrinsics.width}x{intrinsics.height} (mismatched intrinsics file?)")
+            depth = read_depth(path, argument=f"frame {i}", shape=(intrinsics.height, intrinsics.width))
             mask = None
             if mask_dir is not None:
                 mpath = next((Path(mask_dir) / (path.stem + s) for s in _SUFFIXES if (Path(mask_dir) / (path.stem + s)).is_file()),

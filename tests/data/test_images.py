@@ -56,3 +56,17 @@ def test_ordinary_arrays_still_read(tmp_path):
     np.save(tmp_path / "m.npy", np.eye(3, dtype=bool))
     assert read_depth(tmp_path / "d.npy").shape == (6, 8)
     assert read_mask(tmp_path / "m.npy", (3, 3)).sum() == 3
+
+
+def test_a_depth_of_another_size_than_the_intrinsics_is_refused_from_its_header(tmp_path):
+    png = tmp_path / "d.png"
+    png.write_bytes(_png_header_only(641, 480))  # no pixel data to decode: the header alone decides
+    with pytest.raises(ValueError, match=r"depth: .*d.png is 641x480 pixels, the intrinsics say 640x480.*not read"):
+        read_depth(png, shape=(480, 640))
+    npy = tmp_path / "d.npy"
+    with open(npy, "wb") as f:  # a header without its data
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (48, 64)})
+    with pytest.raises(ValueError, match=r"d.npy is 64x48 pixels, the intrinsics say 640x480"):
+        read_depth(npy, shape=(480, 640))
+    np.save(npy, np.full((48, 64), 1.5))
+    assert read_depth(npy, shape=(48, 64)).shape == (48, 64)

@@ -55,15 +55,31 @@ def test_full_disk_while_checkpointing_says_no_space_and_keeps_the_old_checkpoin
     assert main(_args(tmp_path, shards["laptop"], run)) == 0
     before = (run / "last.pt").read_bytes()
 
-    def full(obj, f, *a, **k):
-        raise OSError(errno.ENOSPC, "No space left on device")
+    import os
 
-    monkeypatch.setattr(torch, "save", full)
+    import ancsh.outputs as outputs
+
+    real_fdopen = os.fdopen
+
+    class FullDisk:  # the checkpoint's file, on a disk with no space left
+        def __init__(self, f):
+            self.f = f
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+        def write(self, data):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(outputs.os, "fdopen", lambda fd, mode="r", *a, **k: FullDisk(real_fdopen(fd, mode, *a, **k)))
     code = main(["train", "--category", "laptop", "--resume", "--max-steps", "6", "--data", str(shards["laptop"]),
                  "--out", str(run), "--no-progress"])
     err = capsys.readouterr().err
     assert code == 2 and "No space left on device" in err and "checkpoint" in err and "Traceback" not in err
-    assert (run / "last.pt").read_bytes() == before and not list(run.glob("*.tmp"))
+    assert (run / "last.pt").read_bytes() == before and not list(run.glob("*.tmp")) and not list(run.glob(".*.tmp"))
 
 
 def test_shards_of_another_category_are_refused(tmp_path, shards, capsys):
@@ -95,3 +111,19 @@ def test_a_damaged_shard_is_named_and_left_out(tmp_path, shards, capsys):
         shard.write_bytes(b"x")
     assert main(_args(tmp_path, data, tmp_path / "run2")) == 2
     assert "no intact shard" in capsys.readouterr().err
+
+
+def test_exporting_weights_to_a_folder_that_refuses_writes_is_an_os_error_naming_the_file(tmp_path, shards, monkeypatch):
+    import ancsh.outputs as outputs
+    from ancsh.learned.network.weights import export_weights
+
+    run = tmp_path / "run"
+    assert main(_args(tmp_path, shards["laptop"], run)) == 0
+
+    def read_only(*a, **k):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(outputs.tempfile, "mkstemp", read_only)
+    with pytest.raises(OSError, match=r"could not write the weights .*w.pt: Read-only file system") as exc:
+        export_weights(run / "last.pt", tmp_path / "ro" / "w.pt")
+    assert exc.value.errno == errno.EROFS

@@ -56,7 +56,7 @@ def test_a_folder_reads_with_its_objects_and_bad_folders_name_what_is_wrong(fram
     with pytest.raises(ValueError, match=r"objects\[0\]\.mask: expected a file name inside"):
         load_real_frame(bad)
     bad = _write_frame(tmp_path / "size", depth, Intrinsics(fx=60, fy=60, cx=32, cy=24, width=640, height=480), [])
-    with pytest.raises(ValueError, match="depth is 64x48 pixels, the intrinsics say 640x480"):
+    with pytest.raises(ValueError, match="depth: .* is 64x48 pixels, the intrinsics say 640x480"):
         load_real_frame(bad)
     bad = _write_frame(tmp_path / "objects", depth, small, {"category": "laptop"})
     with pytest.raises(ValueError, match="objects: expected a list"):

@@ -22,11 +22,13 @@ file, a truncated one or one with missing entries is refused with a ``ValueError
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ...outputs import write_bytes_atomically
 
 __all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
            "learning_curve_fit", "missing_weights_error", "weights_summary", "read_torch_file", "parent_record",
@@ -162,10 +164,12 @@ def export_weights(checkpoint, out_path, *, metrics: dict | None = None) -> Path
         "lineage": _checkpoint_lineage(ck),
     }
     out = Path(out_path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(out.suffix + ".tmp")
-    torch.save(data, tmp)
-    tmp.replace(out)
+    buffer = io.BytesIO()  # serialised in memory: a full disk or a read-only folder fails a plain write (an OSError)
+    torch.save(data, buffer)
+    try:
+        write_bytes_atomically(out, buffer.getbuffer())
+    except OSError as exc:
+        raise OSError(exc.errno, f"could not write the weights {out}: {exc.strerror or exc}") from None
     return out
 
 

@@ -20,6 +20,7 @@ the steps an uninterrupted run would have taken.
 from __future__ import annotations
 
 import functools
+import io
 import math
 import os
 import time
@@ -28,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from ...outputs import write_bytes_atomically
 from ..network.config import TrainConfig
 from .data import TrainingArrays
 from ..devices import model_device, move
@@ -622,13 +624,12 @@ class Trainer:
             if path.name == "last.pt":
                 self._saved_step = self.step
             return path
-        tmp = path.with_suffix(path.suffix + ".tmp")
+        buffer = io.BytesIO()  # serialised in memory: a full disk fails a plain write with its errno, not inside torch
+        torch.save(self.state(), buffer)
         try:
-            torch.save(self.state(), tmp)
-            os.replace(tmp, path)
-        except (OSError, RuntimeError) as exc:  # full disk, read-only folder: the previous checkpoint stays intact
-            tmp.unlink(missing_ok=True)
-            raise OSError(getattr(exc, "errno", None), f"could not write the checkpoint {path}: {exc}") from None
+            write_bytes_atomically(path, buffer.getbuffer())
+        except OSError as exc:  # full disk, read-only folder: the previous checkpoint stays intact
+            raise OSError(exc.errno, f"could not write the checkpoint {path}: {exc.strerror or exc}") from None
         if path.name == "last.pt":
             self._saved_step = self.step
         return path
