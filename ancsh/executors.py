@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 
@@ -105,7 +107,7 @@ class LocalExecutor:
 
         # "spawn": workers never inherit open3d/OpenMP thread state from the parent.
         pool = ProcessPoolExecutor(max_workers=min(self.workers, len(tasks)), mp_context=mp.get_context("spawn"),
-                                   initializer=_init_local_worker, initargs=(make_worker, args))
+                                   initializer=_init_local_worker, initargs=(make_worker, args, os.getpid()))
         try:
             for future in [pool.submit(_run_local_task, task) for task in tasks]:
                 try:
@@ -119,9 +121,32 @@ class LocalExecutor:
 _LOCAL_WORKER = None
 
 
-def _init_local_worker(make_worker: Callable, args: tuple) -> None:
+PARENT_POLL_S = 0.5
+"""How often a local worker checks that the process that started it is alive."""
+
+
+def exit_with_parent(parent_pid: int, poll_s: float = PARENT_POLL_S) -> threading.Thread:
+    """Start a daemon thread that ends this process once ``parent_pid`` is no longer its parent.
+
+    A worker whose parent was killed (SIGKILL leaves no chance to stop the pool) is re-parented; the
+    thread notices within ``poll_s`` seconds and exits the process at once (``os._exit``: the parent
+    that would read its results is gone).
+    """
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(poll_s)
+        os._exit(1)
+
+    thread = threading.Thread(target=watch, name="exit-with-parent", daemon=True)
+    thread.start()
+    return thread
+
+
+def _init_local_worker(make_worker: Callable, args: tuple, parent_pid: int | None = None) -> None:
     global _LOCAL_WORKER
     os.environ.setdefault("OMP_NUM_THREADS", "1")
+    if parent_pid is not None:
+        exit_with_parent(parent_pid)
     _LOCAL_WORKER = make_worker(*args)
 
 
@@ -264,10 +289,46 @@ def start_ray(ray, *, address: str | None, num_cpus: int) -> bool:
     if ray.is_initialized():
         return False
     if address:
+        probe_ray_address(address)
         ray.init(address=address, log_to_driver=True)
     else:
         ray.init(num_cpus=int(num_cpus), include_dashboard=False, log_to_driver=True)
     return True
+
+
+RAY_CONNECT_TIMEOUT_S = 5.0
+"""How long :func:`probe_ray_address` waits for a cluster's port to answer (Ray itself retries for minutes)."""
+
+
+def probe_ray_address(address: str, timeout_s: float = RAY_CONNECT_TIMEOUT_S) -> None:
+    """Refuse a Ray address where nothing listens, before ``ray.init`` retries it for minutes.
+
+    ``"auto"`` / ``"local"`` are left to Ray (it fails at once when no cluster runs here); ``host:port``
+    (the cluster's GCS) and ``ray://host:port`` (Ray Client) must accept a TCP connection within
+    ``timeout_s`` seconds.
+
+    Raises
+    ------
+    ValueError
+        An address without a port.
+    ConnectionError
+        Nothing answers there, naming the address.
+    """
+    import socket
+
+    if address in ("auto", "local"):
+        return
+    hostport = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ValueError(f"address: expected 'auto', 'host:port' or 'ray://host:port', got {address!r}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        raise ConnectionError(f"address: no Ray cluster answers at {address} within {timeout_s:g} s "
+                              f"({exc.strerror or type(exc).__name__}); start one there (ray start --head) or leave "
+                              "the address out for a local Ray") from None
 
 
 def _check_workers(workers) -> None:

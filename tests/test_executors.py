@@ -16,7 +16,7 @@ from ancsh.cli import main
 from ancsh.data.dataset import ShardReader, read_arrays
 from ancsh.data.generate import GenerationConfig, _FrameWorker, generate_dataset
 from ancsh.data.render import Intrinsics
-from ancsh.executors import LocalExecutor, RayExecutor, WorkerLost, make_executor
+from ancsh.executors import LocalExecutor, RayExecutor, WorkerLost, make_executor, ray_available
 
 SMALL = Intrinsics.kinect(160, 120)
 
@@ -224,3 +224,90 @@ def test_ray_cad_evaluation_gives_the_same_records_as_one_process(ray_session):
     assert [r.object for r in ray_run] == [r.object for r in one] and len(one) == 2 * 2 * len(methods)
     _assert_close(_without_times([asdict(r) for r in one]), _without_times([asdict(r) for r in ray_run]))
     assert meta["objects"] == ray_meta["objects"]
+
+
+def test_a_ray_address_where_nothing_listens_is_refused_quickly(tmp_path, capsys):
+    import socket
+    import time
+
+    from ancsh.executors import probe_ray_address
+
+    with socket.socket() as s:  # a port that was free a moment ago: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    t0 = time.monotonic()
+    with pytest.raises(ConnectionError, match=f"no Ray cluster answers at 127.0.0.1:{port}"):
+        probe_ray_address(f"127.0.0.1:{port}")
+    with pytest.raises(ConnectionError, match=f"ray://127.0.0.1:{port}"):
+        probe_ray_address(f"ray://127.0.0.1:{port}", timeout_s=1.0)
+    assert time.monotonic() - t0 < 12.0
+    for bad in ("nohost", "host:", ":6379", "ray://x:port"):
+        with pytest.raises(ValueError, match="address: expected"):
+            probe_ray_address(bad)
+    probe_ray_address("auto")  # left to Ray, which fails at once without a cluster
+    with socket.socket() as server:  # something listening is accepted
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        probe_ray_address(f"127.0.0.1:{server.getsockname()[1]}")
+    if ray_available():
+        code = main(["evaluate", "--category", "laptop", "--frames", "1", "--executor", "ray", "--ray-address",
+                     f"127.0.0.1:{port}", "--out", str(tmp_path / "o"), "--no-progress"])
+        err = capsys.readouterr().err
+        assert code == 2 and "--ray-address: no Ray cluster answers" in err and "Traceback" not in err
+
+
+class _SlowPidWorker:
+    """A worker that writes its PID to a folder and sleeps (a long task)."""
+
+    def __init__(self, folder):
+        self.folder = folder
+
+    def __call__(self, task):
+        import time
+
+        Path(self.folder, f"{os.getpid()}.pid").write_text(str(task))
+        time.sleep(60)
+        return task
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:  # a zombie (exited, not yet reaped by its new parent) counts as gone
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return True
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc")
+def test_local_workers_exit_when_their_parent_is_killed(tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    script = (f"import sys; sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+              "from test_executors import _SlowPidWorker\n"
+              "from ancsh.executors import LocalExecutor\n"
+              f"list(LocalExecutor(2).imap(_SlowPidWorker, ({str(tmp_path)!r},), range(4)))\n")
+    parent = subprocess.Popen([sys.executable, "-c", script])
+    try:
+        deadline = time.monotonic() + 60
+        while len(list(tmp_path.glob("*.pid"))) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        pids = [int(p.stem) for p in tmp_path.glob("*.pid")]
+        assert len(pids) == 2 and all(_alive(p) for p in pids)
+        parent.send_signal(signal.SIGKILL)  # no chance to shut the pool down
+        parent.wait()
+        deadline = time.monotonic() + 10
+        while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not any(_alive(p) for p in pids)
+    finally:
+        parent.kill()
+        for p in tmp_path.glob("*.pid"):
+            try:
+                os.kill(int(p.stem), signal.SIGKILL)
+            except ProcessLookupError:
+                pass

@@ -119,6 +119,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"ancsh {args.command}: interrupted", file=sys.stderr)
         return 130
+    except ConnectionError as exc:  # a Ray cluster that does not answer
+        print(f"ancsh {args.command}: error: {exc}", file=sys.stderr)
+        return 2
     except OSError as exc:  # permission denied, no space left on device, read-only file system, ...
         where = f" {exc.filename}" if exc.filename else ""
         print(f"ancsh {args.command}: error: cannot read or write{where}: {exc.strerror or exc}", file=sys.stderr)

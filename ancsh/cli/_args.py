@@ -62,5 +62,12 @@ def executor_from_args(args):
         raise ValueError("--ray-address: only with --executor ray")
     if args.executor == "ray" and not ray_available():
         raise ValueError(f"--executor ray: {RAY_MISSING}")
+    if args.ray_address is not None:  # before any work: Ray itself would retry a dead address for minutes
+        from ..executors import probe_ray_address
+
+        try:
+            probe_ray_address(args.ray_address)
+        except (ValueError, ConnectionError) as exc:
+            raise type(exc)(f"--ray-address: {str(exc).removeprefix('address: ')}") from None
     return make_executor(args.executor, args.workers, address=args.ray_address)
 

@@ -143,6 +143,8 @@ def run_generate(args) -> int:
         print(f"\ninterrupted: complete shards are kept in {out}; run the same command again to resume",
               file=sys.stderr)
         return 130
+    except ConnectionError:  # a Ray cluster that does not answer: nothing was written
+        raise
     except OSError as exc:  # no space left, read-only folder: complete shards stay valid
         where = exc.filename or out
         print(f"ancsh data generate: error: cannot write {where}: {exc.strerror or exc}; complete shards are kept in "
