@@ -10,19 +10,22 @@ import pytest
 _OPEN_AT_FILE_ZERO = 0.6  # the synthetic oven's door is open by this angle at the file's state 0
 
 
-def _write_oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False, base_geometry=True) -> Path:
+def _write_oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False, base_geometry=True,
+                     door_limits="limited") -> Path:
     """A 0.6 m cube (z up) with a bottom-hinged door on its +x face, open by
-    ``_OPEN_AT_FILE_ZERO`` at the file's state 0 (closed at ``-_OPEN_AT_FILE_ZERO``)."""
+    ``_OPEN_AT_FILE_ZERO`` at the file's state 0 (closed at ``-_OPEN_AT_FILE_ZERO``). ``door_limits``:
+    ``"limited"`` (to 1.2 rad), ``"continuous"`` (a continuous joint) or ``"huge"`` (+-1e9 rad)."""
     folder.mkdir(parents=True, exist_ok=True)
     base_visual = ('<visual><origin xyz="0 0 0.3"/><geometry><box size="0.6 0.6 0.6"/></geometry></visual>'
                    if base_geometry else "")
-    door_type = "fixed" if door_fixed else "revolute"
+    door_type = "fixed" if door_fixed else "continuous" if door_limits == "continuous" else "revolute"
+    limit = {"limited": f'<limit lower="{-_OPEN_AT_FILE_ZERO}" upper="1.2"/>', "continuous": "",
+             "huge": '<limit lower="-1e9" upper="1e9"/>'}[door_limits]
     parts = [
         f'<link name="body">{base_visual}</link>',
         '<link name="door"><visual><origin xyz="0.01 0 0.29"/><geometry><box size="0.02 0.56 0.58"/></geometry></visual></link>',
         f'<joint name="door_joint" type="{door_type}"><parent link="body"/><child link="door"/>'
-        f'<origin xyz="0.3 0 0" rpy="0 {_OPEN_AT_FILE_ZERO} 0"/><axis xyz="0 1 0"/>'
-        f'<limit lower="{-_OPEN_AT_FILE_ZERO}" upper="1.2"/></joint>',
+        f'<origin xyz="0.3 0 0" rpy="0 {_OPEN_AT_FILE_ZERO} 0"/><axis xyz="0 1 0"/>{limit}</joint>',
     ]
     semantics = ["body heavy oven_body", "door hinge door"]
     if knob:

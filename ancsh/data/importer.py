@@ -53,7 +53,7 @@ import numpy as np
 from ..geometry._checks import check_bool
 from ..geometry.rotations import axis_angle_matrix
 from ..model.articulated import ArticulatedModel
-from ..model.edit import reparameterized, restructured, scaled, with_orientation
+from ..model.edit import reparameterized, restructured, scaled, with_limits, with_orientation
 from .conventions import (
     CONVENTIONS,
     UP,
@@ -124,6 +124,10 @@ class ImportedObject:
         ``"train"`` or ``"test"``.
     notes : tuple of str
         Overrides applied, clipped values, anything a person checking the catalog should know.
+    limits : dict
+        ``{convention joint: [lower, upper]}`` (convention units) replacing a revolute joint's limits where
+        the file gives none or more than a full turn (``continuous``, ``+-1e9``): the states from state 0
+        where the part does not pass through the base (:func:`free_range`). Empty for most objects.
     """
 
     name: str
@@ -137,15 +141,19 @@ class ImportedObject:
     scale: float
     split: str = "test"
     notes: tuple = field(default_factory=tuple)
+    limits: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {
+        d = {
             "name": self.name, "category": self.category, "urdf": self.urdf,
             "joint_types": dict(self.joint_types), "moving_links": list(self.moving_links),
             "zero": [float(z) for z in self.zero], "sign": [int(s) for s in self.sign],
             "flip_front": bool(self.flip_front), "scale": float(self.scale), "split": self.split,
             "notes": list(self.notes),
         }
+        if self.limits:
+            d["limits"] = {k: [float(a), float(b)] for k, (a, b) in self.limits.items()}
+        return d
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "catalog") -> "ImportedObject":
@@ -157,6 +165,7 @@ class ImportedObject:
                 zero=tuple(float(z) for z in d["zero"]), sign=tuple(int(s) for s in d["sign"]),
                 flip_front=check_bool(d["flip_front"], "flip_front"), scale=float(d["scale"]), split=str(d["split"]),
                 notes=tuple(str(n) for n in d.get("notes", ())),
+                limits={str(k): (float(v[0]), float(v[1])) for k, v in dict(d.get("limits", {})).items()},
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{where}: malformed object entry {d.get('name', '?') if isinstance(d, dict) else d!r}: {exc}") from None
@@ -183,7 +192,8 @@ class ImportedObject:
         if not path.is_file():
             raise FileNotFoundError(f"{self.name}: URDF {path} not found (is ../shared/data beside the repository?)")
         raw = load_urdf(path, category=self.category, joint_types=self.joint_types)
-        return _to_convention(raw, conv, self.moving_links, self.zero, self.sign, self.flip_front, self.scale, self.name)
+        return _to_convention(raw, conv, self.moving_links, self.zero, self.sign, self.flip_front, self.scale, self.name,
+                              self.limits)
 
     def model(self) -> ArticulatedModel:
         """The object in its category's convention (metres, canonical orientation, rest, roles)."""
@@ -296,10 +306,75 @@ def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links
 
 
 # --- finding state 0 and the direction ---------------------------------------------------------
+def _unbounded(joint) -> bool:
+    """A revolute joint without limits or with more than a full turn between them (``continuous``, ``+-1e9``)."""
+    return joint.is_revolute and not (np.isfinite(joint.lower) and np.isfinite(joint.upper)
+                                      and joint.upper - joint.lower <= 2 * np.pi)
+
+
 def _limits(joint) -> tuple[float, float]:
+    """The range searched for state 0 and the direction: the limits, or one turn around the file's 0."""
+    if _unbounded(joint):
+        return -np.pi, np.pi
     lo = joint.lower if np.isfinite(joint.lower) else -np.pi
     hi = joint.upper if np.isfinite(joint.upper) else np.pi
     return lo, hi
+
+
+FREE_STEP_DEG = 1.0
+"""Step (degrees) of :func:`free_range`'s scan."""
+
+FREE_MARGIN = 0.1
+"""The base's box shrunk by this fraction of its thinnest side on every side: the part's surface entering that
+inner box passes through the base (touching it, as a closed lid does, does not)."""
+
+FREE_SHARE = 0.05
+"""Rise of the share of the part's surface points inside the base's inner box that ends :func:`free_range`'s
+range (the part entering the base)."""
+
+
+def free_range(model, k: int, zero: float, sign: int, *, closed: bool) -> tuple[float, float]:
+    """The states, from ``zero`` in the convention's units (``q = sign * (q_file - zero)``), through which joint
+    ``k``'s part turns without passing through the base: for a joint the file leaves unlimited.
+
+    The scan turns the part in steps of :data:`FREE_STEP_DEG` each way from state 0 (at most a full turn),
+    following the share of its surface points inside the base's box shrunk by :data:`FREE_MARGIN`. A closed lid
+    may start with many there (a keyboard's recess, a lid's rim) and a hinge's edge keeps a few; the part has
+    left the base once the share fell :data:`FREE_SHARE` below its start (or started at most that), and the range
+    ends where the share rises :data:`FREE_SHARE` above the least it reached: the part entering the base again.
+    A ``closed`` state 0 is the lower limit (closing further goes into the body).
+    """
+    import trimesh
+
+    base, _ = _joint_pair(model, k, _with_state(model, k, zero))
+    margin = FREE_MARGIN * float(np.min(base.max(axis=0) - base.min(axis=0)))
+    lo_box, hi_box = base.min(axis=0) + margin, base.max(axis=0) - margin
+    child = model.joint_parts(k)[1]
+    mesh = model.parts[child].mesh  # surface samples (a box's 8 corners can all lie outside the inner box)
+    verts = np.asarray(trimesh.sample.sample_surface(mesh, 2000, seed=0)[0], dtype=np.float64)
+
+    def share(t) -> float:
+        pose = model.forward_kinematics(_with_state(model, k, zero + sign * t))[child]
+        pts = pose.apply(verts) @ model.R_canon_base.T
+        return float(np.mean(np.all((pts > lo_box) & (pts < hi_box), axis=1)))
+
+    start = share(0.0)
+    step = np.radians(FREE_STEP_DEG)
+    ends = []
+    for direction in (1, -1):
+        if closed and direction == -1:
+            ends.append(0.0)
+            continue
+        t, least = 0.0, start
+        while abs(t) + step <= 2 * np.pi - step:
+            now = share(t + direction * step)
+            if (least <= FREE_SHARE or least < start - FREE_SHARE) and now > least + FREE_SHARE:
+                break  # out of the base, and entering it again
+            least = min(least, now)
+            t += direction * step
+        left = least <= FREE_SHARE or least < start - FREE_SHARE
+        ends.append(t if left else 0.0)  # a part that never leaves the base has no free range
+    return ends[1], ends[0]
 
 
 def _argbest(scores, lo, hi) -> tuple[float, float]:
@@ -377,7 +452,7 @@ def _find_sign(model, k, jc, zero) -> int:
 
 
 def _to_convention(raw: ArticulatedModel, conv: CategoryConvention, moving_links, zero, sign, flip_front, scale,
-                   name) -> ArticulatedModel:
+                   name, limits=None) -> ArticulatedModel:
     """Apply an import record to the loaded model (see :class:`ImportedObject`)."""
     model = raw
     if flip_front:
@@ -386,6 +461,13 @@ def _to_convention(raw: ArticulatedModel, conv: CategoryConvention, moving_links
     ks = [index[link] for link in moving_links]
     for jc, k, z, s in zip(conv.joints, ks, zero, sign):
         model = reparameterized(model, k, zero=z, sign=s, rest=jc.rest)
+    if limits:
+        lower = np.array([j.lower for j in model.joints])
+        upper = np.array([j.upper for j in model.joints])
+        for jc, k in zip(conv.joints, ks):
+            if jc.name in limits:
+                lower[k], upper[k] = limits[jc.name]
+        model = with_limits(model, lower, upper)
     order = [0] + [model.part_index(link) for link in moving_links]
     model = restructured(model, order, conv.part_names, conv.joint_names)
     model = scaled(model, scale)
@@ -491,9 +573,25 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
             s = _find_sign(raw, k, jc, z)
         zeros.append(z)
         signs.append(s)
+    link_limits = {}  # by moving link: the role order below may still change
+    for link, jc, z, s in zip(moving, conv.joints, zeros, signs):
+        joint = raw.joints[index[link]]
+        if _unbounded(joint):
+            lo, hi = free_range(raw, index[link], z, s, closed=jc.zero == "closed")
+            if not lo < hi:
+                raise ImportRejected(name, f"joint {joint.name!r} is unlimited in the file and its part cannot turn "
+                                           "from state 0 without passing through the base")
+            link_limits[link] = (lo, hi)
+            kind = "continuous" if not (np.isfinite(joint.lower) and np.isfinite(joint.upper)) else \
+                f"limited to [{joint.lower:.3g}, {joint.upper:.3g}] (more than a full turn)"
+            notes.append(f"joint {joint.name!r} ({link}) is {kind} in the file; limited to [{np.degrees(lo):.0f}, "
+                         f"{np.degrees(hi):.0f}] deg, the states where the part does not pass through the base")
+
+    def by_role(order_links) -> dict:
+        return {jc.name: link_limits[link] for link, jc in zip(order_links, conv.joints) if link in link_limits}
 
     def build(order_links, zs, ss, flip, scale):
-        return _to_convention(raw, conv, order_links, zs, ss, flip, scale, name)
+        return _to_convention(raw, conv, order_links, zs, ss, flip, scale, name, by_role(order_links))
 
     # NAOCS front: flip when the moving parts sit on the wrong side at rest
     probe = _try_build(build, moving, zeros, signs, False, 1.0, conv, name)
@@ -525,7 +623,7 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
         raise ImportRejected(name, "does not meet the category's convention after import: " + "; ".join(problems))
     obj = ImportedObject(name=name, category=conv.name, urdf=_relative_urdf(path), joint_types=joint_types,
                          moving_links=tuple(moving), zero=tuple(zeros), sign=tuple(signs), flip_front=flip,
-                         scale=float(scale), split="test", notes=tuple(notes))
+                         scale=float(scale), split="test", notes=tuple(notes), limits=by_role(moving))
     return _carry_model(model, obj)
 
 

@@ -111,14 +111,15 @@ def measure_scaling(*, gen_frames: int = 64, chunk: int = 8, eval_frames: int = 
     """Time generation and evaluation on every executor and worker count (see the module docstring)."""
     from ..data.generate import GenerationConfig, _FrameWorker
     from ..executors import LocalExecutor, import_ray, make_executor, start_ray
-    from .table1.measure import METHODS, _FrameEvaluator
+    from .table1.measure import DEFAULT_METHODS, _FrameEvaluator
     from ..learned.network.weights import weights_path
 
     if "ray" in executors:
         import_ray()  # a clear error before any measurement
     gen_config = GenerationConfig(category=category, split="train", seed=0)
     gen_tasks = [list(range(i, min(i + chunk, gen_frames))) for i in range(0, gen_frames, chunk)]
-    eval_args = (category, 0, None, str(weights_path(category)), None, 1, tuple(METHODS), "cpu")
+    methods = (*DEFAULT_METHODS, "template")  # the refinement network needs weights not every category ships
+    eval_args = (category, 0, None, str(weights_path(category)), None, 1, methods, "cpu")
     configs = [("in-process", 1)] + [(kind, n) for kind in executors for n in workers]
     load_before = os.getloadavg()
     runs = []

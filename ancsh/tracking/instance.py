@@ -21,7 +21,8 @@ import numpy as np
 from ..geometry._checks import check_bool, check_generator, check_int, check_number, check_positive
 from ..geometry.rotations import exp_so3, geodesic_angle, log_so3
 from ..geometry.transforms import Sim3
-from ..solvers.icp.articulated import ArticulatedIcpConfig, articulated_icp, auto_init, icp_uncertainty, reduced_step
+from ..solvers.icp.articulated import (ArticulatedIcpConfig, articulated_icp, auto_init, icp_uncertainty, part_evidence,
+                                       reduced_step, unsupported_parts)
 from ..solvers.icp.result import CadFitResult
 from ..solvers.icp.template import ArticulatedPose, ModelTemplate, TemplateProvider
 from ..solvers.types import FitStatus, Observation
@@ -183,10 +184,11 @@ class InstanceTracker:
         prediction = self.predict()
         if prediction is not None:
             result = self._warm(points, prediction, t0)
-            if result.inlier_ratio >= cfg.accept_inliers:
+            if result.inlier_ratio >= cfg.accept_inliers and result.status != FitStatus.TOO_FEW_INLIERS:
                 self._accept(result)
                 return self._frame(index, TrackStatus.TRACKED, result.message, result, t0)
-            why = f"warm fit lost the object ({result.inlier_ratio:.0%} of the points within the gate); "
+            why = (f"warm fit failed ({result.message}); " if result.status == FitStatus.TOO_FEW_INLIERS else
+                   f"warm fit lost the object ({result.inlier_ratio:.0%} of the points within the gate); ")
             if not cfg.reinitialise:
                 self.reset()
                 return self._lost(index, why + "no cold fit (reinitialise is off)", t0)
@@ -195,7 +197,7 @@ class InstanceTracker:
         if result.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER) or result.inlier_ratio < cfg.accept_inliers:
             self.reset()
             return self._lost(index, f"{why}cold fit failed ({result.status.value}, {result.inlier_ratio:.0%} of the "
-                                     "points within the gate)", t0)
+                                     f"points within the gate: {result.message})", t0)
         status = TrackStatus.REINITIALISED if self._started else TrackStatus.INITIALISED
         self._started = True
         self.reset()
@@ -231,12 +233,17 @@ class InstanceTracker:
                 status = FitStatus.SUCCESS
                 break
         message = "converged" if status == FitStatus.SUCCESS else f"stopped after {iterations} warm iterations"
+        near, inl = part_evidence(self.provider, est, points, max(cfg.gate * self.diagonal, cfg.gate_floor), accept)
+        weak = unsupported_parts(self.model, near, inl, accept)
+        if weak:  # a warm fit always stops after a few iterations (max_iter): the parts' evidence decides
+            status, message = FitStatus.TOO_FEW_INLIERS, f"{message}, but {weak}"
         uncertainty = None
         if cfg.uncertainty and iterations:  # at the fit, on the last iteration's correspondences (model points: still valid)
             uncertainty = icp_uncertainty(self.provider.at(est, max_distance=gate), points, corr)
         return CadFitResult("articulated_icp_warm", tuple(est.part_poses(self.model)), est.q.copy(), est.T_cam_base, status,
                             message, inlier_ratio=ratio, rmse=rmse, iterations=iterations, time_s=time.perf_counter() - t0,
-                            uncertainty=uncertainty)
+                            uncertainty=uncertainty, part_points=tuple(int(n) for n in near),
+                            part_inliers=tuple(int(n) for n in inl))
 
     def _accept(self, result: CadFitResult) -> None:
         self._before = self._last

@@ -283,3 +283,22 @@ def test_a_folder_given_twice_is_imported_once(tmp_path, make_oven_urdf):
     with pytest.raises(ValueError, match="both object 'oven_a'"):
         build_catalog([urdf.parent, other.parent], "oven")
 
+
+
+@pytest.mark.parametrize("door_limits, kind", [("continuous", "continuous"), ("huge", "more than a full turn")])
+def test_an_unlimited_hinge_is_limited_to_where_its_part_stays_out_of_the_base(tmp_path, make_oven_urdf, door_limits,
+                                                                                kind):
+    """The door hinges at the cube's bottom front edge: from closed (0) it swings out and down, hangs, and lies
+    along the cube's bottom at 270 deg; further, it would enter the cube. Closing past 0 enters it at once."""
+    urdf = make_oven_urdf(tmp_path / "oven_u", door_limits=door_limits)
+    obj = import_object(urdf, "oven")
+    reference = import_object(make_oven_urdf(tmp_path / "oven_r"), "oven")
+    assert obj.zero[0] == pytest.approx(reference.zero[0], abs=0.02) and obj.sign == reference.sign
+    lo, hi = obj.limits["door_hinge"]
+    assert lo == 0.0 and np.radians(268) <= hi <= np.radians(300)
+    assert any(kind in n and "limited to [0, " in n for n in obj.notes)
+    joint = obj.model().joints[0]
+    assert (joint.lower, joint.upper) == (lo, hi)
+    back = ImportedObject.from_dict(json.loads(json.dumps(obj.to_dict())))
+    assert back.limits == obj.limits and (back.model().joints[0].lower, back.model().joints[0].upper) == (lo, hi)
+    assert "limits" not in reference.to_dict() and reference.limits == {}

@@ -58,7 +58,8 @@ from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProv
 from .reduced import icp_uncertainty, reduced_step
 from .scoring import FitScore, FitScorer
 
-__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "articulated_icp", "auto_init", "icp_uncertainty", "reduced_step"]
+__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init", "icp_uncertainty",
+           "part_evidence", "reduced_step", "unsupported_parts"]
 
 
 @dataclass(frozen=True)
@@ -484,7 +485,13 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     if final is None:
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
     est = final.estimate
+    status = final.status
     msg = "converged" if final.status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    inlier_gate = max(config.gate_end * diagonal, config.gate_floor)
+    near, inl = part_evidence(provider, est, points, run.gate(0), inlier_gate)
+    weak = unsupported_parts(model, near, inl, inlier_gate)
+    if weak and status in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
+        status, msg = FitStatus.TOO_FEW_INLIERS, f"{msg}, but {weak}"
     uncertainty = None
     if config.uncertainty:
         prov = provider.at(est, max_distance=max(config.gate_end * diagonal, config.gate_floor))
@@ -492,6 +499,49 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
                                       point_weight=config.point_weight)
     return CadFitResult(
         method="articulated_icp", T_cam_parts=tuple(est.part_poses(model)), q=est.q.copy(), T_cam_base=est.T_cam_base,
-        status=final.status, message=msg, inlier_ratio=final.inlier_ratio, rmse=final.rmse, iterations=iterations,
+        status=status, message=msg, inlier_ratio=final.inlier_ratio, rmse=final.rmse, iterations=iterations,
         time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts), uncertainty=uncertainty,
+        part_points=tuple(int(n) for n in near), part_inliers=tuple(int(n) for n in inl),
     )
+
+
+MIN_PART_INLIERS = 3
+"""A part needs at least this many inliers (and half of the points near it) to count as supported."""
+
+
+def part_evidence(provider: TemplateProvider, estimate: ArticulatedPose, points: np.ndarray, near_gate: float,
+                  inlier_gate: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per part: observed points nearest to it within ``near_gate``, and those within ``inlier_gate``.
+
+    Parameters
+    ----------
+    provider : TemplateProvider
+    estimate : ArticulatedPose
+    points : (N, 3) float64
+        Observed points (camera frame, model units).
+    near_gate, inlier_gate : float
+        Distances (model units): points farther than ``near_gate`` from the model are no evidence for any
+        part; an inlier lies within ``inlier_gate``.
+
+    Returns
+    -------
+    near, inliers : (M,) int64
+    """
+    corr = provider.at(estimate, max_distance=near_gate).correspond(points)
+    M = provider.model.num_parts
+    labels, dist = np.asarray(corr.part_labels), np.asarray(corr.distances)
+    near = np.bincount(labels[dist <= near_gate], minlength=M)
+    inliers = np.bincount(labels[dist <= inlier_gate], minlength=M)
+    return near, inliers
+
+
+def unsupported_parts(model: ArticulatedModel, near, inliers, inlier_gate: float) -> str:
+    """A sentence naming every part with fewer than :data:`MIN_PART_INLIERS` inliers or fewer inliers than half the
+    points near it; ``""`` when every part is supported."""
+    weak = [j for j in range(model.num_parts) if inliers[j] < max(MIN_PART_INLIERS, 0.5 * near[j])]
+    if not weak:
+        return ""
+    parts = ", ".join(f"part {model.parts[j].name!r} has {int(inliers[j])} inliers among the {int(near[j])} points "
+                      "near it" for j in weak)
+    return (f"{parts} (within {inlier_gate:.3g}; at least {MIN_PART_INLIERS} and half are needed): its pose and joint "
+            "state rest on no evidence")

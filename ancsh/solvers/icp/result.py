@@ -77,6 +77,12 @@ class CadFitResult:
         :attr:`T_cam_parts`; scale fixed), object pose (:attr:`T_cam_base`) and joint states
         (:func:`~ancsh.solvers.icp.articulated.icp_uncertainty`); ``None`` for the baselines, a
         failed fit, or ``ArticulatedIcpConfig(uncertainty=False)``.
+    part_points, part_inliers : tuple of int
+        Articulated ICP (and the instance tracker's warm fits): per part, the observed points whose
+        nearest model point lies on it within the first iteration's gate, and those of them within the
+        final gate (:func:`~ancsh.solvers.icp.articulated.part_evidence`). A part with too few inliers
+        among them fails the fit (``TOO_FEW_INLIERS``): its pose and joint state would rest on no
+        evidence. Empty for the baselines and fits without an estimate.
     """
 
     method: str
@@ -92,6 +98,8 @@ class CadFitResult:
     history: tuple = field(default_factory=tuple)
     starts: int = 1
     uncertainty: object = None
+    part_points: tuple = ()
+    part_inliers: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "status", FitStatus(self.status))
@@ -125,6 +133,8 @@ class CadFitResult:
             "time_s": float(self.time_s),
             "starts": int(self.starts),
             "uncertainty": None if self.uncertainty is None else self.uncertainty.to_dict(),
+            "part_points": [int(n) for n in self.part_points],
+            "part_inliers": [int(n) for n in self.part_inliers],
         }
 
 

@@ -61,7 +61,7 @@ def test_fit_cad_errors(scene, capsys):
     assert "no valid depth" in capsys.readouterr().err
     np.save(d / "small.npy", np.zeros((10, 10)))
     assert main(args + ["--depth", str(d / "small.npy")]) == 2
-    assert "does not match" in capsys.readouterr().err
+    assert "is 10x10 pixels, the intrinsics say 320x240" in capsys.readouterr().err
     rigid = d / "box.urdf"
     rigid.write_text('<robot name="box"><link name="b"><visual><geometry><box size="1 1 1"/></geometry></visual></link></robot>')
     assert main(["fit-cad", "--urdf", str(rigid), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json")]) == 2
