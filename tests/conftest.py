@@ -11,7 +11,7 @@ _OPEN_AT_FILE_ZERO = 0.6  # the synthetic oven's door is open by this angle at t
 
 
 def _write_oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False, base_geometry=True,
-                     door_limits="limited") -> Path:
+                     door_limits="limited", hatch=False) -> Path:
     """A 0.6 m cube (z up) with a bottom-hinged door on its +x face, open by
     ``_OPEN_AT_FILE_ZERO`` at the file's state 0 (closed at ``-_OPEN_AT_FILE_ZERO``). ``door_limits``:
     ``"limited"`` (to 1.2 rad), ``"continuous"`` (a continuous joint) or ``"huge"`` (+-1e9 rad)."""
@@ -35,6 +35,14 @@ def _write_oven_urdf(folder: Path, *, door_fixed=False, knob=True, drawer=False,
             '<origin xyz="0.31 0.2 0.55"/><axis xyz="1 0 0"/></joint>',
         ]
         semantics.append("knob hinge knob")
+    if hatch:
+        parts += [
+            '<link name="hatch"><visual><origin xyz="-0.15 0 0.01"/><geometry><box size="0.3 0.3 0.02"/></geometry>'
+            '</visual></link>',
+            '<joint name="hatch_joint" type="revolute"><parent link="body"/><child link="hatch"/>'
+            '<origin xyz="0.1 0 0.6"/><axis xyz="0 -1 0"/><limit lower="0" upper="1.5"/></joint>',
+        ]
+        semantics.append("hatch hinge door")
     if drawer:
         parts += [
             '<link name="tray"><visual><origin xyz="-0.2 0 0"/><geometry><box size="0.4 0.5 0.05"/></geometry></visual></link>',

@@ -63,12 +63,27 @@ def load_init(path, model):
 
     data = read_json(path, argument="init")
     if not isinstance(data, dict) or "T_cam_base" not in data:
-        raise ValueError(f'init: {path}: expected a JSON object with "T_cam_base" (4x4) and optionally "q"')
-    T = Sim3.from_matrix(np.asarray(data["T_cam_base"], dtype=float))
+        raise ValueError(f'--init: {path}: expected a JSON object with "T_cam_base" (4x4) and optionally "q"')
+    try:
+        M = np.asarray(data["T_cam_base"], dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"--init: {path}: T_cam_base must be a 4x4 matrix of numbers") from None
+    if M.shape != (4, 4):
+        raise ValueError(f"--init: {path}: T_cam_base must be a 4x4 matrix, got shape {M.shape}")
+    try:
+        T = Sim3.from_matrix(M)
+    except ValueError as exc:
+        raise ValueError(f"--init: {path}: T_cam_base is not a rigid transform ({exc})") from None
     if not T.is_rigid and abs(T.scale - 1.0) > 1e-6:
-        raise ValueError(f"init: T_cam_base must be rigid (scale 1), got scale {T.scale:.6g}")
-    q = np.asarray(data.get("q", model.rest_states), dtype=float)
-    model.check_states(q, "init q")
+        raise ValueError(f"--init: {path}: T_cam_base must be rigid (scale 1), got scale {T.scale:.6g}")
+    try:
+        q = np.asarray(data.get("q", model.rest_states), dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"--init: {path}: q must be a list of numbers") from None
+    if q.shape != (model.num_joints,):
+        raise ValueError(f"--init: {path}: q must hold {model.num_joints} joint state(s) (one per joint of the URDF: "
+                         f"{[j.name for j in model.joints]}), got shape {q.shape}")
+    model.check_states(q, f"--init {path}: q")
     return ArticulatedPose(Sim3(T.rotation, T.translation), q)
 
 

@@ -41,6 +41,7 @@ independent of which other objects are imported.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import zlib
@@ -157,6 +158,12 @@ class ImportedObject:
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "catalog") -> "ImportedObject":
+        name = d.get("name", "?") if isinstance(d, dict) else d
+        if isinstance(d, dict) and "scale" in d:
+            sc = d["scale"]
+            if isinstance(sc, bool) or not isinstance(sc, (int, float)) or not np.isfinite(sc) or sc <= 0:
+                raise ValueError(f"{where}: object {name!r}: scale: expected a positive number (file units -> metres), "
+                                 f"got {sc!r}")
         try:
             return cls(
                 name=str(d["name"]), category=str(d["category"]), urdf=str(d["urdf"]),
@@ -168,7 +175,7 @@ class ImportedObject:
                 limits={str(k): (float(v[0]), float(v[1])) for k, v in dict(d.get("limits", {})).items()},
             )
         except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{where}: malformed object entry {d.get('name', '?') if isinstance(d, dict) else d!r}: {exc}") from None
+            raise ValueError(f"{where}: malformed object entry {name!r}: {exc}") from None
 
     @property
     def urdf_path(self) -> Path:
@@ -250,20 +257,49 @@ def _mobility_joints(path: Path) -> dict | None:
     return out
 
 
-def _urdf_joints(path: Path) -> dict:
-    """``{child link: (joint name, type)}`` of the file (no geometry loaded)."""
+def _urdf_root(path: Path, name: str):
+    """The file's ``<robot>`` element (entities and DTDs not loaded), or :class:`ImportRejected` saying what the
+    file is instead: not XML at all, or XML with another root element."""
     from lxml import etree
 
+    parser = etree.XMLParser(resolve_entities=False, load_dtd=False, no_network=True)
     try:
-        root = etree.parse(str(path)).getroot()
-    except Exception as exc:  # noqa: BLE001 - any parser failure is a malformed file
-        raise ValueError(f"{path}: malformed URDF XML: {exc}") from None
+        root = etree.parse(str(path), parser).getroot()
+    except Exception as exc:  # noqa: BLE001 - any parser failure: not a URDF
+        raise ImportRejected(name, f"{path.name} is not a URDF file (not readable as XML: "
+                                   f"{str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__})") from None
+    if root is None or root.tag != "robot":
+        raise ImportRejected(name, f"{path.name} is not a URDF file (its root element is "
+                                   f"<{getattr(root, 'tag', '?')}>, not <robot>)")
+    return root
+
+
+def _urdf_joints(path: Path) -> dict:
+    """``{child link: (joint name, type)}`` of the file (no geometry loaded)."""
+    root = _urdf_root(path, _object_name(path))
     out = {}
     for j in root.findall("joint"):
         child = j.find("child")
         if child is not None and child.get("link") is not None:
             out[child.get("link")] = (j.get("name"), j.get("type"))
     return out
+
+
+class _TooManyMoving(ImportRejected):
+    """More moving parts of the category's kind than its joints: :func:`import_object` tries each choice."""
+
+    def __init__(self, name: str, links: list):
+        super().__init__(name, f"{len(links)} candidate moving parts {links}")
+        self.links = list(links)
+
+
+def _replaced_types_note(path: Path, joint_types: dict) -> str:
+    """One note listing the joints whose file type the import replaces (frozen, restored, continuous kept)."""
+    if not joint_types:
+        return ""
+    file_types = {jname: jtype for jname, jtype in _urdf_joints(path).values()}
+    changes = [f"{j} {file_types.get(j, '?')} -> {t}" for j, t in sorted(joint_types.items())]
+    return "joint types replaced: " + ", ".join(changes)
 
 
 def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links=None) -> tuple[dict, list]:
@@ -286,6 +322,8 @@ def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links
         moving = [link for link in joints if link in mobility and _KIND.get(mobility[link][0]) in wanted_type
                   and mobility[link][1] in semantics]
     mobility = mobility or {}
+    if len(moving) > conv.num_joints and forced_links is None:
+        raise _TooManyMoving(name, moving)
     if len(moving) != conv.num_joints:
         kinds = [f"{mobility[link][1]} ({mobility[link][0]})" for link in joints if link in mobility and mobility[link][0] in _KIND]
         kinds = kinds or [f"{link} ({joints[link][1]})" for link in joints if link in movable]
@@ -485,12 +523,27 @@ def load_overrides(path) -> dict:
         raise ValueError(f"override: {path} must hold an object {{name: {{...}}}}")
     for name, entry in data.items():
         if not isinstance(entry, dict):
-            raise ValueError(f"override: {path}: entry {name!r} must be an object")
+            raise ValueError(f"override: {path}: entry {name!r} must be an object of settings such as "
+                             f"{{\"moving_links\": [\"link_1\"]}}, got {entry!r}")
         unknown = set(entry) - _OVERRIDE_KEYS
         if unknown:
             raise ValueError(f"override: {path}: entry {name!r} has unknown key(s) {sorted(unknown)}; known: {sorted(_OVERRIDE_KEYS)}")
         if "flip_front" in entry:
             check_bool(entry["flip_front"], f"override: {path}: entry {name!r}: flip_front")
+        for key, what in (("zero", "a number (file units)"), ("sign", "1 or -1")):
+            value = entry.get(key, {})
+            if not isinstance(value, dict) or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value.values()):
+                raise ValueError(f"override: {path}: entry {name!r}: {key}: expected an object {{joint name: {what}}} "
+                                 f"naming the category's joints, got {value!r}")
+        if "diagonal_m" in entry:
+            d = entry["diagonal_m"]
+            if isinstance(d, bool) or not isinstance(d, (int, float)) or not np.isfinite(d) or d <= 0:
+                raise ValueError(f"override: {path}: entry {name!r}: diagonal_m: expected a positive number of metres, "
+                                 f"got {d!r}")
+        if "reject" in entry and not isinstance(entry["reject"], str):
+            raise ValueError(f"override: {path}: entry {name!r}: reject: expected the reason (a string), "
+                             f"got {entry['reject']!r}")
         links = entry.get("moving_links", [])
         if not isinstance(links, list) or not all(isinstance(link, str) for link in links):
             raise ValueError(f"override: {path}: entry {name!r}: moving_links: expected a list of link names "
@@ -533,13 +586,19 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
     override = dict(override or {})
     if "reject" in override:
         raise ImportRejected(name, f"rejected by override: {override['reject']}")
+    _urdf_root(path, name)  # a file that is no URDF says so, before any guess about its category
     if category is None:
         category = _guess_category(path)
         if category is None:
-            raise ImportRejected(name, "no category convention matches its meta.json category "
-                                       f"(known: {', '.join(CONVENTIONS)})")
+            meta = path.parent / "meta.json"
+            why = ("its meta.json names no category with a convention" if meta.is_file() else
+                   f"there is no meta.json beside it and its folder name {path.parent.name!r} names no category")
+            raise ImportRejected(name, f"{why}; give the category (--category; known: {', '.join(CONVENTIONS)})")
     conv = convention(category)
-    joint_types, moving = _select_moving(path, conv, name, override.get("moving_links"))
+    try:
+        joint_types, moving = _select_moving(path, conv, name, override.get("moving_links"))
+    except _TooManyMoving as many:
+        return _choose_moving(path, conv, name, override, many.links)
     try:
         raw = load_urdf(path, category=category, joint_types=joint_types)
     except ValueError as exc:
@@ -552,6 +611,11 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
         if raw.joint_parts(index[link])[0] != raw.base_index:
             raise ImportRejected(name, f"moving link {link!r} hangs from another moving part, not from the base")
     notes = []
+    if "moving_links" in override:
+        notes.append(f"moving links {list(moving)} from override")
+    replaced = _replaced_types_note(path, joint_types)
+    if replaced:
+        notes.append(replaced)
     for key in set(override.get("zero", {})) | set(override.get("sign", {})):
         if key not in conv.joint_names:
             raise ValueError(f"{name}: override names unknown joint {key!r}; joints of {conv.name}: {conv.joint_names}")
@@ -625,6 +689,38 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
                          moving_links=tuple(moving), zero=tuple(zeros), sign=tuple(signs), flip_front=flip,
                          scale=float(scale), split="test", notes=tuple(notes), limits=by_role(moving))
     return _carry_model(model, obj)
+
+
+MAX_CHOICES = 12
+"""Most choices of moving parts :func:`import_object` tries when a file has more than its category's joints."""
+
+
+def _choose_moving(path: Path, conv: CategoryConvention, name: str, override: dict, links: list) -> ImportedObject:
+    """Import with each choice of ``conv.num_joints`` of the candidate moving ``links`` (the others frozen) and keep
+    the one that meets the convention with the largest moving parts (an oven's door, not a grill's hatch), recording
+    the choice in the notes."""
+    import itertools
+
+    choices = list(itertools.combinations(links, conv.num_joints))[:MAX_CHOICES]
+    found, reasons = [], []
+    for choice in choices:
+        try:
+            obj = import_object(path, conv.name, override={**override, "moving_links": list(choice)})
+        except ImportRejected as exc:
+            reasons.append(f"{list(choice)}: {exc.reason}")
+            continue
+        model = obj.model()
+        size = sum(float(model.parts[model.joint_parts(k)[1]].mesh.area) for k in range(model.num_joints))
+        found.append((size, choice, obj))
+    if not found:
+        raise ImportRejected(name, f"has {len(links)} moving parts of the kind the {conv.name} category needs ({links}), "
+                                   f"it needs {conv.num_joints}, and no choice meets the convention: " + "; ".join(reasons))
+    size, choice, obj = max(found, key=lambda f: f[0])
+    frozen = [link for link in links if link not in choice]
+    note = (f"the file has {len(links)} moving parts of the category's kind {links}: {list(choice)} chosen by the "
+            f"convention (of {len(found)} choice(s) meeting it, the largest moving surface), {frozen} frozen")
+    notes = tuple(n for n in obj.notes if not n.startswith("moving links "))  # the choice was ours, not an override
+    return _carry_model(obj.model(), dataclasses.replace(obj, notes=(note, *notes)))
 
 
 def _carry_model(model: ArticulatedModel, obj: ImportedObject) -> ImportedObject:

@@ -64,7 +64,7 @@ def test_bad_files_and_overrides_name_the_object(tmp_path, make_oven_urdf):
     folder = tmp_path / "oven_bad"
     urdf = make_oven_urdf(folder)
     urdf.write_text(urdf.read_text()[:-20])  # truncated XML
-    with pytest.raises(ValueError, match="malformed"):
+    with pytest.raises(ImportRejected, match="oven_bad: model.urdf is not a URDF file \\(not readable as XML"):
         import_object(urdf, "oven")
     good = make_oven_urdf(tmp_path / "oven_d")
     with pytest.raises(ValueError, match="oven_d.*unknown joint 'lid'"):
@@ -302,3 +302,57 @@ def test_an_unlimited_hinge_is_limited_to_where_its_part_stays_out_of_the_base(t
     back = ImportedObject.from_dict(json.loads(json.dumps(obj.to_dict())))
     assert back.limits == obj.limits and (back.model().joints[0].lower, back.model().joints[0].upper) == (lo, hi)
     assert "limits" not in reference.to_dict() and reference.limits == {}
+
+
+def test_an_oven_with_two_door_hinges_keeps_the_door_the_convention_chooses(tmp_path, make_oven_urdf):
+    urdf = make_oven_urdf(tmp_path / "oven_two", hatch=True)
+    obj = import_object(urdf, "oven")
+    reference = import_object(make_oven_urdf(tmp_path / "oven_one"), "oven")
+    assert obj.moving_links == ("door",) and obj.joint_types["hatch_joint"] == "fixed"
+    assert obj.zero == pytest.approx(reference.zero) and obj.sign == reference.sign
+    assert any("['door'] chosen by the convention" in n and "['hatch'] frozen" in n for n in obj.notes), obj.notes
+    assert any(n.startswith("joint types replaced: ") and "hatch_joint revolute -> fixed" in n for n in obj.notes)
+    assert not any(n.startswith("moving links ") for n in obj.notes)
+    assert convention_violations(obj.model(), convention("oven")) == []
+    forced = import_object(urdf, "oven", override={"moving_links": ["door"]})  # the same choice by hand is noted
+    assert "moving links ['door'] from override" in forced.notes
+
+
+def test_a_file_that_is_no_urdf_says_so(tmp_path):
+    (tmp_path / "foo").mkdir()
+    (tmp_path / "foo" / "model.urdf").write_text("<foo/>")
+    with pytest.raises(ImportRejected, match=r"not a URDF file \(its root element is <foo>, not <robot>\)"):
+        import_object(tmp_path / "foo" / "model.urdf")
+    (tmp_path / "passwd").write_text("root:x:0:0:root:/root:/bin/bash\n")
+    with pytest.raises(ImportRejected, match="passwd is not a URDF file \\(not readable as XML"):
+        import_object(tmp_path / "passwd")
+    (tmp_path / "thing").mkdir()
+    (tmp_path / "thing" / "model.urdf").write_text('<robot name="r"><link name="a"/></robot>')
+    with pytest.raises(ImportRejected, match="no meta.json beside it and its folder name 'thing' names no category"):
+        import_object(tmp_path / "thing" / "model.urdf")
+
+
+@pytest.mark.parametrize("entry, message", [
+    ("link_0", "entry 'o' must be an object of settings such as"),
+    ({"zero": 0.5}, "entry 'o': zero: expected an object {joint name: a number (file units)}"),
+    ({"sign": {"door_hinge": "up"}}, "entry 'o': sign: expected an object {joint name: 1 or -1}"),
+    ({"diagonal_m": "big"}, "entry 'o': diagonal_m: expected a positive number of metres, got 'big'"),
+    ({"diagonal_m": -1}, "diagonal_m: expected a positive number"),
+    ({"reject": 1}, "entry 'o': reject: expected the reason"),
+    ({"moving_links": "link_1"}, "moving_links: expected a list of link names"),
+])
+def test_override_values_of_the_wrong_kind_are_refused_naming_file_entry_and_key(tmp_path, entry, message):
+    path = tmp_path / "over.json"
+    path.write_text(json.dumps({"o": entry}))
+    import re
+
+    with pytest.raises(ValueError, match=re.escape(f"override: {path}: ") + ".*" + re.escape(message)):
+        load_overrides(path)
+
+
+@pytest.mark.parametrize("scale", ["abc", -1.0, 0, None, True])
+def test_a_catalog_entry_with_a_bad_scale_names_the_catalog_and_the_object(tmp_path, make_oven_urdf, scale):
+    entry = import_object(make_oven_urdf(tmp_path / "oven_s"), "oven").to_dict()
+    entry["scale"] = scale
+    with pytest.raises(ValueError, match=r"my.json: object 'oven_s': scale: expected a positive number"):
+        ImportedObject.from_dict(entry, where="my.json")

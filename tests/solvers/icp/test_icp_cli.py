@@ -62,6 +62,14 @@ def test_fit_cad_errors(scene, capsys):
     np.save(d / "small.npy", np.zeros((10, 10)))
     assert main(args + ["--depth", str(d / "small.npy")]) == 2
     assert "is 10x10 pixels, the intrinsics say 320x240" in capsys.readouterr().err
+    for init, message in (({"T_cam_base": np.eye(3).tolist()}, "T_cam_base must be a 4x4 matrix, got shape (3, 3)"),
+                          ({"T_cam_base": np.eye(4).tolist(), "q": [0.1] * (model.num_joints + 1)},
+                           f"q must hold {model.num_joints} joint state(s)"),
+                          ({"T_cam_base": [["a"] * 4] * 4}, "T_cam_base must be a 4x4 matrix of numbers")):
+        (d / "bad_init.json").write_text(json.dumps(init))
+        assert main(args + ["--depth", str(d / "depth.npy"), "--init", str(d / "bad_init.json")]) == 2
+        err = capsys.readouterr().err
+        assert f"--init: {d / 'bad_init.json'}: {message}" in err and "Traceback" not in err and " M:" not in err
     rigid = d / "box.urdf"
     rigid.write_text('<robot name="box"><link name="b"><visual><geometry><box size="1 1 1"/></geometry></visual></link></robot>')
     assert main(["fit-cad", "--urdf", str(rigid), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json")]) == 2
