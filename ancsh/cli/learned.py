@@ -85,6 +85,9 @@ def register(sub) -> None:
     e.add_argument("--real", default=None, metavar="CATALOG",
                    help="also evaluate the real test split of a catalog ('builtin' = the shipped one) and write "
                         "<category>_real.md beside the procedural report")
+    e.add_argument("--real-all", action="store_true",
+                   help="with --real: every imported object of the category (train and test; the training objects "
+                        "were seen in training) instead of the real test split")
     e.add_argument("--out", type=Path, help="output folder (default: a fresh ancsh_results/evaluate-<category>-<time>/)")
     e.add_argument("--update-docs", action="store_true", help="write into the committed docs/results/ (when --out is not given)")
     e.add_argument("--no-progress", action="store_true")
@@ -355,13 +358,17 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError("--refiner: a refinement network is evaluated with --refine network only")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
+    if args.real_all and not args.real:
+        raise ValueError("--real-all: only with --real CATALOG")
+    real_split = "all" if args.real_all else None
     if args.real:  # checked before the procedural evaluation, not after it
         from ..data.generate import FrameGenerator, GenerationConfig
 
         gen = FrameGenerator(GenerationConfig(category=args.category, split="test", seed=args.seed, real=args.real,
-                                              real_fraction=1.0))
+                                              real_fraction=1.0, real_split=real_split))
         if not gen.real_instances:
-            raise ValueError(f"--real: the catalog {args.real!r} has no real test object of {args.category!r}")
+            which = "imported" if args.real_all else "test"
+            raise ValueError(f"--real: the catalog {args.real!r} has no real {which} object of {args.category!r}")
     from ._args import executor_from_args
 
     executor = executor_from_args(args)
@@ -377,7 +384,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         summary = summarize(ev)
         real = None
         if args.real:  # the real split is evaluated first so that <category>.md can show both splits
-            real_ev = evaluate_category(args.category, real=args.real, **common)
+            real_ev = evaluate_category(args.category, real=args.real, real_split=real_split, **common)
             real = (real_ev, summarize(real_ev))
         paths = write_report(ev, summary, out, command=_rebuild(args), real=real)
         print(f"{ev['settings']['frames']} frames; wrote {paths['md']}, {paths['json']}, {paths['png']}")
@@ -402,6 +409,8 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts.append("--quick")
     if args.real:
         parts += ["--real", args.real]
+    if args.real_all:
+        parts.append("--real-all")
     if args.refine:
         parts += ["--refine", args.refine]
     if args.update_docs and args.out is None:

@@ -83,6 +83,10 @@ class GenerationConfig:
     sequence : SequenceMotion or None
         ``None``: independent frames. Otherwise frames form sequences of ``sequence.length``
         (:mod:`.sequences`): frame ``i`` is time ``i % length`` of sequence ``i // length``.
+    real_split : str or None
+        With ``real``: whose real objects join: ``None`` (the default) those of ``split``, ``"all"`` every
+        imported object of the category, train and test (an evaluation on every real object there is; the
+        training objects were seen in training).
     """
 
     category: str | None = None
@@ -100,6 +104,7 @@ class GenerationConfig:
     min_visibility: float = 0.0
     max_attempts: int = 100
     sequence: SequenceMotion | None = None
+    real_split: str | None = None
 
     def __post_init__(self):
         if self.sequence is not None and not isinstance(self.sequence, SequenceMotion):
@@ -122,6 +127,10 @@ class GenerationConfig:
             raise ValueError("real: real catalog objects mix with a procedural category, not with a URDF")
         if self.real is None and self.real_fraction != 0.0:
             raise ValueError("real_fraction: needs a real catalog (real=...)")
+        if self.real_split not in (None, "all"):
+            raise ValueError(f"real_split: expected None (the split's real objects) or 'all', got {self.real_split!r}")
+        if self.real_split is not None and self.real is None:
+            raise ValueError("real_split: needs a real catalog (real=...)")
         for name in ("min_part_fraction", "min_visibility", "real_fraction"):
             v = check_number(getattr(self, name), name, minimum=0.0, maximum=1.0)
             object.__setattr__(self, name, v)
@@ -147,6 +156,8 @@ class GenerationConfig:
         d["noise"] = json.loads(self.noise.to_json())
         if self.sequence is None:  # single-frame datasets keep the settings they were written with
             del d["sequence"]
+        if self.real_split is None:  # as datasets written before the setting existed
+            del d["real_split"]
         else:
             d["sequence"] = self.sequence.to_dict()
         if self.urdf is None:  # procedural shapes depend on the generators' version, not only the seed
@@ -187,7 +198,7 @@ class FrameGenerator:
                 from .catalog import load_catalog
 
                 catalog = load_catalog(None if config.real == "builtin" else config.real)
-                self._real = catalog.instances(config.category, config.split)
+                self._real = catalog.instances(config.category, None if config.real_split == "all" else config.split)
         self._num_procedural = len(self._seeds)
         self._seeds = self._seeds + (-1,) * len(self._real)
 

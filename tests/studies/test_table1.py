@@ -222,3 +222,25 @@ def test_training_instances_are_evaluated_and_set_beside_the_test_ones(tmp_path)
     path = write_gap_report(results, tmp_path / "gap.md", command="ancsh bench train-test-gap")
     data = json.loads(path.with_suffix(".json").read_text())
     assert [r["instances"] for r in data["results"]] == ["test", "train"] and len(data["results"][1]["npcs_rot_deg"]) == 2
+
+
+def test_the_real_split_can_be_every_imported_object(tmp_path):
+    from ancsh.data.catalog import load_catalog
+    from ancsh.data.paths import shared_data_dir
+
+    if not (shared_data_dir() / "partnet_mobility").is_dir():
+        pytest.skip("shared PartNet-Mobility data not available")
+    catalog = load_catalog()
+    every = {o.name for o in catalog.instances("laptop")}
+    test = {o.name for o in catalog.instances("laptop", "test")}
+    assert test < every  # the builtin catalog has laptops in both splits
+    code = main(["evaluate", "--category", "laptop", "--frames", "2", "--formulations", "exact_reduced", "--real",
+                 "builtin", "--real-all", "--out", str(tmp_path), "--no-progress"])
+    assert code == 0
+    real = json.loads((tmp_path / "laptop.json").read_text())
+    md = (tmp_path / "laptop_real.md").read_text()
+    assert "every imported object (train and test" in md and "--real-all" in md
+    with pytest.raises(ValueError, match="real_split"):
+        ev.evaluate_category("laptop", frames=1, real_split="all", progress=False)
+    assert main(["evaluate", "--category", "laptop", "--frames", "1", "--real-all", "--out", str(tmp_path / "x")]) == 2
+    assert real["settings"]["frames"] == 2

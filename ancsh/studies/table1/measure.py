@@ -303,13 +303,13 @@ class _FrameEvaluator:
     method; ``worker(i)`` returns the frame's record (a pure function of the settings and ``i``)."""
 
     def __init__(self, category: str, seed: int, real, weights: str, direct_weights, num_threads: int, methods: tuple,
-                 device="cpu", instances: str = "test", refiner=None):
+                 device="cpu", instances: str = "test", refiner=None, real_split=None):
         from ...data.generate import FrameGenerator, GenerationConfig
         from ...learned.inference.provider import DirectVotingPredictor, LearnedProvider
 
         cfg = dict(category=category, split=instances, seed=int(seed))
         if real is not None:
-            cfg.update(real=real, real_fraction=1.0)
+            cfg.update(real=real, real_fraction=1.0, real_split=real_split)
         self.generator = FrameGenerator(GenerationConfig(**cfg))
         self.provider = LearnedProvider(weights, seed=seed, num_threads=num_threads, device=device,
                                         refine="network" if "network" in methods else None, refiner=refiner)
@@ -401,6 +401,7 @@ def evaluate_category(
     executor=None,
     device="cpu",
     instances: str = "test",
+    real_split: str | None = None,
 ) -> dict:
     """Run the network and every method on ``frames`` rendered test frames of ``category``.
 
@@ -427,6 +428,9 @@ def evaluate_category(
         ``"template"``: add the ``template`` method (the ``exact_reduced`` fit refined against the
         category's template library, :func:`ancsh.data.templates.load_template_library`); ``"network"``:
         add the ``network`` method (refined by the refinement network ``refiner``).
+    real_split : str, optional
+        With ``real``: ``"all"`` renders every imported object of the category (train and test objects; the
+        training objects were seen in training) instead of the ``instances`` split's.
     refiner : str or Path, optional
         The refinement network of the ``network`` method (default: the category's shipped ``<category>_refine.pt``).
     executor : LocalExecutor or RayExecutor, optional
@@ -468,6 +472,8 @@ def evaluate_category(
         raise ValueError(f"methods: expected keys of {list(METHODS)}, got {list(methods)}")
     if isinstance(frames, bool) or int(frames) != frames or frames < 1:
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
+    if real_split is not None and real is None:
+        raise ValueError("real_split: needs a real catalog (real=...)")
     if instances not in ("test", "train"):
         raise ValueError(f"instances: expected 'test' or 'train', got {instances!r}")
     if executor is None:
@@ -484,9 +490,10 @@ def evaluate_category(
         gen = FrameGenerator(GenerationConfig(category=category, split=instances, seed=int(seed)))
     else:
         gen = FrameGenerator(GenerationConfig(category=category, split=instances, seed=int(seed), real=real,
-                                              real_fraction=1.0))
+                                              real_fraction=1.0, real_split=real_split))
         if not gen.real_instances:
-            raise ValueError(f"real: the catalog {real!r} has no real {instances} object of {category!r}")
+            which = "imported" if real_split == "all" else instances
+            raise ValueError(f"real: the catalog {real!r} has no real {which} object of {category!r}")
     if weights is None and not weights_path(category).is_file():
         raise missing_weights_error(category)
     network = load_network(category if weights is None else weights)  # its file and SHA-256 at load time
@@ -511,7 +518,7 @@ def evaluate_category(
 
         bar = tqdm(total=int(frames), desc=f"evaluate {category}", unit="frame")
     worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device, instances,
-                   refiner_source)
+                   refiner_source, real_split)
     results = executor.imap(_FrameEvaluator, worker_args, range(int(frames)))
     try:
         for rec in results:
@@ -537,6 +544,7 @@ def evaluate_category(
             "test_instances": len(gen.real_instances) if real is not None else gen.num_instances,
             "split": "procedural" if real is None else "real", "instances": instances, "real_catalog": real,
             "real_instances": [o.name for o in gen.real_instances] if real is not None else [],
+            "real_split": real_split if real is not None else None,
             "num_points": gen.config.num_points, "generator_version": GENERATOR_VERSION,
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],

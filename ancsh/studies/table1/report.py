@@ -251,13 +251,17 @@ def write_real_report(procedural: dict, procedural_summary: dict, real: dict, re
     out.mkdir(parents=True, exist_ok=True)
     date = utc_date()
     s = real["settings"]
+    every = s.get("real_split") == "all"
+    which = ("every imported object (train and test: the training objects were seen in training, so this is no "
+             "held-out measure)" if every else "the test split")
     md = [
-        f"# {category}: real test objects beside procedural test instances",
+        f"# {category}: real {'objects' if every else 'test objects'} beside procedural test instances",
         "",
         f"Command: `{command}`  ",
         f"Date: {date}  ",
         f"Weights: `{Path(s['weights']).name}` (step {s['weights_step']}, sha256 {s['weights_sha256'][:12]})  ",
-        f"Real objects: the test split of the catalog `{s['real_catalog']}` (imported PartNet-Mobility objects in the "
+        f"Real objects: {which} of the catalog `{s['real_catalog']}` ({len(s.get('real_instances', []))}: "
+        f"{', '.join(s.get('real_instances', []))}; imported PartNet-Mobility objects in the "
         "category's convention, `ancsh data import`), rendered with the same renderer, noise, viewpoints and points "
         "as the procedural test instances. Means over frames; translation in object units; failed fits left out.",
         "",
