@@ -190,15 +190,21 @@ def test_cli_error_paths(tmp_path, capsys):
 def test_cli_refuses_real_objects_the_catalog_does_not_have(tmp_path, capsys):
     from ancsh.data.catalog import load_catalog
 
-    catalog = load_catalog(None)  # the shipped catalog: its eyeglasses are all test objects, it has no drawer
+    import json
+
+    from ancsh.data.catalog import builtin_catalog_path
+
+    catalog = load_catalog(None)  # the shipped catalog: its eyeglasses are all test objects
     assert catalog.instances("eyeglasses", "test") and not catalog.instances("eyeglasses", "train")
-    assert not catalog.instances("drawer")
     out = tmp_path / "ds"
-    args = ["data", "generate", "--split", "train", "--real", "builtin", "--frames", "2", "--out", str(out), "--quiet"]
-    assert main([*args, "--category", "eyeglasses"]) == 2
+    args = ["data", "generate", "--split", "train", "--frames", "2", "--out", str(out), "--quiet"]
+    assert main([*args, "--real", "builtin", "--category", "eyeglasses"]) == 2
     err = capsys.readouterr().err
     assert "--real" in err and "no eyeglasses object in the train split" in err and "all in the test split" in err
-    assert main([*args, "--category", "drawer"]) == 2
+    boxes = json.loads(builtin_catalog_path().read_text())  # a catalog of boxes only: it has no drawer
+    boxes["objects"] = [o for o in boxes["objects"] if o["category"] == "box"]
+    (tmp_path / "boxes.json").write_text(json.dumps(boxes))
+    assert main([*args, "--real", str(tmp_path / "boxes.json"), "--category", "drawer"]) == 2
     assert "it has no drawer object" in capsys.readouterr().err
     assert not out.exists()  # nothing was generated
 
