@@ -63,3 +63,19 @@ def test_config_errors():
         bench.load_frames(bench.BenchConfig(categories=("toaster",)))
     with pytest.raises(ValueError, match="methods: unknown"):
         bench.available_methods(bench.BenchConfig(methods=("magic",)))
+
+
+def test_headline_compares_translation_part_by_part():
+    from ancsh.studies.fit.report import _translation_by_part
+
+    def rec(method, trans, rot):
+        return {"method": method, "level": "realistic", "ok": True, "category": "laptop",
+                "parts": [{"name": "base", "trans": trans[0], "rot_deg": rot[0]},
+                          {"name": "display", "trans": trans[1], "rot_deg": rot[1]}]}
+
+    recs = [rec("exact", (0.01, 0.004), (2.0, 2.0)), rec("per_part", (0.012, 0.005), (3.0, 4.0)),
+            rec("official", (0.011, 0.006), (2.5, 2.5))]
+    table, met = _translation_by_part(recs, "realistic", "exact", ["per_part", "official"])
+    assert met and table["laptop/base"]["per_part"] == {"trans": 0.012, "rot_deg": 3.0}
+    recs[1]["parts"][1]["trans"] = 0.003  # per-part's display translation lower than the exact fit's
+    assert not _translation_by_part(recs, "realistic", "exact", ["per_part", "official"])[1]
