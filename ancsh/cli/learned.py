@@ -50,6 +50,10 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
+    p.add_argument("--urdf", type=Path, metavar="DIR", help="write the fitted object as a URDF folder (the category "
+                   "template nearest to the fit reshaped to it, the base in the camera frame, the fitted joint states "
+                   "in joint_states.json); a failed fit writes none")
+    p.add_argument("--overwrite", action="store_true", help="with --urdf: replace the files of an existing folder")
     add_device_argument(p)
     p.set_defaults(func=run_predict)
     p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
@@ -174,6 +178,13 @@ def run_predict(args: argparse.Namespace) -> int:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
     if args.refiner is not None and args.refine != "network":
         raise ValueError("--refiner: a refinement network is used with --refine network only")
+    if args.overwrite and args.urdf is None:
+        raise ValueError("--overwrite: only with --urdf DIR")
+    if args.urdf is not None:  # before any work
+        if args.depth.is_dir():
+            raise ValueError("--urdf: one folder cannot hold the objects of a folder of depth images; predict each file")
+        if args.urdf.exists() and (not args.urdf.is_dir() or any(args.urdf.iterdir())) and not args.overwrite:
+            raise ValueError(f"--urdf: {args.urdf} exists and is not empty; choose another folder or add --overwrite")
     if args.png is not None and not args.depth.is_dir():
         check_picture_path(args.png, "--png")
     _device(args)  # a missing CUDA device is the first thing to hear about
@@ -218,6 +229,12 @@ def run_predict(args: argparse.Namespace) -> int:
         print(f"  result: {args.out}")
     if args.png is not None:
         print(f"  picture: {save_figure(draw_prediction(depth, pred, intr, rgb=rgb), args.png)}")
+    if args.urdf is not None:
+        if r.ok:
+            print(f"  URDF: {pred.to_urdf(args.urdf, overwrite=args.overwrite)} (joint states in "
+                  f"{args.urdf / 'joint_states.json'})")
+        else:
+            print(f"  URDF: none (the fit failed: {r.status.value})")
     return 0 if r.ok else 1
 
 

@@ -147,13 +147,11 @@ def render_fit(fit, corr, templates, intrinsics):
         ``None`` when no template is available here.
     """
     from ..data.render import ModelRenderer
-    from .icp.category import fitted_layout, fitted_template
+    from .twin import fitted_model
 
-    layout = fitted_layout(fit, corr)
-    nearest = templates.nearest(layout.centres, layout.sizes, count=1)
-    if not nearest:
+    twin = fitted_model(fit, corr, templates, joints="template")  # as the p_object calibrations measured it
+    if twin is None:
         return None, "none"
-    ft = fitted_template(templates.model(nearest[0]), layout)
-    model = ft.model
-    q = np.clip(model.rest_states + fit.joint_states, model.lower_limits, model.upper_limits)
-    return ModelRenderer(model).render(q, layout.T_cam_B, intrinsics).depth, ft.source
+    model = twin.model
+    q = np.clip(twin.states, model.lower_limits, model.upper_limits)
+    return ModelRenderer(model).render(q, twin.T_cam_B, intrinsics).depth, twin.template

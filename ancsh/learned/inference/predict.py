@@ -169,6 +169,8 @@ class DepthPrediction:
     render_compare : DepthComparison or None
         The fitted category template rendered and compared with the observed depth
         (:func:`ancsh.solvers.render_compare.compare_fit`), where there is a mask or an isolated segment.
+    correspondences : Correspondences or None
+        What the fit was made on (its joint tree and types; not in the JSON); ``None`` without a network pass.
     """
 
     category: str
@@ -193,6 +195,23 @@ class DepthPrediction:
     p_good: float | None = None
     p_object: float | None = None
     render_compare: object = None
+    correspondences: object = None
+
+    def to_urdf(self, folder, *, T_frame_cam=None, root: str = "camera", overwrite: bool = False):
+        """Write the fitted object as a URDF folder (:func:`ancsh.solvers.twin.export_fit_urdf`): the category
+        template nearest to the fit reshaped to it, the base in the camera frame (or ``root``, the frame of
+        ``T_frame_cam``: the camera's pose there), the fitted states in ``joint_states.json``.
+
+        Returns the ``.urdf`` path. A failed prediction is refused (``ValueError`` naming its status)."""
+        from ...data.templates import load_template_library
+        from ...solvers.twin import export_fit_urdf
+
+        if not self.result.ok or self.correspondences is None:
+            raise ValueError(f"prediction: a failed prediction (status {self.result.status.value}: {self.result.message}) "
+                             "is not exported")
+        path, _ = export_fit_urdf(self.result, self.correspondences, load_template_library(self.category), folder,
+                                  T_frame_cam=T_frame_cam, root=root, name=self.category, overwrite=overwrite)
+        return path
 
     def to_json(self) -> dict:
         """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
@@ -385,6 +404,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         joint_rest=rest, rest_description=rest_text,
         weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
         part_quality=quality, p_good=p_good, p_object=best["p_object"], render_compare=best["comparison"],
+        correspondences=best.get("corr"),
     )
 
 
@@ -447,7 +467,7 @@ def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, s
         result = check_confidence(result, p_object)
     return {"result": result, "pts": pts, "pixels": pixels, "valid": valid, "labels": labels, "quality": quality,
             "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
-            "t_net": t_net, "t_bp": t_bp, "notes": notes,
+            "t_net": t_net, "t_bp": t_bp, "notes": notes, "corr": corr,
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 

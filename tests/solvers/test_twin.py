@@ -1,0 +1,123 @@
+"""A fit as a URDF: the written file reloads (yourdfpy) with the model's part poses, joint axes, limits and states."""
+
+import json
+
+import numpy as np
+import pytest
+import yourdfpy
+
+from ancsh.data.procedural import make_object
+from ancsh.geometry.rotations import exp_so3
+from ancsh.geometry.transforms import Sim3
+from ancsh.model.urdf_export import urdf_rpy, write_urdf
+from ancsh.solvers.types import FitResult, FitStatus
+
+
+def _reload(path):
+    robot = yourdfpy.URDF.load(str(path))
+    states = json.loads((path.parent / "joint_states.json").read_text())
+    robot.update_cfg(states)
+    return robot, states
+
+
+def test_rpy_round_trip_including_gimbal_lock():
+    from scipy.spatial.transform import Rotation
+
+    for R in [*Rotation.random(50, random_state=0).as_matrix(), Rotation.from_euler("y", 90, degrees=True).as_matrix()]:
+        roll, pitch, yaw = urdf_rpy(R)
+        back = Rotation.from_euler("xyz", [roll, pitch, yaw]).as_matrix()  # URDF: Rz(yaw) Ry(pitch) Rx(roll)
+        assert np.abs(back - R).max() < 1e-12
+
+
+@pytest.mark.parametrize("category, seed", [("laptop", 3), ("drawer", 5), ("eyeglasses", 7)])
+def test_a_written_model_reloads_with_its_part_poses_axes_limits_and_states(tmp_path, category, seed):
+    model = make_object(category, seed)
+    rng = np.random.default_rng(seed)
+    q = model.random_states(rng)
+    T = Sim3(exp_so3(rng.normal(size=3)), rng.normal(size=3))
+    path = write_urdf(model, tmp_path / "twin", states=q, T_root_base=T)
+    robot, states = _reload(path)
+    assert [states[j.name] for j in model.joints] == pytest.approx(q, abs=1e-12)
+    fk = model.forward_kinematics(q)
+    for i, part in enumerate(model.parts):
+        part_pose = robot.get_transform(part.name, "camera") @ robot.link_map[part.name].visuals[0].origin
+        assert np.abs(part_pose - (T @ fk[i]).matrix()).max() < 1e-9
+    for k, j in enumerate(model.joints):
+        uj = robot.joint_map[j.name]
+        assert (uj.limit.lower, uj.limit.upper) == (j.lower, j.upper)
+        axis_base, pivot_base = model.joint_line_in_base(k, q)
+        parent = robot.get_transform(uj.parent, "camera") @ uj.origin  # the joint frame, in the root
+        axis_root = parent[:3, :3] @ uj.axis
+        assert np.abs(axis_root - T.apply_direction(axis_base)).max() < 1e-9
+        if j.is_revolute:  # the joint frame's origin lies on the axis through the pivot
+            d = parent[:3, 3] - T.apply(pivot_base)
+            assert np.linalg.norm(d - (d @ axis_root) * axis_root) < 1e-9
+
+
+def test_a_state_outside_the_limits_widens_them_and_folders_are_not_overwritten(tmp_path):
+    model = make_object("laptop", 3)
+    q = model.upper_limits + 0.2
+    path = write_urdf(model, tmp_path / "t", states=q)
+    robot, _ = _reload(path)
+    assert robot.joint_map[model.joints[0].name].limit.upper == pytest.approx(q[0], abs=1e-12)
+    assert "limits widened" in path.read_text()
+    with pytest.raises(ValueError, match="exists and is not empty"):
+        write_urdf(model, tmp_path / "t")
+    write_urdf(model, tmp_path / "t", overwrite=True)
+    with pytest.raises(ValueError, match="states"):
+        write_urdf(model, tmp_path / "u", states=[0.1, 0.2])
+    with pytest.raises(ValueError, match="root"):
+        write_urdf(model, tmp_path / "v", root=model.part_names[0])
+
+
+def test_a_fit_exports_with_its_fitted_joint_axis_pivot_and_state(tmp_path):
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.data.templates import load_template_library
+    from ancsh.solvers import Observation, fit
+    from ancsh.solvers.providers.oracle import OracleProvider
+    from ancsh.solvers.twin import export_fit_urdf
+
+    fr = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0)).frame(2)
+    obs = Observation(fr.points)
+    corr = OracleProvider(fr, "none", rng=0).correspond(obs)
+    res = fit(obs, corr, "exact_reduced", rng=0)
+    assert res.ok
+    path, twin = export_fit_urdf(res, corr, load_template_library("laptop"), tmp_path / "twin")
+    robot, states = _reload(path)
+    name = twin.model.joints[0].name
+    assert states[name] == pytest.approx(twin.model.rest_states[0] + res.joint_states[0], abs=1e-12)
+    uj = robot.joint_map[name]
+    frame = robot.get_transform(uj.parent, "camera") @ uj.origin
+    axis = frame[:3, :3] @ uj.axis
+    assert abs(abs(axis @ res.joint_axes_cam[0]) - 1.0) < 1e-9
+    d = frame[:3, 3] - res.joint_pivots_cam[0]
+    assert np.linalg.norm(d - (d @ axis) * axis) < 1e-9  # on the fitted axis line
+    assert uj.limit.lower <= states[name] <= uj.limit.upper
+    failed = FitResult.failure(FitStatus.TOO_FEW_POINTS, "few points", formulation="exact_reduced", solver="none",
+                               num_joints=1, num_points=10)
+    with pytest.raises(ValueError, match="a failed fit .* is not exported"):
+        export_fit_urdf(failed, corr, load_template_library("laptop"), tmp_path / "none")
+    assert not (tmp_path / "none").exists()
+
+
+def test_predict_writes_the_urdf_and_refuses_to_overwrite(tmp_path, capsys):
+    from ancsh.cli import main
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
+    fr = gen.frame(1)
+    _, renderer = gen.instance(fr.instance_index)
+    np.save(tmp_path / "d.npy", renderer.render(fr.joint_states_abs, fr.T_cam_base, fr.intrinsics).depth)
+    (tmp_path / "K.json").write_text(json.dumps(fr.intrinsics.to_json()))
+    args = ["predict", "--depth", str(tmp_path / "d.npy"), "--intrinsics", str(tmp_path / "K.json"), "--category",
+            "laptop", "--out", str(tmp_path / "r.json")]
+    assert main([*args, "--urdf", str(tmp_path / "twin")]) == 0
+    robot, states = _reload(tmp_path / "twin" / "laptop.urdf")
+    result = json.loads((tmp_path / "r.json").read_text())
+    assert states["display_hinge"] == pytest.approx(result["joints"][0]["state_abs"], abs=1e-9)
+    capsys.readouterr()
+    assert main([*args, "--urdf", str(tmp_path / "twin")]) == 2
+    assert "--urdf: " in capsys.readouterr().err
+    assert main([*args, "--urdf", str(tmp_path / "twin"), "--overwrite"]) == 0
+    assert main([*args, "--overwrite"]) == 2
+    assert "--overwrite: only with --urdf" in capsys.readouterr().err
