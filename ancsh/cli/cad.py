@@ -37,6 +37,9 @@ def register(sub) -> None:
     p.add_argument("--seed", type=non_negative_int, default=0)
     p.add_argument("--out", default=None, help="write the result as JSON here")
     p.add_argument("--png", default=None, help="draw the fitted model over the depth points here")
+    p.add_argument("--urdf-out", type=Path, metavar="DIR", help="write the posed model as a URDF folder (the base in the "
+                   "camera frame, the fitted joint states in joint_states.json); a failed fit writes none")
+    p.add_argument("--overwrite", action="store_true", help="with --urdf-out: replace the files of an existing folder")
     p.set_defaults(func=run_fit)
 
     e = sub.add_parser("evaluate-cad", help="AD accuracy of articulated ICP vs rigid ICP on rendered view sequences")
@@ -99,6 +102,11 @@ def run_fit(args) -> int:
 
     if args.png:  # before any work
         check_picture_path(args.png, "--png")
+    if args.overwrite and args.urdf_out is None:
+        raise ValueError("--overwrite: only with --urdf-out DIR")
+    out_dir = args.urdf_out
+    if out_dir is not None and out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())) and not args.overwrite:
+        raise ValueError(f"--urdf-out: {out_dir} exists and is not empty; choose another folder or add --overwrite")
     urdf = Path(args.urdf)
     if not urdf.is_file():
         raise FileNotFoundError(f"urdf: no such file {str(urdf)!r}")
@@ -148,6 +156,14 @@ def run_fit(args) -> int:
         print(f"wrote {args.out}")
     if args.png:
         print(f"wrote {draw_fit(model, result, points, intr, args.png)}")
+    if out_dir is not None:
+        if result.ok:
+            from ..model.urdf_export import write_urdf
+
+            path = write_urdf(model, out_dir, states=result.q, T_root_base=result.T_cam_base, overwrite=args.overwrite)
+            print(f"wrote {path} (joint states in {out_dir / 'joint_states.json'})")
+        else:
+            print(f"no URDF written: the fit failed ({result.status.value})")
     return 0 if result.ok else 1
 
 

@@ -6,7 +6,7 @@ frame therefore sits on the pivot with the parent part's axes, and each part's f
 times a fixed offset ``D = Trans(-pivot) @ origin`` (the identity for the base), which the visuals and the
 children's joints carry. At the same joint values the URDF's part frames equal the model's.
 
-The folder holds ``<name>.urdf``, ``meshes/<part>.obj`` (the part meshes in their part frames, metres) and
+The folder holds ``<name>.urdf``, ``meshes/<index>_<part>.obj`` (the part meshes in their part frames, metres) and
 ``joint_states.json`` (the states to load the model at: URDF has no initial position). A root link (no
 geometry) carries the base through a fixed joint placed at ``T_root_base``: the camera frame of a fit, or a
 frame the user gives.
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -117,7 +118,7 @@ def write_urdf(model: ArticulatedModel, folder, *, states=None, T_root_base: Sim
         joints.append(f"  <joint name={_name(j.name)} type={_name(kind)}><parent link={_name(model.parts[p].name)}/>"
                       f"<child link={_name(model.parts[c].name)}/>{_origin(J)}<axis xyz=\"{axis}\"/>{limit}</joint>")
     for i, part in enumerate(model.parts):
-        mesh_file = f"meshes/{part.name}.obj"
+        mesh_file = f"meshes/{i:02d}_{re.sub(r'[^A-Za-z0-9_.-]', '_', part.name)}.obj"  # never a path out
         write_bytes_atomically(folder / mesh_file, part.mesh.export(file_type="obj").encode())
         geom = f"{_origin(offsets[i])}<geometry><mesh filename={_name(mesh_file)}/></geometry>"
         links.append(f"  <link name={_name(part.name)}><visual>{geom}</visual><collision>{geom}</collision></link>")

@@ -74,3 +74,24 @@ def test_fit_cad_errors(scene, capsys):
     rigid.write_text('<robot name="box"><link name="b"><visual><geometry><box size="1 1 1"/></geometry></visual></link></robot>')
     assert main(["fit-cad", "--urdf", str(rigid), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json")]) == 2
     assert "no movable joint" in capsys.readouterr().err
+
+
+def test_fit_cad_writes_the_posed_model_as_urdf(scene, capsys):
+    import yourdfpy
+
+    model, q, T, d = scene
+    args = ["fit-cad", "--urdf", str(URDF), "--depth", str(d / "depth.npy"), "--intrinsics", str(d / "K.json"),
+            "--init", str(d / "init.json"), "--points", "800", "--out", str(d / "r.json")]
+    assert main([*args, "--urdf-out", str(d / "twin")]) == 0
+    result = json.loads((d / "r.json").read_text())
+    (path,) = (d / "twin").glob("*.urdf")
+    robot = yourdfpy.URDF.load(str(path))
+    robot.update_cfg(json.loads((d / "twin" / "joint_states.json").read_text()))
+    for name, T_fit in zip(result["parts"], result["T_cam_parts"]):
+        pose = robot.get_transform(name, "camera") @ robot.link_map[name].visuals[0].origin
+        assert np.abs(pose[:3, :3] - np.array(T_fit["rotation"])).max() < 1e-9
+        assert np.abs(pose[:3, 3] - np.array(T_fit["translation"])).max() < 1e-9
+    capsys.readouterr()
+    assert main([*args, "--urdf-out", str(d / "twin")]) == 2
+    assert "--urdf-out: " in capsys.readouterr().err
+    assert main([*args, "--overwrite"]) == 2
