@@ -48,6 +48,7 @@ EXAMPLES = {
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
     "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
+    "bench twin": "ancsh bench twin --categories laptop --frames 2   # exported fit models against the depth",
 }
 
 # Modules that contribute sub-commands, in help order.

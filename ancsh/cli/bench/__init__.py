@@ -22,6 +22,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.scaling:register_bench",
     "ancsh.cli.bench.tracking",
     "ancsh.cli.bench.real_frames",
+    "ancsh.cli.bench.twin",
 ]
 
 

@@ -1,0 +1,50 @@
+"""``ancsh bench twin``: the arguments of :mod:`ancsh.studies.twin`."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+
+from ...outputs import output_flags
+from .._args import non_negative_int, positive_int
+
+
+def register(sub) -> None:
+    """Add ``ancsh bench twin`` to the ``bench`` sub-parsers."""
+    p = sub.add_parser("twin", help="the exported model of a fit (--urdf) rendered against the depth it was fitted to, "
+                       "learned and oracle fits side by side, every shipped category")
+    p.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
+    p.add_argument("--frames", type=positive_int, default=20, help="test frames per category (default 20)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="base seed of the test frames (default 0)")
+    p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/twin-<time>/twin.md)")
+    p.add_argument("--update-docs", action="store_true", help="write docs/results/twin.md (when --out is not given)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ...learned.network.weights import shipped_categories
+    from ...outputs import report_path
+    from ...studies.twin import measure_twin, write_twin_report
+
+    shipped = shipped_categories()
+    categories = list(args.categories) if args.categories else shipped
+    unknown = [c for c in categories if c not in shipped]
+    if unknown:
+        raise ValueError(f"--categories: no shipped weights for {unknown}; shipped: {shipped}")
+    parts = ["bench", "twin"]
+    if args.categories:
+        parts += ["--categories", *args.categories]
+    if args.frames != 20:
+        parts += ["--frames", str(args.frames)]
+    if args.seed:
+        parts += ["--seed", str(args.seed)]
+    parts += output_flags(args.out, update_docs=args.update_docs)
+    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
+    path = report_path(args.out, update_docs=args.update_docs, docs_name="twin.md", command="twin")
+    results = measure_twin(categories, frames=args.frames, seed=args.seed, progress=not args.quiet)
+    write_twin_report(results, path, command=command)
+    print(path.read_text())
+    print(f"wrote {path} and {path.with_suffix('.json')}")
+    return 0

@@ -1,0 +1,26 @@
+"""ancsh bench twin: the exported model of an exact (oracle) fit explains the depth it was fitted to."""
+
+import json
+
+import numpy as np
+
+from ancsh.cli import main
+from ancsh.studies.twin import TARGET_M, measure_twin, summarize
+
+
+def test_an_oracle_fit_model_explains_its_depth_within_the_target():
+    results = measure_twin(["laptop"], frames=2, progress=False)
+    rows = {r["provider"]: r for r in summarize(results)}
+    assert rows["oracle"]["failed"] == 0 and rows["oracle"]["median_residual_m"] < TARGET_M
+    assert rows["oracle"]["explained"] > 0.9 and rows["oracle"]["see_through"] < 0.05
+    assert rows["learned"]["frames"] == 2 and np.isfinite(rows["learned"]["median_residual_m"])
+
+
+def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
+    out = tmp_path / "twin.md"
+    assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
+    assert "| laptop | oracle | 1 | 0 |" in out.read_text()
+    data = json.loads(out.with_suffix(".json").read_text())
+    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 2
+    assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
+    assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
