@@ -91,6 +91,8 @@ def write_urdf(model: ArticulatedModel, folder, *, states=None, T_root_base: Sim
     if root in model.part_names:
         raise ValueError(f"root: {root!r} is also a part's name; choose another root link name")
     folder = Path(folder)
+    if folder.is_symlink():
+        raise ValueError(f"folder: {folder} is a symbolic link; give the folder itself (nothing is written through a link)")
     if folder.exists() and (not folder.is_dir() or any(folder.iterdir())) and not overwrite:
         raise ValueError(f"folder: {folder} exists and is not empty; choose another folder or overwrite it")
     stem = name or model.name or "object"

@@ -68,6 +68,11 @@ def test_a_state_outside_the_limits_widens_them_and_folders_are_not_overwritten(
         write_urdf(model, tmp_path / "u", states=[0.1, 0.2])
     with pytest.raises(ValueError, match="root"):
         write_urdf(model, tmp_path / "v", root=model.part_names[0])
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(ValueError, match="symbolic link"):
+        write_urdf(model, tmp_path / "link")
+    assert not any((tmp_path / "elsewhere").iterdir())
 
 
 def test_a_fit_exports_with_its_fitted_joint_axis_pivot_and_state(tmp_path):
