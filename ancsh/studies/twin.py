@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .report import utc_date, write_json, write_text
+from .report import Provenance, write_json, write_text
 
 __all__ = ["TARGET_M", "measure_twin", "twin_frame", "write_twin_report"]
 
@@ -102,13 +102,14 @@ def summarize(results: dict) -> list[dict]:
 def write_twin_report(results: dict, path, *, command: str) -> Path:
     """The markdown table (and a JSON of the records beside it)."""
     path = Path(path)
+    prov = Provenance(command)
     rows = summarize(results)
     s = results["settings"]
     md = [
         "# The exported model of a fit against the depth it was fitted to",
         "",
         f"Command: `{command}`  ",
-        f"Date: {utc_date()}  ",
+        f"Date: {prov.date}; machine: {prov.machine_text}  ",
         "",
         f"{s['frames']} held-out test frames per category (Kinect-like noise, seed {s['seed']}); `exact_reduced` fits of "
         "the shipped network (`learned`) and of exact ground-truth correspondences (`oracle`); each fit's model "
@@ -127,6 +128,7 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
                   f"{1e3 * r['median_residual_m']:.1f} | {1e3 * r['mean_residual_m']:.1f} | {r['within_target']:.0%} | "
                   f"{r['explained']:.2f} | {r['see_through']:.3f} |")
     write_text(path, "\n".join(md) + "\n")
-    write_json(path.with_suffix(".json"), {"command": command, "settings": s, "summary": rows,
+    write_json(path.with_suffix(".json"), {"command": command, "date": prov.date, "machine": prov.machine,
+                                           "settings": s, "summary": rows,
                                            "records": results["records"]})
     return path
