@@ -39,7 +39,7 @@ from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .terms import (
     CanonicalParameters, CanonicalPriorTerm, CommonScaleTerm, DataTerm, ExactCommonScaleTerm, ExactJointTerm,
-    JointLimitTerm, PreviousSolution, ProgramInputs, ProgramStart, SoftJointTerm, TemporalPriorTerm, TermWeights,
+    JointLimitTerm, NpcsBiasPriorTerm, PreviousSolution, ProgramInputs, ProgramStart, SoftJointTerm, TemporalPriorTerm, TermWeights,
 )
 from .types import Correspondences, FitResult, FitStatus, Observation
 
@@ -96,6 +96,12 @@ class FitConfig:
         get offset variables with this prior weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
         hold exactly for adjusted parameters that the data may move -- useful when the
         provider's NAOCS parameters are noisy; the reported pivots use the adjusted values.
+    npcs_bias_weight : float
+        0 (default): each part's NPCS are compared with the observed points through the part pose
+        itself. ``> 0``: each part gets an NPCS-bias rotation ``b_j`` (about its NPCS origin) in the
+        data term with the prior ``w |b_j|^2`` (:class:`~ancsh.solvers.terms.NpcsBiasPriorTerm`): a
+        per-part orientation error of the provider's NPCS is then absorbed by ``b_j`` instead of
+        moving the part's reported pose, which keeps the joints exact.
     robust : str or None
         ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
         the moments (each round reweights the points and re-solves with the same program).
@@ -126,6 +132,7 @@ class FitConfig:
     soft_mu: float = 1.0
     common_scale_weight: float = 0.0
     naocs_prior_weight: float = 0.1
+    npcs_bias_weight: float = 0.0
     robust: str | None = None
     robust_scale: float = 0.02
     irls_iterations: int = 5
@@ -141,7 +148,8 @@ class FitConfig:
             check_int(getattr(self, name), name, minimum=lo)
         for name, positive in (
             ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
-            ("common_scale_weight", False), ("naocs_prior_weight", False), ("robust_scale", True), ("tol", True),
+            ("common_scale_weight", False), ("naocs_prior_weight", False), ("npcs_bias_weight", False),
+            ("robust_scale", True), ("tol", True),
         ):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=positive)
         check_number(self.ransac_confidence, "ransac_confidence", minimum=0.0, maximum=1.0, lower_open=True)
@@ -188,6 +196,7 @@ _TERM_ENABLED = {
     ExactCommonScaleTerm: lambda config, corr: config.optimize_scale,
     JointLimitTerm: _has_limits,
     CanonicalPriorTerm: lambda config, corr: config.naocs_prior_weight > 0,
+    NpcsBiasPriorTerm: lambda config, corr: config.npcs_bias_weight > 0,
 }
 """Conditions of the optional terms (a term not listed is always used)."""
 
@@ -226,15 +235,15 @@ FORMULATIONS: dict[str, Formulation] = {
         Formulation("per_part", "per-part Umeyama + RANSAC (the paper's NPCS baseline)", ("umeyama",), None),
         Formulation(
             "soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt", "lm"), "maximal",
-            (DataTerm, SoftJointTerm, CommonScaleTerm, CanonicalPriorTerm),
+            (DataTerm, SoftJointTerm, CommonScaleTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
         Formulation(
             "exact_maximal", "every part SE(3)+scale, exact joint equalities, limit inequalities", ("ipopt",), "maximal",
-            (DataTerm, ExactJointTerm, ExactCommonScaleTerm, JointLimitTerm, CanonicalPriorTerm),
+            (DataTerm, ExactJointTerm, ExactCommonScaleTerm, JointLimitTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
         Formulation(
             "exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced",
-            (DataTerm, CanonicalPriorTerm),
+            (DataTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
     )
 }
@@ -367,6 +376,7 @@ class _Fit:
         self.canonical = CanonicalParameters.of(corr, self._limits())
         self.term_weights = TermWeights(
             config.soft_weight, config.soft_mu, config.common_scale_weight, config.naocs_prior_weight,
+            config.npcs_bias_weight,
         )
         self.warm_start: FitResult | None = None
         self.previous: PreviousSolution | None = None
@@ -488,7 +498,7 @@ class _Fit:
         key = ProgramKey(
             self.structure, self.form.parameterisation, bool(cfg.optimize_scale),
             self.form.terms(cfg, self.corr) + ((TemporalPriorTerm,) if self.previous is not None else ()),
-            free_canonical=cfg.naocs_prior_weight > 0,
+            free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
         )
         prog = get_program(key)
         limits = self._limits()
@@ -564,13 +574,13 @@ class _Fit:
         else:
             key = ProgramKey(self.structure, self.form.parameterisation, True,
                              self.form.terms(replace(cfg, optimize_scale=True), self.corr),
-                             free_canonical=cfg.naocs_prior_weight > 0)
+                             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0)
         prog = get_program(key)
-        states = offsets = None
+        states = offsets = bias = None
         if solution is not None:
             states = solution.joint_states if prog.has_joint_states else None
-            offsets = solution.canonical_offsets
-        x = prog.initial_x(states, offsets)
+            offsets, bias = solution.canonical_offsets, solution.npcs_bias
+        x = prog.initial_x(states, offsets, bias)
         start = ProgramStart(tuple(poses), None if solution is None else solution.T_cam_naocs)
         p = prog.pack(ProgramInputs(L, self.canonical, start, moments, self.term_weights))
         points = [effective_points(weights[inliers & (self.labels == j) & (weights > 0)]) for j in range(self.M)]

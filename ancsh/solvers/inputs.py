@@ -186,6 +186,7 @@ class TermWeights:
     soft_mu: float
     common_scale_weight: float
     naocs_prior_weight: float
+    npcs_bias_weight: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,7 @@ from ..geometry.rotations import exp_so3
 from ..geometry.transforms import Sim3
 from .terms import (
     TERMS, Canonical, CanonicalOffsets, CanonicalParameters, CanonicalPriorTerm, Context, EnergyTerm, KinematicStructure,
-    Params, PoseExpr, ProgramInputs, ProgramStart, axis_angle_sx, canonical_parameter_values, exp_so3_sx, joint_state_expr,
+    NpcsBiasPriorTerm, Params, PoseExpr, ProgramInputs, ProgramStart, axis_angle_sx, canonical_parameter_values, exp_so3_sx, joint_state_expr,
 )
 
 __all__ = [
@@ -72,6 +72,9 @@ class ProgramKey:
         In residual order. Registered names (:data:`~ancsh.solvers.terms.TERMS`) are accepted
         and replaced by their classes.
     free_canonical : bool
+    npcs_bias : bool
+        Per-part NPCS-bias rotation variables (3 per part, appended to ``x`` after the canonical
+        offsets) in the data terms; the ``npcs_bias_prior`` term must then be among the terms.
     """
 
     structure: KinematicStructure
@@ -79,6 +82,7 @@ class ProgramKey:
     optimize_scale: bool
     terms: tuple
     free_canonical: bool = False
+    npcs_bias: bool = False
 
     def __post_init__(self):
         classes = []
@@ -126,12 +130,15 @@ class Solution:
         ``reduced``: joint states relative to rest (radians / metres); ``None`` for ``maximal``.
     canonical_offsets : CanonicalOffsets or None
         With free canonical parameters, their solved offsets; else ``None``.
+    npcs_bias : (M, 3) float64 or None
+        With NPCS-bias variables, each part's bias rotation vector (radians, NPCS frame); else ``None``.
     """
 
     T_cam_npcs: tuple
     T_cam_naocs: Sim3 | None
     joint_states: np.ndarray | None
     canonical_offsets: CanonicalOffsets | None
+    npcs_bias: np.ndarray | None = None
 
 
 def _maximal_variables(st: KinematicStructure, params: Params, optimize_scale: bool):
@@ -232,10 +239,17 @@ class Program:
                 raise ValueError(f"terms: free canonical parameters need the {CanonicalPriorTerm.name!r} term")
             layout["canonical"] = slice(int(x.numel()), int(x.numel() + offsets.numel()))
             x = ca.vertcat(x, offsets)
+        bias = None
+        if key.npcs_bias:
+            if NpcsBiasPriorTerm not in key.terms:
+                raise ValueError(f"terms: NPCS-bias variables need the {NpcsBiasPriorTerm.name!r} term")
+            bias = [ca.SX.sym(f"b{j}", 3) for j in range(st.num_parts)]
+            layout["npcs_bias"] = slice(int(x.numel()), int(x.numel()) + 3 * st.num_parts)
+            x = ca.vertcat(x, *bias)
         self.x = x
         self._layout = layout
         self.canonical = canonical
-        ctx = Context(st, self.params, poses, canonical)
+        ctx = Context(st, self.params, poses, canonical, bias)
         self.terms = [cls() for cls in key.terms]
         costs, eqs, ineqs = [], [], []
         self.cost_names, self.inequality_terms = [], []
@@ -311,15 +325,20 @@ class Program:
         """Whether joint states are decision variables (``reduced``)."""
         return "theta" in self._layout
 
-    def initial_x(self, joint_states=None, canonical_offsets: CanonicalOffsets | None = None) -> np.ndarray:
+    def initial_x(self, joint_states=None, canonical_offsets: CanonicalOffsets | None = None,
+                  npcs_bias=None) -> np.ndarray:
         """The start ``x``: zero (the :class:`~ancsh.solvers.terms.ProgramStart` itself) with the
-        joint states ``(K,)`` (relative to rest; ``reduced`` only) and the canonical offsets (free
-        canonical parameters only) when given.
+        joint states ``(K,)`` (relative to rest; ``reduced`` only), the canonical offsets (free
+        canonical parameters only) and the NPCS biases ``(M, 3)`` (NPCS-bias programs only) when given.
 
-        With the start poses of a :class:`Solution` and its states and offsets this ``x``
+        With the start poses of a :class:`Solution` and its states, offsets and biases this ``x``
         reproduces the solution (how a solution is linearised in another program of its structure).
         """
         x0 = np.zeros(self.num_x)
+        if npcs_bias is not None:
+            if "npcs_bias" not in self._layout:
+                raise ValueError("npcs_bias: this program has no NPCS-bias variables")
+            x0[self._layout["npcs_bias"]] = np.asarray(npcs_bias, dtype=np.float64).ravel()
         if joint_states is not None:
             if not self.has_joint_states:
                 raise ValueError("joint_states: this program has no joint-state variables (maximal parameterisation)")
@@ -415,7 +434,8 @@ class Program:
             for i, k in enumerate(sorted(self.canonical.dq)):
                 dq[k] = off[3 * (M + i) : 3 * (M + i) + 3]
             offsets = CanonicalOffsets(off[: 3 * M].reshape(M, 3).copy(), dq)
-        return Solution(parts, T_cam_naocs, states, offsets)
+        bias = x[lay["npcs_bias"]].reshape(st.num_parts, 3).copy() if "npcs_bias" in lay else None
+        return Solution(parts, T_cam_naocs, states, offsets, bias)
 
     def nlpsol(self, options: dict):
         """The IPOPT solver of this program for these ``options`` (built once per option set)."""

@@ -57,6 +57,7 @@ __all__ = [
     "ExactJointTerm",
     "JointLimitTerm",
     "KinematicStructure",
+    "NpcsBiasPriorTerm",
     "PartMoments",
     "PointToPlaneTerm",
     "PreviousSolution",
@@ -171,11 +172,22 @@ class Context:
         """Values of the context's own parameters (``L`` and the canonical parameters)."""
         return {"L": inputs.scale, **canonical_parameter_values(inputs.canonical)}
 
-    def __init__(self, structure: KinematicStructure, params: Params, poses: list, canonical: Canonical | None = None):
+    def __init__(self, structure: KinematicStructure, params: Params, poses: list, canonical: Canonical | None = None,
+                 npcs_bias: list | None = None):
         self.structure = structure
         self.params = params
         self.poses = poses
         self.canonical = Canonical(structure, params) if canonical is None else canonical
+        self.npcs_bias = npcs_bias
+
+    def data_pose(self, j: int) -> PoseExpr:
+        """The pose the observed points of part ``j`` are compared with: the part pose, or with an NPCS
+        bias (:class:`NpcsBiasPriorTerm`) ``s_j R_j exp(b_j) c + t_j``, the provider's NPCS of part ``j`` taken as
+        rotated by ``exp(-b_j)`` about the NPCS origin."""
+        P = self.poses[j]
+        if self.npcs_bias is None:
+            return P
+        return PoseExpr(P.R @ exp_so3_sx(self.npcs_bias[j]), P.t, P.s)
 
     # -- per part ---------------------------------------------------------------------
     def Gs(self, j: int) -> ca.SX:
@@ -334,7 +346,8 @@ class DataTerm(EnergyTerm):
 
     def expression(self, ctx: Context) -> ca.SX:
         out = []
-        for j, P in enumerate(ctx.poses):
+        for j in range(len(ctx.poses)):
+            P = ctx.data_pose(j)
             Lm = ctx.params.get(f"Lm{j}", 4, 4)
             B = ctx.params.get(f"B{j}", 3, 4)
             sqrt_c0 = ctx.params.get(f"sqrt_c0_{j}")
@@ -516,6 +529,29 @@ class CanonicalPriorTerm(EnergyTerm):
 
 
 @register_term
+class NpcsBiasPriorTerm(EnergyTerm):
+    """Prior on per-part NPCS orientation biases: ``sqrt(w) b_j`` (radians), parameter ``npcs_bias_weight`` (``w``).
+
+    A provider's NPCS of one part can be off by a rotation about the NPCS origin common to all its points
+    (a per-part orientation error: it does not average out over the points, and a per-part similarity fit
+    absorbs it into the part's rotation and keeps the NPCS origin in place). With NPCS biases the data terms
+    compare the points with ``s_j R_j exp(b_j) c + t_j`` (:meth:`Context.data_pose`): ``b_j`` takes up
+    what the part's data want beyond the joints, at the cost ``w |b_j|^2``, while ``R_j`` (reported)
+    keeps the joints exact. Only meaningful in a program with NPCS-bias variables (``ProgramKey.npcs_bias``).
+    """
+
+    name = "npcs_bias_prior"
+
+    def expression(self, ctx: Context) -> ca.SX:
+        if ctx.npcs_bias is None:
+            raise ValueError("npcs_bias_prior: the program has no NPCS-bias variables (npcs_bias=False)")
+        return ca.sqrt(ctx.params.get("npcs_bias_weight")) * ca.vertcat(*ctx.npcs_bias)
+
+    def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
+        return {"npcs_bias_weight": inputs.require("weights", self.name).npcs_bias_weight}
+
+
+@register_term
 class TemporalPriorTerm(EnergyTerm):
     """Prior toward a prediction from previous frames (tracking): ``[sqrt(w) vec(R - R'); sqrt(w) (o - o') / L;
     sqrt(w) (sigma - sigma') / L; sqrt(w_q) dtheta_k]``.
@@ -575,7 +611,8 @@ class PointToPlaneTerm(EnergyTerm):
 
     def expression(self, ctx: Context) -> ca.SX:
         out = []
-        for j, P in enumerate(ctx.poses):
+        for j in range(len(ctx.poses)):
+            P = ctx.data_pose(j)
             Lp = ctx.params.get(f"Lp{j}", 13, 13)
             pbar = ctx.params.get(f"pbar{j}", 3)
             beta = ca.vertcat(ca.vec(P.R), -(P.R.T @ (P.t - pbar)), -P.s)

@@ -8,7 +8,11 @@ origin); :func:`tables` turns the records into the page's markdown tables. Two v
 
 - ``"causes"``: the official scheme, per-part fits, and the exact fit with the NAOCS prior weight, the scale
   estimator and scale optimisation varied, at ``realistic`` and ``realistic`` without NAOCS noise;
-- ``"reverse"``: the symmetric against the reverse scale estimator at ``low``, ``realistic`` and ``high``.
+- ``"reverse"``: the symmetric against the reverse scale estimator at ``low``, ``realistic`` and ``high``;
+- ``"coupling"`` (issue 35, item 7: where the joints cost the exact fit translation against per-part fits): the
+  default exact fit, per-part fits, the official scheme and the exact fit with NPCS biases
+  (``FitConfig.npcs_bias_weight``) at ``realistic``, ``realistic`` without the per-part NPCS warp, and ``realistic``
+  with exact joint parameters (no axis, pivot or NAOCS noise).
 
 Rows labelled with the old default pin ``scale_estimator="symmetric"`` (the default when the page was measured), so
 the numbers do not move with the default. The command is ``python -m ancsh.cli.bench.fit_translation``.
@@ -23,9 +27,10 @@ import numpy as np
 
 __all__ = ["LEVEL_INDEX", "VARIANTS", "measure", "tables"]
 
-VARIANTS = ("causes", "reverse")
+VARIANTS = ("causes", "reverse", "coupling")
 # The corruption presets' index in the full fit benchmark (levels none, low, realistic, high): its seed stream.
-LEVEL_INDEX = {"low": 1, "realistic": 2, "high": 3, "realistic_exact_naocs": 2}
+LEVEL_INDEX = {"low": 1, "realistic": 2, "high": 3, "realistic_exact_naocs": 2, "realistic_no_warp": 2,
+               "realistic_exact_joints": 2}
 
 
 def _methods(variant: str) -> dict:
@@ -49,6 +54,14 @@ def _methods(variant: str) -> dict:
                                                  config=c, rng=rng)
 
     official = OfficialSettings()
+    if variant == "coupling":
+        return {
+            "official": lambda obs, corr, rng, clean: fit_official(obs, corr, settings=official, rng=rng),
+            "per_part": per_part(scale_estimator="reverse"),
+            "exact (default)": exact(scale_estimator="reverse"),
+            "exact npcs_bias 0.1": exact(scale_estimator="reverse", npcs_bias_weight=0.1),
+            "exact npcs_bias 0.01": exact(scale_estimator="reverse", npcs_bias_weight=0.01),
+        }
     if variant == "causes":
         return {
             "official": lambda obs, corr, rng, clean: fit_official(obs, corr, settings=official, rng=rng),
@@ -77,6 +90,9 @@ def _levels(variant: str) -> dict:
     from ..solvers.providers.oracle import CORRUPTION_PRESETS
 
     real = CORRUPTION_PRESETS["realistic"]
+    if variant == "coupling":
+        return {"realistic": real, "realistic_no_warp": replace(real, npcs_warp=0.0),
+                "realistic_exact_joints": replace(real, axis_sigma_deg=0.0, pivot_sigma=0.0, naocs_sigma=0.0)}
     if variant == "causes":
         return {"realistic": real, "realistic_exact_naocs": replace(real, naocs_sigma=0.0)}
     return {"low": CORRUPTION_PRESETS["low"], "realistic": real, "high": CORRUPTION_PRESETS["high"]}
@@ -92,7 +108,7 @@ def measure(frames_per_category: int, categories=(), *, variant: str = "causes",
         Rendered test frames per category (the fit benchmark's frames and seeds).
     categories : sequence of str
         Categories (empty: the paper's five).
-    variant : {"causes", "reverse"}
+    variant : {"causes", "reverse", "coupling"}
         The methods and corruption levels compared (module docstring).
     progress : callable
         Receives one line per frame.
@@ -110,7 +126,7 @@ def measure(frames_per_category: int, categories=(), *, variant: str = "causes",
     for f_i, fr in enumerate(frames):
         obs, L, gt = Observation(fr.points), fr.object_scale, fr.gt
         for lname, corr_def in levels.items():
-            # as bench fit; "causes" draws both levels from the same stream: only the NAOCS noise differs
+            # as bench fit; "causes" and "coupling" draw their levels from one stream: only the named knobs differ
             seed = [0, f_i, LEVEL_INDEX[lname]]
             s = corrupt_ground_truth(gt, fr.points, corr_def, np.random.default_rng(seed), joint_limits=fr.joint_limits)
             for name, method in methods.items():

@@ -382,3 +382,36 @@ def test_reverse_scale_is_unbiased_under_npcs_noise_and_lowers_translation_error
     assert s_u < s_s < 0 and abs(s_r) < abs(s_s) / 3, errors  # shrinkage: umeyama > symmetric >> reverse
     assert t_r < 0.9 * t_s and t_s < t_u, errors
     assert r_r <= r_s * 1.02, errors  # the rotation does not get worse
+
+
+@pytest.mark.parametrize("formulation, solver", [("exact_reduced", "lm"), ("exact_reduced", "ipopt"), ("exact_reduced", "lsq"),
+                                                 ("exact_maximal", "ipopt")])
+def test_npcs_bias_takes_up_a_rotated_npcs_and_keeps_the_origins(fit_case, formulation, solver):
+    """One part's NPCS turned about its origin (a per-part orientation error of the provider): the plain exact
+    fit moves every part's origin; with NPCS biases the points are explained exactly, every NPCS origin is
+    recovered, the joints still hold, and a stiff bias prior gives the plain fit back."""
+    from ancsh.geometry.rotations import exp_so3
+
+    case = fit_case(23, num_parts=3, tree=True, joint_types="revolute")
+    c = case.correspondences
+    turn = exp_so3(np.radians(4.0) * np.array([0.6, -0.48, 0.64]))
+    on = c.part_labels == 2
+    npcs = c.npcs.copy()
+    npcs[on] = npcs[on] @ turn  # = turn^T c: the true NPCS are turn @ (provider's NPCS)
+    corr = replace(c, npcs=npcs, joint_limits=None)
+    base = dict(ransac=False, scale_estimator="umeyama", naocs_prior_weight=0.0)
+    plain = fit(case.observation, corr, formulation, solver, config=FitConfig(**base))
+    biased = fit(case.observation, corr, formulation, solver, config=FitConfig(npcs_bias_weight=1e-6, **base))
+    stiff = fit(case.observation, corr, formulation, solver, config=FitConfig(npcs_bias_weight=1e8, **base))
+    assert plain.ok and biased.ok and stiff.ok
+
+    def origin_error(res):
+        return max(np.linalg.norm(a.translation - b.translation) for a, b in zip(res.T_cam_npcs, case.gt.T_cam_npcs))
+
+    assert origin_error(plain) > 1e-3
+    assert origin_error(biased) < 1e-3 * origin_error(plain)
+    assert biased.cost_per_term["data"] < 1e-6 * plain.cost_per_term["data"]
+    assert biased.max_constraint_violation < 1e-7
+    for Ta, Tb in zip(stiff.T_cam_npcs, plain.T_cam_npcs):
+        assert geodesic_angle(Ta.rotation, Tb.rotation) < 1e-4
+        assert np.linalg.norm(Ta.translation - Tb.translation) < 1e-4

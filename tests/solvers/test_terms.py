@@ -42,6 +42,10 @@ def test_term_jacobian_matches_central_differences(name, parameterisation, free_
         with pytest.raises(ValueError, match="canonical parameters are fixed"):
             Program(ProgramKey(STRUCTURE, parameterisation, True, (name,)))
         return
+    if name == "npcs_bias_prior":  # its variables: test_npcs_bias_jacobians_match_central_differences
+        with pytest.raises(ValueError, match="no NPCS-bias variables"):
+            Program(ProgramKey(STRUCTURE, parameterisation, True, (name,)))
+        return
     rng = np.random.default_rng(zlib.crc32(f"{name}{parameterisation}{free_canonical}".encode()))
     terms = (name,) + (("naocs_prior",) if free_canonical and name != "naocs_prior" else ())
     prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical))
@@ -56,6 +60,38 @@ def test_term_jacobian_matches_central_differences(name, parameterisation, free_
     numeric = numeric_derivative(value, x)
     assert analytic.shape == numeric.shape and analytic.size > 0
     np.testing.assert_allclose(analytic, numeric, rtol=1e-6, atol=1e-7)
+
+
+@pytest.mark.parametrize("parameterisation", ["maximal", "reduced"])
+@pytest.mark.parametrize("name", ["data", "point_to_plane", "npcs_bias_prior"])
+def test_npcs_bias_jacobians_match_central_differences(name, parameterisation, numeric_derivative):
+    """The data terms through NPCS-bias rotations, and the bias prior, differentiated in every variable."""
+    rng = np.random.default_rng(zlib.crc32(f"bias{name}{parameterisation}".encode()))
+    terms = tuple(dict.fromkeys((name, "naocs_prior", "npcs_bias_prior")))
+    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical=True, npcs_bias=True))
+    p = prog.params.pack(_random_values(prog, rng))
+    x = rng.normal(scale=0.3, size=prog.num_x)
+    value = lambda x_: np.asarray(prog.residual(x_, p)).ravel()  # noqa: E731
+    np.testing.assert_allclose(np.asarray(prog.jacobian(x, p)), numeric_derivative(value, x), rtol=1e-6, atol=1e-7)
+    bias = prog.unpack(x, p).npcs_bias
+    assert bias.shape == (STRUCTURE.num_parts, 3)
+    np.testing.assert_array_equal(prog.initial_x(npcs_bias=bias)[-bias.size:], bias.ravel())
+
+
+def test_npcs_bias_needs_its_prior_and_zero_bias_is_the_plain_data_term():
+    with pytest.raises(ValueError, match="need the 'npcs_bias_prior' term"):
+        Program(ProgramKey(STRUCTURE, "reduced", False, ("data",), npcs_bias=True))
+    with pytest.raises(ValueError, match="no NPCS-bias variables"):
+        Program(ProgramKey(STRUCTURE, "reduced", False, ("data",))).initial_x(npcs_bias=np.zeros((4, 3)))
+    rng = np.random.default_rng(3)
+    plain = Program(ProgramKey(STRUCTURE, "reduced", False, ("data",)))
+    biased = Program(ProgramKey(STRUCTURE, "reduced", False, ("data", "npcs_bias_prior"), npcs_bias=True))
+    values = _random_values(biased, rng)
+    x = rng.normal(scale=0.3, size=plain.num_x)
+    r_plain = np.asarray(plain.residual(x, plain.params.pack({k: values[k] for k in plain.params.names}))).ravel()
+    r_biased = np.asarray(biased.residual(np.concatenate([x, np.zeros(12)]), biased.params.pack(values))).ravel()
+    np.testing.assert_allclose(r_biased[: r_plain.size], r_plain, rtol=1e-12)
+    np.testing.assert_array_equal(r_biased[r_plain.size:], 0.0)
 
 
 @pytest.mark.parametrize("planar", [False, True])

@@ -1,7 +1,7 @@
 """``python -m ancsh.cli.bench.fit_translation``: the measurements of ``docs/results/fit_translation.md``
 (:mod:`ancsh.studies.fit_translation`).
 
-``measure --variant causes|reverse --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
+``measure --variant causes|reverse|coupling --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
 tables; ``evaluate-symmetric ARGS`` runs ``ancsh ARGS`` (e.g. ``evaluate --category laptop ...``) with the previous
 default scale estimator of the exact fits (``FitConfig(scale_estimator="symmetric")``), for the page's
 before/after rows.
@@ -15,11 +15,13 @@ import sys
 
 
 def main(argv=None) -> int:
+    from ...studies.fit_translation import VARIANTS
+
     p = argparse.ArgumentParser(prog="python -m ancsh.cli.bench.fit_translation",
                                 description="The fit's translation error by cause (docs/results/fit_translation.md).")
     sub = p.add_subparsers(dest="what", required=True)
     m = sub.add_parser("measure", help="fit the fit benchmark's frames with every method of a variant")
-    m.add_argument("--variant", choices=("causes", "reverse"), default="causes")
+    m.add_argument("--variant", choices=VARIANTS, default="causes")
     m.add_argument("--frames", type=int, default=8, help="test frames per category (default 8)")
     m.add_argument("--categories", default="", help="comma-separated (default: the paper's five)")
     m.add_argument("--out", required=True, help="records JSON")
