@@ -25,7 +25,7 @@ from dataclasses import replace
 
 import numpy as np
 
-__all__ = ["LEVEL_INDEX", "VARIANTS", "measure", "tables"]
+__all__ = ["LEVEL_INDEX", "VARIANTS", "measure", "npcs_anchor", "tables"]
 
 VARIANTS = ("causes", "reverse", "coupling")
 # The corruption presets' index in the full fit benchmark (levels none, low, realistic, high): its seed stream.
@@ -185,4 +185,34 @@ def tables(recs: list[dict]) -> list[str]:
                            + ", ".join(f"{x:.4f}" for x in per_part("centroid_trans")) + " | "
                            + ", ".join(f"{x:.2f}" for x in per_part("rot")) + " | "
                            + ", ".join(f"{x:+.4f}" for x in per_part("signed_scale")) + " |")
+    return out
+
+
+def npcs_anchor(category: str, frames: int, *, seed: int = 0) -> list[dict]:
+    """Where a network's NPCS error is smallest: per test frame and part (true labels, >= 20 points), a similarity
+    ``S`` fitted from the true onto the shipped network's predicted NPCS, and how far it moves the NPCS origin
+    (``origin``, ``|S(0)|``) and the visible points' true NPCS centroid (``centroid``, ``|S(cbar) - cbar|``), NPCS units;
+    ``lever`` is ``|cbar|``. A per-part similarity fit absorbs an error whose fixed point is the origin."""
+    from ..data.generate import FrameGenerator, GenerationConfig
+    from ..geometry import umeyama
+    from ..learned.inference.provider import LearnedProvider
+    from ..learned.network.weights import weights_path
+    from ..solvers.types import Observation
+
+    gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed)))
+    provider = LearnedProvider(str(weights_path(category)), seed=int(seed), num_threads=1)
+    out = []
+    for i in range(int(frames)):
+        fr = gen.frame(i)
+        npcs = provider.infer(Observation(fr.points)).prediction.npcs
+        for j, name in enumerate(fr.part_names):
+            on = fr.gt.part_labels == j
+            if on.sum() < 20:
+                continue
+            true = fr.gt.npcs[on]
+            S = umeyama(true, npcs[on, j])
+            cbar = true.mean(0)
+            out.append(dict(frame=i, part=name, origin=float(np.linalg.norm(S.translation)),
+                            centroid=float(np.linalg.norm(S.apply(cbar[None])[0] - cbar)),
+                            lever=float(np.linalg.norm(cbar))))
     return out

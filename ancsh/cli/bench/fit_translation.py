@@ -2,7 +2,7 @@
 (:mod:`ancsh.studies.fit_translation`).
 
 ``measure --variant causes|reverse|coupling --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
-tables; ``evaluate-symmetric ARGS`` runs ``ancsh ARGS`` (e.g. ``evaluate --category laptop ...``) with the previous
+tables; ``anchor --category C --frames N`` measures where the shipped network's NPCS error is smallest; ``evaluate-symmetric ARGS`` runs ``ancsh ARGS`` (e.g. ``evaluate --category laptop ...``) with the previous
 default scale estimator of the exact fits (``FitConfig(scale_estimator="symmetric")``), for the page's
 before/after rows.
 """
@@ -27,6 +27,9 @@ def main(argv=None) -> int:
     m.add_argument("--out", required=True, help="records JSON")
     t = sub.add_parser("tables", help="the page's markdown tables of a records file")
     t.add_argument("records")
+    a = sub.add_parser("anchor", help="where the shipped network's NPCS error is smallest: NPCS origin vs visible centroid")
+    a.add_argument("--category", required=True)
+    a.add_argument("--frames", type=int, default=40)
     e = sub.add_parser("evaluate-symmetric", help="an ancsh command with the previous default scale estimator")
     e.add_argument("ancsh_args", nargs=argparse.REMAINDER)
     args = p.parse_args(argv)
@@ -37,6 +40,18 @@ def main(argv=None) -> int:
         cats = tuple(c for c in args.categories.split(",") if c)
         recs = measure(args.frames, cats, variant=args.variant, progress=lambda line: print(line, flush=True))
         print(f"wrote {write_json(args.out, recs)}")
+        return 0
+    if args.what == "anchor":
+        import numpy as np
+
+        from ...studies.fit_translation import npcs_anchor
+
+        recs = npcs_anchor(args.category, args.frames)
+        for part in dict.fromkeys(r["part"] for r in recs):
+            sel = [r for r in recs if r["part"] == part]
+            o, c = np.array([r["origin"] for r in sel]), np.array([r["centroid"] for r in sel])
+            print(f"{args.category} {part}: {len(sel)} frames, |S(origin)| {o.mean():.4f}, |S(centroid) - centroid| "
+                  f"{c.mean():.4f}, origin smaller on {np.mean(o < c):.0%}")
         return 0
     if args.what == "tables":
         from ...studies.fit_translation import tables
