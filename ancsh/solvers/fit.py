@@ -97,11 +97,8 @@ class FitConfig:
         hold exactly for adjusted parameters that the data may move -- useful when the
         provider's NAOCS parameters are noisy; the reported pivots use the adjusted values.
     npcs_bias_weight : float
-        0 (default): each part's NPCS are compared with the observed points through the part pose
-        itself. ``> 0``: each part gets an NPCS-bias rotation ``b_j`` (about its NPCS origin) in the
-        data term with the prior ``w |b_j|^2`` (:class:`~ancsh.solvers.terms.NpcsBiasPriorTerm`): a
-        per-part orientation error of the provider's NPCS is then absorbed by ``b_j`` instead of
-        moving the part's reported pose, which keeps the joints exact.
+        0 (default): off. ``> 0``: per-part NPCS-bias rotations about the NPCS origins in the data term,
+        prior ``w |b_j|^2`` (:class:`~ancsh.solvers.terms.NpcsBiasPriorTerm`; ``docs/results/fit_translation.md``).
     robust : str or None
         ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
         the moments (each round reweights the points and re-solves with the same program).
@@ -148,8 +145,7 @@ class FitConfig:
             check_int(getattr(self, name), name, minimum=lo)
         for name, positive in (
             ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
-            ("common_scale_weight", False), ("naocs_prior_weight", False), ("npcs_bias_weight", False),
-            ("robust_scale", True), ("tol", True),
+            ("common_scale_weight", False), ("naocs_prior_weight", False), ("npcs_bias_weight", False), ("robust_scale", True), ("tol", True),
         ):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=positive)
         check_number(self.ransac_confidence, "ransac_confidence", minimum=0.0, maximum=1.0, lower_open=True)
