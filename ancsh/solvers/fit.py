@@ -38,8 +38,8 @@ from ..geometry.boxes import OrientedBox
 from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .terms import (
-    CanonicalParameters, CanonicalPriorTerm, CommonScaleTerm, DataTerm, ExactCommonScaleTerm, ExactJointTerm,
-    JointLimitTerm, NpcsBiasPriorTerm, PreviousSolution, ProgramInputs, ProgramStart, SoftJointTerm, TemporalPriorTerm, TermWeights,
+    CanonicalParameters, CanonicalPriorTerm, CommonScaleTerm, DataTerm, ExactCommonScaleTerm, ExactJointTerm, JointLimitTerm,
+    NpcsBiasPriorTerm, PreviousSolution, ProgramInputs, ProgramStart, SoftJointTerm, TemporalPriorTerm, TermWeights,
 )
 from .types import Correspondences, FitResult, FitStatus, Observation
 
