@@ -11,8 +11,9 @@ origin); :func:`tables` turns the records into the page's markdown tables. Two v
 - ``"reverse"``: the symmetric against the reverse scale estimator at ``low``, ``realistic`` and ``high``;
 - ``"coupling"`` (issue 35, item 7: where the joints cost the exact fit translation against per-part fits): the
   default exact fit, per-part fits, the official scheme and the exact fit with NPCS biases
-  (``FitConfig.npcs_bias_weight``) at ``realistic``, ``realistic`` without the per-part NPCS warp, and ``realistic``
-  with exact joint parameters (no axis, pivot or NAOCS noise).
+  (``FitConfig.npcs_bias_weight``) at ``realistic``, ``realistic`` without the per-part NPCS warp, ``realistic``
+  with exact joint parameters (no axis, pivot or NAOCS noise), and without the warp: exact NAOCS parameters, exact
+  joint parameters (the official scheme and the bias weight 0.1 at ``realistic`` only).
 
 Rows labelled with the old default pin ``scale_estimator="symmetric"`` (the default when the page was measured), so
 the numbers do not move with the default. The command is ``python -m ancsh.cli.bench.fit_translation``.
@@ -30,7 +31,9 @@ __all__ = ["LEVEL_INDEX", "VARIANTS", "measure", "npcs_anchor", "tables"]
 VARIANTS = ("causes", "reverse", "coupling")
 # The corruption presets' index in the full fit benchmark (levels none, low, realistic, high): its seed stream.
 LEVEL_INDEX = {"low": 1, "realistic": 2, "high": 3, "realistic_exact_naocs": 2, "realistic_no_warp": 2,
-               "realistic_exact_joints": 2}
+               "realistic_exact_joints": 2, "no_warp_exact_naocs": 2, "no_warp_exact_joints": 2}
+# Methods measured at the first level of a variant only (the slow official scheme, the extra settings).
+_FIRST_LEVEL_ONLY = ("per_part(sym)", "per_part(umeyama)", "official", "exact npcs_bias 0.1")
 
 
 def _methods(variant: str) -> dict:
@@ -91,8 +94,11 @@ def _levels(variant: str) -> dict:
 
     real = CORRUPTION_PRESETS["realistic"]
     if variant == "coupling":
-        return {"realistic": real, "realistic_no_warp": replace(real, npcs_warp=0.0),
-                "realistic_exact_joints": replace(real, axis_sigma_deg=0.0, pivot_sigma=0.0, naocs_sigma=0.0)}
+        no_warp = replace(real, npcs_warp=0.0)
+        return {"realistic": real, "realistic_no_warp": no_warp,
+                "realistic_exact_joints": replace(real, axis_sigma_deg=0.0, pivot_sigma=0.0, naocs_sigma=0.0),
+                "no_warp_exact_naocs": replace(no_warp, naocs_sigma=0.0),
+                "no_warp_exact_joints": replace(no_warp, axis_sigma_deg=0.0, pivot_sigma=0.0, naocs_sigma=0.0)}
     if variant == "causes":
         return {"realistic": real, "realistic_exact_naocs": replace(real, naocs_sigma=0.0)}
     return {"low": CORRUPTION_PRESETS["low"], "realistic": real, "high": CORRUPTION_PRESETS["high"]}
@@ -130,7 +136,7 @@ def measure(frames_per_category: int, categories=(), *, variant: str = "causes",
             seed = [0, f_i, LEVEL_INDEX[lname]]
             s = corrupt_ground_truth(gt, fr.points, corr_def, np.random.default_rng(seed), joint_limits=fr.joint_limits)
             for name, method in methods.items():
-                if lname != "realistic" and name in ("per_part(sym)", "per_part(umeyama)"):
+                if lname != "realistic" and name in _FIRST_LEVEL_ONLY and (variant != "causes" or "per_part" in name):
                     continue
                 res = method(obs, s.correspondences, np.random.default_rng(seed + [7]), s.clean)
                 ev = evaluate_fit(res, fr)
