@@ -169,6 +169,12 @@ def test_evaluate_adds_the_refinement_network_row(tmp_path):
                            refiner=refiner_file(tmp_path), progress=False)
     assert ev["settings"]["methods"] == ["exact_reduced", "network"]
     assert ev["settings"]["refiner"].endswith("laptop_refine.pt")
+    refiner = load_network(refiner_file(tmp_path))
+    assert (ev["settings"]["refiner_step"], ev["settings"]["refiner_sha256"]) == (refiner.step, refiner.sha256)
+    from ancsh.studies.table1.report import _weights_line
+
+    assert f"refinement network: `laptop_refine.pt` (step {refiner.step}, sha256 {refiner.sha256[:12]})" in \
+        _weights_line(ev["settings"])
     rec = ev["records"][0]["methods"]["network"]
     assert rec["network_refine"]["passes"] >= 1
     assert "network" in summarize(ev)["methods"]

@@ -499,11 +499,12 @@ def evaluate_category(
     network = load_network(category if weights is None else weights)  # its file and SHA-256 at load time
     if network.kind != "ancsh":
         raise ValueError(f"weights: expected an ANCSH network, got a {network.kind!r} network")
-    refiner_source = None
+    refiner_source = refiner_net = None
     if "network" in methods:  # loaded here: a missing or mismatched refinement network fails before any frame
         from ...learned.inference.provider import LearnedProvider
 
-        refiner_source = LearnedProvider(network, refine="network", refiner=refiner).refiner.network.source
+        refiner_net = LearnedProvider(network, refine="network", refiner=refiner).refiner.network
+        refiner_source = refiner_net.source
     direct = None
     if direct_weights is not None:
         direct = str(load_network(direct_weights, kind="direct_voting").source)
@@ -549,6 +550,8 @@ def evaluate_category(
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
             "time_limit_s": time_limit_s, "refine": refine, "refiner": refiner_source,
+            "refiner_step": None if refiner_net is None else refiner_net.step,
+            "refiner_sha256": None if refiner_net is None else refiner_net.sha256,
             "executor": executor.describe(), "device": device,
         },
         "timing": {"wall_s": time.perf_counter() - start},

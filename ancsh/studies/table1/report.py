@@ -259,7 +259,7 @@ def write_real_report(procedural: dict, procedural_summary: dict, real: dict, re
         "",
         f"Command: `{command}`  ",
         f"Date: {date}  ",
-        f"Weights: `{Path(s['weights']).name}` (step {s['weights_step']}, sha256 {s['weights_sha256'][:12]})  ",
+        f"Weights: {_weights_line(s)}  ",
         f"Real objects: {which} of the catalog `{s['real_catalog']}` ({len(s.get('real_instances', []))}: "
         f"{', '.join(s.get('real_instances', []))}; imported PartNet-Mobility objects in the "
         "category's convention, `ancsh data import`), rendered with the same renderer, noise, viewpoints and points "
@@ -316,7 +316,7 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real
         f"Frames: {s['frames']} (requested {s['frames_requested']}) rendered frames `0..{s['frames'] - 1}` of the test "
         f"stream (seed {s['seed']}) over the {s['test_instances']} held-out {category} instances, "
         f"{s['num_points']} points each, Kinect-like depth noise  ",
-        f"Weights: `{Path(s['weights']).name}` (step {s['weights_step']}, sha256 {s['weights_sha256'][:12]})"
+        f"Weights: {_weights_line(s)}"
         + (f"; direct voting: `{Path(s['direct_weights']).name}`" if s["direct_weights"] else "") + "  ",
         f"Parts (in the order of every list below): {parts}; joints: {joints}",
         "",
@@ -425,3 +425,12 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real
                         "summary": {k: real[1][k] for k in ("methods", "table2", "budget") if k in real[1]}}
     write_json(paths["json"], data, one_line=("per_frame",))
     return paths
+
+
+def _weights_line(s: dict) -> str:
+    """The network (and refinement network) of an evaluation: file, training step, SHA-256 prefix."""
+    line = f"`{Path(s['weights']).name}` (step {s['weights_step']}, sha256 {s['weights_sha256'][:12]})"
+    if s.get("refiner"):
+        sha = s.get("refiner_sha256") or ""
+        line += f"; refinement network: `{Path(s['refiner']).name}` (step {s.get('refiner_step')}, sha256 {sha[:12]})"
+    return line
