@@ -81,3 +81,21 @@ def central_differences(f, x, h: float = 1e-6) -> np.ndarray:
 def numeric_derivative():
     """:func:`central_differences` (the one finite-difference helper of the tests)."""
     return central_differences
+
+
+@pytest.fixture
+def make_refiner(tmp_path):
+    """``make_refiner(category="laptop", perturb=15.0)``: the shipped first-stage weights of ``category`` relabelled as
+    a refinement network (``refine_perturb_deg``; untrained for it), written into the test's folder; its path."""
+    def make(category: str = "laptop", perturb: float = 15.0) -> Path:
+        import torch
+
+        from ancsh.learned.network.weights import read_torch_file, weights_path
+
+        data = read_torch_file(weights_path(category), argument="weights")
+        data["config"] = {**data["config"], "refine_perturb_deg": perturb}
+        path = tmp_path / f"{category}_refine.pt"
+        torch.save(data, path)
+        return path
+
+    return make

@@ -1,4 +1,5 @@
 """Category-level tracking over a depth sequence: warm starts, fusion over time, carried correspondences.
+Long: one tracker whose steps (warm fits, carried and fused correspondences, carried templates) share its state.
 
 :class:`CategoryTracker` turns one observation after another into a :class:`TrackedFrame`:
 
@@ -187,6 +188,11 @@ class TrackerConfig:
         holds procedural laptops only, and there it bought nothing: learned joint-state error of frames 10-20 of
         the first 16 test sequences 1.08 degrees without, 1.24 with.
         ``False``: the network only re-initialises.
+    refine_network : bool
+        The provider's refinement network (``LearnedProvider(..., refine="network")``) sees each network frame's
+        points rotated into the predicted object orientation (CAPTRA's set-up: the previous frames' pose
+        canonicalises the input) instead of the first stage's camera-frame input; cold fits are refined by it
+        (:func:`~ancsh.learned.inference.refine_network.refine_with_network`). Default ``False``.
     min_points : int
         Fewer observed points: the frame is lost (no fit is tried).
     max_relative_residual : float
@@ -215,6 +221,7 @@ class TrackerConfig:
     template_icp: object = None
     template_reuse: bool = True
     template_states: bool = True
+    refine_network: bool = False
     min_points: int = 100
     max_relative_residual: float = 0.1
     fit: FitConfig = field(default_factory=FitConfig)
@@ -235,6 +242,7 @@ class TrackerConfig:
             check_number(self.recentre_threshold, "recentre_threshold", minimum=0.0, lower_open=True)
         check_bool(self.template_reuse, "template_reuse")
         check_bool(self.template_states, "template_states")
+        check_bool(self.refine_network, "refine_network")
         check_choice(self.predict_from, "predict_from", ("network", "frames"))
         for name in ("carried_gate", "max_relative_residual"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
@@ -408,7 +416,18 @@ def fit_frame(provider, observation: Observation, config: TrackerConfig, categor
                                  num_points=observation.num_points), None
     corr = provider.correspond(observation)
     result = fit(observation, corr, config.formulation, config.solver, config.fit, rng=rng)
-    return check_fit(result, observation.points_cam, corr, category, config.max_relative_residual), corr
+    checked = check_fit(result, observation.points_cam, corr, category, config.max_relative_residual)
+    if config.refine_network and checked.ok:  # the refined fit where it passes the checks too
+        from ..learned.inference.refine_network import refine_with_network
+
+        ref = refine_with_network(provider.refiner, observation, result, formulation=config.formulation,
+                                  config=config.fit, rng=rng)
+        if ref.accepted:
+            refined = check_fit(ref.result, observation.points_cam, ref.inference.correspondences, category,
+                                config.max_relative_residual)
+            if refined.ok:
+                return refined, ref.inference.correspondences
+    return checked, corr
 
 
 @dataclass
@@ -457,6 +476,9 @@ class CategoryTracker:
         self.config = TrackerConfig() if config is None else config
         if not isinstance(self.config, TrackerConfig):
             raise ValueError(f"config: expected a TrackerConfig, got {type(self.config).__name__}")
+        if self.config.refine_network and getattr(provider, "refine_option", None) != "network":
+            raise ValueError("config.refine_network: the provider has no refinement network (LearnedProvider(..., "
+                             "refine='network'))")
         self.category = category
         self.rng = check_generator(rng)
         self._track: _Track | None = None
@@ -611,7 +633,10 @@ class CategoryTracker:
         warm = dataclasses.replace(cfg.fit, rescore_rounds=max(cfg.fit.rescore_rounds, cfg.warm_rescore_rounds))
         L = float(np.median([T.scale / g for T, g in zip(start.T_cam_npcs, tr.correspondences.npcs_scale)]))
         if network:
-            corr = self.provider.correspond(observation)
+            if cfg.refine_network:  # the input in the predicted orientation of the root part (= of the NAOCS)
+                corr = self.provider.refiner.correspond(observation, input_rotation=prior.T_cam_naocs.rotation.T)
+            else:
+                corr = self.provider.correspond(observation)
             if cfg.network_scale:
                 warm = dataclasses.replace(warm, optimize_scale=True)
             if cfg.fusion_weight > 0:

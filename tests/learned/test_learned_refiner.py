@@ -12,7 +12,7 @@ from ancsh.geometry.rotations import rotation_angle
 from ancsh.learned.inference.provider import LearnedProvider
 from ancsh.learned.inference.refine_network import refine_with_network
 from ancsh.learned.network.config import TrainConfig
-from ancsh.learned.network.weights import load_network, read_torch_file, weights_path
+from ancsh.learned.network.weights import load_network, weights_path
 from ancsh.learned.training.data import stack_frames
 from ancsh.learned.training.train import Trainer, input_batch, refine_rotations
 from ancsh.solvers import Observation, fit
@@ -29,17 +29,6 @@ def _frames(seed, n, *, num_parts=2):
         fr = sample_frame(model, rng, points_per_part=80)
         out.append((fr.points_cam, ancsh_ground_truth(model, fr.q, fr.T_cam_base, fr.points_cam, fr.part_labels)))
     return out
-
-
-def refiner_file(tmp_path, category="laptop", perturb=15.0):
-    """The shipped first-stage weights of ``category`` relabelled as a refinement network (untrained for it)."""
-    import torch
-
-    data = read_torch_file(weights_path(category), argument="weights")
-    data["config"] = {**data["config"], "refine_perturb_deg": perturb}
-    path = tmp_path / f"{category}_refine.pt"
-    torch.save(data, path)
-    return path
 
 
 def test_naocs_rotations_recover_the_true_orientation():
@@ -99,8 +88,8 @@ def test_refiner_settings_are_checked(change, match):
     assert TrainConfig(refine_perturb_deg=10).is_refiner and not TrainConfig().is_refiner
 
 
-def test_a_refiner_without_an_input_rotation_is_refused(tmp_path):
-    p = LearnedProvider(str(refiner_file(tmp_path)))
+def test_a_refiner_without_an_input_rotation_is_refused(tmp_path, make_refiner):
+    p = LearnedProvider(str(make_refiner()))
     obs = Observation(np.random.default_rng(0).normal(size=(200, 3)) * 0.1 + [0, 0, 1])
     with pytest.raises(ValueError, match="input_rotation: .*refinement network"):
         p.correspond(obs)
@@ -109,13 +98,13 @@ def test_a_refiner_without_an_input_rotation_is_refused(tmp_path):
     assert p.correspond(obs, input_rotation=np.eye(3)).num_points == 200
 
 
-def test_refiner_choice_is_checked(tmp_path):
+def test_refiner_choice_is_checked(tmp_path, make_refiner):
     with pytest.raises(ValueError, match="refiner: .*first-stage"):
         LearnedProvider("laptop", refine="network", refiner="laptop")
     with pytest.raises(ValueError, match="refiner: .*refine='network' only"):
-        LearnedProvider("laptop", refine="template", refiner=str(refiner_file(tmp_path)))
+        LearnedProvider("laptop", refine="template", refiner=str(make_refiner()))
     with pytest.raises(ValueError, match="refiner: .*predicts 2 parts"):
-        LearnedProvider("drawer", refine="network", refiner=str(refiner_file(tmp_path)))
+        LearnedProvider("drawer", refine="network", refiner=str(make_refiner()))
     if not weights_path("laptop", "refine").is_file():
         with pytest.raises(FileNotFoundError, match="no refinement network is shipped for 'laptop'"):
             LearnedProvider("laptop", refine="network")
@@ -127,11 +116,11 @@ def _laptop_frame():
     return FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0)).frame(1)
 
 
-def test_network_refinement_commutes_with_a_camera_rotation(tmp_path):
+def test_network_refinement_commutes_with_a_camera_rotation(tmp_path, make_refiner):
     """The refiner's input is the points in the first fit's NAOCS orientation, so rotating the camera (points and
     first fit alike) leaves its input unchanged and rotates the refined fit with it."""
     fr = _laptop_frame()
-    p = LearnedProvider("laptop", refine="network", refiner=str(refiner_file(tmp_path)))
+    p = LearnedProvider("laptop", refine="network", refiner=str(make_refiner()))
     obs = Observation(fr.points)
     corr = p.correspond(obs)
     Q = Rotation.from_rotvec([0.3, -0.2, 0.5]).as_matrix()
@@ -148,10 +137,10 @@ def test_network_refinement_commutes_with_a_camera_rotation(tmp_path):
     assert len(ref.rotation_change_deg) == ref.passes or not ref.accepted
 
 
-def test_network_refinement_of_a_failed_fit_is_refused(tmp_path):
+def test_network_refinement_of_a_failed_fit_is_refused(tmp_path, make_refiner):
     from ancsh.solvers.types import FitResult, FitStatus
 
-    p = LearnedProvider("laptop", refine="network", refiner=str(refiner_file(tmp_path)))
+    p = LearnedProvider("laptop", refine="network", refiner=str(make_refiner()))
     failed = FitResult.failure(FitStatus.TOO_FEW_POINTS, "x", formulation="exact_reduced", solver="none", num_joints=1,
                                num_points=10)
     with pytest.raises(ValueError, match="fit_result"):
@@ -162,14 +151,14 @@ def test_network_refinement_of_a_failed_fit_is_refused(tmp_path):
         refine_with_network(LearnedProvider("laptop"), Observation(_laptop_frame().points), failed)
 
 
-def test_evaluate_adds_the_refinement_network_row(tmp_path):
+def test_evaluate_adds_the_refinement_network_row(tmp_path, make_refiner):
     from ancsh.studies.table1 import evaluate_category, summarize
 
     ev = evaluate_category("laptop", frames=2, methods=("exact_reduced",), refine="network",
-                           refiner=refiner_file(tmp_path), progress=False)
+                           refiner=make_refiner(), progress=False)
     assert ev["settings"]["methods"] == ["exact_reduced", "network"]
     assert ev["settings"]["refiner"].endswith("laptop_refine.pt")
-    refiner = load_network(refiner_file(tmp_path))
+    refiner = load_network(make_refiner())
     assert (ev["settings"]["refiner_step"], ev["settings"]["refiner_sha256"]) == (refiner.step, refiner.sha256)
     from ancsh.studies.table1.report import _weights_line
 
@@ -179,22 +168,22 @@ def test_evaluate_adds_the_refinement_network_row(tmp_path):
     assert rec["network_refine"]["passes"] >= 1
     assert "network" in summarize(ev)["methods"]
     with pytest.raises(ValueError, match="refiner"):
-        evaluate_category("laptop", frames=1, refiner=refiner_file(tmp_path), progress=False)
+        evaluate_category("laptop", frames=1, refiner=make_refiner(), progress=False)
 
 
-def test_cli_refiner_needs_refine_network(tmp_path):
+def test_cli_refiner_needs_refine_network(tmp_path, make_refiner):
     r = subprocess.run([sys.executable, "-m", "ancsh", "evaluate", "--category", "laptop", "--frames", "1",
-                        "--refiner", str(refiner_file(tmp_path)), "--out", str(tmp_path / "o")],
+                        "--refiner", str(make_refiner()), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "--refiner" in r.stderr and "Traceback" not in r.stderr
 
 
-def test_refiner_is_loaded_as_an_ancsh_network(tmp_path):
-    net = load_network(refiner_file(tmp_path))
+def test_refiner_is_loaded_as_an_ancsh_network(tmp_path, make_refiner):
+    net = load_network(make_refiner())
     assert net.kind == "ancsh" and net.config.is_refiner
 
 
-def test_predict_refines_with_the_network_and_keeps_its_correspondences(tmp_path):
+def test_predict_refines_with_the_network_and_keeps_its_correspondences(tmp_path, make_refiner):
     from ancsh.learned.inference.predict import predict_depth
 
     gen_frame = _laptop_frame()
@@ -205,8 +194,8 @@ def test_predict_refines_with_the_network_and_keeps_its_correspondences(tmp_path
     depth = renderer.render(gen_frame.joint_states_abs, gen_frame.T_cam_base, gen_frame.intrinsics).depth
     mask = depth > 0
     pred = predict_depth(depth, gen_frame.intrinsics, "laptop", mask=mask, refine="network",
-                         refiner=refiner_file(tmp_path))
+                         refiner=make_refiner())
     assert any(n.startswith("refinement network: kept") for n in pred.notes), pred.notes
     assert pred.result.ok
     with pytest.raises(ValueError, match="refiner"):
-        predict_depth(depth, gen_frame.intrinsics, "laptop", mask=mask, refine="template", refiner=refiner_file(tmp_path))
+        predict_depth(depth, gen_frame.intrinsics, "laptop", mask=mask, refine="template", refiner=make_refiner())

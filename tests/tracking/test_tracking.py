@@ -821,3 +821,54 @@ def test_tracking_benchmark_calibrates_tracked_frames_and_tests_the_installed_ma
     assert "## Coverage of the reported standard deviations" in text
     assert "## Calibration of tracked frames' standard deviations" in text
     assert json.loads((tmp_path / "t.json").read_text())["calibration"]["counts"]["laptop"]
+
+
+def test_refinement_network_frames_see_the_points_in_the_predicted_orientation():
+    """``refine_network``: a warm network frame's correspondences come from the provider's refinement network on the
+    points rotated by the transpose of the predicted object rotation; the cold fit is refined by it; a provider
+    without a refinement network is refused. (A stand-in refinement network: exact correspondences, recording
+    the rotation it is given.)"""
+    from types import SimpleNamespace
+
+    from ancsh.geometry.rotations import rotation_angle
+    from ancsh.learned.inference.provider import LearnedProvider
+
+    cfg = TrackerConfig(network_every=1, template_categories=(), refine_network=True, fusion_weight=0.0,
+                        temporal_weight=0.0)
+    with pytest.raises(ValueError, match="refine_network: the provider has no refinement network"):
+        CategoryTracker(LearnedProvider("laptop"), cfg, category="laptop")
+    with pytest.raises(ValueError, match="refine_network"):
+        TrackerConfig(refine_network="yes")
+    oracle, seen = FrameOracle(), []
+
+    class Refiner:
+        network = SimpleNamespace(config=SimpleNamespace(is_refiner=True), joint_children=(1,), source="stand-in")
+        num_parts = 2
+
+        def correspond(self, observation, *, input_rotation=None):
+            seen.append(("correspond", input_rotation))
+            return oracle.correspond(observation)
+
+        def infer(self, observation, *, input_rotation=None):
+            seen.append(("infer", input_rotation))
+            return SimpleNamespace(correspondences=oracle.correspond(observation))
+
+    oracle.refine_option, oracle.refiner = "network", Refiner()
+    gen = _generator(length=4)
+    tracker = CategoryTracker(oracle, cfg, category="laptop")
+    for i in range(4):
+        fr = gen.frame(i)
+        oracle.frame = fr
+        before = len(seen)
+        out = tracker.step(Observation(fr.points))
+        assert out.status == (TrackStatus.INITIALISED if i == 0 else TrackStatus.TRACKED), out.message
+        calls = seen[before:]
+        if i == 0:  # the cold fit, refined (refine_with_network: up to two passes of infer)
+            assert calls and {name for name, _ in calls} == {"infer"}
+        else:  # a warm network frame: one pass in the predicted orientation (the last fit's, moved on)
+            assert [name for name, _ in calls] == ["correspond"]
+            motion = np.degrees(rotation_angle(previous.T @ fr.gt.T_cam_naocs.rotation))  # since the last frame
+            assert np.degrees(rotation_angle(calls[0][1] @ fr.gt.T_cam_naocs.rotation)) < motion + 0.5
+        rot, trans, state = _errors(out.result, fr)
+        assert rot < 1e-3 and state < 1e-3, (i, rot, state)
+        previous = fr.gt.T_cam_naocs.rotation

@@ -33,6 +33,9 @@ def register(sub) -> None:
     p.add_argument("--install", action="store_true",
                    help="install the measured maps in ancsh/weights/uncertainty_inflation.json before the benchmark's "
                         "sequences run (needs --calibration-sequences)")
+    p.add_argument("--refiner", default=None, metavar="FILE",
+                   help="with --tracker '{\"refine_network\": true}': the learned provider's refinement network "
+                        "(default: the category's shipped one)")
     p.add_argument("--out", default=None, help="markdown report path (default: a fresh ancsh_results/bench-tracking-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/tracking.md (when --out is not given)")
     p.set_defaults(func=run)
@@ -48,6 +51,8 @@ def _command(args) -> str:
             parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
     if args.tracker:
         parts.append(f"--tracker '{json.dumps(_tracker_settings(args.tracker), sort_keys=True)}'")
+    if args.refiner:
+        parts.append(f"--refiner {args.refiner}")
     if args.install:
         parts.append("--install")
     parts += output_flags(args.out, update_docs=args.update_docs)
@@ -88,7 +93,12 @@ def run(args) -> int:
     config = BenchConfig(categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), providers=providers,
                          urdf=urdf, sequences=args.sequences, urdf_sequences=args.urdf_sequences, length=args.length, urdf_length=args.urdf_length, gap=args.gap,
                          network_every=args.network_every, seed=args.seed, tracker=_tracker_settings(args.tracker),
-                         calibration_sequences=args.calibration_sequences, calibration_seed=args.calibration_seed)
+                         calibration_sequences=args.calibration_sequences, calibration_seed=args.calibration_seed,
+                         refiner=args.refiner)
+    if args.refiner and not config.tracker.get("refine_network"):
+        raise ValueError("--refiner: a refinement network is used with --tracker '{\"refine_network\": true}' only")
+    if config.tracker.get("refine_network") and "oracle" in providers:
+        raise ValueError("--tracker refine_network: the oracle provider has no refinement network (--providers learned)")
     if args.calibration_sequences < 0:
         raise ValueError(f"--calibration-sequences: expected an integer >= 0, got {args.calibration_sequences}")
     if args.install and not args.calibration_sequences:

@@ -59,6 +59,9 @@ class BenchConfig:
         Sequences per procedural object of the calibration of tracked frames' standard deviations
         (:func:`calibrate`; 0: none), frame seed ``calibration_seed`` (the same held-out instances, other
         sequences than the benchmark's).
+    refiner : str or None
+        With the tracker's ``refine_network``: the learned provider's refinement network file (default: the
+        category's shipped one).
     """
 
     categories: tuple = ("laptop", "drawer", "eyeglasses")
@@ -74,6 +77,7 @@ class BenchConfig:
     tracker: dict = field(default_factory=dict)
     calibration_sequences: int = 0
     calibration_seed: int = 1001
+    refiner: str | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -196,11 +200,15 @@ def _diag_inverse(model) -> float:
     return canonical_space(model).T_naocs_base.scale
 
 
-def _provider(name: str, category: str):
+def _provider(name: str, category: str, config: BenchConfig):
     if name == "learned":
         from ...learned.inference.provider import LearnedProvider
 
+        if config.tracker.get("refine_network"):
+            return LearnedProvider(category, num_threads=1, refine="network", refiner=config.refiner)
         return LearnedProvider(category, num_threads=1)
+    if config.tracker.get("refine_network"):
+        raise ValueError("tracker.refine_network: the oracle provider has no refinement network (use the learned one)")
     return _FrameOracle()
 
 
@@ -222,7 +230,7 @@ def _sequences(config: BenchConfig, seed: int, count: int):
         gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=seed,
                                               sequence=SequenceMotion(length=config.length)))
         for provider_name in config.providers:
-            provider = _provider(provider_name, category)
+            provider = _provider(provider_name, category, config)
             for seq in range(count):
                 yield category, provider_name, provider, seq, _sequence_frames(gen, seq, config.length, config.gap)
 
