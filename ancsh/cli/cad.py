@@ -105,8 +105,10 @@ def run_fit(args) -> int:
     if args.overwrite and args.urdf_out is None:
         raise ValueError("--overwrite: only with --urdf-out DIR")
     out_dir = args.urdf_out
-    if out_dir is not None and out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())) and not args.overwrite:
-        raise ValueError(f"--urdf-out: {out_dir} exists and is not empty; choose another folder or add --overwrite")
+    if out_dir is not None:
+        from ..model.urdf_export import check_urdf_folder
+
+        check_urdf_folder(out_dir, overwrite=args.overwrite, argument="--urdf-out", overwrite_hint="add --overwrite")
     urdf = Path(args.urdf)
     if not urdf.is_file():
         raise FileNotFoundError(f"urdf: no such file {str(urdf)!r}")

@@ -183,8 +183,9 @@ def run_predict(args: argparse.Namespace) -> int:
     if args.urdf is not None:  # before any work
         if args.depth.is_dir():
             raise ValueError("--urdf: one folder cannot hold the objects of a folder of depth images; predict each file")
-        if args.urdf.exists() and (not args.urdf.is_dir() or any(args.urdf.iterdir())) and not args.overwrite:
-            raise ValueError(f"--urdf: {args.urdf} exists and is not empty; choose another folder or add --overwrite")
+        from ..model.urdf_export import check_urdf_folder
+
+        check_urdf_folder(args.urdf, overwrite=args.overwrite, argument="--urdf", overwrite_hint="add --overwrite")
     if args.png is not None and not args.depth.is_dir():
         check_picture_path(args.png, "--png")
     _device(args)  # a missing CUDA device is the first thing to hear about

@@ -25,7 +25,7 @@ import numpy as np
 from ..geometry.transforms import Sim3
 from .articulated import ArticulatedModel
 
-__all__ = ["write_urdf", "urdf_rpy"]
+__all__ = ["check_urdf_folder", "write_urdf", "urdf_rpy"]
 
 
 def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
@@ -45,6 +45,20 @@ def _origin(T: Sim3) -> str:
 
 def _name(text: str) -> str:
     return quoteattr(str(text))
+
+
+def check_urdf_folder(folder, *, overwrite: bool = False, argument: str = "folder",
+                      overwrite_hint: str = "overwrite it") -> Path:
+    """``folder`` as a Path where a URDF may be written: not a symbolic link (nothing is written through a link), and
+    not an existing non-empty folder (or a file) unless ``overwrite``; ``ValueError`` naming ``argument`` otherwise
+    (command-line options check before any work with their own name and hint)."""
+    folder = Path(folder)
+    if folder.is_symlink():
+        raise ValueError(f"{argument}: {folder} is a symbolic link; give the folder itself (nothing is written through "
+                         "a link)")
+    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())) and not overwrite:
+        raise ValueError(f"{argument}: {folder} exists and is not empty; choose another folder or {overwrite_hint}")
+    return folder
 
 
 def write_urdf(model: ArticulatedModel, folder, *, states=None, T_root_base: Sim3 | None = None, root: str = "camera",
@@ -90,11 +104,7 @@ def write_urdf(model: ArticulatedModel, folder, *, states=None, T_root_base: Sim
         raise ValueError("T_root_base: expected a rigid Sim3 (scale 1)")
     if root in model.part_names:
         raise ValueError(f"root: {root!r} is also a part's name; choose another root link name")
-    folder = Path(folder)
-    if folder.is_symlink():
-        raise ValueError(f"folder: {folder} is a symbolic link; give the folder itself (nothing is written through a link)")
-    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())) and not overwrite:
-        raise ValueError(f"folder: {folder} exists and is not empty; choose another folder or overwrite it")
+    folder = check_urdf_folder(folder, overwrite=overwrite)
     stem = name or model.name or "object"
     links = [f"  <link name={_name(root)}/>"]
     offsets = {i: Sim3() for i in range(model.num_parts)}  # part index -> D (part frame in its link frame)

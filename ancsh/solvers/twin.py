@@ -61,27 +61,24 @@ def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: st
     if joints not in ("fitted", "template"):
         raise ValueError(f"joints: expected 'fitted' or 'template', got {joints!r}")
     ft = fitted_template(templates.model(nearest[0]), layout)
-    model = _with_fitted_joints(ft.model, fit, corr, layout.T_cam_B) if joints == "fitted" else ft.model
+    model = _with_fitted_joints(ft.model, fit, corr, layout) if joints == "fitted" else ft.model
     return FittedModel(model, layout.T_cam_B, model.rest_states + np.asarray(fit.joint_states, dtype=np.float64), ft.source)
 
 
-def _with_fitted_joints(model, fit: FitResult, corr: Correspondences, T_cam_B: Sim3):
+def _with_fitted_joints(model, fit: FitResult, corr: Correspondences, layout):
     """``model`` (every part frame ``B`` at rest) with the fit's joint lines: each joint's axis and pivot are the
-    fitted camera-frame ones, carried back to rest and into ``B``; the origin keeps the child at ``B`` at rest."""
+    fitted camera-frame ones, carried back to rest (``layout.undo_cam``) and into ``B``; the origin keeps the child
+    at ``B`` at rest."""
     import dataclasses
 
     from ..model.articulated import ArticulatedModel
-    from .icp.category import _joint_motion_cam
 
-    undo = [None] * corr.num_parts  # camera motion taking each part from the fitted states back to rest
-    undo[corr.root_part] = Sim3()
-    T_B_cam = T_cam_B.inverse()
+    undo, T_B_cam = layout.undo_cam, layout.T_cam_B.inverse()
     joints = list(model.joints)
     for k in corr.topological_joints:
-        p, c = int(corr.joint_parents[k]), int(corr.joint_children[k])
+        p = int(corr.joint_parents[k])
         axis, pivot = np.asarray(fit.joint_axes_cam[k]), np.asarray(fit.joint_pivots_cam[k])
         j = model.joints[k]
-        undo[c] = undo[p] @ _joint_motion_cam(axis, pivot, float(fit.joint_states[k]), j.is_revolute).inverse()
         a_B = T_B_cam.apply_direction(undo[p].apply_direction(axis))
         p_B = T_B_cam.apply(undo[p].apply(pivot))
         line = dataclasses.replace(j, axis=a_B / np.linalg.norm(a_B), pivot=p_B, origin=Sim3())

@@ -126,3 +126,7 @@ def test_predict_writes_the_urdf_and_refuses_to_overwrite(tmp_path, capsys):
     assert main([*args, "--urdf", str(tmp_path / "twin"), "--overwrite"]) == 0
     assert main([*args, "--overwrite"]) == 2
     assert "--overwrite: only with --urdf" in capsys.readouterr().err
+    (tmp_path / "link").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
+    (tmp_path / "elsewhere").mkdir()
+    assert main([*args, "--urdf", str(tmp_path / "link"), "--overwrite"]) == 2  # refused before any work
+    assert "--urdf: " in capsys.readouterr().err and not any((tmp_path / "elsewhere").iterdir())

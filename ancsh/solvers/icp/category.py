@@ -168,6 +168,8 @@ class FittedLayout:
         The fitted object box diagonal (metres).
     centres, sizes : (M, 3) float64
         Part box centres and side lengths in NAOCS units (``B`` / ``diagonal``).
+    undo_cam : tuple of Sim3
+        ``(M,)`` per part, the camera-frame motion taking it from the fitted joint states back to rest.
     """
 
     T_cam_B: Sim3
@@ -176,6 +178,7 @@ class FittedLayout:
     diagonal: float
     centres: np.ndarray
     sizes: np.ndarray
+    undo_cam: tuple = ()
 
 
 def _joint_motion_cam(axis, pivot, state: float, revolute: bool) -> Sim3:
@@ -237,7 +240,7 @@ def fitted_layout(fit: FitResult, corr: Correspondences) -> FittedLayout:
     diag = float(np.linalg.norm(hi - lo))
     centres = np.array([T.translation for T in T_B_npcs]) / diag
     sizes = np.array([T.scale * e for T, e in zip(T_B_npcs, ext)]) / diag
-    return FittedLayout(T_cam_B, T_B_npcs, ext, diag, centres, sizes)
+    return FittedLayout(T_cam_B, T_B_npcs, ext, diag, centres, sizes, tuple(undo))
 
 
 # ---------------------------------------------------------------------------------------------
