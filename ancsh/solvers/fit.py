@@ -1,4 +1,5 @@
 """Articulated fitting: RANSAC initialisation, the formulations, and post-processing.
+Long: the fit's validated settings (FitConfig) and the one procedure that reads them (_Fit) belong together.
 
 :func:`fit` is the one entry point::
 
@@ -112,6 +113,10 @@ class FitConfig:
         Backend iteration limit.
     tol : float
         Backend tolerance.
+    box_extents : str
+        Amodal part boxes where the correspondences carry no NPCS extents (a learned provider): ``"max"``
+        (default: twice the largest |NPCS| of the part's inliers per axis) or ``"unit_diagonal"`` (the same, scaled
+        to the unit diagonal every NPCS box has: noise no longer inflates it; ``docs/results/box_extents.md``).
     uncertainty : bool
         Compute :attr:`FitResult.uncertainty` (Gauss-Newton covariances from the program's
         Jacobian at the solution, :mod:`ancsh.solvers.uncertainty`; about 5 ms on a ~50 ms fit,
@@ -136,6 +141,7 @@ class FitConfig:
     enforce_limits: bool = True
     max_iterations: int = 100
     tol: float = 1e-10
+    box_extents: str = "max"
     uncertainty: bool = True
 
     def __post_init__(self):
@@ -150,6 +156,7 @@ class FitConfig:
             check_number(getattr(self, name), name, minimum=0.0, lower_open=positive)
         check_number(self.ransac_confidence, "ransac_confidence", minimum=0.0, maximum=1.0, lower_open=True)
         check_choice(self.scale_estimator, "scale_estimator", SCALE_ESTIMATORS)
+        check_choice(self.box_extents, "box_extents", ("max", "unit_diagonal"))
         if self.robust is not None and self.robust not in FIT_ROBUST_KERNELS:
             raise ValueError(f"robust: expected None or one of {FIT_ROBUST_KERNELS}, got {self.robust!r}")
 
@@ -691,6 +698,8 @@ class _Fit:
         else:
             sel = inliers & (self.labels == j)
             extents = 2.0 * np.max(np.abs(self.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
+            if self.config.box_extents == "unit_diagonal" and np.linalg.norm(extents) > 0:
+                extents = extents / np.linalg.norm(extents)
         return OrientedBox(T.translation, T.rotation, T.scale * extents)
 
 

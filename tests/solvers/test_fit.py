@@ -415,3 +415,26 @@ def test_npcs_bias_takes_up_a_rotated_npcs_and_keeps_the_origins(fit_case, formu
     for Ta, Tb in zip(stiff.T_cam_npcs, plain.T_cam_npcs):
         assert geodesic_angle(Ta.rotation, Tb.rotation) < 1e-4
         assert np.linalg.norm(Ta.translation - Tb.translation) < 1e-4
+
+
+def test_unit_diagonal_boxes_undo_the_inflation_by_npcs_noise(fit_case):
+    """Without NPCS extents from the provider the boxes come from the inliers' NPCS: noise and the points' reach put
+    them off the unit diagonal every NPCS box has; ``box_extents="unit_diagonal"`` scales them onto it, closer to
+    the true boxes; the poses are the same fit."""
+    from ancsh.geometry.boxes import OrientedBox
+    from ancsh.geometry.metrics import box_iou
+
+    case = fit_case(31, num_parts=3, npcs_noise=0.02)
+    true_extents = case.correspondences.npcs_extents
+    assert true_extents is not None
+    corr = replace(case.correspondences, npcs_extents=None)
+    measured = fit(case.observation, corr, config=FitConfig(ransac=False))
+    scaled = fit(case.observation, corr, config=FitConfig(ransac=False, box_extents="unit_diagonal"))
+    with pytest.raises(ValueError, match="box_extents"):
+        FitConfig(box_extents="min")
+    for j, (a, b, T, T_gt) in enumerate(zip(measured.boxes_cam, scaled.boxes_cam, scaled.T_cam_npcs, case.gt.T_cam_npcs)):
+        assert np.allclose(T.rotation, measured.T_cam_npcs[j].rotation) and np.allclose(T.translation, measured.T_cam_npcs[j].translation)
+        assert np.linalg.norm(b.extents / T.scale) == pytest.approx(1.0)
+        truth = OrientedBox(T_gt.translation, T_gt.rotation, T_gt.scale * np.asarray(true_extents[j]))
+        assert abs(np.linalg.norm(a.extents / T.scale) - 1.0) > 0.01  # off the unit diagonal as measured
+        assert box_iou(b, truth) > box_iou(a, truth)
