@@ -35,7 +35,7 @@ def weights_tables(rows: list[dict]) -> tuple[list[str], list[str], list[str]]:
     ]
     for r in rows:
         lines.append(
-            f"| `{r['name']}.pt` | {r['kind']} | {r['parts']} | {r['size_mb']:.1f} | {_f(r['step'], 'd')} / "
+            f"| `{r['name']}.pt` | {r['kind']}{' (refiner)' if r.get('refiner') else ''} | {r['parts']} | {r['size_mb']:.1f} | {_f(r['step'], 'd')} / "
             f"{_f(r['trained_steps'], 'd')} | {train_minutes(r)} | {_f(r['test_frames'], 'd')} | "
             f"{_f(r['seg_acc'], '.3f')} ({_f(r['seg_acc_majority'], '.3f')}) | {_f(r['npcs_err'], '.4f')} "
             f"({_f(r['npcs_err_zero'], '.3f')}) | {_f(r['assoc_acc'], '.3f')} | {_f(r['axis_err_deg'], '.2f')} |"
@@ -81,7 +81,7 @@ def target_tables(reports, rows: list[dict]) -> tuple[list[str], list[str]]:
 
     reports = Path(reports)
     target_rows, missing = collect_targets(reports)
-    ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh"}
+    ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh" and not r.get("refiner")}
     minutes = {c: (r["train_min"], r["parent_min"]) for c, r in ancsh_rows.items()}
     targets = target_lines(target_rows, missing, minutes)
     gains = roll_gains(reports / "roll_equivariance.json")

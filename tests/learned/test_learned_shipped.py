@@ -98,8 +98,12 @@ def test_weights_command_lists_every_shipped_file(tmp_path, capsys):
     rows = [line for line in table.splitlines() if line.startswith("| `")]
     assert len(rows) == len(available_weights())
     curve_rows = [line for line in curves.splitlines() if line.startswith("| `")]
-    assert len(curve_rows) == len(shipped_categories())  # every ANCSH network has a validation NPCS curve
     summary = {r["name"]: r for r in weights_summary()}
+    # every ANCSH network (first stages and refinement networks) has a validation NPCS curve
+    assert len(curve_rows) == sum(r["kind"] == "ancsh" for r in summary.values())
+    assert sum(r["kind"] == "ancsh" and not r["refiner"] for r in summary.values()) == len(shipped_categories())
+    for name, r in summary.items():
+        assert r["refiner"] == name.endswith("_refine") and (f"`{name}.pt` | ancsh (refiner) |" in text) == r["refiner"]
     pose_rows = [line for line in pose.splitlines() if line.startswith("| `")]
     assert len(pose_rows) == sum(bool(r["pose_curve"]) for r in summary.values())
     for line in pose_rows:  # each row lists its history's pose validations and names the best one

@@ -340,7 +340,8 @@ def learning_curve_fit(elapsed_s, val_err, *, tail_fraction: float = 0.5) -> dic
 
 
 def weights_summary() -> list[dict]:
-    """One row per shipped weights file: kind, category, size, training step and wall time, held-out scores.
+    """One row per shipped weights file: kind (``refiner``: a refinement network), category, size, training step and
+    wall time, held-out scores.
 
     The training wall time is the last ``elapsed_s`` of the ``<name>_history.csv`` shipped beside
     the weights (``nan`` without it), ``parent_min`` that of the weights a fine-tuned file started from
@@ -375,7 +376,8 @@ def weights_summary() -> list[dict]:
         m = net.metrics
         parent_min = float((net.lineage or {}).get("train_s", 0.0)) / 60.0
         rows.append({
-            "name": name, "kind": net.kind, "category": net.config.category, "parts": net.num_parts,
+            "name": name, "kind": net.kind, "refiner": bool(net.config.is_refiner), "category": net.config.category,
+            "parts": net.num_parts,
             "size_mb": (WEIGHTS_DIR / f"{name}.pt").stat().st_size / 1e6, "step": net.step,
             "trained_steps": steps, "train_min": minutes, "parent_min": parent_min,
             "parent_step": (net.lineage or {}).get("step"), "test_frames": m.get("test_frames"), "curve": curve,
