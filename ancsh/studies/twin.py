@@ -26,8 +26,9 @@ TARGET_M = 0.01
 PROVIDERS = ("learned", "oracle")
 
 
-def twin_frame(frame, corr, library, *, seed: int = 0) -> dict:
-    """One frame's record for one provider's correspondences: the fit, its model rendered, the comparison."""
+def twin_frame(frame, corr, library, *, seed: int = 0, config=None) -> dict:
+    """One frame's record for one provider's correspondences: the fit (``config``: its FitConfig), its model rendered,
+    the comparison."""
     from ..data.render import ModelRenderer
     from ..model.edit import with_limits
     from ..solvers import Observation, fit
@@ -35,7 +36,7 @@ def twin_frame(frame, corr, library, *, seed: int = 0) -> dict:
     from ..solvers.twin import fitted_model
 
     t0 = time.perf_counter()
-    result = fit(Observation(frame.points), corr, "exact_reduced", rng=seed)
+    result = fit(Observation(frame.points), corr, "exact_reduced", config=config, rng=seed)
     rec = {"status": result.status.value}
     if not result.ok:
         return rec
@@ -51,8 +52,9 @@ def twin_frame(frame, corr, library, *, seed: int = 0) -> dict:
     return rec
 
 
-def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True) -> dict:
-    """Records of ``frames`` test frames per category and provider (see the module docstring)."""
+def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True, box_extents: str = "max") -> dict:
+    """Records of ``frames`` test frames per category and provider (see the module docstring); ``box_extents``: the
+    fits' :attr:`~ancsh.solvers.fit.FitConfig.box_extents`."""
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.templates import load_template_library
     from ..learned.inference.provider import LearnedProvider
@@ -61,6 +63,9 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 1:
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
+    from ..solvers import FitConfig
+
+    config = FitConfig(box_extents=box_extents)
     records = []
     for cat in categories:
         gen = FrameGenerator(GenerationConfig(category=cat, split="test", seed=int(seed)))
@@ -72,10 +77,11 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
                 prov = learned if name == "learned" else OracleProvider(fr, "none", rng=int(seed) + i)
                 corr = prov.correspond(Observation(fr.points))
                 records.append({"category": cat, "frame": i, "provider": name,
-                                **twin_frame(fr, corr, library, seed=int(seed) + i)})
+                                **twin_frame(fr, corr, library, seed=int(seed) + i, config=config)})
             if progress:
                 print(f"twin {cat} frame {i + 1}/{frames}", flush=True)
-    return {"records": records, "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed)}}
+    return {"records": records, "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed),
+                                             "box_extents": box_extents}}
 
 
 def summarize(results: dict) -> list[dict]:
@@ -117,7 +123,8 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "fitted joint lines, as `ancsh predict --urdf` writes it) rendered at the fitted pose and states from the input "
         "camera and compared with the noisy depth on the object's pixels (`compare_depth`). Residual: per frame the "
         f"median |observed - model| (metres); target: within {100 * TARGET_M:.0f} cm. Explained / see-through as in "
-        "`ancsh.solvers.render_compare`.",
+        "`ancsh.solvers.render_compare`. Learned part boxes: `FitConfig.box_extents` "
+        f"`{s.get('box_extents', 'max')}` (`docs/results/box_extents.md`).",
         "",
         "| category | provider | frames | failed fits | median residual (mm) | mean of frames (mm) | frames within 1 cm | "
         "explained | see-through |",

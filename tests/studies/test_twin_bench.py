@@ -24,3 +24,18 @@ def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 2
     assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
     assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
+
+
+def test_unit_diagonal_boxes_reach_the_twin(tmp_path):
+    """``--box-extents unit_diagonal``: the learned fits' boxes (and so the reshaped templates) are the scaled ones;
+    the oracle's carry their own NPCS extents and do not change."""
+    out = tmp_path / "twin.md"
+    assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--box-extents", "unit_diagonal",
+                 "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.with_suffix(".json").read_text())
+    assert "--box-extents unit_diagonal" in data["command"] and "`unit_diagonal`" in out.read_text()
+    plain = measure_twin(["laptop"], frames=1, progress=False)
+    scaled = {r["provider"]: r for r in data["records"]}
+    for r in plain["records"]:
+        same = r["median_abs_residual_m"] == scaled[r["provider"]]["median_abs_residual_m"]
+        assert same == (r["provider"] == "oracle"), r["provider"]

@@ -19,6 +19,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=non_negative_int, default=0, help="base seed of the test frames (default 0)")
     p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/twin-<time>/twin.md)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/twin.md (when --out is not given)")
+    p.add_argument("--box-extents", choices=("max", "unit_diagonal"), default="max",
+                   help="the fits' FitConfig.box_extents (default max; docs/results/box_extents.md)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -40,10 +42,13 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--frames", str(args.frames)]
     if args.seed:
         parts += ["--seed", str(args.seed)]
+    if args.box_extents != "max":
+        parts += ["--box-extents", args.box_extents]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="twin.md", command="twin")
-    results = measure_twin(categories, frames=args.frames, seed=args.seed, progress=not args.quiet)
+    results = measure_twin(categories, frames=args.frames, seed=args.seed, progress=not args.quiet,
+                           box_extents=args.box_extents)
     write_twin_report(results, path, command=command)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
