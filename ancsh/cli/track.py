@@ -24,6 +24,11 @@ def register(sub) -> None:
                    help="never carry the category template (default: the categories of TrackerConfig.template_categories, "
                         "the laptop, are refined against it at every (re-)initialisation, seconds, and tracked on it)")
     p.add_argument("--weights", default=None, help="a weights file instead of the shipped one (--category)")
+    p.add_argument("--refine-network", action="store_true",
+                   help="network frames through the category's refinement network, the points rotated into the "
+                        "predicted orientation (TrackerConfig.refine_network; the shipped <category>_refine.pt or "
+                        "--refiner)")
+    p.add_argument("--refiner", default=None, help="with --refine-network: a refinement network's weights file")
     p.add_argument("--mask-dir", default=None, help="object masks named like the frames (skip isolation)")
     p.add_argument("--no-isolate", dest="isolate", action="store_false", help="use every valid pixel (no isolation)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore pixels deeper than this (metres)")
@@ -63,8 +68,13 @@ def run(args) -> int:
             from ..learned.network.weights import missing_weights_error
 
             raise missing_weights_error(category)
-        provider = LearnedProvider(category if args.weights is None else args.weights, seed=args.seed)
+        if args.refiner is not None and not args.refine_network:
+            raise ValueError("--refiner: a refinement network is used with --refine-network only")
+        refine = {"refine": "network", "refiner": args.refiner} if args.refine_network else {}
+        provider = LearnedProvider(category if args.weights is None else args.weights, seed=args.seed, **refine)
         settings = {} if args.template else {"template_categories": ()}
+        if args.refine_network:
+            settings["refine_network"] = True
         tracker = CategoryTracker(provider, TrackerConfig(network_every=args.network_every, **settings), category=category,
                                   rng=args.seed)
         num_joints = provider.num_joints

@@ -872,3 +872,25 @@ def test_refinement_network_frames_see_the_points_in_the_predicted_orientation()
         rot, trans, state = _errors(out.result, fr)
         assert rot < 1e-3 and state < 1e-3, (i, rot, state)
         previous = fr.gt.T_cam_naocs.rotation
+
+
+def test_track_command_runs_the_refinement_network(depth_folder, tmp_path, capsys, make_refiner):
+    """``ancsh track --refine-network --refiner F``: the tracker gets the refiner (every frame reported, only the
+    unreadable and empty ones lost); without a shipped laptop refiner, or with --refiner alone, it is refused naming
+    the option."""
+    from ancsh.cli import main
+    from ancsh.learned.network.weights import weights_path
+
+    folder, K = depth_folder
+    args = ["track", "--depth", str(folder), "--intrinsics", str(K), "--category", "laptop", "--no-isolate", "--quiet"]
+    # exit 1: frames 2 (unreadable) and 3 (empty) are lost
+    assert main([*args, "--refine-network", "--refiner", str(make_refiner()), "--out", str(tmp_path / "a.jsonl")]) == 1
+    lines = [json.loads(x) for x in (tmp_path / "a.jsonl").read_text().splitlines()]
+    assert len(lines) == 5 and lines[0]["status"] == "initialised"
+    assert [r["status"] == "lost" for r in lines] == [False, False, True, True, False]
+    capsys.readouterr()
+    assert main([*args, "--refiner", str(make_refiner()), "--out", str(tmp_path / "b.jsonl")]) == 2
+    assert "--refiner: a refinement network is used with --refine-network only" in capsys.readouterr().err
+    if not weights_path("laptop", "refine").is_file():
+        assert main([*args, "--refine-network", "--out", str(tmp_path / "c.jsonl")]) == 2
+        assert "no refinement network is shipped for 'laptop'" in capsys.readouterr().err
