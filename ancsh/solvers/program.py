@@ -23,7 +23,9 @@ a prismatic child ``X_c(g) = X_p(g) + theta R_p u``; then ``s_j = sigma Gs_j`` a
 
 With ``free_canonical`` the canonical parameters ``Gt_j`` and revolute pivots ``q_k`` get
 offset variables appended to ``x`` (see :class:`~ancsh.solvers.terms.Canonical`); the
-``naocs_prior`` term must then be among the terms.
+``naocs_prior`` term must then be among the terms. With ``npcs_bias`` every part gets an NPCS-bias rotation
+vector after them (the data terms compare the points through ``R_j exp(b_j)``; the ``npcs_bias_prior`` term must
+be among the terms).
 
 Seams
 -----
