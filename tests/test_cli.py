@@ -29,3 +29,14 @@ def test_import_is_light():
     code = "import sys, ancsh; print(any(m.startswith(('torch', 'open3d', 'casadi')) for m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_changed_options_give_back_the_command_line_of_the_non_default_options():
+    import argparse
+
+    from ancsh.cli._args import changed_options
+
+    args = argparse.Namespace(categories=["laptop", "oven"], frames=20, seed=3, box_extents="max", refiner=None)
+    defaults = {"categories": None, "frames": 20, "seed": 0, "box_extents": "max", "refiner": None}
+    assert changed_options(args, defaults) == ["--categories", "laptop", "oven", "--seed", "3"]
+    assert changed_options(argparse.Namespace(real_frames=7), {"real_frames": 50}) == ["--real-frames", "7"]

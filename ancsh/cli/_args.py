@@ -18,6 +18,18 @@ def _number(text: str, convert, accept, expected: str):
     return value
 
 
+def changed_options(args, defaults: dict) -> list[str]:
+    """The command-line tokens of the options of ``args`` that differ from ``defaults`` (``{dest: default}``, in
+    order): ``--dest-name value`` (every item of a list value), so that a report's command line re-runs it."""
+    tokens = []
+    for dest, default in defaults.items():
+        value = getattr(args, dest)
+        if value != default:
+            values = value if isinstance(value, (list, tuple)) else [value]
+            tokens += [f"--{dest.replace('_', '-')}", *(str(v) for v in values)]
+    return tokens
+
+
 def positive_int(text: str) -> int:
     return _number(text, int, lambda v: v > 0, "a positive integer")
 

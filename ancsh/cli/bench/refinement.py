@@ -7,6 +7,7 @@ import shlex
 from pathlib import Path
 
 from ...outputs import output_flags
+from .._args import changed_options
 
 
 def register(sub) -> None:
@@ -42,13 +43,7 @@ def run(args: argparse.Namespace) -> int:
     cats = list(args.categories) if args.categories else list(shipped_categories())
     if args.frames < 1 or args.real_frames < 0:
         raise ValueError(f"--frames, --real-frames: expected >= 1 and >= 0, got {args.frames} and {args.real_frames}")
-    parts = ["bench", "template-refinement"]
-    if args.categories:
-        parts += ["--categories", *args.categories]
-    if args.frames != 100:
-        parts += ["--frames", str(args.frames)]
-    if args.real_frames != 50:
-        parts += ["--real-frames", str(args.real_frames)]
+    parts = ["bench", "template-refinement", *changed_options(args, {"categories": None, "frames": 100, "real_frames": 50})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     if args.out is not None:

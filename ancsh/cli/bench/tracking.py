@@ -6,7 +6,7 @@ import json
 import time
 
 from ...outputs import output_flags
-from .._args import non_negative_int
+from .._args import changed_options, non_negative_int
 
 
 def register(sub) -> None:
@@ -42,17 +42,13 @@ def register(sub) -> None:
 
 
 def _command(args) -> str:
-    parts = ["ancsh bench tracking"]
     defaults = {"categories": "laptop,drawer,eyeglasses", "providers": "learned,oracle", "urdf": "default", "sequences": 2,
                 "length": 40, "urdf_length": 16, "urdf_sequences": 1, "gap": 3, "network_every": 3, "seed": 0,
                 "calibration_sequences": 0, "calibration_seed": 1001}
-    for key, default in defaults.items():
-        if getattr(args, key) != default:
-            parts.append(f"--{key.replace('_', '-')} {getattr(args, key)}")
+    parts = ["ancsh bench tracking", *changed_options(args, defaults)]
     if args.tracker:
         parts.append(f"--tracker '{json.dumps(_tracker_settings(args.tracker), sort_keys=True)}'")
-    if args.refiner:
-        parts.append(f"--refiner {args.refiner}")
+    parts += changed_options(args, {"refiner": None})
     if args.install:
         parts.append("--install")
     parts += output_flags(args.out, update_docs=args.update_docs)

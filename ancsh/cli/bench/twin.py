@@ -7,7 +7,7 @@ import shlex
 from pathlib import Path
 
 from ...outputs import output_flags
-from .._args import non_negative_int, positive_int
+from .._args import changed_options, non_negative_int, positive_int
 
 
 def register(sub) -> None:
@@ -35,15 +35,7 @@ def run(args: argparse.Namespace) -> int:
     unknown = [c for c in categories if c not in shipped]
     if unknown:
         raise ValueError(f"--categories: no shipped weights for {unknown}; shipped: {shipped}")
-    parts = ["bench", "twin"]
-    if args.categories:
-        parts += ["--categories", *args.categories]
-    if args.frames != 20:
-        parts += ["--frames", str(args.frames)]
-    if args.seed:
-        parts += ["--seed", str(args.seed)]
-    if args.box_extents != "max":
-        parts += ["--box-extents", args.box_extents]
+    parts = ["bench", "twin", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "box_extents": "max"})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="twin.md", command="twin")
