@@ -50,9 +50,9 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
-    p.add_argument("--urdf", type=Path, metavar="DIR", help="write the fitted object as a URDF folder (the category "
-                   "template nearest to the fit reshaped to it, the base in the camera frame, the fitted joint states "
-                   "in joint_states.json); a failed fit writes none")
+    p.add_argument("--urdf", type=Path, metavar="DIR", help="write the fitted object as a URDF folder (of the 5 category "
+                   "templates nearest to the fit, the one that best explains the depth, reshaped to the fit; the base "
+                   "in the camera frame, the fitted joint states in joint_states.json); a failed fit writes none")
     p.add_argument("--overwrite", action="store_true", help="with --urdf: replace the files of an existing folder")
     add_device_argument(p)
     p.set_defaults(func=run_predict)
@@ -232,7 +232,11 @@ def run_predict(args: argparse.Namespace) -> int:
         print(f"  picture: {save_figure(draw_prediction(depth, pred, intr, rgb=rgb), args.png)}")
     if args.urdf is not None:
         if r.ok:
-            print(f"  URDF: {pred.to_urdf(args.urdf, overwrite=args.overwrite)} (joint states in "
+            from ..solvers.twin import ObservedDepth
+
+            object_mask = mask if mask is not None else pred.object_mask(depth.shape)
+            observed = None if object_mask is None else ObservedDepth(depth, intr, object_mask)
+            print(f"  URDF: {pred.to_urdf(args.urdf, overwrite=args.overwrite, observed=observed)} (joint states in "
                   f"{args.urdf / 'joint_states.json'})")
         else:
             print(f"  URDF: none (the fit failed: {r.status.value})")

@@ -4,6 +4,9 @@ The model is the category template nearest to the fit (:func:`ancsh.data.templat
 procedural and imported real training instances), reshaped to the fitted part boxes
 (:func:`ancsh.solvers.icp.category.fitted_template`): its meshes, joint conventions and limits, at the fitted
 object pose and joint states. Render-and-compare (:mod:`ancsh.solvers.render_compare`) renders the same model.
+Given the depth the fit was made from (:class:`ObservedDepth`), :func:`fitted_model` may instead render several of
+the nearest templates and keep the one that explains that depth best (the lowest median |residual| on the object's
+pixels; ``docs/results/twin.md``).
 """
 
 from __future__ import annotations
@@ -15,7 +18,41 @@ import numpy as np
 from ..geometry.transforms import Sim3
 from .types import Correspondences, FitResult
 
-__all__ = ["FittedModel", "fitted_model", "export_fit_urdf"]
+__all__ = ["FittedModel", "ObservedDepth", "depth_residual", "fitted_model", "export_fit_urdf"]
+
+
+@dataclass(frozen=True)
+class ObservedDepth:
+    """The depth image a fit was made from, to choose its model by render-and-compare.
+
+    Attributes
+    ----------
+    depth : (H, W) float64
+        Metres, 0 = no measurement.
+    intrinsics : Intrinsics
+        The camera (``width`` x ``height`` = ``W`` x ``H``).
+    object_mask : (H, W) bool
+        The object's pixels (a user's mask or the isolated segment).
+    """
+
+    depth: np.ndarray
+    intrinsics: object
+    object_mask: np.ndarray
+
+    def __post_init__(self):
+        d = np.asarray(self.depth, dtype=np.float64)
+        m = np.asarray(self.object_mask, dtype=bool)
+        if d.ndim != 2:
+            raise ValueError(f"depth: expected an (H, W) image, got shape {d.shape}")
+        if m.shape != d.shape:
+            raise ValueError(f"object_mask: expected the depth's shape {d.shape}, got {m.shape}")
+        if (self.intrinsics.height, self.intrinsics.width) != d.shape:
+            raise ValueError(f"intrinsics: {self.intrinsics.width}x{self.intrinsics.height}, but the depth is "
+                             f"{d.shape[1]}x{d.shape[0]}")
+        if not m.any():
+            raise ValueError("object_mask: no object pixel")
+        object.__setattr__(self, "depth", d)
+        object.__setattr__(self, "object_mask", m)
 
 
 @dataclass(frozen=True)
@@ -32,37 +69,81 @@ class FittedModel:
         The fitted joint states in the model's parameterisation (the category's: 0 = closed), radians / metres.
     template : str
         The template's name.
+    median_residual_m : float or None
+        Where the model was chosen by render-and-compare: its median |observed - model depth| on the object's
+        pixels (metres); else ``None``.
     """
 
     model: object
     T_cam_B: Sim3
     states: np.ndarray
     template: str
+    median_residual_m: float | None = None
 
 
-def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: str = "fitted") -> FittedModel | None:
+def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: str = "fitted",
+                 observed: ObservedDepth | None = None, candidates: int = 1) -> FittedModel | None:
     """The model of a successful articulated fit, or ``None`` when no template is available here.
 
     ``joints``: ``"fitted"`` (the default) gives every joint the fit's axis and pivot, so that the model at the
     fitted states has the fit's part poses; ``"template"`` keeps the reshaped template's own joint lines (what
     render-and-compare and the ``p_object`` calibrations measured: the template's hinge on the fitted parts).
 
+    ``observed`` and ``candidates > 1``: the ``candidates`` templates nearest to the fitted part boxes are each
+    reshaped, posed and rendered from the observed camera, and the one with the lowest median
+    ``|observed - model|`` depth on the object's pixels is kept (its residual in
+    :attr:`FittedModel.median_residual_m`); without ``observed``, the nearest one.
+
     Raises
     ------
     ValueError
-        A failed fit, or one without the boxes, joints or states an articulated fit has (naming it).
+        A failed fit, or one without the boxes, joints or states an articulated fit has (naming it); a
+        ``candidates`` that is not a positive integer.
     """
     from .icp.category import fitted_layout, fitted_template
 
-    layout = fitted_layout(fit, corr)
-    nearest = templates.nearest(layout.centres, layout.sizes, count=1)
-    if not nearest:
-        return None
     if joints not in ("fitted", "template"):
         raise ValueError(f"joints: expected 'fitted' or 'template', got {joints!r}")
-    ft = fitted_template(templates.model(nearest[0]), layout)
-    model = _with_fitted_joints(ft.model, fit, corr, layout) if joints == "fitted" else ft.model
-    return FittedModel(model, layout.T_cam_B, model.rest_states + np.asarray(fit.joint_states, dtype=np.float64), ft.source)
+    if isinstance(candidates, bool) or not isinstance(candidates, (int, np.integer)) or candidates < 1:
+        raise ValueError(f"candidates: expected a positive integer, got {candidates!r}")
+    if observed is not None and not isinstance(observed, ObservedDepth):
+        raise ValueError(f"observed: expected an ObservedDepth, got {type(observed).__name__}")
+    layout = fitted_layout(fit, corr)
+    nearest = templates.nearest(layout.centres, layout.sizes, count=int(candidates) if observed is not None else 1)
+    if not nearest:
+        return None
+    states = np.asarray(fit.joint_states, dtype=np.float64)
+
+    def build(index: int) -> FittedModel:
+        ft = fitted_template(templates.model(index), layout)
+        model = _with_fitted_joints(ft.model, fit, corr, layout) if joints == "fitted" else ft.model
+        return FittedModel(model, layout.T_cam_B, model.rest_states + states, ft.source)
+
+    if observed is None:
+        return build(nearest[0])
+    best = None
+    for index in nearest:
+        twin = build(index)
+        residual = depth_residual(twin, observed)
+        if best is None or residual < best.median_residual_m:  # NaN (nothing in view) never wins
+            best = FittedModel(twin.model, twin.T_cam_B, twin.states, twin.template, residual)
+    return best
+
+
+def depth_residual(twin: FittedModel, observed: ObservedDepth) -> float:
+    """The median ``|observed - model|`` depth (metres) on the object's pixels of ``twin`` rendered at its states from
+    the observed camera (in the window around the mask, :func:`~ancsh.solvers.render_compare.mask_window`); ``inf``
+    where the model covers none of them."""
+    from ..data.render import ModelRenderer
+    from ..model.edit import with_limits
+    from .render_compare import compare_depth, crop_intrinsics, mask_window
+
+    u0, v0, u1, v1 = mask_window(observed.object_mask)
+    model, q = twin.model, twin.states
+    model = with_limits(model, np.minimum(model.lower_limits, q), np.maximum(model.upper_limits, q))  # as exported
+    rendered = ModelRenderer(model).render(q, twin.T_cam_B, crop_intrinsics(observed.intrinsics, (u0, v0, u1, v1))).depth
+    cmp = compare_depth(rendered, observed.depth[v0:v1, u0:u1], observed.object_mask[v0:v1, u0:u1])
+    return float(cmp.median_abs_residual_m) if np.isfinite(cmp.median_abs_residual_m) else float("inf")
 
 
 def _with_fitted_joints(model, fit: FitResult, corr: Correspondences, layout):
@@ -88,7 +169,8 @@ def _with_fitted_joints(model, fit: FitResult, corr: Correspondences, layout):
 
 
 def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *, T_frame_cam: Sim3 | None = None,
-                    root: str = "camera", name: str | None = None, overwrite: bool = False):
+                    root: str = "camera", name: str | None = None, overwrite: bool = False,
+                    observed: ObservedDepth | None = None, candidates: int = 1):
     """Write a fit as a URDF folder (:func:`ancsh.model.urdf_export.write_urdf`): one link per part, the template's
     meshes reshaped to the fit, joints with the fitted axes and pivots, the category's limits, the fitted states
     in ``joint_states.json``, the base placed in the camera frame (``root="camera"``) or in a frame the user gives.
@@ -110,6 +192,8 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
         Robot name and file stem (default: the template's category).
     overwrite : bool
         Replace the files of an existing non-empty folder.
+    observed, candidates
+        Choose the template by render-and-compare against the depth the fit was made from (:func:`fitted_model`).
 
     Returns
     -------
@@ -128,7 +212,7 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
         raise ValueError(f"fit: expected a FitResult, got {type(fit).__name__}")
     if not fit.ok:
         raise ValueError(f"fit: a failed fit (status {fit.status.value}: {fit.message}) is not exported")
-    twin = fitted_model(fit, corr, templates)
+    twin = fitted_model(fit, corr, templates, observed=observed, candidates=candidates)
     if twin is None:
         raise ValueError(f"templates: no template of {templates.category!r} is available here to give the parts shapes")
     T = twin.T_cam_B if T_frame_cam is None else T_frame_cam @ twin.T_cam_B

@@ -6,7 +6,9 @@ correspondences (``oracle``, the fit's own floor) -- becomes its articulated mod
 (:func:`ancsh.solvers.twin.fitted_model`: the nearest category template reshaped to the fit, with the fitted joint
 lines: what ``--urdf`` writes), rendered at the fitted object pose and joint states from the input camera and
 compared with the noisy depth on the object's pixels (:func:`ancsh.solvers.render_compare.compare_depth`). The
-target of issue 34: a median |residual| within 1 cm.
+target of issue 34: a median |residual| within 1 cm. With ``candidates`` > 1 each fit's model is also chosen by
+render-and-compare among that many nearest templates (``fitted_model(..., observed=..., candidates=K)``, what
+``ancsh predict --urdf`` does), and both choices are reported side by side on the same fits.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import numpy as np
 
 from .report import Provenance, write_json, write_text
 
-__all__ = ["TARGET_M", "measure_twin", "twin_frame", "write_twin_report"]
+__all__ = ["TARGET_M", "measure_twin", "selection_name", "summarize", "twin_frame", "write_twin_report"]
 
 TARGET_M = 0.01
 """The target median |observed - model depth| on the object's pixels (metres)."""
@@ -26,35 +28,51 @@ TARGET_M = 0.01
 PROVIDERS = ("learned", "oracle")
 
 
-def twin_frame(frame, corr, library, *, seed: int = 0, config=None) -> dict:
-    """One frame's record for one provider's correspondences: the fit (``config``: its FitConfig), its model rendered,
-    the comparison."""
+def selection_name(candidates: int) -> str:
+    """The report's name of a template choice: ``"nearest"`` (1) or ``"best of K"``."""
+    return "nearest" if candidates == 1 else f"best of {candidates}"
+
+
+def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(1,)) -> list[dict]:
+    """One frame's records for one provider's correspondences, one per template choice in ``candidates`` (1: the
+    nearest template; K > 1: the best of the K nearest by render-and-compare): the fit (``config``: its FitConfig,
+    made once), its model rendered, the comparison."""
     from ..data.render import ModelRenderer
     from ..model.edit import with_limits
     from ..solvers import Observation, fit
     from ..solvers.render_compare import compare_depth
-    from ..solvers.twin import fitted_model
+    from ..solvers.twin import ObservedDepth, fitted_model
 
     t0 = time.perf_counter()
     result = fit(Observation(frame.points), corr, "exact_reduced", config=config, rng=seed)
-    rec = {"status": result.status.value}
+    fit_ms = 1e3 * (time.perf_counter() - t0)
     if not result.ok:
-        return rec
-    twin = fitted_model(result, corr, library)
-    if twin is None:
-        rec["status"] = "no_template"
-        return rec
-    model, q = twin.model, twin.states
-    model = with_limits(model, np.minimum(model.lower_limits, q), np.maximum(model.upper_limits, q))  # as exported
-    rendered = ModelRenderer(model).render(q, twin.T_cam_B, frame.intrinsics).depth
-    cmp = compare_depth(rendered, frame.depth, frame.depth > 0)
-    rec.update(cmp.to_dict(), template=twin.template, time_ms=1e3 * (time.perf_counter() - t0))
-    return rec
+        return [{"selection": selection_name(k), "status": result.status.value} for k in candidates]
+    mask = frame.depth > 0
+    observed = ObservedDepth(frame.depth, frame.intrinsics, mask)
+    out = []
+    for k in candidates:
+        rec = {"selection": selection_name(k), "status": result.status.value}
+        t1 = time.perf_counter()
+        twin = fitted_model(result, corr, library, observed=observed if k > 1 else None, candidates=k)
+        if twin is None:
+            rec["status"] = "no_template"
+            out.append(rec)
+            continue
+        model, q = twin.model, twin.states
+        model = with_limits(model, np.minimum(model.lower_limits, q), np.maximum(model.upper_limits, q))  # as exported
+        rendered = ModelRenderer(model).render(q, twin.T_cam_B, frame.intrinsics).depth
+        cmp = compare_depth(rendered, frame.depth, mask)
+        rec.update(cmp.to_dict(), template=twin.template, time_ms=fit_ms + 1e3 * (time.perf_counter() - t1))
+        out.append(rec)
+    return out
 
 
-def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True, box_extents: str = "max") -> dict:
-    """Records of ``frames`` test frames per category and provider (see the module docstring); ``box_extents``: the
-    fits' :attr:`~ancsh.solvers.fit.FitConfig.box_extents`."""
+def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True, box_extents: str = "max",
+                 candidates: int = 1) -> dict:
+    """Records of ``frames`` test frames per category, provider and template choice (see the module docstring);
+    ``box_extents``: the fits' :attr:`~ancsh.solvers.fit.FitConfig.box_extents`; ``candidates`` > 1 adds the choice
+    among that many nearest templates by render-and-compare beside the nearest one."""
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.templates import load_template_library
     from ..learned.inference.provider import LearnedProvider
@@ -63,6 +81,9 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 1:
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
+    if isinstance(candidates, bool) or int(candidates) != candidates or candidates < 1:
+        raise ValueError(f"candidates: expected a positive integer, got {candidates!r}")
+    choices = (1,) if candidates == 1 else (1, int(candidates))
     from ..solvers import FitConfig
 
     config = FitConfig(box_extents=box_extents)
@@ -76,26 +97,29 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
             for name in PROVIDERS:
                 prov = learned if name == "learned" else OracleProvider(fr, "none", rng=int(seed) + i)
                 corr = prov.correspond(Observation(fr.points))
-                records.append({"category": cat, "frame": i, "provider": name,
-                                **twin_frame(fr, corr, library, seed=int(seed) + i, config=config)})
+                for rec in twin_frame(fr, corr, library, seed=int(seed) + i, config=config, candidates=choices):
+                    records.append({"category": cat, "frame": i, "provider": name, **rec})
             if progress:
                 print(f"twin {cat} frame {i + 1}/{frames}", flush=True)
     return {"records": records, "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed),
-                                             "box_extents": box_extents}}
+                                             "box_extents": box_extents, "candidates": int(candidates)}}
 
 
 def summarize(results: dict) -> list[dict]:
-    """Per category and provider: frames, failures, median and mean of the per-frame median |residual|, explained,
-    see-through, the share of frames within :data:`TARGET_M`."""
+    """Per category, provider and template choice: frames, failures, median and mean of the per-frame median
+    |residual|, explained, see-through, the share of frames within :data:`TARGET_M`."""
     rows = []
     recs = results["records"]
+    k = int(results["settings"].get("candidates", 1))
+    selections = [selection_name(1)] + ([selection_name(k)] if k > 1 else [])
     for cat in results["settings"]["categories"]:
-        for name in PROVIDERS:
-            sel = [r for r in recs if r["category"] == cat and r["provider"] == name]
+        for name, selection in ((n, c) for n in PROVIDERS for c in selections):
+            sel = [r for r in recs if r["category"] == cat and r["provider"] == name
+                   and r.get("selection", selection_name(1)) == selection]
             ok = [r for r in sel if "median_abs_residual_m" in r and np.isfinite(r["median_abs_residual_m"])]
             res = np.array([r["median_abs_residual_m"] for r in ok])
             rows.append({
-                "category": cat, "provider": name, "frames": len(sel), "failed": len(sel) - len(ok),
+                "category": cat, "provider": name, "selection": selection, "frames": len(sel), "failed": len(sel) - len(ok),
                 "median_residual_m": float(np.median(res)) if ok else float("nan"),
                 "mean_residual_m": float(np.mean(res)) if ok else float("nan"),
                 "within_target": float(np.mean(res <= TARGET_M)) if ok else float("nan"),
@@ -124,14 +148,17 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "camera and compared with the noisy depth on the object's pixels (`compare_depth`). Residual: per frame the "
         f"median |observed - model| (metres); target: within {100 * TARGET_M:.0f} cm. Explained / see-through as in "
         "`ancsh.solvers.render_compare`. Learned part boxes: `FitConfig.box_extents` "
-        f"`{s.get('box_extents', 'max')}` (`docs/results/box_extents.md`).",
+        f"`{s.get('box_extents', 'max')}` (`docs/results/box_extents.md`). Template: `nearest` = the template nearest "
+        "to the fitted part boxes; `best of K` = of the K nearest, the one whose render has the lowest median "
+        "|residual| against the input depth (`fitted_model(..., observed=..., candidates=K)`, as `ancsh predict --urdf` "
+        "chooses), the same fits.",
         "",
-        "| category | provider | frames | failed fits | median residual (mm) | mean of frames (mm) | frames within 1 cm | "
-        "explained | see-through |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| category | provider | template | frames | failed fits | median residual (mm) | mean of frames (mm) | "
+        "frames within 1 cm | explained | see-through |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        md.append(f"| {r['category']} | {r['provider']} | {r['frames']} | {r['failed']} | "
+        md.append(f"| {r['category']} | {r['provider']} | {r['selection']} | {r['frames']} | {r['failed']} | "
                   f"{1e3 * r['median_residual_m']:.1f} | {1e3 * r['mean_residual_m']:.1f} | {r['within_target']:.0%} | "
                   f"{r['explained']:.2f} | {r['see_through']:.3f} |")
     write_text(path, "\n".join(md) + "\n")

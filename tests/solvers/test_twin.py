@@ -130,3 +130,46 @@ def test_predict_writes_the_urdf_and_refuses_to_overwrite(tmp_path, capsys):
     (tmp_path / "elsewhere").mkdir()
     assert main([*args, "--urdf", str(tmp_path / "link"), "--overwrite"]) == 2  # refused before any work
     assert "--urdf: " in capsys.readouterr().err and not any((tmp_path / "elsewhere").iterdir())
+
+
+def test_the_observed_depth_chooses_the_template_that_explains_it_best(tmp_path):
+    """``fitted_model(..., observed, candidates=K)``: of the K templates nearest to the fitted boxes, the one with the
+    lowest depth residual (each measured alone by ``depth_residual``), at the same pose and states; without the
+    depth, the nearest one; the URDF export takes the same choice."""
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.data.templates import TemplateLibrary, load_template_library
+    from ancsh.solvers import Observation, fit
+    from ancsh.solvers.icp.category import fitted_layout
+    from ancsh.solvers.providers.oracle import OracleProvider
+    from ancsh.solvers.twin import ObservedDepth, depth_residual, export_fit_urdf, fitted_model
+
+    fr = FrameGenerator(GenerationConfig(category="oven", split="test", seed=0)).frame(0, keep_depth=True)
+    obs = Observation(fr.points)
+    corr = OracleProvider(fr, "none", rng=0).correspond(obs)
+    res = fit(obs, corr, "exact_reduced", rng=0)
+    lib = load_template_library("oven")
+    observed = ObservedDepth(fr.depth, fr.intrinsics, fr.depth > 0)
+    layout = fitted_layout(res, corr)
+    singles = {}
+    for i in lib.nearest(layout.centres, layout.sizes, count=4):  # each candidate alone: a library holding only it
+        one = fitted_model(res, corr, TemplateLibrary("oven", [lib.entries[i]], lib.real, lib.stamp))
+        singles[i] = (one.template, depth_residual(one, observed))
+    assert len({t for t, _ in singles.values()}) == 4
+    nearest = fitted_model(res, corr, lib)
+    best = fitted_model(res, corr, lib, observed=observed, candidates=4)
+    first = next(iter(singles.values()))
+    assert nearest.median_residual_m is None and nearest.template == first[0]
+    winner = min(singles.values(), key=lambda v: v[1])
+    assert best.template == winner[0] and best.median_residual_m == pytest.approx(winner[1], abs=1e-12)
+    assert best.median_residual_m <= depth_residual(nearest, observed)
+    np.testing.assert_array_equal(best.states, nearest.states)
+    assert np.allclose(best.T_cam_B.matrix(), nearest.T_cam_B.matrix())
+    _, exported = export_fit_urdf(res, corr, lib, tmp_path / "twin", observed=observed, candidates=4)
+    assert exported.template == best.template
+    for bad, message in ((dict(object_mask=np.zeros_like(fr.depth, dtype=bool)), "object_mask: no object pixel"),
+                         (dict(object_mask=np.ones((3, 3), dtype=bool)), "object_mask: expected the depth's shape"),
+                         (dict(depth=fr.depth[:-1], object_mask=fr.depth[:-1] > 0), "intrinsics: ")):
+        with pytest.raises(ValueError, match=message):
+            ObservedDepth(**{"depth": fr.depth, "intrinsics": fr.intrinsics, "object_mask": fr.depth > 0, **bad})
+    with pytest.raises(ValueError, match="candidates: expected a positive integer"):
+        fitted_model(res, corr, lib, observed=observed, candidates=0)

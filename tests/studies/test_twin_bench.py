@@ -11,6 +11,7 @@ from ancsh.studies.twin import TARGET_M, measure_twin, summarize
 def test_an_oracle_fit_model_explains_its_depth_within_the_target():
     results = measure_twin(["laptop"], frames=2, progress=False)
     rows = {r["provider"]: r for r in summarize(results)}
+    assert {r["selection"] for r in summarize(results)} == {"nearest"}
     assert rows["oracle"]["failed"] == 0 and rows["oracle"]["median_residual_m"] < TARGET_M
     assert rows["oracle"]["explained"] > 0.9 and rows["oracle"]["see_through"] < 0.05
     assert rows["learned"]["frames"] == 2 and np.isfinite(rows["learned"]["median_residual_m"])
@@ -19,9 +20,10 @@ def test_an_oracle_fit_model_explains_its_depth_within_the_target():
 def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     out = tmp_path / "twin.md"
     assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
-    assert "| laptop | oracle | 1 | 0 |" in out.read_text()
+    assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and "| laptop | oracle | best of 5 | 1 | 0 |" in out.read_text()
     data = json.loads(out.with_suffix(".json").read_text())
-    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 2
+    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 4
+    assert "--candidates" not in data["command"]
     assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
     assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
 
@@ -35,7 +37,20 @@ def test_unit_diagonal_boxes_reach_the_twin(tmp_path):
     data = json.loads(out.with_suffix(".json").read_text())
     assert "--box-extents unit_diagonal" in data["command"] and "`unit_diagonal`" in out.read_text()
     plain = measure_twin(["laptop"], frames=1, progress=False)
-    scaled = {r["provider"]: r for r in data["records"]}
+    scaled = {r["provider"]: r for r in data["records"] if r["selection"] == "nearest"}
     for r in plain["records"]:
         same = r["median_abs_residual_m"] == scaled[r["provider"]]["median_abs_residual_m"]
         assert same == (r["provider"] == "oracle"), r["provider"]
+
+
+def test_the_best_of_k_templates_is_chosen_on_the_same_fit_and_never_explains_the_depth_worse():
+    """``candidates=K``: the same fits, the template chosen by render-and-compare; per frame its residual is at most the
+    nearest template's (the nearest is among the K); the choice is recorded beside the nearest one."""
+    results = measure_twin(["laptop"], frames=2, progress=False, candidates=3)
+    by_key = {}
+    for r in results["records"]:
+        by_key.setdefault((r["frame"], r["provider"]), {})[r["selection"]] = r
+    assert len(by_key) == 4 and all(set(v) == {"nearest", "best of 3"} for v in by_key.values())
+    for v in by_key.values():
+        assert v["best of 3"]["median_abs_residual_m"] <= v["nearest"]["median_abs_residual_m"] + 1e-12
+    assert results["settings"]["candidates"] == 3

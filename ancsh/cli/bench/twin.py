@@ -21,6 +21,9 @@ def register(sub) -> None:
     p.add_argument("--update-docs", action="store_true", help="write docs/results/twin.md (when --out is not given)")
     p.add_argument("--box-extents", choices=("max", "unit_diagonal"), default="max",
                    help="the fits' FitConfig.box_extents (default max; docs/results/box_extents.md)")
+    p.add_argument("--candidates", type=positive_int, default=5,
+                   help="also choose each fit's template among this many nearest by render-and-compare against the "
+                   "depth (reported beside the nearest one; 1 = the nearest only; default 5)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -35,12 +38,13 @@ def run(args: argparse.Namespace) -> int:
     unknown = [c for c in categories if c not in shipped]
     if unknown:
         raise ValueError(f"--categories: no shipped weights for {unknown}; shipped: {shipped}")
-    parts = ["bench", "twin", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "box_extents": "max"})]
+    parts = ["bench", "twin", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "box_extents": "max",
+                                                          "candidates": 5})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="twin.md", command="twin")
     results = measure_twin(categories, frames=args.frames, seed=args.seed, progress=not args.quiet,
-                           box_extents=args.box_extents)
+                           box_extents=args.box_extents, candidates=args.candidates)
     write_twin_report(results, path, command=command)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")

@@ -58,6 +58,9 @@ __all__ = [
 MIN_POINTS = 100
 #: Isolation without a hint fits at most this many candidate segments and keeps the best supported.
 MAX_VERIFIED = 5
+#: ``to_urdf`` with the observed depth: the template is the best of this many nearest by render-and-compare
+#: (``docs/results/twin.md``: against the nearest alone).
+URDF_CANDIDATES = 5
 
 
 # --------------------------------------------------------------------------------------------
@@ -197,10 +200,13 @@ class DepthPrediction:
     render_compare: object = None
     correspondences: object = None
 
-    def to_urdf(self, folder, *, T_frame_cam=None, root: str = "camera", overwrite: bool = False):
+    def to_urdf(self, folder, *, T_frame_cam=None, root: str = "camera", overwrite: bool = False, observed=None,
+                candidates: int = URDF_CANDIDATES):
         """Write the fitted object as a URDF folder (:func:`ancsh.solvers.twin.export_fit_urdf`): the category
-        template nearest to the fit reshaped to it, the base in the camera frame (or ``root``, the frame of
-        ``T_frame_cam``: the camera's pose there), the fitted states in ``joint_states.json``.
+        template nearest to the fit reshaped to it (with ``observed``, the depth this prediction was made from as an
+        :class:`~ancsh.solvers.twin.ObservedDepth`: the one of the ``candidates`` nearest whose render explains that
+        depth best), the base in the camera frame (or ``root``, the frame of ``T_frame_cam``: the camera's pose
+        there), the fitted states in ``joint_states.json``.
 
         Returns the ``.urdf`` path. A failed prediction is refused (``ValueError`` naming its status)."""
         from ...data.templates import load_template_library
@@ -210,8 +216,20 @@ class DepthPrediction:
             raise ValueError(f"prediction: a failed prediction (status {self.result.status.value}: {self.result.message}) "
                              "is not exported")
         path, _ = export_fit_urdf(self.result, self.correspondences, load_template_library(self.category), folder,
-                                  T_frame_cam=T_frame_cam, root=root, name=self.category, overwrite=overwrite)
+                                  T_frame_cam=T_frame_cam, root=root, name=self.category, overwrite=overwrite,
+                                  observed=observed, candidates=candidates if observed is not None else 1)
         return path
+
+    def object_mask(self, shape) -> np.ndarray | None:
+        """The pixels ``(H, W)`` bool this prediction took as the object: the isolated segment, else (a user's mask,
+        or no isolation) the sampled points' pixels; ``None`` without points."""
+        if self.isolation is not None and np.asarray(self.isolation.mask).any():
+            return np.asarray(self.isolation.mask, dtype=bool)
+        if len(self.pixels) == 0:
+            return None
+        mask = np.zeros(shape, dtype=bool)
+        mask[self.pixels[:, 1], self.pixels[:, 0]] = True
+        return mask
 
     def to_json(self) -> dict:
         """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
