@@ -14,6 +14,7 @@ render-and-compare among that many nearest templates (``fitted_model(..., observ
 from __future__ import annotations
 
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +26,10 @@ __all__ = ["TARGET_M", "measure_twin", "selection_name", "summarize", "twin_fram
 TARGET_M = 0.01
 """The target median |observed - model depth| on the object's pixels (metres)."""
 
-PROVIDERS = ("learned", "oracle")
+PROVIDERS = ("learned", "learned+template", "oracle")
+"""``learned``: the shipped network's correspondences, fitted; ``learned+template``: that fit refined against the category
+template (``LearnedProvider.refine(..., refine="template")``: articulated ICP of the nearest template, kept where its
+score says so; what ``ancsh predict --refine template`` does); ``oracle``: exact ground-truth correspondences."""
 
 
 def selection_name(candidates: int) -> str:
@@ -33,10 +37,11 @@ def selection_name(candidates: int) -> str:
     return "nearest" if candidates == 1 else f"best of {candidates}"
 
 
-def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(1,)) -> list[dict]:
+def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(1,), refine=None) -> list[dict]:
     """One frame's records for one provider's correspondences, one per template choice in ``candidates`` (1: the
     nearest template; K > 1: the best of the K nearest by render-and-compare): the fit (``config``: its FitConfig,
-    made once), its model rendered, the comparison."""
+    made once; ``refine(observation, corr, fit)``, optional: a refinement outcome whose ``.result`` replaces it and
+    whose ``.accepted`` is recorded), its model rendered, the comparison."""
     from ..data.render import ModelRenderer
     from ..model.edit import with_limits
     from ..solvers import Observation, fit
@@ -44,15 +49,20 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
     from ..solvers.twin import ObservedDepth, fitted_model
 
     t0 = time.perf_counter()
-    result = fit(Observation(frame.points), corr, "exact_reduced", config=config, rng=seed)
+    obs = Observation(frame.points)
+    result = fit(obs, corr, "exact_reduced", config=config, rng=seed)
+    extra = {}
+    if refine is not None and result.ok:
+        outcome = refine(obs, corr, result)
+        result, extra = outcome.result, {"refined": bool(outcome.accepted)}
     fit_ms = 1e3 * (time.perf_counter() - t0)
     if not result.ok:
-        return [{"selection": selection_name(k), "status": result.status.value} for k in candidates]
+        return [{"selection": selection_name(k), "status": result.status.value, **extra} for k in candidates]
     mask = frame.depth > 0
     observed = ObservedDepth(frame.depth, frame.intrinsics, mask)
     out = []
     for k in candidates:
-        rec = {"selection": selection_name(k), "status": result.status.value}
+        rec = {"selection": selection_name(k), "status": result.status.value, **extra}
         t1 = time.perf_counter()
         twin = fitted_model(result, corr, library, observed=observed if k > 1 else None, candidates=k)
         if twin is None:
@@ -66,6 +76,11 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
         rec.update(cmp.to_dict(), template=twin.template, time_ms=fit_ms + 1e3 * (time.perf_counter() - t1))
         out.append(rec)
     return out
+
+
+def _template_refinement(provider, observation, corr, result, *, rng):
+    """``provider``'s fit refined against the category template (:meth:`LearnedProvider.refine`)."""
+    return provider.refine(observation, corr, result, refine="template", rng=rng)
 
 
 def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True, box_extents: str = "max",
@@ -94,10 +109,15 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
         library = load_template_library(cat)
         for i in range(int(frames)):
             fr = gen.frame(i, keep_depth=True)
+            learned_corr = learned.correspond(Observation(fr.points))
             for name in PROVIDERS:
-                prov = learned if name == "learned" else OracleProvider(fr, "none", rng=int(seed) + i)
-                corr = prov.correspond(Observation(fr.points))
-                for rec in twin_frame(fr, corr, library, seed=int(seed) + i, config=config, candidates=choices):
+                if name == "oracle":
+                    corr = OracleProvider(fr, "none", rng=int(seed) + i).correspond(Observation(fr.points))
+                else:
+                    corr = learned_corr
+                refine = partial(_template_refinement, learned, rng=int(seed) + i) if name == "learned+template" else None
+                for rec in twin_frame(fr, corr, library, seed=int(seed) + i, config=config, candidates=choices,
+                                      refine=refine):
                     records.append({"category": cat, "frame": i, "provider": name, **rec})
             if progress:
                 print(f"twin {cat} frame {i + 1}/{frames}", flush=True)
@@ -125,6 +145,7 @@ def summarize(results: dict) -> list[dict]:
                 "within_target": float(np.mean(res <= TARGET_M)) if ok else float("nan"),
                 "explained": float(np.mean([r["explained"] for r in ok])) if ok else float("nan"),
                 "see_through": float(np.mean([r["see_through"] for r in ok])) if ok else float("nan"),
+                "refined": float(np.mean([r["refined"] for r in sel])) if sel and "refined" in sel[0] else None,
             })
     return rows
 
@@ -142,7 +163,10 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         f"Date: {prov.date}; machine: {prov.machine_text}  ",
         "",
         f"{s['frames']} held-out test frames per category (Kinect-like noise, seed {s['seed']}); `exact_reduced` fits of "
-        "the shipped network (`learned`) and of exact ground-truth correspondences (`oracle`); each fit's model "
+        "the shipped network (`learned`), the same fits refined against the category template (`learned+template`: "
+        "articulated ICP of the nearest template, kept where its score says so, as `ancsh predict --refine template`; "
+        "'refined' = the share of frames where it was kept) and fits of exact ground-truth correspondences (`oracle`); "
+        "each fit's model "
         "(`ancsh.solvers.twin.fitted_model`: the nearest category template reshaped to the fitted part boxes, with the "
         "fitted joint lines, as `ancsh predict --urdf` writes it) rendered at the fitted pose and states from the input "
         "camera and compared with the noisy depth on the object's pixels (`compare_depth`). Residual: per frame the "
@@ -153,12 +177,13 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "|residual| against the input depth (`fitted_model(..., observed=..., candidates=K)`, as `ancsh predict --urdf` "
         "chooses), the same fits.",
         "",
-        "| category | provider | template | frames | failed fits | median residual (mm) | mean of frames (mm) | "
+        "| category | provider | template | frames | failed fits | refined | median residual (mm) | mean of frames (mm) | "
         "frames within 1 cm | explained | see-through |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        md.append(f"| {r['category']} | {r['provider']} | {r['selection']} | {r['frames']} | {r['failed']} | "
+        refined = "-" if r["refined"] is None else f"{r['refined']:.0%}"
+        md.append(f"| {r['category']} | {r['provider']} | {r['selection']} | {r['frames']} | {r['failed']} | {refined} | "
                   f"{1e3 * r['median_residual_m']:.1f} | {1e3 * r['mean_residual_m']:.1f} | {r['within_target']:.0%} | "
                   f"{r['explained']:.2f} | {r['see_through']:.3f} |")
     write_text(path, "\n".join(md) + "\n")

@@ -395,3 +395,44 @@ def test_a_shared_oven_given_a_second_hinged_flap_keeps_its_door(tmp_path):
     assert obj.zero == pytest.approx(reference.zero) and obj.sign == reference.sign
     assert any("['link_2'] frozen" in n for n in obj.notes), obj.notes
     assert convention_violations(obj.model(), convention("oven")) == []
+
+
+@needs_shared
+def test_a_shared_box_turned_into_a_side_hinged_top_loader_imports_without_overrides(tmp_path):
+    """box_100141's lid laid closed on the top and hinged along its right edge, front to back (the trait of the
+    top-loading washing machines whose lid hinges sideways), its file limits on the negative side: imported as a
+    washing machine without overrides, closed at 0 on top of the body, the state opening the lid upwards about a
+    front-to-back axis, every convention rule met."""
+    import shutil
+
+    from ancsh.data.conventions import part_vertices_canonical
+
+    source = shared_data_dir() / "partnet_mobility" / "box_100141"
+    folder = tmp_path / "top_loader_side_hinge"
+    shutil.copytree(source, folder)
+    text = (folder / "mobility.urdf").read_text()
+    start = text.index('<link name="link_0">')
+    lid = text[start:text.index("</link>", start)]
+    # the lid's meshes (object coordinates, y up) turned 90 deg about the old back hinge (x at y 0.191, z -0.23) onto
+    # the top, then expressed in the new hinge's frame at (0.536, 0.2, 0.095): xyz = h - P - R_x(90) h
+    old = '<origin xyz="-0.5125540000000001 -0.191 0.23"/>'
+    assert old in lid
+    text = text.replace(lid, lid.replace(old, '<origin xyz="-0.536 -0.239 -0.516" rpy="1.5707963267948966 0 0"/>'))
+    hinge = '<origin xyz="0.5125540000000001 0.191 -0.23"/>\n\t\t<axis xyz="-1 0 0"/>'
+    limits = '<limit lower="-1.5707963267948966" upper="1.3962634015954636"/>'
+    assert text.count(hinge) == 1 and text.count(limits) == 1
+    text = text.replace(hinge, '<origin xyz="0.536 0.2 0.095"/>\n\t\t<axis xyz="0 0 1"/>')
+    (folder / "mobility.urdf").write_text(text.replace(limits, '<limit lower="-1.9" upper="0"/>'))
+    (folder / "semantics.txt").write_text("link_0 hinge door\nlink_1 free washing_machine_body\n")
+
+    obj = import_object(folder / "mobility.urdf", "washing_machine")
+    model = obj.model()
+    assert obj.moving_links == ("link_0",) and obj.sign == (-1,) and obj.zero == pytest.approx((0.0,), abs=0.02)
+    assert convention_violations(model, convention("washing_machine")) == []
+    base, door = part_vertices_canonical(model, model.rest_states)
+    size = base.max(axis=0) - base.min(axis=0)
+    assert door.min(axis=0)[1] > base.max(axis=0)[1] - 0.05 * size[1]  # closed: the lid lies on the top
+    axis = model.R_canon_base @ model.joints[0].axis
+    assert abs(axis[2]) > 0.99  # hinged front to back
+    _, opened = part_vertices_canonical(model, model.rest_states + 0.5)
+    assert opened.max(axis=0)[1] > door.max(axis=0)[1] + 0.2 * size[1]  # a positive state lifts it

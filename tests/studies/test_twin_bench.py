@@ -15,6 +15,7 @@ def test_an_oracle_fit_model_explains_its_depth_within_the_target():
     assert rows["oracle"]["failed"] == 0 and rows["oracle"]["median_residual_m"] < TARGET_M
     assert rows["oracle"]["explained"] > 0.9 and rows["oracle"]["see_through"] < 0.05
     assert rows["learned"]["frames"] == 2 and np.isfinite(rows["learned"]["median_residual_m"])
+    assert rows["learned"]["refined"] is None and 0.0 <= rows["learned+template"]["refined"] <= 1.0
 
 
 def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
@@ -22,7 +23,7 @@ def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
     assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and "| laptop | oracle | best of 5 | 1 | 0 |" in out.read_text()
     data = json.loads(out.with_suffix(".json").read_text())
-    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 4
+    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 6
     assert "--candidates" not in data["command"]
     assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
     assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
@@ -50,7 +51,11 @@ def test_the_best_of_k_templates_is_chosen_on_the_same_fit_and_never_explains_th
     by_key = {}
     for r in results["records"]:
         by_key.setdefault((r["frame"], r["provider"]), {})[r["selection"]] = r
-    assert len(by_key) == 4 and all(set(v) == {"nearest", "best of 3"} for v in by_key.values())
+    assert len(by_key) == 6 and all(set(v) == {"nearest", "best of 3"} for v in by_key.values())
     for v in by_key.values():
         assert v["best of 3"]["median_abs_residual_m"] <= v["nearest"]["median_abs_residual_m"] + 1e-12
     assert results["settings"]["candidates"] == 3
+    for frame in (0, 1):  # the template refinement starts from the learned fit: where it is not kept, nothing changes
+        plain, refined = by_key[(frame, "learned")]["nearest"], by_key[(frame, "learned+template")]["nearest"]
+        same = plain["median_abs_residual_m"] == refined["median_abs_residual_m"]
+        assert same == (not refined["refined"]), frame
