@@ -11,6 +11,9 @@ from the input camera with the project's renderer (:class:`ancsh.data.render.Mod
   saw *beyond* the model's surface by more than the tolerance (free space where the model claims a solid:
   the model cannot be there); pixels where the sensor saw something nearer are occlusions and count as
   neither, pixels without a measurement (holes, or nothing behind a rendered object) are left out;
+- **hidden**: the share of the model's pixels (where the sensor measured something) where the sensor saw a surface
+  *nearer* than the model by more than the tolerance: the model lies behind something else (an occluder, or the
+  surface it was fitted to: a model fitted behind its points). Little of a model that is mostly hidden is seen at all;
 - **median residual**: the median of ``|observed - model|`` over the object's pixels where both have depth;
 - the per-pixel residual map ``observed - model`` (metres, NaN where either has no depth).
 
@@ -42,6 +45,9 @@ class DepthComparison:
         Share of the object's observed pixels the model explains (0..1; NaN without object pixels).
     see_through : float
         Share of the model's pixels where the sensor saw beyond the model (0..1; NaN without model pixels).
+    hidden : float
+        Share of the model's pixels where the sensor saw something nearer than the model (0..1; NaN without model
+        pixels).
     median_abs_residual_m : float
         Metres, over the object's pixels where the model has depth (NaN when there are none).
     object_pixels : int
@@ -58,9 +64,10 @@ class DepthComparison:
     object_pixels: int
     model_pixels: int
     residual: np.ndarray
+    hidden: float = float("nan")
 
     def to_dict(self) -> dict:
-        return {"explained": self.explained, "see_through": self.see_through,
+        return {"explained": self.explained, "see_through": self.see_through, "hidden": self.hidden,
                 "median_abs_residual_m": self.median_abs_residual_m, "object_pixels": self.object_pixels,
                 "model_pixels": self.model_pixels}
 
@@ -89,9 +96,10 @@ def compare_depth(model_depth, observed_depth, object_mask) -> DepthComparison:
     n_obj, n_model = int(np.count_nonzero(obj)), int(np.count_nonzero(both))
     explained = float(np.count_nonzero(obj & both & (np.abs(o - m) <= tol)) / n_obj) if n_obj else float("nan")
     see_through = float(np.count_nonzero(both & (o - m > tol)) / n_model) if n_model else float("nan")
+    hidden = float(np.count_nonzero(both & (m - o > tol)) / n_model) if n_model else float("nan")
     on_obj = obj & both
     med = float(np.median(np.abs(residual[on_obj]))) if on_obj.any() else float("nan")
-    return DepthComparison(explained, see_through, med, n_obj, n_model, residual)
+    return DepthComparison(explained, see_through, med, n_obj, n_model, residual, hidden)
 
 
 def crop_intrinsics(intrinsics, box):

@@ -187,8 +187,9 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         "(0 only for `success`). Mask IoU: the isolated pixels against the true mask. State: the fitted opening in the "
         "category's convention (degrees, 0 = closed); error against the frame's measurement (its uncertainty in the "
         "frame table). p_object: the calibrated probability that the fitted pixels are an object of the category "
-        "(`ancsh calibrate --object`; below 0.5 the status is `not_this_category`); explained / see-through: the fitted "
-        "category template rendered against the depth (`ancsh.solvers.render_compare`). Sizes: each part's fitted amodal "
+        "(`ancsh calibrate --object`; below 0.5 the status is `not_this_category`); explained / see-through / hidden: the "
+        "fitted category template rendered against the depth (`ancsh.solvers.render_compare`; hidden = the share of the "
+        "model's pixels behind a nearer surface). Sizes: each part's fitted amodal "
         "box, largest extent first (metres). Times in milliseconds on one process: isolate = segmenting the image "
         "(the budget is 200 ms at 1280x720), verify = fitting the candidate segments, network and fit of the chosen "
         "one, total with reading and render-and-compare.", "",
@@ -201,7 +202,7 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
                          f"± {_fmt(o['uncertainty_deg'])}°)" for o in f["objects"]) or "none of any category (negative)"
         lines.append(f"| {f['frame']} | {f['size'][0]}x{f['size'][1]} | {objs} |")
     lines += ["", "## Runs", "",
-              "| frame | category | mode | status | exit | p_good | p_object | explained / see-through | mask IoU | state (°) "
+              "| frame | category | mode | status | exit | p_good | p_object | explained / see-through / hidden | mask IoU | state (°) "
               "| truth (°) | error (°) | part sizes (m) | isolate | verify | network | fit | total |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     truth_of = {(f["frame"], o["category"]): o["joint_state_deg"] for f in results["frames"] for o in f["objects"]}
@@ -210,7 +211,8 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         sizes = " / ".join("×".join(f"{x:.2f}" for x in s) for s in r.get("part_sizes_m") or []) or "-"
         state = ", ".join(_fmt(s) for s in r.get("joint_state") or []) or "-"
         rc = r.get("render_compare") or {}
-        compare = f"{_fmt(rc.get('explained'), '.2f')} / {_fmt(rc.get('see_through'), '.2f')}" if rc else "-"
+        compare = (f"{_fmt(rc.get('explained'), '.2f')} / {_fmt(rc.get('see_through'), '.2f')} / "
+                   f"{_fmt(rc.get('hidden'), '.2f')}") if rc else "-"
         lines.append(
             f"| {r['frame']} | {r['category']} | {r['mode']} | {r['status']} | {r['exit_code']} | {_fmt(r.get('p_good'), '.2f')} "
             f"| {_fmt(r.get('p_object'), '.2f')} | {compare} | {_fmt(r.get('mask_iou'), '.2f')} | {state} "

@@ -16,11 +16,12 @@ def test_explained_see_through_and_occlusion_are_told_apart():
     model = np.zeros((10, 10))
     model[:, :4] = 1.005  # explains 4 of the 6 object columns
     model[:, 4:6] = 0.7  # the sensor sees 30 cm beyond: see-through
-    model[:, 6:8] = 1.3  # the sensor saw something nearer: an occlusion, neither
+    model[:, 6:8] = 1.3  # the sensor saw something nearer: an occlusion, neither explained nor see-through: hidden
     c = compare_depth(model, observed, mask)
     assert c.object_pixels == 60 and c.model_pixels == 80
     assert c.explained == pytest.approx(40 / 60)
     assert c.see_through == pytest.approx(20 / 80)
+    assert c.hidden == pytest.approx(20 / 80) and c.to_dict()["hidden"] == c.hidden
     assert c.median_abs_residual_m == pytest.approx(0.005)
     assert np.isnan(c.residual[0, 9]) and c.residual[0, 5] == pytest.approx(0.3)
     with pytest.raises(ValueError, match="one shape"):
