@@ -21,12 +21,14 @@ import numpy as np
 
 from .report import Provenance, write_json, write_text
 
-__all__ = ["TARGET_M", "measure_twin", "selection_name", "summarize", "twin_frame", "write_twin_report"]
+__all__ = ["INSTANCE", "TARGET_M", "instance_floor", "measure_twin", "selection_name", "summarize", "twin_frame", "write_twin_report"]
 
 TARGET_M = 0.01
 """The target median |observed - model depth| on the object's pixels (metres)."""
 
 PROVIDERS = ("learned", "learned+template", "oracle")
+#: The metric's floor: the instance's own model at its true pose and states against the noisy depth (sensor noise).
+INSTANCE = "instance"
 """``learned``: the shipped network's correspondences, fitted; ``learned+template``: that fit refined against the category
 template (``LearnedProvider.refine(..., refine="template")``: articulated ICP of the nearest template, kept where its
 score says so; what ``ancsh predict --refine template`` does); ``oracle``: exact ground-truth correspondences."""
@@ -78,6 +80,16 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
     return out
 
 
+def instance_floor(gen, frame) -> dict:
+    """The record of the frame's own instance: its model rendered noise-free at the true pose and states against the
+    noisy depth (what the sensor noise alone leaves of the metric)."""
+    from ..solvers.render_compare import compare_depth
+
+    _, renderer = gen.instance(frame.instance_index)
+    clean = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
+    return {"status": "success", **compare_depth(clean, frame.depth, frame.depth > 0).to_dict()}
+
+
 def _template_refinement(provider, observation, corr, result, *, rng):
     """``provider``'s fit refined against the category template (:meth:`LearnedProvider.refine`)."""
     return provider.refine(observation, corr, result, refine="template", rng=rng)
@@ -109,6 +121,8 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
         library = load_template_library(cat)
         for i in range(int(frames)):
             fr = gen.frame(i, keep_depth=True)
+            records.append({"category": cat, "frame": i, "provider": INSTANCE, "selection": INSTANCE,
+                            **instance_floor(gen, fr)})
             learned_corr = learned.correspond(Observation(fr.points))
             for name in PROVIDERS:
                 if name == "oracle":
@@ -133,7 +147,7 @@ def summarize(results: dict) -> list[dict]:
     k = int(results["settings"].get("candidates", 1))
     selections = [selection_name(1)] + ([selection_name(k)] if k > 1 else [])
     for cat in results["settings"]["categories"]:
-        for name, selection in ((n, c) for n in PROVIDERS for c in selections):
+        for name, selection in [(INSTANCE, INSTANCE)] + [(n, c) for n in PROVIDERS for c in selections]:
             sel = [r for r in recs if r["category"] == cat and r["provider"] == name
                    and r.get("selection", selection_name(1)) == selection]
             ok = [r for r in sel if "median_abs_residual_m" in r and np.isfinite(r["median_abs_residual_m"])]
@@ -166,6 +180,8 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "the shipped network (`learned`), the same fits refined against the category template (`learned+template`: "
         "articulated ICP of the nearest template, kept where its score says so, as `ancsh predict --refine template`; "
         "'refined' = the share of frames where it was kept) and fits of exact ground-truth correspondences (`oracle`); "
+        "first, the metric's floor: the frame's own instance rendered noise-free at its true pose and states "
+        "(`instance`: what the sensor noise alone leaves). "
         "each fit's model "
         "(`ancsh.solvers.twin.fitted_model`: the nearest category template reshaped to the fitted part boxes, with the "
         "fitted joint lines, as `ancsh predict --urdf` writes it) rendered at the fitted pose and states from the input "

@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from ancsh.cli import main
 from ancsh.studies.twin import TARGET_M, measure_twin, summarize
@@ -11,7 +12,7 @@ from ancsh.studies.twin import TARGET_M, measure_twin, summarize
 def test_an_oracle_fit_model_explains_its_depth_within_the_target():
     results = measure_twin(["laptop"], frames=2, progress=False)
     rows = {r["provider"]: r for r in summarize(results)}
-    assert {r["selection"] for r in summarize(results)} == {"nearest"}
+    assert {r["selection"] for r in summarize(results)} == {"instance", "nearest"}
     assert rows["oracle"]["failed"] == 0 and rows["oracle"]["median_residual_m"] < TARGET_M
     assert rows["oracle"]["explained"] > 0.9 and rows["oracle"]["see_through"] < 0.05
     assert rows["learned"]["frames"] == 2 and np.isfinite(rows["learned"]["median_residual_m"])
@@ -23,7 +24,7 @@ def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
     assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and "| laptop | oracle | best of 5 | 1 | 0 |" in out.read_text()
     data = json.loads(out.with_suffix(".json").read_text())
-    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 6
+    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 7
     assert "--candidates" not in data["command"]
     assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
     assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
@@ -38,10 +39,10 @@ def test_unit_diagonal_boxes_reach_the_twin(tmp_path):
     data = json.loads(out.with_suffix(".json").read_text())
     assert "--box-extents unit_diagonal" in data["command"] and "`unit_diagonal`" in out.read_text()
     plain = measure_twin(["laptop"], frames=1, progress=False)
-    scaled = {r["provider"]: r for r in data["records"] if r["selection"] == "nearest"}
+    scaled = {r["provider"]: r for r in data["records"] if r["selection"] in ("nearest", "instance")}
     for r in plain["records"]:
         same = r["median_abs_residual_m"] == scaled[r["provider"]]["median_abs_residual_m"]
-        assert same == (r["provider"] == "oracle"), r["provider"]
+        assert same == (r["provider"] in ("oracle", "instance")), r["provider"]
 
 
 def test_the_best_of_k_templates_is_chosen_on_the_same_fit_and_never_explains_the_depth_worse():
@@ -51,11 +52,32 @@ def test_the_best_of_k_templates_is_chosen_on_the_same_fit_and_never_explains_th
     by_key = {}
     for r in results["records"]:
         by_key.setdefault((r["frame"], r["provider"]), {})[r["selection"]] = r
-    assert len(by_key) == 6 and all(set(v) == {"nearest", "best of 3"} for v in by_key.values())
-    for v in by_key.values():
+    assert len(by_key) == 8
+    assert all(set(v) == ({"instance"} if p == "instance" else {"nearest", "best of 3"}) for (_, p), v in by_key.items())
+    for (_, provider), v in by_key.items():
+        if provider == "instance":
+            continue
         assert v["best of 3"]["median_abs_residual_m"] <= v["nearest"]["median_abs_residual_m"] + 1e-12
     assert results["settings"]["candidates"] == 3
     for frame in (0, 1):  # the template refinement starts from the learned fit: where it is not kept, nothing changes
         plain, refined = by_key[(frame, "learned")]["nearest"], by_key[(frame, "learned+template")]["nearest"]
         same = plain["median_abs_residual_m"] == refined["median_abs_residual_m"]
         assert same == (not refined["refined"]), frame
+
+
+def test_the_instance_floor_is_the_sensor_noise_alone():
+    """The ``instance`` row renders the frame's own model at its true pose and states: against the noise-free depth it
+    explains every pixel with zero residual; against the noisy depth, what is left is the noise."""
+    from dataclasses import replace
+
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.studies.twin import instance_floor
+
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
+    fr = gen.frame(0, keep_depth=True)
+    _, renderer = gen.instance(fr.instance_index)
+    clean = renderer.render(fr.joint_states_abs, fr.T_cam_base, fr.intrinsics).depth
+    exact = instance_floor(gen, replace(fr, depth=clean))
+    assert exact["median_abs_residual_m"] == 0.0 and exact["explained"] == 1.0 and exact["see_through"] == 0.0
+    noisy = instance_floor(gen, fr)
+    assert 0.0 < noisy["median_abs_residual_m"] == pytest.approx(np.median(np.abs(fr.depth - clean)[(fr.depth > 0) & (clean > 0)]))
