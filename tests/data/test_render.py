@@ -307,3 +307,28 @@ def test_noise_parameter_errors():
     with pytest.raises(ValueError, match="edge_threshold"):
         DepthNoise(edge_threshold=0.0)
     assert DepthNoise.from_json(DepthNoise(random_dropout=0.2).to_json()) == DepthNoise(random_dropout=0.2)
+    with pytest.raises(ValueError, match="edge_mixing"):
+        DepthNoise(edge_mixing=2.0)
+    with pytest.raises(ValueError, match="quantisation"):
+        DepthNoise(quantisation=-0.001)
+    assert DepthNoise.from_json(DepthNoise.real_frames().to_json()) == DepthNoise.real_frames()
+    # the settings datasets carry: the default model reads as before the mixing and quantisation existed
+    assert "edge_mixing" not in DepthNoise().to_json() and "quantisation" not in DepthNoise().to_json()
+
+
+def test_mixed_pixels_lie_between_the_surfaces_of_a_jump_and_depths_come_in_steps():
+    depth = np.zeros((120, 160))
+    depth[30:90, 40:120] = 1.0
+    depth[50:70, 60:100] = 1.2  # a step of 0.2 m inside the object; its outline is a silhouette against nothing
+    edges = depth_edges(depth, 0.02)
+    inner = edges & (depth > 0)
+    inner[30:31, :] = inner[89:90, :] = False
+    inner[:, 40:41] = inner[:, 119:120] = False  # edge pixels of the silhouette: no measured neighbour across
+    out = apply_noise(depth, DepthNoise(edge_dropout=0.0, edge_mixing=1.0, sigma_a=0.0, sigma_b=0.0), 0)
+    moved = out != depth
+    assert not np.any(moved & ~inner) and moved[inner].all()
+    assert np.all((out[inner] > 1.0 + 0.2 * 0.2 - 1e-9) & (out[inner] < 1.2 - 0.2 * 0.2 + 1e-9))
+    steps = apply_noise(depth, DepthNoise(edge_dropout=0.0, quantisation=0.001), 3)
+    on = steps > 0
+    np.testing.assert_allclose(steps[on] * 1000, np.round(steps[on] * 1000), atol=1e-9)
+    assert len(np.unique(steps[on])) > 5  # the noise is still there, in millimetre steps

@@ -23,6 +23,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.tracking",
     "ancsh.cli.bench.real_frames",
     "ancsh.cli.bench.twin",
+    "ancsh.cli.bench.sensor_realism",
 ]
 
 
