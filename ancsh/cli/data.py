@@ -40,6 +40,9 @@ def register(sub) -> None:
     g.add_argument("--height", type=_positive_int, default=480, help="image height (default 480)")
     g.add_argument("--noise", dest="noise", action="store_true", default=True, help="Kinect-like sensor noise (default)")
     g.add_argument("--no-noise", dest="noise", action="store_false", help="exact depth")
+    g.add_argument("--real-frames-noise", action="store_true",
+                   help="the sensor noise with the whole-millimetre depth steps of the real frames "
+                   "(DepthNoise.real_frames(); docs/results/sensor_realism.md)")
     g.add_argument("--min-part-pixels", type=_non_negative_int, default=30,
                    help="reject views where a part shows on fewer pixels (default 30)")
     g.add_argument("--min-part-fraction", type=float, default=0.02,
@@ -85,6 +88,17 @@ def register(sub) -> None:
     s.set_defaults(func=run_show)
 
 
+def _noise_model(args):
+    """The frames' :class:`~ancsh.data.noise.DepthNoise` from ``--noise`` / ``--no-noise`` / ``--real-frames-noise``."""
+    from ..data.noise import DepthNoise
+
+    if args.real_frames_noise and not args.noise:
+        raise ValueError("--real-frames-noise: not with --no-noise")
+    if not args.noise:
+        return DepthNoise.off()
+    return DepthNoise.real_frames() if args.real_frames_noise else DepthNoise()
+
+
 def _check_real_objects(real: str, category: str, split: str) -> None:
     """Refuse ``--real`` when its catalog holds no object of ``category`` in ``split`` (it would add nothing)."""
     from ..data.catalog import load_catalog
@@ -121,7 +135,7 @@ def run_generate(args) -> int:
         shard_size=args.shard_size,
         num_points=args.points,
         intrinsics=Intrinsics.kinect(args.width, args.height),
-        noise=DepthNoise() if args.noise else DepthNoise.off(),
+        noise=_noise_model(args),
         min_part_pixels=args.min_part_pixels,
         min_part_fraction=args.min_part_fraction,
         sequence=None if args.sequence_length is None else SequenceMotion(length=args.sequence_length, fps=args.fps),

@@ -168,6 +168,16 @@ def test_cli_generate_and_show(tmp_path, capsys):
     assert "out of range" in capsys.readouterr().err
 
 
+def test_cli_generates_with_the_real_frames_noise(tmp_path, capsys):
+    args = ["data", "generate", "--category", "laptop", "--split", "test", "--frames", "1", "--workers", "1",
+            "--width", "160", "--height", "120", "--points", "64", "--quiet"]
+    assert main([*args, "--real-frames-noise", "--out", str(tmp_path / "ds")]) == 0
+    ds = FrameDataset(tmp_path / "ds")
+    assert DepthNoise(**ShardReader(ds.readers[0].path).config["noise"]) == DepthNoise.real_frames()
+    assert main([*args, "--real-frames-noise", "--no-noise", "--out", str(tmp_path / "no")]) == 2
+    assert "--real-frames-noise: not with --no-noise" in capsys.readouterr().err
+
+
 def test_cli_error_paths(tmp_path, capsys):
     code = main(["data", "generate", "--category", "toaster", "--frames", "5", "--out", str(tmp_path)])
     assert code == 2 and "unknown category 'toaster'" in capsys.readouterr().err
