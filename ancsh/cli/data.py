@@ -118,7 +118,6 @@ def run_generate(args) -> int:
     from ..executors import WorkerLost
     from ._args import executor_from_args
     from ..data.generate import FrameRejected, GenerationConfig, generate_dataset
-    from ..data.noise import DepthNoise
     from ..data.render import Intrinsics
     from ..data.sequences import SequenceMotion
 
