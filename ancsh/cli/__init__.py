@@ -49,6 +49,7 @@ EXAMPLES = {
     "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
     "bench twin": "ancsh bench twin --categories laptop --frames 2   # exported fit models against the depth",
+    "bench sensor-realism": "ancsh bench sensor-realism --frames 5   # real frames' sensor artefacts against renders",
 }
 
 # Modules that contribute sub-commands, in help order.

@@ -1,8 +1,8 @@
 """Render-and-compare: does a fitted model explain the depth the sensor saw?
 
-:func:`render_fit` reshapes the category template nearest to a fit (:mod:`ancsh.solvers.icp.category`)
-to the fitted part boxes, poses it at the fitted object pose and joint states and renders its depth
-from the input camera with the project's renderer (:class:`ancsh.data.render.ModelRenderer`).
+:func:`ancsh.solvers.twin.render_fit` reshapes the category template nearest to a fit
+(:mod:`ancsh.solvers.icp.category`) to the fitted part boxes, poses it at the fitted object pose and joint states and
+renders its depth from the input camera with the project's renderer (:class:`ancsh.data.render.ModelRenderer`).
 :func:`compare_depth` compares a model depth image with the observed one:
 
 - **explained**: the share of the object's observed pixels where the model's surface lies within
@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ABS_TOLERANCE_M", "REL_TOLERANCE", "DepthComparison", "compare_depth", "compare_fit", "crop_intrinsics",
-           "mask_window", "render_fit"]
+__all__ = ["ABS_TOLERANCE_M", "REL_TOLERANCE", "DepthComparison", "compare_depth", "crop_intrinsics",
+           "mask_window"]
 
 #: Depth agreement tolerance: this many metres plus :data:`REL_TOLERANCE` times the depth.
 ABS_TOLERANCE_M = 0.015
@@ -118,48 +118,3 @@ def mask_window(mask, margin: float = 0.5) -> tuple:
     du, dv = margin * (us.max() - us.min() + 1), margin * (vs.max() - vs.min() + 1)
     return (max(0, int(us.min() - du)), max(0, int(vs.min() - dv)), min(W, int(us.max() + du) + 1),
             min(H, int(vs.max() + dv) + 1))
-
-
-def compare_fit(fit, corr, templates, depth, intrinsics, object_mask):
-    """:func:`render_fit` in the window around ``object_mask`` (:func:`mask_window`) and :func:`compare_depth` there.
-
-    Returns
-    -------
-    (DepthComparison or None, str)
-        ``None`` when no template is available; the template's name. The residual map covers the window.
-    """
-    u0, v0, u1, v1 = mask_window(object_mask)
-    model_depth, name = render_fit(fit, corr, templates, crop_intrinsics(intrinsics, (u0, v0, u1, v1)))
-    if model_depth is None:
-        return None, name
-    return compare_depth(model_depth, np.asarray(depth)[v0:v1, u0:u1], np.asarray(object_mask)[v0:v1, u0:u1]), name
-
-
-def render_fit(fit, corr, templates, intrinsics):
-    """Depth image ``(H, W)`` (metres, 0 = background) of the category template nearest to ``fit``, reshaped to
-    its part boxes and posed at its object pose and joint states, seen from ``intrinsics``; and the template's name.
-
-    Parameters
-    ----------
-    fit : FitResult
-        A successful articulated fit (part poses, boxes, camera joints and states).
-    corr : Correspondences
-        What it was fitted to (joint tree and types).
-    templates : TemplateLibrary
-        The category's templates (:func:`ancsh.data.templates.load_template_library`).
-    intrinsics : Intrinsics
-
-    Returns
-    -------
-    (ndarray or None, str)
-        ``None`` when no template is available here.
-    """
-    from ..data.render import ModelRenderer
-    from .twin import fitted_model
-
-    twin = fitted_model(fit, corr, templates, joints="template")  # as the p_object calibrations measured it
-    if twin is None:
-        return None, "none"
-    model = twin.model
-    q = np.clip(twin.states, model.lower_limits, model.upper_limits)
-    return ModelRenderer(model).render(q, twin.T_cam_B, intrinsics).depth, twin.template

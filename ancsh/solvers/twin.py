@@ -18,7 +18,8 @@ import numpy as np
 from ..geometry.transforms import Sim3
 from .types import Correspondences, FitResult
 
-__all__ = ["FittedModel", "ObservedDepth", "depth_residual", "fitted_model", "export_fit_urdf"]
+__all__ = ["FittedModel", "ObservedDepth", "compare_fit", "depth_residual", "export_fit_urdf", "fitted_model",
+           "render_fit"]
 
 
 @dataclass(frozen=True)
@@ -219,3 +220,50 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
     path = write_urdf(twin.model, folder, states=twin.states, T_root_base=Sim3(T.rotation, T.translation), root=root,
                       name=name or templates.category, overwrite=overwrite)
     return path, twin
+
+
+def compare_fit(fit, corr, templates, depth, intrinsics, object_mask):
+    """:func:`render_fit` in the window around ``object_mask`` (:func:`~ancsh.solvers.render_compare.mask_window`)
+    and :func:`~ancsh.solvers.render_compare.compare_depth` there.
+
+    Returns
+    -------
+    (DepthComparison or None, str)
+        ``None`` when no template is available; the template's name. The residual map covers the window.
+    """
+    from .render_compare import compare_depth, crop_intrinsics, mask_window
+
+    u0, v0, u1, v1 = mask_window(object_mask)
+    model_depth, name = render_fit(fit, corr, templates, crop_intrinsics(intrinsics, (u0, v0, u1, v1)))
+    if model_depth is None:
+        return None, name
+    return compare_depth(model_depth, np.asarray(depth)[v0:v1, u0:u1], np.asarray(object_mask)[v0:v1, u0:u1]), name
+
+
+def render_fit(fit, corr, templates, intrinsics):
+    """Depth image ``(H, W)`` (metres, 0 = background) of the category template nearest to ``fit``, reshaped to
+    its part boxes and posed at its object pose and joint states, seen from ``intrinsics``; and the template's name.
+
+    Parameters
+    ----------
+    fit : FitResult
+        A successful articulated fit (part poses, boxes, camera joints and states).
+    corr : Correspondences
+        What it was fitted to (joint tree and types).
+    templates : TemplateLibrary
+        The category's templates (:func:`ancsh.data.templates.load_template_library`).
+    intrinsics : Intrinsics
+
+    Returns
+    -------
+    (ndarray or None, str)
+        ``None`` when no template is available here.
+    """
+    from ..data.render import ModelRenderer
+
+    twin = fitted_model(fit, corr, templates, joints="template")  # as the p_object calibrations measured it
+    if twin is None:
+        return None, "none"
+    model = twin.model
+    q = np.clip(twin.states, model.lower_limits, model.upper_limits)
+    return ModelRenderer(model).render(q, twin.T_cam_B, intrinsics).depth, twin.template

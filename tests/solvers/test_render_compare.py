@@ -60,7 +60,7 @@ def test_a_good_fit_explains_its_object_and_a_displaced_scene_does_not():
     from ancsh.learned.inference.predict import infer
     from ancsh.learned.inference.provider import LearnedProvider
     from ancsh.solvers import Observation
-    from ancsh.solvers.render_compare import render_fit
+    from ancsh.solvers.twin import render_fit
 
     provider = LearnedProvider("laptop", seed=0)
     corr, _ = infer(provider, Observation(pred.points_cam))

@@ -66,7 +66,7 @@ def probability_good(calibration: dict, x) -> float:
 
 # --- is it the category's object at all? -------------------------------------------------------------
 #: Features of P(the fitted segment is an object of the category) (:mod:`ancsh.studies.object_evidence`):
-#: render-and-compare of the fitted category template (:func:`ancsh.solvers.render_compare.compare_fit`: the
+#: render-and-compare of the fitted category template (:func:`ancsh.solvers.twin.compare_fit`: the
 #: share of the segment's pixels it explains, the share of its own pixels the sensor sees through, the
 #: median residual relative to the object's size), the fitted object's size against the category's typical
 #: one (log ratio, and its absolute value), the fit's lowest part inlier ratio and mean segmentation margin, and

@@ -171,7 +171,7 @@ class DepthPrediction:
         size, :mod:`ancsh.studies.object_evidence`); ``None`` without that calibration or a fit.
     render_compare : DepthComparison or None
         The fitted category template rendered and compared with the observed depth
-        (:func:`ancsh.solvers.render_compare.compare_fit`), where there is a mask or an isolated segment.
+        (:func:`ancsh.solvers.twin.compare_fit`), where there is a mask or an isolated segment.
     correspondences : Correspondences or None
         What the fit was made on (its joint tree and types; not in the JSON); ``None`` without a network pass.
     """
@@ -490,13 +490,13 @@ def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, s
 
 
 def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
-    """Render-and-compare of the fit (:func:`ancsh.solvers.render_compare.compare_fit`) and the calibrated
+    """Render-and-compare of the fit (:func:`ancsh.solvers.twin.compare_fit`) and the calibrated
     P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
     import json
 
     from ...data.procedural import CATEGORY_INFO
     from ...data.templates import load_template_library
-    from ...solvers.render_compare import compare_fit
+    from ...solvers.twin import compare_fit
     from .confidence import OBJECT_FEATURES, object_calibration_path, object_features, probability_good
 
     if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
