@@ -4,15 +4,17 @@
 :data:`TARGET_GRID_PIXELS` pixels (a 1280x720 frame every 6th pixel): it removes planes wider than
 any object of the category (floors, table tops, stair treads and risers, walls: RANSAC planes whose
 connected pieces are wider than the category's largest size times :data:`SIZE_FACTOR`, or wider than
-a typical one and running out of the image), splits the
+a typical one and running out of the view -- the image's edge or a region without depth joined to it, such as a
+sensor's dead band; once a plane is a support, its other pieces that run out of the view are too: a riser's ends
+beyond the objects standing in front of it), removes the rounded edges where two supports meet, splits the
 rest into connected segments where neighbouring pixels' depths jump (more than a few grid spacings
 at that depth), and ranks the segments as candidates:
 
 - with an :class:`ObjectHint`: the segment under the pixel ``(u, v)`` (or the nearest one), or
   with most pixels in the box;
 - without one: segments whose size fits the category's ``diagonal_range`` first, nearer the
-  image centre first (in tenths of the image; within one, more pixels first); then the rest,
-  closest in size first.
+  image centre and nearer the category's typical size first (:data:`SIZE_PRIOR`; in tenths; within one, more
+  pixels first); then the rest, closest in size first.
 
 The result is a pixel mask of the first candidate plus every candidate (:class:`Isolation`:
 ``labels`` and the ranked ``order``), so that a caller who can judge a candidate (the category's
@@ -48,18 +50,29 @@ PLANE_THRESHOLD_M = 0.012
 #: measured across NORMAL_SPAN grid pixels on each side.
 PLANE_NORMAL_COS = 0.8
 NORMAL_SPAN = 2
-#: Pixels this near (metres) to two support planes are support too (the rounded edge between them).
+#: Pixels this near (metres) to two support planes, and within CORNER_REACH grid pixels of both planes' removed pieces
+#: in the image, are support too (the rounded edge between them).
 CORNER_MARGIN_M = 0.03
+CORNER_REACH = 4
 #: Plane RANSAC runs on at most this many of the free grid pixels (the inliers are then counted on all).
 RANSAC_POINTS = 3000
 RANSAC_ITERATIONS = 120
 #: Planes are searched at most this many times, and only while the best holds this share of the grid.
 MAX_PLANES = 8
 MIN_PLANE_FRACTION = 0.03
-#: A plane piece running out of the image touches its border on at least this many grid pixels.
+#: A plane piece running out of the view has at least this many grid pixels within BORDER_REACH grid pixels of the
+#: image's edge or of a region without depth joined to the edge (:func:`_view_border`).
 BORDER_PIXELS = 10
+BORDER_REACH = 3
+#: A plane piece's ends grow back this many grid pixels along the plane's inliers for the border test (the opening
+#: eats the tapering ends of a thin band).
+BAND_END_PIXELS = 12
 #: Two candidate segments (of different depths of plane removal) are one when their IoU reaches this.
 SAME_SEGMENT_IOU = 0.9
+#: Ranking without a hint: a segment whose diagonal is e times the category's typical one (the geometric mean of its
+#: range) counts as this much farther from the image centre (in image widths): remnants of walls and stairs that just
+#: fit the range come after object-sized segments.
+SIZE_PRIOR = 0.25
 #: Segments smaller than this many grid pixels are noise.
 MIN_SEGMENT_GRID_PIXELS = 20
 
@@ -265,9 +278,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     typical = np.sqrt(lo * hi)
     idx = np.flatnonzero(gv.ravel())
     flat = P.reshape(-1, 3)
-    border = np.zeros(gv.shape, dtype=bool)
-    border[[0, -1], :] = True
-    border[:, [0, -1]] = True
+    border = _view_border(gv)
     near = []  # per support plane: grid pixels within CORNER_MARGIN_M of it
     supports = []  # the support after each removal
     for _ in range(MAX_PLANES):
@@ -289,29 +300,40 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         # only where the surface turns like the plane: an object's face crossing it (a lid leaning on a
         # riser) is not part of the support
         q = flat[free[inl]]
-        normal = _principal_axes(q - q.mean(axis=0))[:, -1]
+        centre = q.mean(axis=0)
+        normal = _principal_axes(q - centre)[:, -1]
         on &= ~normal_ok | (np.abs(normals @ normal) >= PLANE_NORMAL_COS)
         # pieces of the plane after an opening: a face touching the support along a thin contact (a lid
         # leaning on a riser, in its plane) comes apart from it; the contact strip goes back to the support
-        opened = binary_opening(on, structure=_DISK, border_value=1)
+        opened = binary_opening(on, structure=_DISK, border_value=1) & on  # (the border value grows a frame)
         n_pieces, pieces = _components(opened, right, down)
         removed = False
+        before = support.copy()
         piece_sizes = np.bincount(pieces[pieces >= 0], minlength=n_pieces)
+        running_out = []  # pieces that run out of the view but are no wider than a typical object
         for c in np.flatnonzero(piece_sizes >= 20):
             sel = pieces == c
+            # running out of the view: the opening eats the ends of a thin band (a stair's riser seen from
+            # above), they grow back along the plane's inliers
+            out = np.count_nonzero(binary_dilation(sel, iterations=BAND_END_PIXELS, mask=on) & border) >= BORDER_PIXELS
             q = P[sel]
-            if np.linalg.norm(q.max(axis=0) - q.min(axis=0)) <= typical:
-                continue  # its box is no wider than a typical object: no support by either rule
-            extent = _extent(q)
             # wider than any object of the category, or wider than a typical one and running out of the
-            # image (a table top, a floor, a stair tread: an object's face rarely reaches the border)
-            if extent > SIZE_FACTOR * hi or (extent > typical and np.count_nonzero(sel & border) >= BORDER_PIXELS):
+            # view (a table top, a floor, a stair tread: an object's face rarely reaches the border)
+            if np.linalg.norm(q.max(axis=0) - q.min(axis=0)) > typical and (
+                    _extent(q) > SIZE_FACTOR * hi or (out and _extent(q) > typical)):
                 support |= on & binary_dilation(sel, structure=_DISK)
                 removed = True
+            elif out:
+                running_out.append(sel)
+        if removed:  # a support's other pieces that run out of the view: its ends beyond what stands on it
+            for sel in running_out:
+                support |= on & binary_dilation(sel, structure=_DISK)
         tried |= on & ~support
         if removed:
             supports.append(support.copy())
-            near.append(np.abs((P - q.mean(axis=0)) @ normal) < CORNER_MARGIN_M)
+            # near the plane and beside its removed pieces: the whole plane runs through other things too
+            beside = binary_dilation(support & ~before, structure=_disk(CORNER_REACH))
+            near.append(beside & (np.abs((P - centre) @ normal) < CORNER_MARGIN_M))
         planes += int(removed)
     # where two supports meet (a stair's nosing, a table's edge against a wall) the surface is neither
     # plane: pixels near two of them are support too, so that objects standing there come apart
@@ -361,6 +383,26 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
                      stride=s, hinted=tuple(hinted), segments=tuple(segments), _upsample=upsample)
 
 
+def _view_border(gv: np.ndarray) -> np.ndarray:
+    """Where a surface runs out of the view (grid pixels): the image's edge, and beside the pixels without depth that
+    are joined to the edge (a sensor's dead band along one side, the range limit), where a surface leaves the view
+    as well."""
+    from scipy.ndimage import binary_dilation, label
+
+    frame = np.zeros(gv.shape, dtype=bool)
+    frame[[0, -1], :] = True
+    frame[:, [0, -1]] = True
+    lab, _ = label(~gv)
+    outside = np.isin(lab, np.unique(lab[frame & ~gv])) & (lab > 0)
+    return binary_dilation(frame | outside, structure=np.ones((3, 3), dtype=bool), iterations=BORDER_REACH) & gv
+
+
+def _disk(radius: int) -> np.ndarray:
+    """A disk of ``radius`` grid pixels, as a structuring element."""
+    yy, xx = np.mgrid[-radius:radius + 1, -radius:radius + 1]
+    return yy ** 2 + xx ** 2 <= radius * radius + 1
+
+
 def _check_hint_inside(hint, W: int, H: int) -> None:
     """Refuse a hint pixel outside the image, or a hint box that does not overlap it (a hint is never ignored)."""
     if hint is None:
@@ -406,10 +448,10 @@ def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str, li
     def prior(c):
         dist = np.linalg.norm(np.asarray(clusters[c].centroid_uv) - centre) / max(intr.width, intr.height)
         size_gap = abs(np.log(max(clusters[c].diagonal, 1e-6) / mid))
-        # centrality in tenths of the image: pieces of one object from different depths of plane removal
-        # sit alike, and the largest of them comes first
-        return (not clusters[c].fits_category, round(dist, 1) if clusters[c].fits_category else size_gap,
-                -clusters[c].pixels)
+        # centrality (a share of the image) and nearness to the typical size (SIZE_PRIOR per e-fold), in tenths:
+        # pieces of one object from different depths of plane removal sit alike, and the largest comes first
+        return (not clusters[c].fits_category,
+                round(dist + SIZE_PRIOR * size_gap, 1) if clusters[c].fits_category else size_gap, -clusters[c].pixels)
 
     order = sorted(every, key=prior)
     if hint is not None and hint.pixel is not None:

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["ABS_TOLERANCE_M", "REL_TOLERANCE", "DepthComparison", "compare_depth", "crop_intrinsics",
-           "mask_window"]
+           "mask_window", "occluding_pixels"]
 
 #: Depth agreement tolerance: this many metres plus :data:`REL_TOLERANCE` times the depth.
 ABS_TOLERANCE_M = 0.015
@@ -118,3 +118,42 @@ def mask_window(mask, margin: float = 0.5) -> tuple:
     du, dv = margin * (us.max() - us.min() + 1), margin * (vs.max() - vs.min() + 1)
     return (max(0, int(us.min() - du)), max(0, int(vs.min() - dv)), min(W, int(us.max() + du) + 1),
             min(H, int(vs.max() + dv) + 1))
+
+
+def occluding_pixels(comparison: DepthComparison, depth, object_mask) -> np.ndarray:
+    """Pixels ``(H, W)`` bool of ``object_mask`` where the sensor saw a surface nearer than the compared model by more
+    than the tolerance: something in front of the object (an occluder taken into its segment), not the object. A model
+    that lies behind the mask's pixels throughout (a negative median of ``observed - model``) is measured from that
+    offset: only what stands out in front of the rest counts.
+
+    Parameters
+    ----------
+    comparison : DepthComparison
+        Made by :func:`ancsh.solvers.twin.compare_fit` with this ``object_mask`` (its residual map covers
+        :func:`mask_window` of the mask).
+    depth : (H, W) float64
+        The observed depth (metres, 0 = no measurement).
+    object_mask : (H, W) bool
+    """
+    mask = np.asarray(object_mask, dtype=bool)
+    d = np.asarray(depth, dtype=np.float64)
+    if mask.shape != d.shape:
+        raise ValueError(f"depth, object_mask: expected one shape, got {d.shape}, {mask.shape}")
+    out = np.zeros(mask.shape, dtype=bool)
+    if not mask.any():
+        return out
+    u0, v0, u1, v1 = mask_window(mask)
+    residual = comparison.residual
+    if residual.shape != (v1 - v0, u1 - u0):
+        raise ValueError(f"comparison: its residual map {residual.shape} does not cover the mask's window "
+                         f"{(v1 - v0, u1 - u0)}; compare with this object_mask")
+    o = d[v0:v1, u0:u1]
+    inside = mask[v0:v1, u0:u1] & np.isfinite(residual)
+    if not inside.any():
+        return out
+    offset = float(np.median(residual[inside]))  # a model fitted a little behind (or before) its points throughout
+    with np.errstate(invalid="ignore"):
+        nearer = residual - min(offset, 0.0) < -(ABS_TOLERANCE_M + REL_TOLERANCE * o)
+    out[v0:v1, u0:u1] = nearer & inside
+    return out
+

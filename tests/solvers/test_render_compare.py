@@ -5,7 +5,7 @@ import pytest
 
 from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.learned.inference.predict import predict_depth
-from ancsh.solvers.render_compare import compare_depth, crop_intrinsics, mask_window
+from ancsh.solvers.render_compare import compare_depth, crop_intrinsics, mask_window, occluding_pixels
 
 
 def test_explained_see_through_and_occlusion_are_told_apart():
@@ -26,6 +26,32 @@ def test_explained_see_through_and_occlusion_are_told_apart():
     assert np.isnan(c.residual[0, 9]) and c.residual[0, 5] == pytest.approx(0.3)
     with pytest.raises(ValueError, match="one shape"):
         compare_depth(model[:5], observed, mask)
+
+
+def test_pixels_in_front_of_the_model_are_occluders_measured_from_its_offset():
+    H, W = 60, 80
+    mask = np.zeros((H, W), dtype=bool)
+    mask[20:40, 20:60] = True
+    u0, v0, u1, v1 = mask_window(mask)
+    observed = np.full((H, W), 1.0)
+    observed[25:32, 30:38] = 0.9  # a toy in the box, 10 cm in front of its surface
+    observed[35, 50] = 0.0  # a hole
+    for behind in (0.0, 0.03):  # a model on the surface, and one fitted 3 cm behind it throughout
+        model = np.zeros((H, W))
+        model[20:40, 20:60] = 1.0 + behind
+        c = compare_depth(model[v0:v1, u0:u1], observed[v0:v1, u0:u1], mask[v0:v1, u0:u1])
+        occluded = occluding_pixels(c, observed, mask)
+        expected = np.zeros((H, W), dtype=bool)
+        expected[25:32, 30:38] = True
+        assert np.array_equal(occluded, expected), behind
+    # a model in front of the observed surface takes no object pixel for an occluder
+    flat = np.full((H, W), 1.0)
+    c = compare_depth((model - 0.09)[v0:v1, u0:u1], flat[v0:v1, u0:u1], mask[v0:v1, u0:u1])
+    assert c.see_through > 0.9 and not occluding_pixels(c, flat, mask).any()
+    with pytest.raises(ValueError, match="comparison"):  # compared in another mask's window
+        occluding_pixels(c, flat, np.roll(mask, 5, axis=1) | np.roll(mask, 12, axis=0))
+    with pytest.raises(ValueError, match="depth, object_mask"):
+        occluding_pixels(c, flat[:50], mask)
 
 
 def test_a_crop_keeps_the_projection():

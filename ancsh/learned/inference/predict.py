@@ -308,7 +308,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     candidate segments (supporting planes removed, the rest split at depth jumps) and up to
     :data:`MAX_VERIFIED` of them (the ones ``hint`` points at, or those whose size fits the category)
     are fitted and judged; the best supported one that passes every check wins, else the status is
-    ``no_object``. A fit that fails a check comes back with a failed status naming it: plausibility
+    ``no_object``. The chosen segment's pixels that lie in front of the fitted model (render-and-compare: a toy in
+    an open box) are left out of the reported object mask (``isolation.mask``) as occluders. A fit that fails a check comes back with a failed status naming it: plausibility
     (:func:`check_plausibility`) and, where the category has an object calibration, ``p_object``
     (:func:`check_confidence`, after render-and-compare of the fitted category template).
 
@@ -397,6 +398,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         t0 = time.perf_counter()
         best, isolation = _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points,
                                              seed, max_depth, refine)
+        isolation = _without_occluders(isolation, best, d)
         t_verify = time.perf_counter() - t0
     if isolation is not None:
         notes.append(isolation.summary())
@@ -569,6 +571,27 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     a["result"] = dataclasses.replace(a["result"], status=FitStatus.NO_OBJECT, message=(
         f"check object: no candidate passed its checks, the {category} is not found ({failures})"))
     return a, isolation.with_choice(best, f"no candidate passed: the best supported shown ({failures})", verified)
+
+
+def _without_occluders(isolation, attempt, depth):
+    """The isolation with the chosen segment's pixels that lie in front of the fitted model left out of its mask
+    (:func:`ancsh.solvers.render_compare.occluding_pixels`: a toy in an open box, a hand on a lid); unchanged when
+    the fit failed or was not compared."""
+    import dataclasses
+
+    from ...solvers.render_compare import occluding_pixels
+
+    comparison = attempt["comparison"]
+    if comparison is None or not attempt["result"].ok or not isolation.mask.any():
+        return isolation
+    occluded = occluding_pixels(comparison, depth, isolation.mask)
+    n = int(np.count_nonzero(occluded))
+    if n == 0:
+        return isolation
+    share = n / max(int(np.count_nonzero(isolation.mask)), 1)
+    return dataclasses.replace(isolation, mask=isolation.mask & ~occluded,
+                               reason=f"{isolation.reason}; {n} pixels ({100 * share:.0f} %) in front of the fitted "
+                                      "model left out as occluders")
 
 
 def inflate_uncertainty(result, category: str, provider, *, template: bool = False, tracked: str | None = None):
