@@ -310,24 +310,22 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         removed = False
         before = support.copy()
         piece_sizes = np.bincount(pieces[pieces >= 0], minlength=n_pieces)
-        running_out = []  # pieces that run out of the view but are no wider than a typical object
+        others = []  # pieces that are no support by their own size
         for c in np.flatnonzero(piece_sizes >= 20):
             sel = pieces == c
-            # running out of the view: the opening eats the ends of a thin band (a stair's riser seen from
-            # above), they grow back along the plane's inliers
-            out = np.count_nonzero(binary_dilation(sel, iterations=BAND_END_PIXELS, mask=on) & border) >= BORDER_PIXELS
             q = P[sel]
             # wider than any object of the category, or wider than a typical one and running out of the
             # view (a table top, a floor, a stair tread: an object's face rarely reaches the border)
             if np.linalg.norm(q.max(axis=0) - q.min(axis=0)) > typical and (
-                    _extent(q) > SIZE_FACTOR * hi or (out and _extent(q) > typical)):
+                    _extent(q) > SIZE_FACTOR * hi or (_extent(q) > typical and _runs_out(sel, on, border))):
                 support |= on & binary_dilation(sel, structure=_DISK)
                 removed = True
-            elif out:
-                running_out.append(sel)
+            else:
+                others.append(sel)
         if removed:  # a support's other pieces that run out of the view: its ends beyond what stands on it
-            for sel in running_out:
-                support |= on & binary_dilation(sel, structure=_DISK)
+            for sel in others:
+                if _runs_out(sel, on, border):
+                    support |= on & binary_dilation(sel, structure=_DISK)
         tried |= on & ~support
         if removed:
             supports.append(support.copy())
@@ -381,6 +379,19 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     order, reason, hinted = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
     return Isolation(upsample(segments[order[0]]), labels, tuple(clusters), order[0], planes, reason, order=tuple(order),
                      stride=s, hinted=tuple(hinted), segments=tuple(segments), _upsample=upsample)
+
+
+def _runs_out(piece: np.ndarray, on: np.ndarray, border: np.ndarray) -> bool:
+    """Whether a plane's ``piece`` runs out of the view: at least :data:`BORDER_PIXELS` of it, grown back
+    :data:`BAND_END_PIXELS` grid pixels along the plane's inliers ``on`` (the opening eats the ends of a thin band: a
+    stair's riser seen from above), lie on the view's ``border``."""
+    from scipy.ndimage import binary_dilation
+
+    vs, us = np.nonzero(piece)
+    r = BAND_END_PIXELS
+    win = (slice(max(0, vs.min() - r), vs.max() + r + 1), slice(max(0, us.min() - r), us.max() + r + 1))
+    grown = binary_dilation(piece[win], iterations=r, mask=on[win])
+    return np.count_nonzero(grown & border[win]) >= BORDER_PIXELS
 
 
 def _view_border(gv: np.ndarray) -> np.ndarray:
