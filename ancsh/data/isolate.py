@@ -30,7 +30,7 @@ import numpy as np
 
 from .render import Intrinsics, valid_depth_pixels
 
-__all__ = ["ObjectHint", "Cluster", "Isolation", "isolate_object", "parse_hint"]
+__all__ = ["ObjectHint", "Cluster", "Isolation", "behind_surroundings", "isolate_object", "parse_hint"]
 
 # the opening that parts a support plane from a face touching it (radius 2 grid pixels)
 _DISK = np.array([[0, 1, 1, 1, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 1, 1, 1, 0]], dtype=bool)
@@ -73,6 +73,13 @@ SAME_SEGMENT_IOU = 0.9
 #: range) counts as this much farther from the image centre (in image widths): remnants of walls and stairs that just
 #: fit the range come after object-sized segments.
 SIZE_PRIOR = 0.25
+#: A segment lies behind its surroundings (a wall or a curtain seen around nearer things, not an object) when at
+#: least BACKGROUND_JUMPS of the pixels in a ring of BACKGROUND_RING pixels around it differ from its depth by a jump
+#: (BACKGROUND_JUMP_M, or that share of the depth) and at least BACKGROUND_BEHIND of those jumps are nearer surfaces.
+BACKGROUND_RING = 3
+BACKGROUND_JUMP_M = 0.03
+BACKGROUND_JUMPS = 0.2
+BACKGROUND_BEHIND = 0.8
 #: Segments smaller than this many grid pixels are noise.
 MIN_SEGMENT_GRID_PIXELS = 20
 
@@ -412,6 +419,48 @@ def _disk(radius: int) -> np.ndarray:
     """A disk of ``radius`` grid pixels, as a structuring element."""
     yy, xx = np.mgrid[-radius:radius + 1, -radius:radius + 1]
     return yy ** 2 + xx ** 2 <= radius * radius + 1
+
+
+def behind_surroundings(depth, mask) -> tuple[bool, float, float]:
+    """Whether the segment ``mask`` lies behind what surrounds it: a background surface (a wall, a curtain) seen
+    around nearer things, not an object standing in front of its surroundings (module constants ``BACKGROUND_*``).
+
+    Parameters
+    ----------
+    depth : (H, W) float64
+        Metres, 0 = no measurement.
+    mask : (H, W) bool
+
+    Returns
+    -------
+    (bool, float, float)
+        The verdict; the share of the ring's measured pixels at a depth jump from the segment; the share of those
+        jumps where the surroundings are nearer (NaN without jumps).
+    """
+    from scipy.ndimage import binary_dilation, grey_dilation, grey_erosion
+
+    d = np.asarray(depth, dtype=np.float64)
+    m = np.asarray(mask, dtype=bool)
+    if d.shape != m.shape:
+        raise ValueError(f"depth, mask: expected one shape, got {d.shape}, {m.shape}")
+    if not m.any():
+        return False, float("nan"), float("nan")
+    r = BACKGROUND_RING
+    vs, us = np.nonzero(m)
+    win = (slice(max(0, vs.min() - 2 * r), vs.max() + 2 * r + 1), slice(max(0, us.min() - 2 * r), us.max() + 2 * r + 1))
+    d, m = d[win], m[win]
+    ring = binary_dilation(m, iterations=r) & ~m & (d > 0)
+    size = 2 * r + 1
+    farthest = grey_dilation(np.where(m, d, 0.0), size=(size, size))  # the segment's depths within reach of a pixel
+    nearest = grey_erosion(np.where(m, d, np.inf), size=(size, size))
+    jump = np.maximum(BACKGROUND_JUMP_M, BACKGROUND_JUMP_M * d)
+    nearer = ring & (d < nearest - jump)
+    farther = ring & (d > farthest + jump)
+    n_ring, n_jump = int(np.count_nonzero(ring)), int(np.count_nonzero(nearer | farther))
+    if n_ring == 0 or n_jump == 0:
+        return False, 0.0 if n_ring else float("nan"), float("nan")
+    jumps, behind = n_jump / n_ring, np.count_nonzero(nearer) / n_jump
+    return bool(jumps >= BACKGROUND_JUMPS and behind >= BACKGROUND_BEHIND), float(jumps), float(behind)
 
 
 def _check_hint_inside(hint, W: int, H: int) -> None:

@@ -67,3 +67,22 @@ def test_the_view_border_includes_a_dead_band_joined_to_the_edge_but_not_holes_i
     assert border[20, 5] and border[20, 7]  # beside the dead band
     assert not border[20, 26] and not border[17, 30]  # beside the inner hole: no border
     assert border[0, 30] and border[39, 30] and border[20, 59]
+
+
+def test_a_wall_seen_around_nearer_things_lies_behind_them_and_an_object_before_a_wall_does_not():
+    from ancsh.data.isolate import behind_surroundings
+
+    depth = np.full((120, 160), 2.0)  # a wall
+    depth[30:90, 20:60] = 1.2  # a cabinet in front of it
+    depth[30:90, 100:140] = 1.0  # and another
+    wall_between = np.zeros(depth.shape, dtype=bool)
+    wall_between[30:90, 60:100] = True  # the strip of wall between them: jumps to nearer surfaces on both sides
+    background, jumps, behind = behind_surroundings(depth, wall_between)
+    assert background and behind == 1.0 and jumps >= 0.2
+    cabinet = np.zeros(depth.shape, dtype=bool)
+    cabinet[30:90, 20:60] = True
+    assert behind_surroundings(depth, cabinet)[:1] == (False,) and behind_surroundings(depth, cabinet)[2] == 0.0
+    flat = np.full((120, 160), 1.5)  # no jump around a patch: nothing says it is behind
+    assert behind_surroundings(flat, cabinet) == (False, 0.0, pytest.approx(float("nan"), nan_ok=True))
+    with pytest.raises(ValueError, match="depth, mask"):
+        behind_surroundings(depth[:100], cabinet)

@@ -542,8 +542,9 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     With a hint, the candidates it points at (the segments under the pixel, from every depth of plane
     removal, or those in the box; up to :data:`MAX_VERIFIED`) are fitted. Without one, up to
     :data:`MAX_VERIFIED` candidates whose size fits the category (or the first, when none does) are
-    fitted. The best-supported fit that passes every check wins; when none passes, the best-supported
-    one comes back with status ``no_object``.
+    fitted. A segment that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or
+    a curtain seen around nearer things) is no object (``not_this_category``). The best-supported fit that passes
+    every check wins; when none passes, the best-supported one comes back with status ``no_object``.
     """
     import dataclasses
 
@@ -553,9 +554,18 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         chosen = list(isolation.hinted[:MAX_VERIFIED]) or isolation.order[:1]
     else:
         chosen = [c for c in isolation.order if isolation.clusters[c].fits_category][:MAX_VERIFIED] or isolation.order[:1]
+    from ...data.isolate import behind_surroundings
+
     attempts, verified = {}, []
     for c in chosen:
-        a = _attempt(d, intrinsics, isolation.mask_of(c), category, provider, formulation, num_points, seed, max_depth, refine)
+        mask = isolation.mask_of(c)
+        a = _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
+        if a["result"].ok:
+            background, jumps, behind = behind_surroundings(d, mask)
+            if background:
+                a["result"] = dataclasses.replace(a["result"], status=FitStatus.NOT_THIS_CATEGORY, message=(
+                    f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
+                    f"jumps around it, {100 * jumps:.0f} % of its edge): a background surface, not an object"))
         attempts[c] = a
         verified.append({"segment": int(c), "status": a["result"].status.value, "p_good": a["p_good"],
                          "p_object": a["p_object"], "score": _score(a), "diagonal_m": isolation.clusters[c].diagonal,
