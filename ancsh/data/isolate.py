@@ -233,7 +233,6 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     Isolation
         ``mask`` = the first candidate's pixels (full resolution).
     """
-    import open3d as o3d
     from scipy.ndimage import binary_dilation, binary_opening
 
     from ..geometry._checks import check_generator
@@ -293,11 +292,8 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         if free.size < 50:
             break
         sample = free if free.size <= RANSAC_POINTS else rng.choice(free, RANSAC_POINTS, replace=False)
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(flat[sample]))
-        o3d.utility.random.seed(int(rng.integers(2**31)))
-        model, _ = pc.segment_plane(distance_threshold=thresh, ransac_n=3, num_iterations=RANSAC_ITERATIONS)
-        a, b, c_, e = model  # the sample's plane, then its inliers among all free pixels, refitted
-        inl = np.flatnonzero(np.abs(flat[free] @ np.array([a, b, c_]) + e) < thresh * np.linalg.norm([a, b, c_]))
+        n_plane, e = _ransac_plane(flat[sample], thresh, rng)  # the sample's plane, then its inliers among all free
+        inl = np.flatnonzero(np.abs(flat[free] @ n_plane + e) < thresh)  # pixels, refitted
         inl = _refine_plane(flat[free], inl, thresh)
         if inl.size < max(50, MIN_PLANE_FRACTION * idx.size):
             break
@@ -540,6 +536,22 @@ def _rank(clusters, segments, gi, gj, intr, hint, lo, hi) -> tuple[list, str, li
     if clusters[order[0]].fits_category:
         return order, f"size fits the category ({lo}..{hi} m, x{SIZE_FACTOR}) and nearest the image centre", []
     return order, "no segment fits the category's size: the closest in size", []
+
+
+def _ransac_plane(points: np.ndarray, thresh: float, rng) -> tuple[np.ndarray, float]:
+    """The plane ``n . x + e = 0`` (unit ``n``) through three of ``points`` (N, 3) with the most points within
+    ``thresh`` metres, of :data:`RANSAC_ITERATIONS` random triples (all scored at once)."""
+    triples = points[rng.integers(0, len(points), (RANSAC_ITERATIONS, 3))]
+    n = np.cross(triples[:, 1] - triples[:, 0], triples[:, 2] - triples[:, 0])
+    length = np.linalg.norm(n, axis=1)
+    good = length > 1e-12
+    if not good.any():
+        return np.array([0.0, 0.0, 1.0]), -float(points[0, 2])
+    n = n[good] / length[good, None]
+    e = -np.einsum("ij,ij->i", n, triples[good, 0])
+    counts = np.count_nonzero(np.abs(points @ n.T + e) < thresh, axis=0)
+    best = int(np.argmax(counts))
+    return n[best], float(e[best])
 
 
 def _refine_plane(points: np.ndarray, inliers: np.ndarray, thresh: float, rounds: int = 3) -> np.ndarray:

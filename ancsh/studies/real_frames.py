@@ -124,7 +124,31 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
             rec, pred = _run(frame, category, mode, provider(category), truth, seed=seed, num_points=num_points)
             records.append(rec)
             predictions[(frame.name, category, mode)] = pred
-    return {"records": records, "frames": summaries, "predictions": predictions, "frame_data": frames}
+    isolation = [{"frame": frame.name, "size": [frame.intrinsics.width, frame.intrinsics.height], "category": c,
+                  "ms": isolation_times(frame, c, seed=seed)}
+                 for frame in frames for c in dict.fromkeys(o.category for o in frame.objects or ()) or negatives]
+    return {"records": records, "frames": summaries, "predictions": predictions, "frame_data": frames,
+            "isolation": isolation}
+
+
+#: Isolation is timed alone this many times per frame and category (the median is reported).
+ISOLATION_REPEATS = 5
+
+
+def isolation_times(frame, category: str, *, seed: int = 0, repeats: int = ISOLATION_REPEATS) -> list:
+    """Milliseconds of :func:`ancsh.data.isolate.isolate_object` on ``frame``'s depth, ``repeats`` times after one
+    warm-up call (one process; the numbers move with the machine's load)."""
+    import time
+
+    from ..data.isolate import isolate_object
+
+    isolate_object(frame.depth, frame.intrinsics, category, rng=seed)
+    out = []
+    for _ in range(int(repeats)):
+        t0 = time.perf_counter()
+        isolate_object(frame.depth, frame.intrinsics, category, rng=seed)
+        out.append(1e3 * (time.perf_counter() - t0))
+    return out
 
 
 def _fmt(x, spec=".1f", none="-"):
@@ -236,6 +260,18 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         lines.append(f"- `{mode}`: {ok} of {len(sel)} objects `success`"
                      + (f"; joint-state error {', '.join(f'{e:.1f}' for e in errs)}°" if errs else "")
                      + (f"; mask IoU {', '.join(f'{x:.2f}' for x in ious)}" if ious else "") + ".")
+    timed = results.get("isolation") or []
+    if timed:
+        lines += ["", "## Isolation time", "",
+                  f"`ancsh.data.isolate.isolate_object` alone, {ISOLATION_REPEATS} times per frame and category after a "
+                  "warm-up call, in this process (ms; the budget is 200 ms at 1280x720 on one core).", "",
+                  "| frame | pixels | category | median | min | max |", "|---|---|---|---|---|---|"]
+        for t in timed:
+            lines.append(f"| {t['frame']} | {t['size'][0]}x{t['size'][1]} | {t['category']} | {np.median(t['ms']):.0f} "
+                         f"| {min(t['ms']):.0f} | {max(t['ms']):.0f} |")
+        big = [np.median(t["ms"]) for t in timed if t["size"][0] * t["size"][1] >= 1280 * 720]
+        if big:
+            lines += ["", f"At 1280x720 or more: median {np.median(big):.0f} ms, the slowest frame {max(big):.0f} ms."]
     lines.append("")
     for f in results["frame_data"]:
         fr = [r for r in recs if r["frame"] == f.name]
@@ -244,5 +280,6 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         lines += [f"![{f.name}]({pic.name})", ""]
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), json_safe({"command": command, "date": prov.date, "machine": prov.machine,
-                                                     "frames": results["frames"], "records": recs}), indent=1)
+                                                     "frames": results["frames"], "records": recs,
+                                                     "isolation_ms": timed}), indent=1)
     return path

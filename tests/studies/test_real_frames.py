@@ -83,5 +83,8 @@ def test_the_benchmark_runs_each_mode_and_judges_the_negative_frame(frames, tmp_
     assert not recs[("floor_only", "auto")]["ok"]  # nothing but a floor: no laptop
     text = out.read_text()
     assert "| floor_only | laptop | auto |" in text and "none of any category (negative)" in text
+    timed = {(t["frame"], t["category"]): t["ms"] for t in data["isolation_ms"]}  # isolation timed alone, per frame
+    assert set(timed) == {("laptop_frame", "laptop"), ("floor_only", "laptop")}
+    assert all(len(ms) == 5 and min(ms) > 0 for ms in timed.values()) and "## Isolation time" in text
     assert (out.parent / "real_frames_laptop_frame.png").stat().st_size > 0
     assert (out.parent / "real_frames_floor_only.png").stat().st_size > 0
