@@ -41,7 +41,7 @@ def register(sub) -> None:
     g.add_argument("--noise", dest="noise", action="store_true", default=True, help="Kinect-like sensor noise (default)")
     g.add_argument("--no-noise", dest="noise", action="store_false", help="exact depth")
     g.add_argument("--real-frames-noise", action="store_true",
-                   help="the sensor noise with the whole-millimetre depth steps of the real frames "
+                   help="the sensor noise with the whole-millimetre depth steps and the blob holes of the real frames "
                    "(DepthNoise.real_frames(); docs/results/sensor_realism.md)")
     g.add_argument("--min-part-pixels", type=_non_negative_int, default=30,
                    help="reject views where a part shows on fewer pixels (default 30)")

@@ -313,7 +313,7 @@ def test_noise_parameter_errors():
         DepthNoise(quantisation=-0.001)
     assert DepthNoise.from_json(DepthNoise.real_frames().to_json()) == DepthNoise.real_frames()
     # the settings datasets carry: the default model reads as before the mixing and quantisation existed
-    assert "edge_mixing" not in DepthNoise().to_json() and "quantisation" not in DepthNoise().to_json()
+    assert all(k not in DepthNoise().to_json() for k in ("edge_mixing", "quantisation", "blob_holes", "blob_size_px"))
 
 
 def test_mixed_pixels_lie_between_the_surfaces_of_a_jump_and_depths_come_in_steps():
@@ -332,3 +332,25 @@ def test_mixed_pixels_lie_between_the_surfaces_of_a_jump_and_depths_come_in_step
     on = steps > 0
     np.testing.assert_allclose(steps[on] * 1000, np.round(steps[on] * 1000), atol=1e-9)
     assert len(np.unique(steps[on])) > 5  # the noise is still there, in millimetre steps
+
+
+def test_blob_holes_drop_the_share_asked_for_in_blobs_and_only_where_measured():
+    from scipy.ndimage import label
+
+    depth = np.zeros((240, 320))
+    depth[20:220, 30:290] = 1.0
+    measured = np.count_nonzero(depth)
+    plain = DepthNoise(edge_dropout=0.0, sigma_a=0.0, sigma_b=0.0)
+    out = apply_noise(depth, DepthNoise(edge_dropout=0.0, sigma_a=0.0, sigma_b=0.0, blob_holes=0.05), 4)
+    holes = (out == 0) & (depth > 0)
+    assert np.count_nonzero(holes) == pytest.approx(0.05 * measured, rel=0.02)
+    assert not np.any(out[depth == 0]) and np.array_equal(apply_noise(depth, plain, 4), depth)
+    lab, n = label(holes)
+    sizes = np.bincount(lab.ravel())[1:]
+    assert sizes[sizes > 100].sum() > 0.7 * sizes.sum()  # blobs, not single pixels
+    small = apply_noise(depth, DepthNoise(edge_dropout=0.0, sigma_a=0.0, sigma_b=0.0, blob_holes=0.05,
+                                          blob_size_px=2.0), 4)
+    assert label((small == 0) & (depth > 0))[1] > 3 * n  # a shorter length scale: more, smaller holes
+    for bad in ({"blob_holes": 1.0}, {"blob_holes": -0.1}, {"blob_size_px": 0.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            DepthNoise(**bad)
