@@ -50,6 +50,7 @@ EXAMPLES = {
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
     "bench twin": "ancsh bench twin --categories laptop --frames 2   # exported fit models against the depth",
     "bench sensor-realism": "ancsh bench sensor-realism --frames 5   # real frames' sensor artefacts against renders",
+    "bench scenes": "ancsh bench scenes --categories box laptop --frames 5   # predict without a mask on rendered scenes",
 }
 
 # Modules that contribute sub-commands, in help order.

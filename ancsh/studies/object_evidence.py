@@ -25,39 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.scenes import clutter_model
 from ..learned.inference.confidence import OBJECT_FEATURES, object_features, probability_good
 from .report import Provenance, write_text
 
-__all__ = ["clutter_model", "collect_object_evidence", "fit_object_calibrator", "write_object_report"]
-
-
-def clutter_model(rng, size: float):
-    """A rigid clutter object about ``size`` metres across: a box, slab, cylinder, sphere or a piece of wall, or two of them."""
-    import trimesh
-
-    from ..model.articulated import ArticulatedModel, Part
-
-    def piece():
-        kind = rng.choice(["box", "slab", "cylinder", "sphere", "wall", "wall"])
-        s = size * rng.uniform(0.4, 1.0)
-        if kind == "box":
-            return trimesh.creation.box(s * rng.uniform(0.3, 1.0, 3))
-        if kind == "wall":  # a piece of a wall, a board or a table top the size of the objects
-            return trimesh.creation.box(s * np.array([rng.uniform(0.8, 2.0), 0.02, rng.uniform(0.6, 1.4)]))
-        if kind == "slab":
-            return trimesh.creation.box(s * np.array([1.0, rng.uniform(0.02, 0.1), rng.uniform(0.5, 1.0)]))
-        if kind == "cylinder":
-            return trimesh.creation.cylinder(radius=s * rng.uniform(0.1, 0.4), height=s, sections=24)
-        return trimesh.creation.icosphere(subdivisions=2, radius=s * rng.uniform(0.2, 0.5))
-
-    meshes = [piece()]
-    if rng.random() < 0.5:
-        m = piece()
-        m.apply_translation(rng.normal(0.0, 0.3 * size, 3))
-        meshes.append(m)
-    mesh = trimesh.util.concatenate(meshes)
-    mesh.apply_translation(-mesh.bounds.mean(axis=0))
-    return ArticulatedModel((Part("clutter", mesh),), (), name="clutter")
+__all__ = ["collect_object_evidence", "fit_object_calibrator", "write_object_report"]
 
 
 def _features(depth, intrinsics, mask, category, provider, seed):

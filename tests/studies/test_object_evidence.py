@@ -7,7 +7,8 @@ import pytest
 
 from ancsh.cli import main
 from ancsh.learned.inference.confidence import OBJECT_FEATURES, probability_good
-from ancsh.studies.object_evidence import clutter_model, fit_object_calibrator, measure
+from ancsh.data.scenes import clutter_model
+from ancsh.studies.object_evidence import fit_object_calibrator, measure
 
 
 def test_clutter_is_a_rigid_mesh_about_the_size_asked_for():

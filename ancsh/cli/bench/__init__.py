@@ -24,6 +24,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.real_frames",
     "ancsh.cli.bench.twin",
     "ancsh.cli.bench.sensor_realism",
+    "ancsh.cli.bench.scenes",
 ]
 
 

@@ -1,0 +1,45 @@
+"""``ancsh bench scenes``: the arguments of :mod:`ancsh.studies.scenes`."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+
+from ...outputs import output_flags
+from .._args import changed_options, non_negative_int, positive_int
+
+
+def register(sub) -> None:
+    """Add ``ancsh bench scenes`` to the ``bench`` sub-parsers."""
+    p = sub.add_parser("scenes", help="ancsh predict without a mask on rendered scenes (floor or stairs, wall or "
+                       "curtain, clutter), with the object's mask, and on the same scenes without the object")
+    p.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
+    p.add_argument("--frames", type=positive_int, default=20, help="scenes per category (default 20)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="seed of the test frames and scenes (default 0)")
+    p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/scenes-<time>/scenes.md)")
+    p.add_argument("--update-docs", action="store_true", help="write docs/results/scenes.md (when --out is not given)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ...learned.network.weights import shipped_categories
+    from ...outputs import report_path
+    from ...studies.scenes import measure_scenes, write_scenes_report
+
+    shipped = shipped_categories()
+    categories = list(args.categories) if args.categories else shipped
+    unknown = [c for c in categories if c not in shipped]
+    if unknown:
+        raise ValueError(f"--categories: no shipped weights for {unknown}; shipped: {shipped}")
+    parts = ["bench", "scenes", *changed_options(args, {"categories": None, "frames": 20, "seed": 0})]
+    parts += output_flags(args.out, update_docs=args.update_docs)
+    command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
+    path = report_path(args.out, update_docs=args.update_docs, docs_name="scenes.md", command="scenes")
+    results = measure_scenes(categories, frames=args.frames, seed=args.seed,
+                             progress=None if args.quiet else (lambda line: print(line, flush=True)))
+    write_scenes_report(results, path, command=command)
+    print(path.read_text())
+    print(f"wrote {path} and {path.with_suffix('.json')}")
+    return 0
