@@ -114,6 +114,9 @@ def register(sub) -> None:
     c.add_argument("--object", action="store_true", help="calibrate p_object instead: whether the fitted pixels are an "
                    "object of the category at all, against the other categories' objects and clutter "
                    "(ancsh.studies.object_evidence; --frames counts the category's frames, about as many others are added)")
+    c.add_argument("--scenes", type=non_negative_int, default=0,
+                   help="with --object: also this many rendered scenes, their candidate segments isolated without a mask "
+                   "(the object's against the rest; default 0)")
     c.add_argument("--no-progress", action="store_true")
     c.set_defaults(func=run_calibrate)
     register_weights(sub)
@@ -328,6 +331,7 @@ def _calibrate_output(args: argparse.Namespace) -> tuple:
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
     parts = ["calibrate", "--category", args.category] + (["--object"] if args.object else []) + ["--frames", str(args.frames)]
     parts += ["--seed", str(args.seed)] if args.seed != 7 else []
+    parts += ["--scenes", str(args.scenes)] if args.object and args.scenes else []
     parts += output_flags(args.out, update_docs=args.update_docs)
     parts += ["--install"] if args.install else []
     return out, _command(parts)
@@ -351,7 +355,8 @@ def _run_calibrate_object(args: argparse.Namespace) -> int:
 
     if args.frames < 8:
         raise ValueError(f"--frames: expected at least 8 frames with --object, got {args.frames}")
-    data = collect_object_evidence(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
+    data = collect_object_evidence(args.category, args.frames, seed=args.seed, progress=not args.no_progress,
+                                   scenes=args.scenes)
     half = np.arange(len(data["is_object"])) % 2 == 0
     calibration = fit_object_calibrator(data["X"][half], data["is_object"][half])
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))

@@ -46,6 +46,24 @@ def test_calibrate_object_writes_a_report_and_a_model_predict_can_read(tmp_path,
     assert "ancsh calibrate --category laptop --object --frames 8" in text and "| laptop | yes |" in text
     assert main(["calibrate", "--category", "laptop", "--object", "--frames", "5", "--out", str(tmp_path)]) == 2
     assert "--frames: expected at least 8 frames with --object" in capsys.readouterr().err
+    assert "rendered scenes" not in text and "in a scene" not in text
+    assert main(["calibrate", "--category", "laptop", "--object", "--frames", "8", "--scenes", "2", "--out",
+                 str(tmp_path / "scenes"), "--no-progress"]) == 0
+    text = (tmp_path / "scenes" / "laptop_object.md").read_text()
+    assert "--object --frames 8 --scenes 2" in text and "rendered scenes" in text
+
+
+def test_scene_candidates_are_labelled_by_their_overlap_with_the_object():
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.data.scenes import render_scene
+    from ancsh.learned.inference.provider import LearnedProvider
+    from ancsh.studies.object_evidence import _scene_candidates
+
+    scene = render_scene(FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)), 0, 0, stairs=False)
+    found, failed = _scene_candidates(scene.depth, scene.intrinsics, scene.visible, "laptop",
+                                      LearnedProvider("laptop", seed=0), 0)
+    assert len(found) + failed >= 1 and all(len(x) == len(OBJECT_FEATURES) for x, _ in found)
+    assert any(is_object for _, is_object in found)  # the laptop's segment (alone, or with what is attached to it)
 
 
 def test_planar_share_tells_a_wall_from_a_corner():
