@@ -8,7 +8,8 @@ a typical one and running out of the view -- the image's edge or a region withou
 sensor's dead band; once a plane is a support, its other pieces that run out of the view are too: a riser's ends
 beyond the objects standing in front of it), removes the rounded edges where two supports meet, splits the
 rest into connected segments where neighbouring pixels' depths jump (more than a few grid spacings
-at that depth), and ranks the segments as candidates:
+at that depth) -- each segment also with the smaller ones attached to it across a small depth step (a door ajar),
+as a second candidate -- and ranks the segments as candidates:
 
 - with an :class:`ObjectHint`: the segment under the pixel ``(u, v)`` (or the nearest one), or
   with most pixels in the box;
@@ -73,6 +74,9 @@ SAME_SEGMENT_IOU = 0.9
 #: range) counts as this much farther from the image centre (in image widths): remnants of walls and stairs that just
 #: fit the range come after object-sized segments.
 SIZE_PRIOR = 0.25
+#: Smaller segments touching a candidate at a median depth step below this share of the category's typical size are
+#: attached to it in a second candidate (:func:`_with_attached`: a door ajar, parted from its object by a depth jump).
+ATTACH_SHARE = 0.15
 #: A segment lies behind its surroundings (a wall or a curtain seen around nearer things, not an object) when at
 #: least BACKGROUND_JUMPS of the pixels in a ring of BACKGROUND_RING pixels around it differ from its depth by a jump
 #: (BACKGROUND_JUMP_M, or that share of the depth) and at least BACKGROUND_BEHIND of those jumps are nearer surfaces.
@@ -358,17 +362,20 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
         n_seg, seg = _components(gv & ~sup, right, down)
         sizes = np.bincount(seg[seg >= 0], minlength=n_seg)
         for c in np.flatnonzero(sizes >= MIN_SEGMENT_GRID_PIXELS):
-            sel = seg == c
-            n = int(sizes[c]) * s * s
-            # the same segment as at an earlier depth (a plane removed elsewhere): a like count, then the IoU
-            if any(min(n, other.pixels) >= SAME_SEGMENT_IOU * max(n, other.pixels)
-                   and np.count_nonzero(sel & o) >= SAME_SEGMENT_IOU * np.count_nonzero(sel | o)
-                   for o, other in zip(segments, clusters)):
-                continue
-            diag = _extent(P[sel], diagonal=True)
-            segments.append(sel)
-            clusters.append(Cluster(n, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
-                                    bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR), level=level + 1 if supports else 0))
+            base = seg == c
+            for sel in (base, _with_attached(seg, c, sizes, g, ATTACH_SHARE * typical)):
+                n = int(np.count_nonzero(sel)) * s * s
+                # the same segment as at an earlier depth (a plane removed elsewhere), or as the segment without
+                # what is attached to it: a like count, then the IoU
+                if any(min(n, other.pixels) >= SAME_SEGMENT_IOU * max(n, other.pixels)
+                       and np.count_nonzero(sel & o) >= SAME_SEGMENT_IOU * np.count_nonzero(sel | o)
+                       for o, other in zip(segments, clusters)):
+                    continue
+                diag = _extent(P[sel], diagonal=True)
+                segments.append(sel)
+                clusters.append(Cluster(n, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
+                                        bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR),
+                                        level=level + 1 if supports else 0))
     # labels for pictures: every candidate, the deeper ones (smaller pieces) over the shallower
     final = np.full(gv.shape, -1, dtype=np.int64)
     for c in sorted(range(len(segments)), key=lambda c: clusters[c].level):
@@ -382,6 +389,31 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     order, reason, hinted = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
     return Isolation(upsample(segments[order[0]]), labels, tuple(clusters), order[0], planes, reason, order=tuple(order),
                      stride=s, hinted=tuple(hinted), segments=tuple(segments), _upsample=upsample)
+
+
+def _with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, g: np.ndarray, gap: float) -> np.ndarray:
+    """Segment ``c`` of the component labels ``seg`` (-1 = none) with the smaller components that touch it in the
+    image at a median depth step below ``gap`` metres (grid depths ``g``): a door ajar, a knob, a drawer front parted
+    from the object by a depth jump. ``(h, w)`` bool; just segment ``c`` when nothing is attached."""
+    sel = seg == c
+    vs, us = np.nonzero(sel)
+    win = (slice(max(0, vs.min() - 1), vs.max() + 2), slice(max(0, us.min() - 1), us.max() + 2))
+    sw, gw = seg[win], g[win]
+    ks, steps = [], []
+    for a, b, da, db in ((sw[:, :-1], sw[:, 1:], gw[:, :-1], gw[:, 1:]), (sw[:-1, :], sw[1:, :], gw[:-1, :], gw[1:, :])):
+        for x, y, dx, dy in ((a, b, da, db), (b, a, db, da)):
+            touch = (x == c) & (y >= 0) & (y != c)
+            ks.append(y[touch])
+            steps.append(np.abs(dx[touch] - dy[touch]))
+    ks, steps = np.concatenate(ks), np.concatenate(steps)
+    if ks.size == 0:
+        return sel
+    order = np.argsort(ks, kind="stable")
+    ks, steps = ks[order], steps[order]
+    first = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    attached = [int(ks[i]) for i, group in zip(first, np.split(steps, first[1:]))
+                if sizes[ks[i]] < sizes[c] and float(np.median(group)) < gap]
+    return sel | np.isin(seg, attached) if attached else sel
 
 
 def _runs_out(piece: np.ndarray, on: np.ndarray, border: np.ndarray) -> bool:

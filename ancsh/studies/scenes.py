@@ -16,6 +16,7 @@ units for prismatic joints) and the time. The rendered counterpart of ``ancsh be
 from __future__ import annotations
 
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,8 @@ __all__ = ["MODES", "measure_scenes", "write_scenes_report"]
 
 #: The runs per scene (module docstring).
 MODES = ("mask", "auto", "empty")
+#: A scene whose clutter leaves fewer of the object's pixels visible is left out (and counted).
+MIN_VISIBLE_PIXELS = 300
 
 
 def _record(pred, scene, category, index, mode, seconds) -> dict:
@@ -55,7 +58,7 @@ def measure_scenes(categories, frames: int = 20, *, seed: int = 0, progress=None
     frames : int
         Scenes per category (test frames ``0 .. frames - 1`` of the seed's stream).
     seed : int
-        The test stream's seed; scene ``i``'s surroundings and noise come from ``(seed, i)``.
+        The test stream's seed; scene ``i``'s surroundings and noise come from ``(seed, i, the category)``.
     progress : callable, optional
         Called with a line per category.
 
@@ -72,16 +75,20 @@ def measure_scenes(categories, frames: int = 20, *, seed: int = 0, progress=None
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 1:
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
-    records = []
+    records, hidden = [], []
     for category in categories:
         provider = LearnedProvider(category, seed=seed, refine="auto")
         gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=seed))
         for i in range(int(frames)):
-            scenes = {w: render_scene(gen, i, np.random.default_rng([seed, i]), with_object=w) for w in (True, False)}
-            noise_rng = np.random.default_rng([seed, i, 1])
+            key = [seed, i, zlib.crc32(category.encode())]  # each category's scenes differ (walls, stairs, clutter)
+            scenes = {w: render_scene(gen, i, np.random.default_rng(key), with_object=w) for w in (True, False)}
+            noise_rng = np.random.default_rng(key + [1])
             depth = apply_noise(scenes[True].depth, DepthNoise(), noise_rng)
             empty = apply_noise(scenes[False].depth, DepthNoise(), noise_rng)
             visible = scenes[True].visible & (depth > 0)
+            if np.count_nonzero(visible) < MIN_VISIBLE_PIXELS:  # the clutter hides the object
+                hidden.append({"category": category, "frame": int(i), "visible_pixels": int(np.count_nonzero(visible))})
+                continue
             for mode in MODES:
                 t0 = time.perf_counter()
                 pred = predict_depth(empty if mode == "empty" else depth, scenes[True].intrinsics, category,
@@ -91,7 +98,8 @@ def measure_scenes(categories, frames: int = 20, *, seed: int = 0, progress=None
             sel = [r for r in records if r["category"] == category]
             progress(f"{category}: " + ", ".join(
                 f"{m} {sum(r['ok'] for r in sel if r['mode'] == m)}/{frames} success" for m in MODES))
-    return {"records": records, "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed)}}
+    return {"records": records, "hidden": hidden,
+            "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed)}}
 
 
 def _median(values, spec=".1f"):
@@ -133,11 +141,16 @@ def write_scenes_report(results: dict, path, *, command: str) -> Path:
             f"| {_median([r['time_ms'] for r in by['mask']], '.0f')} / {_median([r['time_ms'] for r in by['auto']], '.0f')} |")
     stairs = [r for r in recs if r["mode"] == "auto" and r["support"] == "stairs"]
     floor = [r for r in recs if r["mode"] == "auto" and r["support"] == "floor"]
+    hidden = results.get("hidden") or []
+    if hidden:
+        lines += ["", f"Left out: {len(hidden)} scene(s) whose clutter hides the object (fewer than {MIN_VISIBLE_PIXELS} "
+                  "of its pixels visible): " + ", ".join(f"{h['category']} {h['frame']}" for h in hidden) + "."]
     lines += ["", "By support (`auto`, every category): "
               f"floor {sum(r['ok'] for r in floor)}/{len(floor)} success, mask IoU {_median([r['mask_iou'] for r in floor], '.2f')}; "
               f"stairs {sum(r['ok'] for r in stairs)}/{len(stairs)} success, mask IoU "
               f"{_median([r['mask_iou'] for r in stairs], '.2f')}.", ""]
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), {"command": command, "date": prov.date, "machine": prov.machine,
-                                           "settings": results["settings"], "records": recs}, indent=1)
+                                           "settings": results["settings"], "records": recs, "hidden": hidden},
+               indent=1)
     return path

@@ -86,3 +86,20 @@ def test_a_wall_seen_around_nearer_things_lies_behind_them_and_an_object_before_
     assert behind_surroundings(flat, cabinet) == (False, 0.0, pytest.approx(float("nan"), nan_ok=True))
     with pytest.raises(ValueError, match="depth, mask"):
         behind_surroundings(depth[:100], cabinet)
+
+
+def test_a_door_parted_by_a_small_depth_step_is_attached_to_its_object_in_a_second_candidate():
+    from ancsh.data.isolate import _with_attached
+
+    seg = np.full((30, 30), -1)
+    g = np.full((30, 30), 2.0)
+    seg[2:14, 2:14], g[2:14, 2:14] = 0, 1.0  # the object's body
+    seg[6:12, 14:18], g[6:12, 14:18] = 1, 1.08  # a door ajar beside it, 8 cm nearer
+    seg[2:6, 14:18], g[2:6, 14:18] = 2, 1.6  # something far behind, touching it in the image
+    seg[14:30, :], g[14:30, :] = 3, 1.02  # a larger neighbour close by: not attached to the smaller body
+    sizes = np.bincount(seg[seg >= 0])
+    with_door = _with_attached(seg, 0, sizes, g, 0.15)
+    assert np.array_equal(with_door, np.isin(seg, [0, 1]))
+    assert np.array_equal(_with_attached(seg, 0, sizes, g, 0.05), seg == 0)  # a tighter gap: the body alone
+    assert np.array_equal(_with_attached(seg, 2, sizes, g, 0.15), seg == 2)  # nothing smaller touches it closely
+    assert np.array_equal(_with_attached(seg, 3, sizes, g, 0.15), np.isin(seg, [3, 0]))  # the body is smaller
