@@ -30,6 +30,19 @@ def changed_options(args, defaults: dict) -> list[str]:
     return tokens
 
 
+def shipped_categories_option(categories) -> list[str]:
+    """``--categories``: the categories given (default: every one with shipped weights); a category without shipped
+    weights is refused, naming the shipped ones."""
+    from ..learned.network.weights import shipped_categories
+
+    shipped = shipped_categories()
+    chosen = list(categories) if categories else list(shipped)
+    unknown = [c for c in chosen if c not in shipped]
+    if unknown:
+        raise ValueError(f"--categories: no shipped weights for {unknown}; shipped: {shipped}")
+    return chosen
+
+
 def positive_int(text: str) -> int:
     return _number(text, int, lambda v: v > 0, "a positive integer")
 

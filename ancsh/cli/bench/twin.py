@@ -7,7 +7,7 @@ import shlex
 from pathlib import Path
 
 from ...outputs import output_flags
-from .._args import changed_options, non_negative_int, positive_int
+from .._args import changed_options, non_negative_int, positive_int, shipped_categories_option
 
 
 def register(sub) -> None:
@@ -29,15 +29,10 @@ def register(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ...learned.network.weights import shipped_categories
     from ...outputs import report_path
     from ...studies.twin import measure_twin, write_twin_report
 
-    shipped = shipped_categories()
-    categories = list(args.categories) if args.categories else shipped
-    unknown = [c for c in categories if c not in shipped]
-    if unknown:
-        raise ValueError(f"--categories: no shipped weights for {unknown}; shipped: {shipped}")
+    categories = shipped_categories_option(args.categories)
     parts = ["bench", "twin", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "box_extents": "max",
                                                           "candidates": 5})]
     parts += output_flags(args.out, update_docs=args.update_docs)
