@@ -65,6 +65,9 @@ MIN_PLANE_FRACTION = 0.03
 #: image's edge or of a region without depth joined to the edge (:func:`_view_border`).
 BORDER_PIXELS = 10
 BORDER_REACH = 3
+#: A region without depth joined to the image's edge is a sensor's dead band when it stays within this share of the
+#: image's width (height) from the edge.
+DEAD_BAND_SHARE = 0.1
 #: A plane piece's ends grow back this many grid pixels along the plane's inliers for the border test (the opening
 #: eats the tapering ends of a thin band).
 BAND_END_PIXELS = 12
@@ -430,16 +433,24 @@ def _runs_out(piece: np.ndarray, on: np.ndarray, border: np.ndarray) -> bool:
 
 
 def _view_border(gv: np.ndarray) -> np.ndarray:
-    """Where a surface runs out of the view (grid pixels): the image's edge, and beside the pixels without depth that
-    are joined to the edge (a sensor's dead band along one side, the range limit), where a surface leaves the view
-    as well."""
+    """Where a surface runs out of the view (grid pixels): the image's edge, and beside a sensor's dead band -- pixels
+    without depth joined to the edge that stay within :data:`DEAD_BAND_SHARE` of the image from it (a wide region
+    without depth, such as a background beyond the range, is not the view's end: objects stand in front of it)."""
     from scipy.ndimage import binary_dilation, label
 
+    h, w = gv.shape
     frame = np.zeros(gv.shape, dtype=bool)
     frame[[0, -1], :] = True
     frame[:, [0, -1]] = True
-    lab, _ = label(~gv)
-    outside = np.isin(lab, np.unique(lab[frame & ~gv])) & (lab > 0)
+    band = np.zeros(gv.shape, dtype=bool)
+    bh, bw = max(1, int(DEAD_BAND_SHARE * h)), max(1, int(DEAD_BAND_SHARE * w))
+    band[:bh, :] = band[-bh:, :] = True
+    band[:, :bw] = band[:, -bw:] = True
+    lab, n = label(~gv)
+    touching = np.unique(lab[frame & ~gv])
+    beyond = np.unique(lab[~band & ~gv])  # regions reaching past the band
+    dead = np.setdiff1d(touching[touching > 0], beyond)
+    outside = np.isin(lab, dead)
     return binary_dilation(frame | outside, structure=np.ones((3, 3), dtype=bool), iterations=BORDER_REACH) & gv
 
 

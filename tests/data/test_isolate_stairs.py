@@ -103,3 +103,11 @@ def test_a_door_parted_by_a_small_depth_step_is_attached_to_its_object_in_a_seco
     assert np.array_equal(_with_attached(seg, 0, sizes, g, 0.05), seg == 0)  # a tighter gap: the body alone
     assert np.array_equal(_with_attached(seg, 2, sizes, g, 0.15), seg == 2)  # nothing smaller touches it closely
     assert np.array_equal(_with_attached(seg, 3, sizes, g, 0.15), np.isin(seg, [3, 0]))  # the body is smaller
+
+
+def test_a_wide_region_without_depth_is_no_dead_band():
+    gv = np.ones((40, 60), dtype=bool)
+    gv[:, 30:] = False  # everything right of the middle beyond the sensor's range
+    border = _view_border(gv)
+    assert not border[20, 28] and not border[20, 29]  # an object's edge against the background: not the view's end
+    assert border[0, 10] and border[20, 0]
