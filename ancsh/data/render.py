@@ -1,4 +1,4 @@
-"""Depth rendering with open3d's ``RaycastingScene`` (CPU, headless).
+"""Depth rendering by ray casting (CPU, headless): open3d's ``RaycastingScene``, or numpy.
 
 Camera convention (OpenCV)
 --------------------------
@@ -23,6 +23,13 @@ image rectangle covered by the projected vertices, which is exact and much cheap
 casting the whole image. Rebuilding the BVH costs well under a millisecond for the
 procedural objects; casting dominates.
 
+Backends
+--------
+``ModelRenderer(..., backend=)``: ``"open3d"`` (a BVH, the default where open3d is installed),
+``"numpy"`` (:class:`~ancsh.data.raycast.CameraRayCaster`: a grid over the image plane; the same
+depths up to float rounding on triangle edges, slower on meshes of many thousand triangles) or
+``"auto"`` (open3d when it can be imported, else numpy: e.g. on a GPU machine with only torch).
+
 Visible-area ratio
 ------------------
 For each part, ``visibility = visible surface area / total surface area`` is estimated by
@@ -46,6 +53,7 @@ from ..model.articulated import sample_surface
 __all__ = [
     "DEFAULT_VIEWPOINT",
     "DepthFrame",
+    "RENDER_BACKENDS",
     "Intrinsics",
     "ModelRenderer",
     "VIEWPOINTS",
@@ -60,6 +68,26 @@ __all__ = [
     "viewpoint_pose",
     "viewpoint_range",
 ]
+
+RENDER_BACKENDS = ("auto", "open3d", "numpy")
+"""The ray-casting backends of :class:`ModelRenderer` (see the module docstring)."""
+
+
+@functools.lru_cache(maxsize=None)
+def _open3d_importable() -> bool:
+    try:
+        import open3d  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _resolve_backend(backend: str) -> str:
+    """``"open3d"`` or ``"numpy"`` for a :data:`RENDER_BACKENDS` name (``"auto"``: open3d where importable)."""
+    if backend == "auto":
+        return "open3d" if _open3d_importable() else "numpy"
+    return backend
+
 
 # Depths below this are treated as behind the camera when cropping the ray grid (metres).
 _NEAR = 1e-3
@@ -323,9 +351,14 @@ class ModelRenderer:
         Surface samples per part for the visible-area ratio (fixed, seeded by
         ``sample_seed``).
     sample_seed : int
+    backend : {"auto", "open3d", "numpy"}
+        Ray-casting backend (module docstring); ``"auto"`` is open3d where it can be imported.
     """
 
-    def __init__(self, model, *, visibility_samples: int = 1024, sample_seed: int = 0):
+    def __init__(self, model, *, visibility_samples: int = 1024, sample_seed: int = 0, backend: str = "auto"):
+        if backend not in RENDER_BACKENDS:
+            raise ValueError(f"backend: expected one of {', '.join(RENDER_BACKENDS)}, got {backend!r}")
+        self.backend = _resolve_backend(backend)
         if isinstance(visibility_samples, bool) or int(visibility_samples) != visibility_samples or visibility_samples <= 0:
             raise ValueError(f"visibility_samples: expected a positive integer, got {visibility_samples!r}")
         self.model = model
@@ -357,12 +390,21 @@ class ModelRenderer:
         """Part vertices ``(V_j, 3)`` in the camera frame at ``q`` (metres)."""
         return [T.apply(v) for T, v in zip(self.part_poses(q, T_cam_base), self._vertices)]
 
-    def _scene(self, verts_cam):
+    def _scene(self, verts_cam, nthreads: int = 1):
+        """A function ``cast(directions (..., 3)) -> (t, part)`` for rays from the camera centre.
+
+        ``t`` is the hit's ray parameter (``inf``: no hit), ``part`` the hit part's index (``-1``).
+        """
+        meshes = [(v, f) for v, f in zip(verts_cam, self._faces)]
+        if self.backend == "numpy":
+            from .raycast import CameraRayCaster
+
+            return CameraRayCaster(meshes).cast
         import open3d as o3d
 
         scene = o3d.t.geometry.RaycastingScene()
         lookup = {}
-        for j, (v, f) in enumerate(zip(verts_cam, self._faces)):
+        for j, (v, f) in enumerate(meshes):
             if not len(f):
                 continue
             gid = scene.add_triangles(
@@ -372,7 +414,19 @@ class ModelRenderer:
         table = np.full(max(lookup) + 2, -1, dtype=np.int32)
         for gid, j in lookup.items():
             table[gid] = j
-        return scene, table
+
+        def cast(directions):
+            d = np.asarray(directions, dtype=np.float32)
+            rays = np.zeros(d.shape[:-1] + (6,), dtype=np.float32)
+            rays[..., 3:] = d
+            hit = scene.cast_rays(o3d.core.Tensor(rays), nthreads=nthreads)
+            t = hit["t_hit"].numpy().astype(np.float64)
+            ok = np.isfinite(t)
+            part = np.full(t.shape, -1, dtype=np.int64)
+            part[ok] = table[np.minimum(hit["geometry_ids"].numpy()[ok], len(table) - 1)]
+            return np.where(ok, t, np.inf), part
+
+        return cast
 
     def render(self, q, T_cam_base: Sim3, intrinsics: Intrinsics | None = None, *, visibility: bool = False, nthreads: int = 1) -> DepthFrame:
         """Render depth and part ids.
@@ -390,8 +444,6 @@ class ModelRenderer:
         nthreads : int
             open3d ray-casting threads (0 = all cores).
         """
-        import open3d as o3d
-
         intr = Intrinsics() if intrinsics is None else intrinsics
         if not isinstance(intr, Intrinsics):
             raise ValueError(f"intrinsics: expected Intrinsics, got {type(intr).__name__}")
@@ -399,7 +451,7 @@ class ModelRenderer:
             raise ValueError("T_cam_base: expected a rigid Sim3 (scale 1)")
         poses = self.part_poses(q, T_cam_base)
         verts = [T.apply(v) for T, v in zip(poses, self._vertices)]
-        scene, table = self._scene(verts)
+        cast = self._scene(verts, nthreads)
         H, W = intr.height, intr.width
         depth = np.zeros((H, W), dtype=np.float64)
         ids = np.full((H, W), -1, dtype=np.int32)
@@ -407,27 +459,17 @@ class ModelRenderer:
         window = _pixel_window(np.concatenate([v for v, f in zip(verts, self._faces) if len(f)]), intr)
         if window is not None:
             v0, v1, u0, u1 = window
-            sub = _ray_grid(intr)[v0:v1, u0:u1]
-            rays = np.zeros(sub.shape[:2] + (6,), dtype=np.float32)
-            rays[..., 3:] = sub
-            hit = scene.cast_rays(o3d.core.Tensor(rays), nthreads=nthreads)
-            t = hit["t_hit"].numpy()
+            t, part = cast(_ray_grid(intr)[v0:v1, u0:u1])
             ok = np.isfinite(t)
-            gids = hit["geometry_ids"].numpy()
-            sub_depth = np.where(ok, t, 0.0)  # direction z = 1, so t is the depth
-            sub_ids = np.full(t.shape, -1, dtype=np.int32)
-            sub_ids[ok] = table[np.minimum(gids[ok], len(table) - 1)]
-            depth[v0:v1, u0:u1] = sub_depth
-            ids[v0:v1, u0:u1] = sub_ids
+            depth[v0:v1, u0:u1] = np.where(ok, t, 0.0)  # direction z = 1, so t is the depth
+            ids[v0:v1, u0:u1] = part
 
         vis = None
         if visibility:
-            vis = self._visibility(scene, poses, intr, nthreads)
+            vis = self._visibility(cast, poses, intr)
         return DepthFrame(depth, ids, intr, vis)
 
-    def _visibility(self, scene, poses, intr: Intrinsics, nthreads: int) -> np.ndarray:
-        import open3d as o3d
-
+    def _visibility(self, cast, poses, intr: Intrinsics) -> np.ndarray:
         pts = [T.apply(s) for T, s in zip(poses, self._samples)]
         counts = [len(p) for p in pts]
         P = np.concatenate(pts)
@@ -437,9 +479,7 @@ class ModelRenderer:
         u = intr.fx * P[:, 0] / zs + intr.cx
         v = intr.fy * P[:, 1] / zs + intr.cy
         inside = front & (u >= -0.5) & (u < intr.width - 0.5) & (v >= -0.5) & (v < intr.height - 0.5)
-        rays = np.zeros((len(P), 6), dtype=np.float32)
-        rays[:, 3:] = P
-        t = scene.cast_rays(o3d.core.Tensor(rays), nthreads=nthreads)["t_hit"].numpy()
+        t, _ = cast(P)
         seen = inside & (t >= 1.0 - _VISIBILITY_TOL)
         out = np.zeros(len(counts))
         start = 0
@@ -471,9 +511,10 @@ def _pixel_window(points_cam: np.ndarray, intr: Intrinsics):
     return v0, v1, u0, u1
 
 
-def render_depth(model, q, T_cam_base: Sim3, intrinsics: Intrinsics | None = None, *, visibility: bool = False) -> DepthFrame:
+def render_depth(model, q, T_cam_base: Sim3, intrinsics: Intrinsics | None = None, *, visibility: bool = False,
+                 backend: str = "auto") -> DepthFrame:
     """One-shot :meth:`ModelRenderer.render` (use a :class:`ModelRenderer` for many frames)."""
-    return ModelRenderer(model).render(q, T_cam_base, intrinsics, visibility=visibility)
+    return ModelRenderer(model, backend=backend).render(q, T_cam_base, intrinsics, visibility=visibility)
 
 
 # --------------------------------------------------------------------------------------

@@ -21,6 +21,8 @@ from ancsh.geometry.transforms import SE3, Sim3
 from ancsh.model import ArticulatedModel, Joint, Part
 
 SMALL = Intrinsics.kinect(160, 120)
+# The analytic tests below run on both ray-casting backends.
+backends = pytest.mark.parametrize("backend", ["open3d", "numpy"])
 
 
 def one_part(mesh):
@@ -59,21 +61,23 @@ def test_intrinsics_round_trip_and_errors():
 
 
 # --- depth ----------------------------------------------------------------------------
-def test_depth_of_fronto_parallel_plate_is_its_distance():
+@backends
+def test_depth_of_fronto_parallel_plate_is_its_distance(backend):
     """A 4 m wide plate 2 m ahead fills the view; every pixel sees its front face."""
     d, t = 2.0, 0.01
     model = one_part(trimesh.creation.box((4.0, 4.0, t)))
-    frame = render_depth(model, [], SE3(translation=[0.0, 0.0, d]), SMALL)
+    frame = render_depth(model, [], SE3(translation=[0.0, 0.0, d]), SMALL, backend=backend)
     np.testing.assert_allclose(frame.depth, d - t / 2, rtol=0, atol=1e-6)
     assert np.all(frame.part_ids == 0)
 
 
-def test_depth_of_tilted_plane_matches_ray_plane_intersection():
+@backends
+def test_depth_of_tilted_plane_matches_ray_plane_intersection(backend):
     rng = np.random.default_rng(3)
     R = axis_angle_matrix(np.array([1.0, 0.3, 0.0]) / np.hypot(1.0, 0.3), 0.5)
     T = Sim3(R, [0.05, -0.02, 3.0])
     model = one_part(trimesh.creation.box((6.0, 6.0, 0.02)))
-    frame = render_depth(model, [], T, SMALL)
+    frame = render_depth(model, [], T, SMALL, backend=backend)
     n = R @ np.array([0.0, 0.0, 1.0])  # plate normal in the camera frame
     face_z = 0.01 * np.sign(T.inverse().apply(np.zeros(3))[2])  # the face towards the camera
     point = T.apply(np.array([0.0, 0.0, face_z]))
@@ -85,7 +89,8 @@ def test_depth_of_tilted_plane_matches_ray_plane_intersection():
     np.testing.assert_allclose(frame.depth[v[pick], u[pick]], z_expected[pick], rtol=1e-5)
 
 
-def test_part_ids_follow_the_joint_state():
+@backends
+def test_part_ids_follow_the_joint_state(backend):
     """Two plates side by side at the same depth; the right one slides by q along x, so the
     id boundary sits at the column u = fx * x_boundary / z + cx."""
     plate = trimesh.creation.box((0.4, 0.4, 0.01))
@@ -97,7 +102,7 @@ def test_part_ids_follow_the_joint_state():
     z = 2.0
     for q in (0.0, 0.1):
         T = SE3(translation=[-0.2, 0.0, z])  # left plate spans x in [-0.4, 0], right [q, 0.4 + q]
-        frame = render_depth(model, [q], T, SMALL)
+        frame = render_depth(model, [q], T, SMALL, backend=backend)
         row = frame.part_ids[int(SMALL.cy)]
         u = np.arange(SMALL.width)
         x = (u - SMALL.cx) / SMALL.fx * (z - 0.005)
@@ -107,7 +112,8 @@ def test_part_ids_follow_the_joint_state():
         assert np.all(frame.depth[frame.part_ids == -1] == 0)
 
 
-def test_crop_window_matches_full_image_cast():
+@backends
+def test_crop_window_matches_full_image_cast(backend):
     """The renderer casts rays only inside the projected bounding rectangle; a helper part
     behind the camera forces a whole-image cast, which must give the same image."""
     rng = np.random.default_rng(0)
@@ -119,8 +125,8 @@ def test_crop_window_matches_full_image_cast():
         joints=(Joint("fixed", "prismatic", "box", "behind", axis=[1, 0, 0], lower=0.0, upper=0.0,
                       origin=SE3(translation=behind)),),
     )
-    cropped = render_depth(one_part(box), [], T, SMALL)
-    full = render_depth(model, [0.0], T, SMALL)
+    cropped = render_depth(one_part(box), [], T, SMALL, backend=backend)
+    full = render_depth(model, [0.0], T, SMALL, backend=backend)
     assert 0 < (cropped.depth > 0).sum() < SMALL.width * SMALL.height / 2
     np.testing.assert_array_equal(full.part_ids, cropped.part_ids)
     np.testing.assert_allclose(full.depth, cropped.depth, atol=1e-6)
@@ -197,10 +203,11 @@ def _front_fraction(w, h, t):
     return (w * h) / (2 * w * h + 2 * w * t + 2 * h * t)
 
 
-def test_visibility_of_free_and_half_occluded_plate():
+@backends
+def test_visibility_of_free_and_half_occluded_plate(backend):
     """The back plate is half hidden behind the front plate at q = 0 and free at q = 0.6."""
     model = two_plates()
-    r = ModelRenderer(model, visibility_samples=4000)
+    r = ModelRenderer(model, visibility_samples=4000, backend=backend)
     front = _front_fraction(0.2, 0.2, 0.002)
     se = 3 * np.sqrt(0.25 / 4000)
     occluded = r.render([0.0], T_PLATES, SMALL, visibility=True)
@@ -214,9 +221,10 @@ def test_visibility_of_free_and_half_occluded_plate():
     assert hidden.visibility[1] == 0.0 and hidden.part_pixels(2)[1] == 0
 
 
-def test_visibility_counts_only_the_inside_of_the_image():
+@backends
+def test_visibility_counts_only_the_inside_of_the_image(backend):
     model = one_part(trimesh.creation.box((4.0, 4.0, 0.002)))  # much wider than the view
-    frame = render_depth(model, [], SE3(translation=[0, 0, 1.0]), SMALL, visibility=True)
+    frame = render_depth(model, [], SE3(translation=[0, 0, 1.0]), SMALL, visibility=True, backend=backend)
     # the view covers |x| <= z * (W/2) / fx of the 4 m plate's front face
     half_w = 1.0 * (SMALL.width / 2) / SMALL.fx
     half_h = 1.0 * (SMALL.height / 2) / SMALL.fy

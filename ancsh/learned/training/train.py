@@ -163,8 +163,9 @@ def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path
 
     Everything of a forward pass that depends only on a frame's points (farthest-point centres,
     ball-query neighbourhoods, interpolation indices and weights), computed once, ``batch_size``
-    frames at a time, as compact numpy arrays with a leading frame axis (indices int32, weights
-    float32); :meth:`Neighbourhoods.from_numpy` turns rows of it into a batch.
+    frames at a time on the device of ``model``'s parameters, as compact numpy arrays with a leading
+    frame axis (indices int32, weights float32); :meth:`Neighbourhoods.from_numpy` turns rows of it
+    into a batch.
 
     Parameters
     ----------
@@ -188,11 +189,14 @@ def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path
         with np.load(path) as z:
             if str(z["key"]) == key:
                 return {k: z[k] for k in z.files if k != "key"}
+    from ..devices import model_device
+
+    device = model_device(model)  # on a GPU the sampling and grouping run there too
     chunks = []
     with torch.no_grad():
         for start in range(0, len(points), batch_size):
             x = torch.from_numpy(np.ascontiguousarray(points[start:start + batch_size], dtype=np.float32))
-            chunks.append(model.neighbourhoods(x).numpy())
+            chunks.append(model.neighbourhoods(x.to(device)).numpy())
     cache = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
     if path is not None:
         tmp = Path(path).with_suffix(".tmp.npz")
