@@ -1,0 +1,99 @@
+"""Tables of docs/results/capacity_gpu.md from the GPU run's histories and the CPU evaluations.
+
+    python docs/results/capacity_gpu/report.py EVAL_DIR [EVAL_DIR ...] > tables.md
+
+Each EVAL_DIR is the --out folder of one `ancsh evaluate --category laptop ... --real builtin` (its
+laptop.json); the label of a row is the weights file's stem (``shipped`` for the shipped network).
+"""
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RUNS = {"w05": "width 0.5, 256/64 centres, 32/32 neighbours, 1 backbone (the shipped layout)",
+        "w10ref": "width 1.0, 512/128 centres, 32/64 neighbours (the paper's sampling), 1 backbone",
+        "w10ref2": "width 1.0, the paper's sampling, 2 backbones (the paper's layout)"}
+STEPS = (2000, 5000, 7000, 10000)
+
+
+def history(run):
+    with open(HERE / f"history_{run}.csv") as f:
+        return list(csv.DictReader(f))
+
+
+def curves() -> list[str]:
+    out = ["| run | steps in 300 s | s / step | " + " | ".join(f"step {s}: NPCS err / axis (°) / val loss" for s in STEPS)
+           + " | last: NPCS err / seg acc / assoc acc |", "|---" * (4 + len(STEPS)) + "|"]
+    for run in RUNS:
+        rows = history(run)
+        by_step = {int(r["step"]): r for r in rows}
+        last = rows[-1]
+        cells = []
+        for s in STEPS:
+            r = by_step.get(s)
+            cells.append("-" if r is None else
+                         f"{float(r['val_npcs_err']):.4f} / {float(r['val_axis_err_deg']):.3f} / {float(r['val_total']):.4f}")
+        out.append(f"| {run} | {last['step']} | {float(last['elapsed_s']) / int(last['step']):.3f} | " + " | ".join(cells)
+                   + f" | {float(last['val_npcs_err']):.4f} / {float(last['val_seg_acc']):.4f} / {float(last['val_assoc_acc']):.4f} |")
+    return out
+
+
+def _pair(values, fmt):
+    return ", ".join(format(v, fmt) for v in values)
+
+
+def table1(dirs) -> list[str]:
+    out = ["| network | step | procedural: rotation (°) mean | median | translation | joint axis (°) | state (°) "
+           "| real split: rotation (°) mean | joint axis (°) | state (°) |", "|---" * 10 + "|"]
+    for d in dirs:
+        rep = json.loads((Path(d) / "laptop.json").read_text())
+        s = rep["settings"]
+        name = Path(s["weights"]).stem.replace("_best", "")
+        name = "shipped" if name == "laptop" else name
+        m = rep["summary"]["methods"]["exact_reduced"]
+        r = rep["real"]["summary"]["methods"]["exact_reduced"]
+        out.append(f"| {name} | {s['weights_step']} | {_pair(m['rot_deg']['mean'], '.2f')} | {_pair(m['rot_deg']['median'], '.2f')} "
+                   f"| {_pair(m['trans']['mean'], '.3f')} | {m['axis_deg']['mean'][0]:.2f} | {m['state_err']['mean'][0]:.2f} "
+                   f"| {_pair(r['rot_deg']['mean'], '.2f')} | {r['axis_deg']['mean'][0]:.2f} | {r['state_err']['mean'][0]:.2f} |")
+    return out
+
+
+def paired(dirs, reference="w05", seed=0, draws=2000) -> list[str]:
+    """Each network against ``reference`` on the same frames: mean part rotation, share of frames lower, and a 95 %
+    interval of the mean difference by resampling the test instances (the errors are per-instance biases)."""
+    import numpy as np
+
+    reps = {}
+    for d in dirs:
+        rep = json.loads((Path(d) / "laptop.json").read_text())
+        name = Path(rep["settings"]["weights"]).stem.replace("_best", "")
+        reps["shipped" if name == "laptop" else name] = rep
+    ref = reps[reference]
+    inst = np.array(ref["per_frame"]["instance"])
+    names = np.unique(inst)
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, len(names), (draws, len(names)))
+    out = [f"| network | mean part rotation (°) | minus {reference} | 95 % interval (instances resampled) "
+           f"| frames lower than {reference} |", "|---" * 5 + "|"]
+    r0 = np.asarray(ref["per_frame"]["exact_reduced"]["rot_deg"], float).mean(axis=1)
+    for name, rep in reps.items():
+        if list(rep["per_frame"]["instance"]) != list(inst):
+            raise ValueError(f"{name}: not the frames of {reference}")
+        r = np.asarray(rep["per_frame"]["exact_reduced"]["rot_deg"], float).mean(axis=1)
+        diff = r - r0
+        per_inst = np.array([diff[inst == n].mean() for n in names])
+        counts = np.array([(inst == n).sum() for n in names])
+        boot = (per_inst[picks] * counts[picks]).sum(axis=1) / counts[picks].sum(axis=1)
+        lo, hi = np.percentile(boot, [2.5, 97.5])
+        out.append(f"| {name} | {r.mean():.2f} | {diff.mean():+.2f} | [{lo:+.2f}, {hi:+.2f}] | {np.mean(diff < 0):.0%} |")
+    return out
+
+
+if __name__ == "__main__":
+    print("\n".join(curves()))
+    print()
+    print("\n".join(table1(sys.argv[1:])))
+    print()
+    print("\n".join(paired(sys.argv[1:])))
