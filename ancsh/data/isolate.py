@@ -31,7 +31,7 @@ import numpy as np
 
 from .render import Intrinsics, valid_depth_pixels
 
-__all__ = ["ObjectHint", "Cluster", "Isolation", "behind_surroundings", "isolate_object", "parse_hint"]
+__all__ = ["ObjectHint", "Cluster", "Isolation", "behind_surroundings", "isolate_object", "out_of_view", "parse_hint"]
 
 # the opening that parts a support plane from a face touching it (radius 2 grid pixels)
 _DISK = np.array([[0, 1, 1, 1, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 1, 1, 1, 0]], dtype=bool)
@@ -87,6 +87,11 @@ BACKGROUND_RING = 3
 BACKGROUND_JUMP_M = 0.03
 BACKGROUND_JUMPS = 0.2
 BACKGROUND_BEHIND = 0.8
+#: A segment runs out of the view (only part of it is seen: a sliver of wall or floor at the image's edge, or an
+#: object cut by it) when at least OUT_OF_VIEW_SHARE of its outline lies within OUT_OF_VIEW_PIXELS of the image's edge
+#: (or two grid strides of the isolation, whose segments can stop short of the edge by that much).
+OUT_OF_VIEW_SHARE = 0.1
+OUT_OF_VIEW_PIXELS = 3
 #: Segments smaller than this many grid pixels are noise.
 MIN_SEGMENT_GRID_PIXELS = 20
 
@@ -458,6 +463,40 @@ def _disk(radius: int) -> np.ndarray:
     """A disk of ``radius`` grid pixels, as a structuring element."""
     yy, xx = np.mgrid[-radius:radius + 1, -radius:radius + 1]
     return yy ** 2 + xx ** 2 <= radius * radius + 1
+
+
+def out_of_view(mask, stride: int = 1) -> tuple[bool, float]:
+    """Whether the segment ``mask`` runs out of the image (module constants ``OUT_OF_VIEW_*``).
+
+    Parameters
+    ----------
+    mask : (H, W) bool
+    stride : int
+        The grid stride of the isolation that found the segment (:attr:`Isolation.stride`).
+
+    Returns
+    -------
+    (bool, float)
+        The verdict and the share of the segment's outline (its pixels with a neighbour outside it) within
+        ``max(OUT_OF_VIEW_PIXELS, 2 stride)`` of the image's edge (NaN for an empty mask).
+    """
+    from scipy.ndimage import binary_erosion
+
+    m = np.asarray(mask, dtype=bool)
+    if m.ndim != 2:
+        raise ValueError(f"mask: expected an (H, W) image, got shape {m.shape}")
+    outline = m & ~binary_erosion(m, border_value=0)
+    n = int(np.count_nonzero(outline))
+    if n == 0:
+        return False, float("nan")
+    if isinstance(stride, bool) or int(stride) != stride or stride < 1:
+        raise ValueError(f"stride: expected a positive integer, got {stride!r}")
+    k = max(OUT_OF_VIEW_PIXELS, 2 * int(stride))
+    edge = np.zeros(m.shape, dtype=bool)
+    edge[:k, :] = edge[-k:, :] = True
+    edge[:, :k] = edge[:, -k:] = True
+    share = np.count_nonzero(outline & edge) / n
+    return bool(share >= OUT_OF_VIEW_SHARE), float(share)
 
 
 def behind_surroundings(depth, mask) -> tuple[bool, float, float]:

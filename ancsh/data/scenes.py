@@ -28,13 +28,19 @@ STAIR_STEPS = 5
 
 
 def clutter_model(rng, size: float):
-    """A rigid clutter object about ``size`` metres across: a box, slab, cylinder, sphere or a piece of wall, or two of them."""
+    """A rigid clutter object about ``size`` metres across: a box, slab, cylinder, sphere or a piece of wall, or two of them.
+
+    The model's name says which: ``"clutter:box"``, ``"clutter:wall+sphere"``, ...
+    """
     import trimesh
 
     from ..model.articulated import ArticulatedModel, Part
 
+    kinds = []
+
     def piece():
-        kind = rng.choice(["box", "slab", "cylinder", "sphere", "wall", "wall"])
+        kind = str(rng.choice(["box", "slab", "cylinder", "sphere", "wall", "wall"]))
+        kinds.append(kind)
         s = size * rng.uniform(0.4, 1.0)
         if kind == "box":
             return trimesh.creation.box(s * rng.uniform(0.3, 1.0, 3))
@@ -53,7 +59,7 @@ def clutter_model(rng, size: float):
         meshes.append(m)
     mesh = trimesh.util.concatenate(meshes)
     mesh.apply_translation(-mesh.bounds.mean(axis=0))
-    return ArticulatedModel((Part("clutter", mesh),), (), name="clutter")
+    return ArticulatedModel((Part("clutter", mesh),), (), name="clutter:" + "+".join(kinds))
 
 
 def curtain_mesh(width: float, height: float, amplitude: float, wavelength: float, phase: float = 0.0):
@@ -90,6 +96,10 @@ class SceneFrame:
     support : str
         ``"floor"`` or ``"stairs"``.
     with_object : bool
+    clutter : (H, W) int
+        Which clutter piece each pixel shows (``-1``: none; ``k``: the ``k``-th of ``clutter_kinds``).
+    clutter_kinds : tuple of str
+        What each clutter piece is (:func:`clutter_model`'s name without ``"clutter:"``, e.g. ``"box"``).
     """
 
     depth: np.ndarray
@@ -98,6 +108,8 @@ class SceneFrame:
     frame: object
     support: str
     with_object: bool = True
+    clutter: np.ndarray | None = None
+    clutter_kinds: tuple = ()
 
 
 def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool | None = None) -> SceneFrame:
@@ -131,7 +143,7 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
     eye = model.R_canon_base @ frame.T_cam_base.inverse().translation  # the camera in the canonical frame
     back = -1.0 if eye[2] > centre[2] else 1.0  # behind the object, seen from the camera
     stairs = bool(rng.random() < 1 / 3) if stairs is None else bool(stairs)
-    pieces = []
+    pieces, clutter_pieces, kinds = [], [], []
     if stairs:
         edge = (lo[2] if back < 0 else hi[2]) + back * rng.uniform(0.02, 0.3)  # the first riser behind the object
         ground = trimesh.creation.box((8.0, 0.02, 4.0))
@@ -156,20 +168,26 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
     wall.apply_translation([centre[0], lo[1], wall_z])
     pieces.append(wall)
     for side in rng.permutation([-1.0, 1.0])[: rng.integers(0, 3)]:
-        clutter = clutter_model(rng, size * rng.uniform(0.3, 1.0)).parts[0].mesh.copy()
+        piece = clutter_model(rng, size * rng.uniform(0.3, 1.0))
+        clutter = piece.parts[0].mesh.copy()
         b = clutter.bounds
         x = (hi[0] if side > 0 else lo[0]) + side * (rng.uniform(0.02, 0.3) * size + (b[1, 0] - b[0, 0]) / 2)
         clutter.apply_translation([x, lo[1] - b[0, 1], rng.uniform(lo[2], hi[2])])
-        pieces.append(clutter)
+        clutter_pieces.append(clutter)
+        kinds.append(piece.name.split(":", 1)[1])
     to_base = np.eye(4)
     to_base[:3, :3] = model.R_canon_base.T  # canonical axes -> the base frame
     views = [renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth] if with_object else []
-    mesh = trimesh.util.concatenate(pieces)
-    mesh.apply_transform(to_base)
-    surroundings = ArticulatedModel((Part("surroundings", mesh),), (), name="surroundings")
-    views.append(ModelRenderer(surroundings).render(np.zeros(0), frame.T_cam_base, frame.intrinsics).depth)
+    for group in [pieces] + [[c] for c in clutter_pieces]:  # the walls and supports, then each clutter piece
+        mesh = trimesh.util.concatenate(group)
+        mesh.apply_transform(to_base)
+        surroundings = ArticulatedModel((Part("surroundings", mesh),), (), name="surroundings")
+        views.append(ModelRenderer(surroundings).render(np.zeros(0), frame.T_cam_base, frame.intrinsics).depth)
     stack = np.stack([np.where(v > 0, v, np.inf) for v in views])
     depth = stack.min(axis=0)
-    visible = np.isfinite(depth) & (np.argmin(stack, axis=0) == 0) if with_object else np.zeros(depth.shape, bool)
+    nearest = np.where(np.isfinite(depth), np.argmin(stack, axis=0), -1)
+    visible = nearest == 0 if with_object else np.zeros(depth.shape, bool)
+    first_clutter = len(views) - len(clutter_pieces)
+    clutter = np.where(nearest >= first_clutter, nearest - first_clutter, -1)
     return SceneFrame(np.where(np.isfinite(depth), depth, 0.0), frame.intrinsics, visible, frame,
-                      "stairs" if stairs else "floor", bool(with_object))
+                      "stairs" if stairs else "floor", bool(with_object), clutter, tuple(kinds))

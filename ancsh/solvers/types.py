@@ -306,6 +306,7 @@ class FitStatus(str, Enum):
     LARGE_RESIDUAL = "large_residual"  # the points lie far from the fitted parts (far above validation frames)
     NO_OBJECT = "no_object"  # no candidate segment of the image passed the checks: the object is not found
     NOT_THIS_CATEGORY = "not_this_category"  # the fitted segment does not look like an object of the category
+    OUT_OF_VIEW = "out_of_view"  # the segment found without a mask or hint runs out of the image: only part is seen
 
 
 @dataclass(frozen=True)

@@ -40,12 +40,23 @@ def _record(pred, scene, category, index, mode, seconds) -> dict:
     if mode == "auto" and pred.isolation is not None:
         m, v = np.asarray(pred.isolation.mask, dtype=bool), scene.visible
         rec["mask_iou"] = float(np.count_nonzero(m & v) / max(np.count_nonzero(m | v), 1))
+    if mode == "empty" and r.ok and pred.isolation is not None:  # what was taken for the object
+        rec["found"] = _found_on(np.asarray(pred.isolation.mask, dtype=bool), scene)
     if r.ok and mode != "empty":
         ev = evaluate_fit(r, scene.frame.gt)
         rec["rot_deg"] = float(np.mean([p.rot_deg for p in ev.parts]))
         errs = [j.state_err for j in ev.joints if np.isfinite(j.state_err)]
         rec["state_err"] = float(np.mean(errs)) if errs else None
     return rec
+
+
+def _found_on(mask, scene) -> str:
+    """``"clutter:<kind>"`` when most of ``mask`` shows one clutter piece, else ``"surroundings"`` (walls, supports)."""
+    labels = scene.clutter[mask] if scene.clutter is not None else np.empty(0, int)
+    counts = np.bincount(labels[labels >= 0], minlength=len(scene.clutter_kinds))
+    if len(counts) and counts.max() > 0.5 * max(np.count_nonzero(mask), 1):
+        return "clutter:" + scene.clutter_kinds[int(counts.argmax())]
+    return "surroundings"
 
 
 def measure_scenes(categories, frames: int = 20, *, seed: int = 0, progress=None) -> dict:
@@ -149,6 +160,15 @@ def write_scenes_report(results: dict, path, *, command: str) -> Path:
               f"floor {sum(r['ok'] for r in floor)}/{len(floor)} success, mask IoU {_median([r['mask_iou'] for r in floor], '.2f')}; "
               f"stairs {sum(r['ok'] for r in stairs)}/{len(stairs)} success, mask IoU "
               f"{_median([r['mask_iou'] for r in stairs], '.2f')}.", ""]
+    false = [r for r in recs if r["mode"] == "empty" and r["ok"] and r.get("found")]
+    if false:
+        import collections
+
+        counts = collections.Counter(r["found"] for r in false)
+        lines += ["Empty scenes reported as an object, by what was taken for it (`clutter:<kind>`: most of the isolated "
+                  "pixels show that clutter piece -- a closed box and a `box` piece look alike in depth; "
+                  "`surroundings`: the walls, floor or stairs): "
+                  + ", ".join(f"{k} {n}" for k, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))) + ".", ""]
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), {"command": command, "date": prov.date, "machine": prov.machine,
                                            "settings": results["settings"], "records": recs, "hidden": hidden},

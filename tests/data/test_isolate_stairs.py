@@ -111,3 +111,29 @@ def test_a_wide_region_without_depth_is_no_dead_band():
     border = _view_border(gv)
     assert not border[20, 28] and not border[20, 29]  # an object's edge against the background: not the view's end
     assert border[0, 10] and border[20, 0]
+
+
+def test_a_segment_reaching_the_image_edge_runs_out_of_the_view_and_one_inside_does_not():
+    from ancsh.data.isolate import OUT_OF_VIEW_SHARE, out_of_view
+
+    inside = np.zeros((60, 80), dtype=bool)
+    inside[20:40, 30:50] = True
+    assert out_of_view(inside) == (False, 0.0)
+    sliver = np.zeros((60, 80), dtype=bool)
+    sliver[0:6, 10:40] = True  # cut by the top edge: its top row and the first pixels of its sides are outline there
+    cut, share = out_of_view(sliver)
+    assert cut and share >= OUT_OF_VIEW_SHARE
+    outline = sliver & ~np.pad(sliver, 1)[2:, 1:-1] | sliver & ~np.pad(sliver, 1)[:-2, 1:-1] \
+        | sliver & ~np.pad(sliver, 1)[1:-1, 2:] | sliver & ~np.pad(sliver, 1)[1:-1, :-2]
+    assert share == pytest.approx(np.count_nonzero(outline[:3]) / np.count_nonzero(outline))
+    grazing = inside.copy()
+    grazing[39, 79] = True  # one outline pixel of many near the edge: below the share
+    assert out_of_view(grazing)[0] is False
+    empty = out_of_view(np.zeros((10, 10), dtype=bool))
+    assert empty[0] is False and np.isnan(empty[1])
+    stops_short = np.roll(sliver, 3, axis=0)  # 3 pixels short of the edge: out of view on a grid of stride 2
+    assert out_of_view(stops_short)[0] is False and out_of_view(stops_short, stride=2)[0] is True
+    with pytest.raises(ValueError, match="mask"):
+        out_of_view(np.zeros(10, dtype=bool))
+    with pytest.raises(ValueError, match="stride"):
+        out_of_view(sliver, stride=0)

@@ -37,3 +37,19 @@ def test_the_object_stands_in_front_of_its_surroundings_and_leaves_them_unchange
     assert np.all(empty.depth[v] >= scene.depth[v] - 1e-9)  # what the object hides lies behind it
     again = render_scene(gen, 0, 7, stairs=stairs)
     assert np.array_equal(again.depth, scene.depth) and scene.frame.frame_index == frame.frame_index
+
+
+def test_clutter_pixels_are_labelled_with_the_piece_they_show(gen):
+    """The clutter label image marks each piece's nearest pixels; every kind is one of clutter_model's."""
+    found = False
+    for seed in range(12):
+        scene = render_scene(gen, 0, seed, with_object=False)
+        assert scene.clutter.shape == scene.depth.shape and scene.clutter.min() >= -1
+        assert scene.clutter.max() < len(scene.clutter_kinds)
+        for kind in scene.clutter_kinds:
+            assert set(kind.split("+")) <= {"box", "slab", "cylinder", "sphere", "wall"}
+        if len(scene.clutter_kinds) and (scene.clutter >= 0).any():
+            found = True
+            labelled = scene.clutter >= 0
+            assert np.all(scene.depth[labelled] > 0)
+    assert found

@@ -54,7 +54,7 @@ def test_cli_round_trip_writes_json_and_picture(files, tiny_laptop_weights, rend
     assert data["points"] == 256 and data["valid_pixels"] > 256
     assert data["status"] in {"success", "max_iter", "infeasible", "numerical_failure", "too_few_points", "degenerate",
                               "implausible_size", "too_few_inliers", "large_residual", "no_object",
-                              "not_this_category"}
+                              "not_this_category", "out_of_view"}
     assert [p["name"] for p in data["parts"]] == list(frame.part_names)
     assert [j["name"] for j in data["joints"]] == list(frame.joint_names)
     assert data["input"]["intrinsics"] == frame.intrinsics.to_json()

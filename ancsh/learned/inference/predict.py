@@ -543,7 +543,8 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     removal, or those in the box; up to :data:`MAX_VERIFIED`) are fitted. Without one, up to
     :data:`MAX_VERIFIED` candidates whose size fits the category (or the first, when none does) are
     fitted. A segment that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or
-    a curtain seen around nearer things) is no object (``not_this_category``). The best-supported fit that passes
+    a curtain seen around nearer things) is no object (``not_this_category``); without a hint, one that runs out of
+    the image (:func:`ancsh.data.isolate.out_of_view`: a sliver of wall or floor at the edge) is ``out_of_view``. The best-supported fit that passes
     every check wins; when none passes, the best-supported one comes back with status ``no_object``.
     """
     import dataclasses
@@ -554,7 +555,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         chosen = list(isolation.hinted[:MAX_VERIFIED]) or isolation.order[:1]
     else:
         chosen = [c for c in isolation.order if isolation.clusters[c].fits_category][:MAX_VERIFIED] or isolation.order[:1]
-    from ...data.isolate import behind_surroundings
+    from ...data.isolate import behind_surroundings, out_of_view
 
     attempts, verified = {}, []
     for c in chosen:
@@ -562,10 +563,16 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         a = _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
         if a["result"].ok:
             background, jumps, behind = behind_surroundings(d, mask)
+            cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
             if background:
                 a["result"] = dataclasses.replace(a["result"], status=FitStatus.NOT_THIS_CATEGORY, message=(
                     f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
                     f"jumps around it, {100 * jumps:.0f} % of its edge): a background surface, not an object"))
+            elif cut:
+                a["result"] = dataclasses.replace(a["result"], status=FitStatus.OUT_OF_VIEW, message=(
+                    f"check view: the segment runs out of the image ({100 * edge_share:.0f} % of its outline on the "
+                    "image's edge): only part of it is seen, so the fit cannot be checked as a whole object; give a "
+                    "mask or a --pixel / --box hint to fit it anyway"))
         attempts[c] = a
         verified.append({"segment": int(c), "status": a["result"].status.value, "p_good": a["p_good"],
                          "p_object": a["p_object"], "score": _score(a), "diagonal_m": isolation.clusters[c].diagonal,
