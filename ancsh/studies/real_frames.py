@@ -76,7 +76,8 @@ def _run(frame, category, mode, provider, truth, *, seed, num_points):
     return rec, pred
 
 
-def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: int = 1024, progress: bool = True) -> dict:
+def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: int = 1024, progress: bool = True,
+                        weights=None) -> dict:
     """Run the real-frame benchmark (module docstring) on ``folders``.
 
     Parameters
@@ -89,25 +90,30 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
         Sampling and RANSAC seed of every run.
     num_points : int
         Points per run.
+    weights : dict, optional
+        ``{category: weights file}`` instead of the shipped networks (a network under test; its calibrations of
+        ``p_good`` / ``p_object`` apply only where they were made with it).
 
     Returns
     -------
     dict
-        ``{"records": [...], "frames": [...], "predictions": {(frame, category, mode): DepthPrediction}}``;
-        ``predictions`` is for the pictures and is not JSON.
+        ``{"records": [...], "frames": [...], "predictions": {(frame, category, mode): DepthPrediction},
+        "weights": {category: {"file": str, "sha256": str}}}``; ``predictions`` is for the pictures and is not JSON.
     """
     from ..data.real_frames import load_real_frame
     from ..learned.inference.provider import LearnedProvider
     from ..learned.network.weights import shipped_categories, weights_path
 
+    weights = dict(weights or {})
     frames = [load_real_frame(f) for f in folders]
     negatives = list(categories) if categories else list(shipped_categories())
     providers = {}
 
     def provider(category):
         if category not in providers:
-            providers[category] = (LearnedProvider(category, seed=seed, refine="auto")
-                                   if weights_path(category).is_file() else None)
+            source = weights.get(category, category)
+            providers[category] = (LearnedProvider(source, seed=seed, refine="auto")
+                                   if category in weights or weights_path(category).is_file() else None)
         return providers[category]
 
     records, predictions, summaries = [], {}, []
@@ -127,8 +133,10 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
     isolation = [{"frame": frame.name, "size": [frame.intrinsics.width, frame.intrinsics.height], "category": c,
                   "ms": isolation_times(frame, c, seed=seed)}
                  for frame in frames for c in dict.fromkeys(o.category for o in frame.objects or ()) or negatives]
+    used = {c: {"file": str(w), "sha256": getattr(providers[c].network, "sha256", None)}
+            for c, w in weights.items() if providers.get(c) is not None}
     return {"records": records, "frames": summaries, "predictions": predictions, "frame_data": frames,
-            "isolation": isolation}
+            "isolation": isolation, "weights": used}
 
 
 #: Isolation is timed alone this many times per frame and category (the median is reported).
@@ -205,6 +213,9 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         f"Command: `{command}`  ",
         f"Date: {prov.date}; machine: {prov.machine_text}  ",
         "Study: `ancsh.studies.real_frames` (frames: `ancsh.data.real_frames`, schema `real-frame-truth/1`)", "",
+        *([("Networks under test (not the shipped ones): " + ", ".join(
+            f"{c} `{w['file']}` (sha256 {str(w['sha256'])[:12]})" for c, w in results["weights"].items())), ""]
+          if results.get("weights") else []),
         "Each object is predicted as a user would run `ancsh predict`: with its mask (`mask`), without one (`auto`) and "
         "with a `--pixel` hint at the mask's centre (`pixel`); on a frame with no object of any category, every category "
         "with shipped weights runs without a mask and must not report `success`. Exit = the exit code of `ancsh predict` "
@@ -281,5 +292,6 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), json_safe({"command": command, "date": prov.date, "machine": prov.machine,
                                                      "frames": results["frames"], "records": recs,
-                                                     "isolation_ms": timed}), indent=1)
+                                                     "isolation_ms": timed, "weights": results.get("weights") or {}}),
+               indent=1)
     return path

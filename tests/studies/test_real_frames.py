@@ -88,3 +88,22 @@ def test_the_benchmark_runs_each_mode_and_judges_the_negative_frame(frames, tmp_
     assert all(len(ms) == 5 and min(ms) > 0 for ms in timed.values()) and "## Isolation time" in text
     assert (out.parent / "real_frames_laptop_frame.png").stat().st_size > 0
     assert (out.parent / "real_frames_floor_only.png").stat().st_size > 0
+
+
+def test_a_network_under_test_replaces_the_shipped_one_and_is_named(frames, tmp_path, capsys):
+    from ancsh.learned.network.weights import weights_path
+    from ancsh.outputs import file_sha256
+
+    _, negative, _ = frames
+    shipped = weights_path("laptop")
+    out = tmp_path / "under_test" / "real_frames.md"
+    assert main(["bench", "real-frames", str(negative), "--categories", "laptop", "--weights", f"laptop={shipped}",
+                 "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.with_suffix(".json").read_text())
+    assert data["weights"]["laptop"]["sha256"] == file_sha256(shipped)
+    assert f"--weights laptop={shipped}" in data["command"] and "Networks under test" in out.read_text()
+    for bad, why in ((["--weights", "laptop"], "CATEGORY=FILE"), (["--weights", f"laptop={tmp_path / 'none.pt'}"], "no such file"),
+                     (["--weights", f"laptop={shipped}", "--weights", f"laptop={shipped}"], "given twice")):
+        capsys.readouterr()
+        assert main(["bench", "real-frames", str(negative), *bad, "--out", str(tmp_path / "x.md"), "--quiet"]) == 2
+        assert why in capsys.readouterr().err

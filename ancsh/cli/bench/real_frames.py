@@ -23,6 +23,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling and RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/real-frames-<time>/real_frames.md)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/real_frames.md (when --out is not given)")
+    p.add_argument("--weights", action="append", default=[], metavar="CATEGORY=FILE",
+                   help="a network under test instead of the category's shipped one (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -42,11 +44,24 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--points", str(args.points)]
     if args.seed != 0:
         parts += ["--seed", str(args.seed)]
+    weights = {}
+    for item in args.weights:
+        category, sep, file = item.partition("=")
+        if not sep or not category or not file:
+            raise ValueError(f"--weights: expected CATEGORY=FILE, got {item!r}")
+        if not Path(file).is_file():
+            raise ValueError(f"--weights {item}: no such file")
+        if category in weights:
+            raise ValueError(f"--weights: {category!r} given twice")
+        weights[category] = Path(file)
+        parts += ["--weights", item]
+    if weights and args.update_docs:
+        raise ValueError("--weights: not with --update-docs (docs/results/real_frames.md is the shipped networks')")
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="real_frames.md", command="real-frames")
     results = measure_real_frames(folders, categories=args.categories, seed=args.seed, num_points=args.points,
-                                  progress=not args.quiet)
+                                  progress=not args.quiet, weights=weights)
     write_real_frames_report(results, path, command=command)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
