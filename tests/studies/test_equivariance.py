@@ -1,6 +1,5 @@
 """The camera-roll gain: 1 for correspondences read from the shape, 0 for ones tied to the camera frame."""
 
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
