@@ -161,9 +161,9 @@ class GenerationConfig:
         else:
             d["sequence"] = self.sequence.to_dict()
         if self.urdf is None:  # procedural shapes depend on the generators' version, not only the seed
-            from .procedural import GENERATOR_VERSION
+            from .procedural import generator_version
 
-            d["generator_version"] = GENERATOR_VERSION
+            d["generator_version"] = generator_version(self.category)
         return json.dumps(d, sort_keys=True)
 
 

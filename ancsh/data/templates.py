@@ -208,9 +208,9 @@ def _real_objects(real: str, category: str) -> dict:
 def _stamp(category: str, real: str | None) -> dict:
     """What a library of ``category`` depends on: the generators' version and the catalog's bytes."""
     from .catalog import builtin_catalog_path
-    from .procedural import GENERATOR_VERSION, NUM_TRAIN
+    from .procedural import NUM_TRAIN, generator_version
 
-    stamp = {"generator_version": GENERATOR_VERSION, "procedural_instances": NUM_TRAIN, "catalog_sha256": None}
+    stamp = {"generator_version": generator_version(category), "procedural_instances": NUM_TRAIN, "catalog_sha256": None}
     if real is not None:
         path = builtin_catalog_path() if real == "builtin" else Path(real)
         path = path / "catalog.json" if path.is_dir() else path

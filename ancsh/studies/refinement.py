@@ -91,7 +91,7 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     """
     import json
 
-    from ..data.procedural import GENERATOR_VERSION
+    from ..data.procedural import generator_version
     from ..learned.network.weights import shipped_categories
     from .targets import is_shipped
 
@@ -115,9 +115,9 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
             out.append(RefineDefault(cat, False, "its report is of other weights than the shipped ones (stale)",
                                      str(path), command))
             continue
-        if report["settings"].get("generator_version") != GENERATOR_VERSION:
+        if report["settings"].get("generator_version") != generator_version(cat):
             out.append(RefineDefault(cat, False, f"its report's frames are not of today's generator (version "
-                                     f"{GENERATOR_VERSION}; stale)", str(path), command))
+                                     f"{generator_version(cat)}; stale)", str(path), command))
             continue
         a, b = methods["exact_reduced"], methods["template"]
         on = refinement_helps(report["summary"])

@@ -93,7 +93,7 @@ class TargetRow:
     shipped_sha256 : str or None
         SHA-256 of the shipped weights file (``None``: none shipped).
     generator_version : int or None
-        ``GENERATOR_VERSION`` of the frame generator the report rendered with (``None``: not recorded by
+        Version of the category's frame generator the report rendered with (:func:`ancsh.data.procedural.generator_version`) (``None``: not recorded by
         reports written before it was).
     refined_rot_deg : tuple of float or None
         Mean rotation error per part of the same fits refined against the category template
@@ -118,14 +118,15 @@ class TargetRow:
     @property
     def stale(self) -> str:
         """Why the report does not describe the shipped weights on today's frames ('' when it does)."""
-        from ..data.procedural import GENERATOR_VERSION
+        from ..data.procedural import generator_version
 
         if self.shipped_sha256 is None or self.report_sha256 != self.shipped_sha256:
             return "other weights"
+        today = generator_version(self.category)
         if self.generator_version is None:
-            return f"frame generator version not recorded (re-run ancsh evaluate; today's is {GENERATOR_VERSION})"
-        if self.generator_version != GENERATOR_VERSION:
-            return f"frames of generator version {self.generator_version}, not {GENERATOR_VERSION}"
+            return f"frame generator version not recorded (re-run ancsh evaluate; today's is {today})"
+        if self.generator_version != today:
+            return f"frames of generator version {self.generator_version}, not {today}"
         return ""
 
     @property

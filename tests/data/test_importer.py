@@ -244,7 +244,8 @@ def test_a_dataset_of_other_generators_is_not_resumed(tmp_path, monkeypatch):
     from ancsh.data.generate import GenerationConfig, generate_dataset
 
     cfg = GenerationConfig(category="oven", split="test", shard_size=1)
-    monkeypatch.setattr(procedural, "GENERATOR_VERSION", procedural.GENERATOR_VERSION - 1)
+    older = dict(procedural.GENERATOR_VERSIONS, oven=procedural.generator_version("oven") - 1)
+    monkeypatch.setattr(procedural, "GENERATOR_VERSIONS", older)
     generate_dataset(cfg, 1, tmp_path / "ds", workers=1, progress=False)
     monkeypatch.undo()
     with pytest.raises(ValueError, match="generator_version"):

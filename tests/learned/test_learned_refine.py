@@ -45,10 +45,10 @@ def _report(tmp_path, category, *, rot, rot_refined, state, state_refined, sha=N
 
     summary = {"methods": {"exact_reduced": {"rot_deg": {"mean": rot}, "state_err": {"mean": state}},
                            "template": {"rot_deg": {"mean": rot_refined}, "state_err": {"mean": state_refined}}}}
-    from ancsh.data.procedural import GENERATOR_VERSION
+    from ancsh.data.procedural import generator_version
 
     settings = {"frames": 500, "weights_sha256": sha or file_sha256(weights_path(category)),
-                "generator_version": GENERATOR_VERSION if generator is None else generator}
+                "generator_version": generator_version(category) if generator is None else generator}
     (tmp_path / f"{category}.json").write_text(json.dumps({"command": f"ancsh evaluate --category {category}",
                                                             "settings": settings, "summary": summary}))
 

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from ancsh.data.procedural import GENERATOR_VERSION
+from ancsh.data.procedural import generator_version
 from ancsh.studies.table1 import PAPER_TABLE1
 from ancsh.studies.targets import (
     REAL_RATIO_GOAL, TRAINING_BUDGET_MIN, budget_projection, collect_targets, limit_lines, roll_gains, target_lines, train_test_ratios,
@@ -20,7 +20,7 @@ def _report(category, rot, axis, sha, *, real_rot=None, paper=True, refined_rot=
     data = {
         "category": category,
         "settings": {"part_names": [f"p{i}" for i in range(len(rot))], "joint_names": [f"j{k}" for k in range(len(axis))],
-                     "frames": 7, "weights_sha256": sha, "generator_version": GENERATOR_VERSION},
+                     "frames": 7, "weights_sha256": sha, "generator_version": generator_version(category)},
         "summary": summary,
         "paper": {"table1": PAPER_TABLE1.get(category) if paper else None},
     }

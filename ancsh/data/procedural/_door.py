@@ -6,14 +6,18 @@ closed, a positive state opens the door outwards, the door lies in front of (or 
 the body at rest. The hinge edges and their joint axes, in the base frame (+y up, +z front,
 +x right):
 
-==========  ====================================  ===========  ========================================
-hinge       hinge line                            axis         positive state moves
-==========  ====================================  ===========  ========================================
-``left``    the door's left (-x) vertical edge    ``-y``       the right edge towards +z
-``right``   the door's right (+x) vertical edge   ``+y``       the left edge towards +z
-``bottom``  the door's bottom horizontal edge     ``+x``       the top edge towards +z (and down)
-``top``     a lid's back edge, on the top face    ``-x``       the front edge up (+y)
-==========  ====================================  ===========  ========================================
+=============  ========================================  ======  ==================================
+hinge          hinge line                                axis    positive state moves
+=============  ========================================  ======  ==================================
+``left``       the door's left (-x) vertical edge        ``-y``  the right edge towards +z
+``right``      the door's right (+x) vertical edge       ``+y``  the left edge towards +z
+``bottom``     the door's bottom horizontal edge         ``+x``  the top edge towards +z (and down)
+``top``        a lid's back edge, on the top face        ``-x``  the front edge up (+y)
+``top_left``   a lid's left (-x) edge, on the top face   ``+z``  the right edge up (+y)
+``top_right``  a lid's right (+x) edge, on the top face  ``-z``  the left edge up (+y)
+=============  ========================================  ======  ==================================
+
+The three ``top*`` hinges are lids (:attr:`DoorFrame.is_lid`): their door coordinates lie on the top face.
 
 The child frame has its origin on the hinge line and the base's axes at state 0.
 """
@@ -30,13 +34,15 @@ from ...model.articulated import Joint
 from . import _mesh as m
 from .registry import REVOLUTE
 
-HINGES = ("left", "right", "bottom", "top")
+HINGES = ("left", "right", "bottom", "top", "top_left", "top_right")
 
 _AXES = {
     "left": np.array([0.0, -1.0, 0.0]),
     "right": np.array([0.0, 1.0, 0.0]),
     "bottom": np.array([1.0, 0.0, 0.0]),
     "top": np.array([-1.0, 0.0, 0.0]),
+    "top_left": np.array([0.0, 0.0, 1.0]),
+    "top_right": np.array([0.0, 0.0, -1.0]),
 }
 
 
@@ -49,7 +55,7 @@ class DoorFrame:
     x0, x1 : float
         The door's left and right edges.
     a0, a1 : float
-        Its lower and upper edges along the face: ``y`` on the front face; for a ``top`` lid
+        Its lower and upper edges along the face: ``y`` on the front face; for a lid (``top*``)
         ``z`` (back edge ``a0``, front edge ``a1``).
     face : float
         The face plane: ``z`` of the front face, or ``y`` of the top face for a lid.
@@ -78,6 +84,11 @@ class DoorFrame:
             raise ValueError(f"door frame: expected x1 > x0, a1 > a0, thickness > 0, got {self}")
 
     @property
+    def is_lid(self) -> bool:
+        """The door lies on the top face (hinges ``top``, ``top_left``, ``top_right``)."""
+        return self.hinge.startswith("top")
+
+    @property
     def width(self) -> float:
         return self.x1 - self.x0
 
@@ -95,6 +106,8 @@ class DoorFrame:
             "right": np.array([self.x1, ac, self.face]),
             "bottom": np.array([xc, self.a0, self.face]),
             "top": np.array([xc, self.face, self.a0]),
+            "top_left": np.array([self.x0, self.face, ac]),
+            "top_right": np.array([self.x1, self.face, ac]),
         }[self.hinge]
 
     def to_child(self, lo, hi) -> tuple:
@@ -109,7 +122,7 @@ class DoorFrame:
         corners = []
         for u, v, w in ((lo[0], lo[1], lo[2] + shift), (hi[0], hi[1], hi[2] + shift)):
             x, a = self.x0 + u, self.a0 + v
-            p = np.array([x, a, self.face + w]) if self.hinge != "top" else np.array([x, self.face + w, a])
+            p = np.array([x, self.face + w, a]) if self.is_lid else np.array([x, a, self.face + w])
             corners.append(p - self.pivot)
         c = np.array(corners)
         return c.min(axis=0), c.max(axis=0)
@@ -121,10 +134,10 @@ class DoorFrame:
     def place(self, mesh: trimesh.Trimesh, u: float, v: float, w: float) -> trimesh.Trimesh:
         """Move a piece built facing +z (front door) to door coordinates ``(u, v, w)``.
 
-        For a ``top`` lid the piece is turned so that its +z faces up (+y) (and its +y the back).
+        For a lid the piece is turned so that its +z faces up (+y) (and its +y the back).
         """
         lo, _ = self.to_child([u, v, w], [u, v, w])
-        if self.hinge == "top":
+        if self.is_lid:
             mesh = m.rotated(mesh, [1.0, 0.0, 0.0], -np.pi / 2)
         return m.transformed(mesh, translation=lo)
 

@@ -10,13 +10,18 @@ Variants (the convention allows the door in front or on top):
   door covers; the hinge sits on the door's left (-x) side; the door's right edge swings towards
   +z, upper limit 90-180 degrees;
 - ``top`` loader (35 %): the top deck has a round opening into the drum under a rectangular
-  lid hinged along its back edge (axis -x, the front edge rises), upper limit 80-110 degrees;
+  lid hinged along its back edge (axis -x, the front edge rises) or, for 30 % of them, along its
+  left or right edge (axis +z or -z, the other side edge rises), upper limit 80-110 degrees;
   the controls are on a low backsplash behind the lid (55 %) or on a strip in front of it.
 
 Adding the top loader (issue #11) changed every instance of a seed; the split is unchanged.
+The side hinges (generator version 3 of this category) are drawn last: every other instance is the
+shape its seed gave before.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -32,6 +37,8 @@ INFO = convention("washing_machine")  # the category's one definition (ancsh.dat
 _N = 64  # outline samples
 #: Loader variants and their probabilities.
 _LOADERS = {"front": 0.65, "top": 0.35}
+#: Share of the top loaders whose lid hinges along its left or right edge (half each), not its back edge.
+_SIDE_HINGED = 0.3
 
 
 def build(rng: np.random.Generator, name: str) -> ArticulatedModel:
@@ -76,16 +83,31 @@ def _top_loader(rng: np.random.Generator, name: str) -> ArticulatedModel:
         pieces += m.feet(0.02, feet_h, width / 2 - 0.05, depth / 2 - 0.05)
     base = Part("base", m.concat(pieces))
 
-    # --- lid: a slab, a glass window (55 %), a grip along the front edge --------------------
+    # --- lid: a slab, a glass window (55 %), a grip along the edge opposite the hinge -------
+    window = rng.random() < 0.55
+    grip_share = rng.uniform(0.3, 0.7)
+    grip_h = rng.uniform(0.008, 0.02)
+    upper = np.deg2rad(rng.uniform(80.0, 110.0))
+    # drawn last, so that a lid hinged along its back edge is the shape its seed gave before side hinges
+    side = rng.random()
+    hinge = "top" if side >= _SIDE_HINGED else ("top_left" if side < _SIDE_HINGED / 2 else "top_right")
+    lid = replace(lid, hinge=hinge)
     lid_pieces = [lid.box([0.0, 0.0, 0.0], [lid.width, lid.length, lid.thickness])]
-    if rng.random() < 0.55:
+    if window:
         inset = 0.2 * min(lid.width, lid.length)
         lid_pieces.append(lid.box([inset, inset, lid.thickness], [lid.width - inset, lid.length - inset, lid.thickness + 0.004]))
-    grip_w = lid.width * rng.uniform(0.3, 0.7)
-    lid_pieces.append(lid.box([(lid.width - grip_w) / 2, lid.length - 0.03, lid.thickness],
-                              [(lid.width + grip_w) / 2, lid.length, lid.thickness + rng.uniform(0.008, 0.02)]))
+    w_top = lid.thickness + grip_h
+    if hinge == "top":  # the grip along the front edge
+        grip_w = lid.width * grip_share
+        lid_pieces.append(lid.box([(lid.width - grip_w) / 2, lid.length - 0.03, lid.thickness],
+                                  [(lid.width + grip_w) / 2, lid.length, w_top]))
+    else:  # along the free side edge
+        grip_l = lid.length * grip_share
+        u0 = lid.width - 0.03 if hinge == "top_left" else 0.0
+        lid_pieces.append(lid.box([u0, (lid.length - grip_l) / 2, lid.thickness],
+                                  [u0 + 0.03, (lid.length + grip_l) / 2, w_top]))
     door = Part("door", m.concat(lid_pieces))
-    joint = lid.joint("door_hinge", np.deg2rad(rng.uniform(80.0, 110.0)))
+    joint = lid.joint("door_hinge", upper)
     return ArticulatedModel((base, door), (joint,), name=name, category="washing_machine")
 
 

@@ -45,7 +45,7 @@ import numpy as np
 
 from ..._machine import machine_facts
 from ...solvers.types import Correspondences, FitResult, Observation
-from ...data.procedural import GENERATOR_VERSION
+from ...data.procedural import generator_version
 from ...learned.network.weights import missing_weights_error
 from ...learned.network.weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 from ...outputs import json_safe  # noqa: F401  (re-exported)
@@ -546,7 +546,7 @@ def evaluate_category(
             "split": "procedural" if real is None else "real", "instances": instances, "real_catalog": real,
             "real_instances": [o.name for o in gen.real_instances] if real is not None else [],
             "real_split": real_split if real is not None else None,
-            "num_points": gen.config.num_points, "generator_version": GENERATOR_VERSION,
+            "num_points": gen.config.num_points, "generator_version": generator_version(category),
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
             "time_limit_s": time_limit_s, "refine": refine, "refiner": refiner_source,
