@@ -26,11 +26,12 @@ __all__ = ["INSTANCE", "TARGET_M", "instance_floor", "measure_twin", "selection_
 TARGET_M = 0.01
 """The target median |observed - model depth| on the object's pixels (metres)."""
 
-PROVIDERS = ("learned", "learned+template", "oracle")
+PROVIDERS = ("learned", "learned+network", "learned+template", "oracle")
 #: The metric's floor: the instance's own model at its true pose and states against the noisy depth (sensor noise).
 INSTANCE = "instance"
-"""``learned``: the shipped network's correspondences, fitted; ``learned+template``: that fit refined against the category
-template (``LearnedProvider.refine(..., refine="template")``: articulated ICP of the nearest template, kept where its
+"""``learned``: the shipped network's correspondences, fitted; ``learned+network``: that fit refined by the category's
+shipped refinement network (``refine="network"``, what ``ancsh predict --refine network`` does; only categories that ship
+one); ``learned+template``: that fit refined against the category template (``LearnedProvider.refine(..., refine="template")``: articulated ICP of the nearest template, kept where its
 score says so; what ``ancsh predict --refine template`` does); ``oracle``: exact ground-truth correspondences."""
 
 
@@ -90,9 +91,14 @@ def instance_floor(gen, frame) -> dict:
     return {"status": "success", **compare_depth(clean, frame.depth, frame.depth > 0).to_dict()}
 
 
-def _template_refinement(provider, observation, corr, result, *, rng):
-    """``provider``'s fit refined against the category template (:meth:`LearnedProvider.refine`)."""
-    return provider.refine(observation, corr, result, refine="template", rng=rng)
+def _refinement(provider, observation, corr, result, *, refine, rng, config):
+    """``provider``'s fit refined against the category template or by its refinement network
+    (:meth:`LearnedProvider.refine` with ``refine`` ``"template"`` or ``"network"``; the network's fits with ``config``)."""
+    return provider.refine(observation, corr, result, refine=refine, rng=rng, config=config)
+
+
+#: The refinement each refined provider runs (:meth:`LearnedProvider.refine`'s ``refine``).
+_REFINES = {"learned+network": "network", "learned+template": "template"}
 
 
 def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True, box_extents: str = "max",
@@ -103,6 +109,7 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.templates import load_template_library
     from ..learned.inference.provider import LearnedProvider
+    from ..learned.network.weights import weights_path
     from ..solvers import Observation
     from ..solvers.providers.oracle import OracleProvider
 
@@ -119,17 +126,19 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
         gen = FrameGenerator(GenerationConfig(category=cat, split="test", seed=int(seed)))
         learned = LearnedProvider(cat, seed=int(seed))
         library = load_template_library(cat)
+        providers = [n for n in PROVIDERS if n != "learned+network" or weights_path(cat, "refine").is_file()]
         for i in range(int(frames)):
             fr = gen.frame(i, keep_depth=True)
             records.append({"category": cat, "frame": i, "provider": INSTANCE, "selection": INSTANCE,
                             **instance_floor(gen, fr)})
             learned_corr = learned.correspond(Observation(fr.points))
-            for name in PROVIDERS:
+            for name in providers:
                 if name == "oracle":
                     corr = OracleProvider(fr, "none", rng=int(seed) + i).correspond(Observation(fr.points))
                 else:
                     corr = learned_corr
-                refine = partial(_template_refinement, learned, rng=int(seed) + i) if name == "learned+template" else None
+                refine = (partial(_refinement, learned, refine=_REFINES[name], rng=int(seed) + i, config=config)
+                          if name in _REFINES else None)
                 for rec in twin_frame(fr, corr, library, seed=int(seed) + i, config=config, candidates=choices,
                                       refine=refine):
                     records.append({"category": cat, "frame": i, "provider": name, **rec})
@@ -150,6 +159,8 @@ def summarize(results: dict) -> list[dict]:
         for name, selection in [(INSTANCE, INSTANCE)] + [(n, c) for n in PROVIDERS for c in selections]:
             sel = [r for r in recs if r["category"] == cat and r["provider"] == name
                    and r.get("selection", selection_name(1)) == selection]
+            if not sel and name == "learned+network":  # the category ships no refinement network
+                continue
             ok = [r for r in sel if "median_abs_residual_m" in r and np.isfinite(r["median_abs_residual_m"])]
             res = np.array([r["median_abs_residual_m"] for r in ok])
             rows.append({
@@ -177,7 +188,9 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         f"Date: {prov.date}; machine: {prov.machine_text}  ",
         "",
         f"{s['frames']} held-out test frames per category (Kinect-like noise, seed {s['seed']}); `exact_reduced` fits of "
-        "the shipped network (`learned`), the same fits refined against the category template (`learned+template`: "
+        "the shipped network (`learned`), the same fits refined by the category's shipped refinement network "
+        "(`learned+network`, as `ancsh predict --refine network`; only where one is shipped; 'refined' = the share of "
+        "frames where a pass succeeded), or against the category template (`learned+template`: "
         "articulated ICP of the nearest template, kept where its score says so, as `ancsh predict --refine template`; "
         "'refined' = the share of frames where it was kept) and fits of exact ground-truth correspondences (`oracle`); "
         "first, the metric's floor: the frame's own instance rendered noise-free at its true pose and states "

@@ -17,6 +17,16 @@ def test_an_oracle_fit_model_explains_its_depth_within_the_target():
     assert rows["oracle"]["explained"] > 0.9 and rows["oracle"]["see_through"] < 0.05
     assert rows["learned"]["frames"] == 2 and np.isfinite(rows["learned"]["median_residual_m"])
     assert rows["learned"]["refined"] is None and 0.0 <= rows["learned+template"]["refined"] <= 1.0
+    assert rows["learned+network"]["frames"] == 2 and 0.0 <= rows["learned+network"]["refined"] <= 1.0  # laptop ships one
+
+
+def test_the_network_refinement_runs_only_where_a_refiner_is_shipped():
+    from ancsh.learned.network.weights import weights_path
+
+    assert not weights_path("safe", "refine").is_file()
+    results = measure_twin(["safe"], frames=1, progress=False, candidates=1)
+    assert {r["provider"] for r in results["records"]} == {"instance", "learned", "learned+template", "oracle"}
+    assert "learned+network" not in {r["provider"] for r in summarize(results)}
 
 
 def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
@@ -24,7 +34,7 @@ def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
     assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and "| laptop | oracle | best of 5 | 1 | 0 |" in out.read_text()
     data = json.loads(out.with_suffix(".json").read_text())
-    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 7
+    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 9
     assert "--candidates" not in data["command"]
     assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
     assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
@@ -52,17 +62,19 @@ def test_the_best_of_k_templates_is_chosen_on_the_same_fit_and_never_explains_th
     by_key = {}
     for r in results["records"]:
         by_key.setdefault((r["frame"], r["provider"]), {})[r["selection"]] = r
-    assert len(by_key) == 8
+    assert len(by_key) == 10
     assert all(set(v) == ({"instance"} if p == "instance" else {"nearest", "best of 3"}) for (_, p), v in by_key.items())
     for (_, provider), v in by_key.items():
         if provider == "instance":
             continue
         assert v["best of 3"]["median_abs_residual_m"] <= v["nearest"]["median_abs_residual_m"] + 1e-12
     assert results["settings"]["candidates"] == 3
-    for frame in (0, 1):  # the template refinement starts from the learned fit: where it is not kept, nothing changes
-        plain, refined = by_key[(frame, "learned")]["nearest"], by_key[(frame, "learned+template")]["nearest"]
-        same = plain["median_abs_residual_m"] == refined["median_abs_residual_m"]
-        assert same == (not refined["refined"]), frame
+    for frame in (0, 1):  # a refinement starts from the learned fit: where it is not kept, nothing changes
+        plain = by_key[(frame, "learned")]["nearest"]
+        for provider in ("learned+template", "learned+network"):
+            refined = by_key[(frame, provider)]["nearest"]
+            same = plain["median_abs_residual_m"] == refined["median_abs_residual_m"]
+            assert same == (not refined["refined"]), (frame, provider)
 
 
 def test_the_instance_floor_is_the_sensor_noise_alone():

@@ -257,7 +257,8 @@ class LearnedProvider:
             return self.category is not None and refine_default(self.category)
         return option in ("template", "network")
 
-    def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0):
+    def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0,
+               config=None):
         """A fit of this provider's correspondences, refined against the category template when enabled.
 
         Parameters
@@ -270,6 +271,9 @@ class LearnedProvider:
         refine : str or None
             Overrides the provider's ``refine`` option (default: use it).
         rng : numpy.random.Generator or int
+        config : FitConfig, optional
+            Of the refinement network's fits (give the first fit's, e.g. its ``box_extents``; default: the
+            formulation's). The template refinement (articulated ICP) does not use it.
 
         Returns
         -------
@@ -282,7 +286,7 @@ class LearnedProvider:
             from .refine_network import refine_with_network
 
             return refine_with_network(self.refiner, observation, fit, formulation=fit.formulation,
-                                       passes=self.refine_passes, rng=rng)
+                                       passes=self.refine_passes, rng=rng, config=config)
         from ...data.templates import load_template_library
         from ...solvers.icp.category import refine_fit
 
