@@ -4,7 +4,7 @@ estimator and the NAOCS noise varied one at a time (``docs/results/fit_translati
 :func:`measure` fits the ``ancsh bench fit`` frames (test instances, the oracle's corruption drawn with the
 benchmark's seeds) with every method of a variant and keeps, per part, the errors and the decomposition of the
 translation error (error at the observed points' centroid, signed scale error, the lever from the points to the NPCS
-origin); :func:`tables` turns the records into the page's markdown tables. Two variants:
+origin); :func:`tables` turns the records into the page's markdown tables. The variants:
 
 - ``"causes"``: the official scheme, per-part fits, and the exact fit with the NAOCS prior weight, the scale
   estimator and scale optimisation varied, at ``realistic`` and ``realistic`` without NAOCS noise;
@@ -13,7 +13,10 @@ origin); :func:`tables` turns the records into the page's markdown tables. Two v
   default exact fit, per-part fits, the official scheme and the exact fit with NPCS biases
   (``FitConfig.npcs_bias_weight``) at ``realistic``, ``realistic`` without the per-part NPCS warp, ``realistic``
   with exact joint parameters (no axis, pivot or NAOCS noise), and without the warp: exact NAOCS parameters, exact
-  joint parameters (the official scheme and the bias weight 0.1 at ``realistic`` only).
+  joint parameters (the official scheme and the bias weight 0.1 at ``realistic`` only);
+- ``"sources"`` (issue 35, item 7): per-part fits, the default exact fit and the exact fit with NPCS biases (weight
+  0.01) at ``realistic`` and at ``realistic`` with one corruption switched off at a time (label flips, outliers, the
+  NPCS warp, the joint parameters' noise, the per-point NPCS noise).
 
 Rows labelled with the old default pin ``scale_estimator="symmetric"`` (the default when the page was measured), so
 the numbers do not move with the default. The command is ``python -m ancsh.cli.bench.fit_translation``.
@@ -28,10 +31,11 @@ import numpy as np
 
 __all__ = ["LEVEL_INDEX", "VARIANTS", "measure", "npcs_anchor", "tables"]
 
-VARIANTS = ("causes", "reverse", "coupling")
+VARIANTS = ("causes", "reverse", "coupling", "sources")
 # The corruption presets' index in the full fit benchmark (levels none, low, realistic, high): its seed stream.
 LEVEL_INDEX = {"low": 1, "realistic": 2, "high": 3, "realistic_exact_naocs": 2, "realistic_no_warp": 2,
-               "realistic_exact_joints": 2, "no_warp_exact_naocs": 2, "no_warp_exact_joints": 2}
+               "realistic_exact_joints": 2, "no_warp_exact_naocs": 2, "no_warp_exact_joints": 2, "realistic_no_flips": 2,
+               "realistic_no_outliers": 2, "realistic_no_npcs_noise": 2}
 # Methods measured at the first level of a variant only (the slow official scheme, the extra settings).
 _FIRST_LEVEL_ONLY = ("per_part(sym)", "per_part(umeyama)", "official", "exact npcs_bias 0.1")
 
@@ -57,6 +61,9 @@ def _methods(variant: str) -> dict:
                                                  config=c, rng=rng)
 
     official = OfficialSettings()
+    if variant == "sources":
+        return {"per_part": per_part(scale_estimator="reverse"), "exact (default)": exact(scale_estimator="reverse"),
+                "exact npcs_bias 0.01": exact(scale_estimator="reverse", npcs_bias_weight=0.01)}
     if variant == "coupling":
         return {
             "official": lambda obs, corr, rng, clean: fit_official(obs, corr, settings=official, rng=rng),
@@ -93,6 +100,11 @@ def _levels(variant: str) -> dict:
     from ..solvers.providers.oracle import CORRUPTION_PRESETS
 
     real = CORRUPTION_PRESETS["realistic"]
+    if variant == "sources":
+        return {"realistic": real, "realistic_no_flips": replace(real, flip_fraction=0.0),
+                "realistic_no_outliers": replace(real, outlier_fraction=0.0), "realistic_no_warp": replace(real, npcs_warp=0.0),
+                "realistic_exact_joints": replace(real, axis_sigma_deg=0.0, pivot_sigma=0.0, naocs_sigma=0.0),
+                "realistic_no_npcs_noise": replace(real, npcs_sigma=0.0)}
     if variant == "coupling":
         no_warp = replace(real, npcs_warp=0.0)
         return {"realistic": real, "realistic_no_warp": no_warp,
@@ -114,7 +126,7 @@ def measure(frames_per_category: int, categories=(), *, variant: str = "causes",
         Rendered test frames per category (the fit benchmark's frames and seeds).
     categories : sequence of str
         Categories (empty: the paper's five).
-    variant : {"causes", "reverse", "coupling"}
+    variant : {"causes", "reverse", "coupling", "sources"}
         The methods and corruption levels compared (module docstring).
     progress : callable
         Receives one line per frame.

@@ -41,3 +41,19 @@ def test_one_frame_through_the_reverse_variant(tmp_path, capsys):
     assert {r["level"] for r in recs} == {"low", "realistic", "high"} and all(r["ok"] for r in recs)
     gt = [p["trans"] for r in recs if r["method"] == "gt_refit reverse" for p in r["parts"]]
     assert np.all(np.isfinite(gt)) and max(gt) < 0.1  # the oracle's true inliers: a good fit
+
+
+def test_the_sources_variant_switches_off_one_corruption_at_a_time():
+    from dataclasses import asdict
+
+    from ancsh.studies.fit_translation import LEVEL_INDEX, _levels
+
+    levels = _levels("sources")
+    real = asdict(levels["realistic"])
+    changed = {name: {k for k, v in asdict(c).items() if v != real[k]} for name, c in levels.items()}
+    assert changed == {"realistic": set(), "realistic_no_flips": {"flip_fraction"},
+                       "realistic_no_outliers": {"outlier_fraction"}, "realistic_no_warp": {"npcs_warp"},
+                       "realistic_exact_joints": {"axis_sigma_deg", "pivot_sigma", "naocs_sigma"},
+                       "realistic_no_npcs_noise": {"npcs_sigma"}}
+    assert all(v == 0 for name, c in levels.items() for k, v in asdict(c).items() if k in changed[name])
+    assert {LEVEL_INDEX[name] for name in levels} == {LEVEL_INDEX["realistic"]}  # one stream: only the knob differs

@@ -1,7 +1,7 @@
 """``python -m ancsh.cli.bench.fit_translation``: the measurements of ``docs/results/fit_translation.md``
 (:mod:`ancsh.studies.fit_translation`).
 
-``measure --variant causes|reverse|coupling --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
+``measure --variant causes|reverse|coupling|sources --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
 tables; ``anchor --category C --frames N`` measures where the shipped network's NPCS error is smallest; ``evaluate-symmetric ARGS`` runs ``ancsh ARGS`` (e.g. ``evaluate --category laptop ...``) with the previous
 default scale estimator of the exact fits (``FitConfig(scale_estimator="symmetric")``), for the page's
 before/after rows.
