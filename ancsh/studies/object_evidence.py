@@ -66,9 +66,9 @@ def _scene_candidates(depth, intrinsics, visible, category, provider, seed) -> t
 
 def _features(depth, intrinsics, mask, category, provider, seed):
     """The object features of ``ancsh predict --mask`` on one depth image, or ``None`` when the fit fails its checks."""
-    from ..learned.inference.predict import _attempt, object_diagonal
+    from ..learned.inference.predict import fit_candidate, object_diagonal
 
-    a = _attempt(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None, "provider",
+    a = fit_candidate(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None, "provider",
                  object_gate=False)
     if not a["result"].ok or a["comparison"] is None:
         return None

@@ -41,6 +41,7 @@ __all__ = [
     "MAX_VERIFIED",
     "MIN_P_OBJECT",
     "DepthPrediction",
+    "fit_candidate",
     "check_confidence",
     "check_plausibility",
     "check_weights_category",
@@ -390,9 +391,9 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     elif mask is not None and hint is not None:
         notes.append("a mask was given: the hint is ignored")
     if isolation is None:  # a mask (or every valid pixel): one attempt
-        best = _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
+        best = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
     elif isolation.chosen is None:  # nothing but planes / noise: no object to fit
-        best = _attempt(d, intrinsics, None, category, provider, formulation, num_points, seed, max_depth, refine,
+        best = fit_candidate(d, intrinsics, None, category, provider, formulation, num_points, seed, max_depth, refine,
                         why=f"no object found ({isolation.reason})")
     else:
         t0 = time.perf_counter()
@@ -428,12 +429,21 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     )
 
 
-def _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
-             object_gate: bool = True) -> dict:
-    """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit (one candidate).
+def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
+                  object_gate: bool = True) -> dict:
+    """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit: one candidate segment of
+    :func:`predict_depth` (called once with a mask, or per verified candidate without one).
 
-    ``object_gate=False`` measures the object evidence without letting ``p_object`` fail the fit (for the
-    study that calibrates ``p_object``)."""
+    ``d``: (H, W) depth (metres, 0 = none); ``mask``: (H, W) bool or ``None`` (every valid pixel); ``refine``:
+    ``LearnedProvider.refine``'s option; ``why``: when given, nothing is sampled and the candidate fails with
+    ``too_few_points`` naming it; ``object_gate=False`` measures the object evidence without letting ``p_object``
+    fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`). The other arguments are
+    :func:`predict_depth`'s.
+
+    Returns a dict: ``result`` (FitResult), ``pts`` ((N, 3) camera frame, metres), ``pixels``, ``valid``, ``labels``,
+    ``quality``, ``p_good`` / ``p_object`` (or ``None``), ``comparison`` (render-and-compare or ``None``), ``corr``,
+    stage times ``t_bp`` / ``t_net`` / ``t_compare`` (seconds), ``notes`` and the joint structure.
+    """
     from ...solvers import Observation, fit
     from ...solvers.types import FitResult, FitStatus
 
@@ -560,7 +570,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     attempts, verified = {}, []
     for c in chosen:
         mask = isolation.mask_of(c)
-        a = _attempt(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
+        a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
         if a["result"].ok:
             background, jumps, behind = behind_surroundings(d, mask)
             cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
