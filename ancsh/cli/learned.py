@@ -110,7 +110,7 @@ def register(sub) -> None:
     c.add_argument("--out", type=Path, help="report folder (default: a fresh ancsh_results/calibrate-<category>-<time>/)")
     c.add_argument("--update-docs", action="store_true", help="write the report into docs/results/ (when --out is not given)")
     c.add_argument("--install", action="store_true", help="write ancsh/weights/<category>_confidence.json "
-                   "(with --object: <category>_object.json)")
+                   f"(with --object: <category>_object.json); needs --frames of at least {MIN_INSTALL_FRAMES}")
     c.add_argument("--object", action="store_true", help="calibrate p_object instead: whether the fitted pixels are an "
                    "object of the category at all, against the other categories' objects and clutter "
                    "(ancsh.studies.object_evidence; --frames counts the category's frames, about as many others are added)")
@@ -295,6 +295,11 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     return 0 if good == len(files) else 1
 
 
+#: ``ancsh calibrate --install`` (either calibration) needs at least this many frames: half fit the model, half check
+#: it, and a model from a handful of frames (one outcome, or a regression on noise) must not replace the shipped one.
+MIN_INSTALL_FRAMES = 40
+
+
 def run_calibrate(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -305,6 +310,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     if args.frames < 4:
         raise ValueError(f"--frames: expected at least 4 frames, got {args.frames}")
+    if args.install and args.frames < MIN_INSTALL_FRAMES:  # before any work: it would replace the shipped calibration
+        raise ValueError(f"--install: a calibration from --frames {args.frames} would replace the shipped one; installing "
+                         f"needs at least {MIN_INSTALL_FRAMES} frames (half fit it, half check it)")
     if not weights_path(args.category).is_file():
         from ..learned.network.weights import missing_weights_error
 

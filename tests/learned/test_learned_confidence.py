@@ -81,6 +81,22 @@ def test_calibrate_refuses_too_few_frames(capsys):
     assert "--frames" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("kind", [[], ["--object"]])
+def test_calibrate_installs_only_from_enough_frames(capsys, kind):
+    """A calibration from a handful of frames (issue 35: 3 fit frames) is refused before any work when it would be
+    installed over the shipped one."""
+    from ancsh.cli.learned import MIN_INSTALL_FRAMES
+    from ancsh.learned.inference.confidence import calibration_path, object_calibration_path
+
+    shipped = (object_calibration_path if kind else calibration_path)("laptop")
+    before = shipped.read_bytes()
+    frames = str(MIN_INSTALL_FRAMES - 1)
+    assert main(["calibrate", "--category", "laptop", *kind, "--frames", frames, "--install", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "--install" in err and f"at least {MIN_INSTALL_FRAMES} frames" in err
+    assert shipped.read_bytes() == before
+
+
 def test_infer_takes_the_raw_prediction_from_either_provider_interface():
     from types import SimpleNamespace
 
