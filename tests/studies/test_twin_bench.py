@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ancsh.cli import main
+from ancsh.learned.inference.predict import URDF_CANDIDATES
 from ancsh.studies.twin import TARGET_M, measure_twin, summarize
 
 
@@ -32,7 +33,7 @@ def test_the_network_refinement_runs_only_where_a_refiner_is_shipped():
 def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     out = tmp_path / "twin.md"
     assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
-    assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and "| laptop | oracle | best of 5 | 1 | 0 |" in out.read_text()
+    assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and f"| laptop | oracle | best of {URDF_CANDIDATES} | 1 | 0 |" in out.read_text()
     data = json.loads(out.with_suffix(".json").read_text())
     assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 9
     assert "--candidates" not in data["command"]

@@ -21,20 +21,24 @@ def register(sub) -> None:
     p.add_argument("--update-docs", action="store_true", help="write docs/results/twin.md (when --out is not given)")
     p.add_argument("--box-extents", choices=("max", "unit_diagonal"), default="max",
                    help="the fits' FitConfig.box_extents (default max; docs/results/box_extents.md)")
-    p.add_argument("--candidates", type=positive_int, default=5,
+    p.add_argument("--candidates", type=positive_int, default=None,
                    help="also choose each fit's template among this many nearest by render-and-compare against the "
-                   "depth (reported beside the nearest one; 1 = the nearest only; default 5)")
+                   "depth (reported beside the nearest one; 1 = the nearest only; default: as many as ancsh predict "
+                   "--urdf chooses among, URDF_CANDIDATES)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from ...learned.inference.predict import URDF_CANDIDATES
     from ...outputs import report_path
     from ...studies.twin import measure_twin, write_twin_report
 
     categories = shipped_categories_option(args.categories)
+    if args.candidates is None:
+        args.candidates = URDF_CANDIDATES
     parts = ["bench", "twin", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "box_extents": "max",
-                                                          "candidates": 5})]
+                                                          "candidates": URDF_CANDIDATES})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="twin.md", command="twin")
