@@ -62,6 +62,7 @@ CATEGORIES = tuple(_MODULES)
 #: other generators is never resumed with these (its seeds would give other shapes), and a report of
 #: other shapes reads as stale. Per category, so that a change to one generator stales only its own.
 GENERATOR_VERSIONS = MappingProxyType({c: 3 if c == "washing_machine" else 2 for c in CATEGORIES})
+
 #: The ANCSH paper's five categories (shipped weights, ``ancsh demo``, published evaluations).
 PAPER_CATEGORIES = tuple(c for c in CATEGORIES if _MODULES[c].INFO.in_paper)
 
