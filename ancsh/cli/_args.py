@@ -5,6 +5,15 @@ from __future__ import annotations
 from ..executors import EXECUTORS, RAY_MISSING, make_executor, ray_available
 
 
+def named_value(item: str, option: str, form: str) -> tuple[str, str]:
+    """``NAME=VALUE`` of a repeatable option split in two; an item without ``=`` or with an empty side is refused
+    naming ``option`` and the expected ``form`` (e.g. ``"CATEGORY=FILE"``)."""
+    name, sep, value = item.partition("=")
+    if not sep or not name or not value:
+        raise ValueError(f"{option}: expected {form}, got {item!r}")
+    return name, value
+
+
 def _number(text: str, convert, accept, expected: str):
     """``convert(text)`` when ``accept`` takes it, else argparse's error "expected <expected>, got ..."."""
     import argparse

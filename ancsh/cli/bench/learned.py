@@ -13,7 +13,7 @@ import json
 from pathlib import Path
 
 from ...studies.learned_cost.measure import SETTINGS, STEP_VARIANTS
-from .._args import non_negative_int
+from .._args import named_value, non_negative_int
 
 
 def register(sub) -> None:
@@ -65,9 +65,7 @@ def run_ablation(args) -> int:
 
     runs = {}
     for item in args.runs:
-        name, sep, run = item.partition("=")
-        if not sep or not name or not run:
-            raise ValueError(f"--runs: expected NAME=RUN_DIR, got {item!r}")
+        name, run = named_value(item, "--runs", "NAME=RUN_DIR")
         runs[name] = run
     result = ablation(runs, frames=args.frames, seed=args.seed, baseline=args.baseline)
     out = args.out or Path("bench_out") / f"learned_ablation_{_stamp()}" / "learned_ablation.md"
@@ -86,9 +84,9 @@ def run_roll(args) -> int:
     networks = {c: (c, None) for c in (args.categories if args.categories is not None
                                       else ([] if args.weights else shipped_categories("ancsh")))}
     for item in args.weights:
-        label, sep, rest = item.partition("=")
-        category, sep2, weights = rest.partition(":")
-        if not (sep and sep2 and label and category and weights):
+        label, rest = named_value(item, "--weights", "LABEL=CATEGORY:PATH")
+        category, sep, weights = rest.partition(":")
+        if not (sep and category and weights):
             raise ValueError(f"--weights: expected LABEL=CATEGORY:PATH, got {item!r}")
         networks[label] = (category, weights)
     result = roll_equivariance(networks, frames=args.frames, angle_deg=args.angle, seed=args.seed)

@@ -7,7 +7,7 @@ import shlex
 from pathlib import Path
 
 from ...outputs import output_flags
-from .._args import non_negative_int, positive_int
+from .._args import named_value, non_negative_int, positive_int
 
 
 def register(sub) -> None:
@@ -46,9 +46,7 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--seed", str(args.seed)]
     weights = {}
     for item in args.weights:
-        category, sep, file = item.partition("=")
-        if not sep or not category or not file:
-            raise ValueError(f"--weights: expected CATEGORY=FILE, got {item!r}")
+        category, file = named_value(item, "--weights", "CATEGORY=FILE")
         if not Path(file).is_file():
             raise ValueError(f"--weights {item}: no such file")
         if category in weights:
