@@ -110,6 +110,13 @@ class TrainConfig:
         lean on the camera frame: their fitted rotation follows a 10° camera roll by only 0.4–0.7
         (oven, washing machine, drawer) against about 1 for the laptop (``ancsh bench
         roll-equivariance``).
+    input_normals : bool
+        Feed the network each input point's surface normal beside its coordinates (``False``, the
+        default: coordinates only; issue 32's "normals as extra input channels"). The normals are
+        estimated inside the network from the cloud it is given (the ``k`` nearest points' principal
+        components, :func:`~ancsh.learned.network.pointnet2.estimate_normals`, signed to face the
+        camera), so training frames, augmented or refinement inputs and predictions get them alike.
+        Changes the network's structure (the first layer's inputs).
     refine_perturb_deg : float
         ``0`` (the default): a first-stage network, on camera-frame input. ``> 0``: a **refinement
         network** (the second stage of CAPTRA / DeepIM): every training and validation frame is rotated
@@ -152,6 +159,7 @@ class TrainConfig:
     augment_roll_deg: float = 0.0
     augment_tilt_deg: float = 0.0
     refine_perturb_deg: float = 0.0
+    input_normals: bool = False
 
     def __post_init__(self):
         if not isinstance(self.category, str) or not self.category:
@@ -201,8 +209,9 @@ class TrainConfig:
         _positive_int(self.pose_val_frames, "pose_val_frames")
         if isinstance(self.val_fraction, bool) or not isinstance(self.val_fraction, (int, float)) or not 0 <= self.val_fraction <= 0.5:
             raise ValueError(f"val_fraction: expected a number in [0, 0.5], got {self.val_fraction!r}")
-        if not isinstance(self.compile, bool):
-            raise ValueError(f"compile: expected true or false, got {self.compile!r}")
+        for name in ("compile", "input_normals"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: expected true or false, got {getattr(self, name)!r}")
         for name, top in (("augment_roll_deg", 180.0), ("augment_tilt_deg", 90.0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v <= top:
@@ -256,4 +265,5 @@ class TrainConfig:
 
     def network_kwargs(self) -> dict:
         """Keyword arguments of :func:`ancsh.learned.network.models.build_network` (besides kind, parts, joints)."""
-        return dict(width=self.width, npoints=self.npoints, radii=self.radii, nsamples=self.nsamples, backbones=self.backbones)
+        return dict(width=self.width, npoints=self.npoints, radii=self.radii, nsamples=self.nsamples, backbones=self.backbones,
+                    normals=self.input_normals)

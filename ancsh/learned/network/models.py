@@ -28,7 +28,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .pointnet2 import Neighbourhoods, PointNet2Backbone, shared_mlp
+from .pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, shared_mlp
 
 __all__ = ["AncshNet", "DirectVotingNet", "build_network", "normalize_cloud", "denormalize_joint_votes"]
 
@@ -57,6 +57,12 @@ def denormalize_joint_votes(joint: torch.Tensor, scale: torch.Tensor) -> torch.T
     return torch.cat([joint[..., :6], joint[..., 6:] * scale], dim=-1)
 
 
+def _check_normals(normals) -> bool:
+    if not isinstance(normals, bool):
+        raise ValueError(f"normals: expected true or false, got {normals!r}")
+    return normals
+
+
 def _check_structure(num_parts: int, num_joints: int) -> None:
     if num_parts < 2:
         raise ValueError(f"num_parts: expected >= 2, got {num_parts}")
@@ -80,11 +86,17 @@ def _head(c_in: int, c_out: int, hidden: int) -> _Head:
     return _Head(c_in, c_out, hidden)
 
 
-def _per_point(backbone, xyz: torch.Tensor, neighbourhoods) -> tuple[torch.Tensor, bool]:
+def _per_point(backbone, xyz: torch.Tensor, neighbourhoods, features=None) -> tuple[torch.Tensor, bool]:
     """Backbone features ``(B, N, C)`` (channel-last) or ``(B, C, N)``, and whether they are channel-last."""
     if backbone.channels_last:
-        return backbone.forward_last(xyz, neighbourhoods), True
-    return backbone(xyz, neighbourhoods), False
+        return backbone.forward_last(xyz, neighbourhoods, features), True
+    return backbone(xyz, neighbourhoods, features), False
+
+
+def _input_features(points: torch.Tensor, normals: bool) -> torch.Tensor | None:
+    """The backbone's per-point input features of camera-frame ``points``: their surface normals
+    (:func:`~ancsh.learned.network.pointnet2.estimate_normals`, facing the camera) or none."""
+    return estimate_normals(points) if normals else None
 
 
 def _apply(head: _Head, features: torch.Tensor, last: bool) -> torch.Tensor:
@@ -105,17 +117,22 @@ class AncshNet(nn.Module):
         Backbone settings (:class:`~ancsh.learned.network.pointnet2.PointNet2Backbone`).
     backbones : int
         1 (shared) or 2 (the paper's layout).
+    normals : bool
+        Give the backbone each point's surface normal (estimated from the input cloud, facing the
+        camera: :func:`~ancsh.learned.network.pointnet2.estimate_normals`) beside its coordinates.
     """
 
     kind = "ancsh"
 
-    def __init__(self, num_parts: int, num_joints: int, *, width=0.25, npoints=(256, 64), radii=(0.2, 0.4), nsamples=(32, 32), backbones=1):
+    def __init__(self, num_parts: int, num_joints: int, *, width=0.25, npoints=(256, 64), radii=(0.2, 0.4), nsamples=(32, 32), backbones=1,
+                 normals: bool = False):
         super().__init__()
         _check_structure(num_parts, num_joints)
         if backbones not in (1, 2):
             raise ValueError(f"backbones: expected 1 or 2, got {backbones}")
         self.num_parts, self.num_joints = num_parts, num_joints
-        kw = dict(width=width, npoints=npoints, radii=radii, nsamples=nsamples)
+        self.normals = _check_normals(normals)
+        kw = dict(width=width, npoints=npoints, radii=radii, nsamples=nsamples, in_features=3 if normals else 0)
         self.backbone = PointNet2Backbone(**kw)
         self.backbone2 = PointNet2Backbone(**kw) if backbones == 2 else None
         c = self.backbone.out_channels
@@ -140,8 +157,9 @@ class AncshNet(nn.Module):
         ``neighbourhoods``: :meth:`neighbourhoods` of the same points (computed when omitted).
         """
         xyz, _, _ = normalize_cloud(points)
-        f1, last = _per_point(self.backbone, xyz, neighbourhoods)
-        f2 = f1 if self.backbone2 is None else _per_point(self.backbone2, xyz, neighbourhoods)[0]
+        features = _input_features(points, self.normals)
+        f1, last = _per_point(self.backbone, xyz, neighbourhoods, features)
+        f2 = f1 if self.backbone2 is None else _per_point(self.backbone2, xyz, neighbourhoods, features)[0]
         B, N = points.shape[:2]
         M = self.num_parts
         naocs = _apply(self.naocs_head, f2, last)
@@ -165,13 +183,15 @@ class DirectVotingNet(nn.Module):
 
     kind = "direct_voting"
 
-    def __init__(self, num_parts: int, num_joints: int, *, width=0.25, npoints=(256, 64), radii=(0.2, 0.4), nsamples=(32, 32), backbones=1):
+    def __init__(self, num_parts: int, num_joints: int, *, width=0.25, npoints=(256, 64), radii=(0.2, 0.4), nsamples=(32, 32), backbones=1,
+                 normals: bool = False):
         super().__init__()
         _check_structure(num_parts, num_joints)
         if backbones != 1:
             raise ValueError(f"backbones: the direct-voting network has one backbone, got {backbones}")
         self.num_parts, self.num_joints = num_parts, num_joints
-        self.backbone = PointNet2Backbone(width=width, npoints=npoints, radii=radii, nsamples=nsamples)
+        self.normals = _check_normals(normals)
+        self.backbone = PointNet2Backbone(width=width, npoints=npoints, radii=radii, nsamples=nsamples, in_features=3 if normals else 0)
         c = self.backbone.out_channels
         self.seg_head = _head(c, num_parts, c)
         self.assoc_head = _head(c, num_joints + 1, c)
@@ -187,7 +207,7 @@ class DirectVotingNet(nn.Module):
 
         ``neighbourhoods`` as in :meth:`AncshNet.forward`."""
         xyz, _, scale = normalize_cloud(points)
-        f, last = _per_point(self.backbone, xyz, neighbourhoods)
+        f, last = _per_point(self.backbone, xyz, neighbourhoods, _input_features(points, self.normals))
         joint = _apply(self.joint_head, f, last)
         return {
             "seg_logits": _apply(self.seg_head, f, last),

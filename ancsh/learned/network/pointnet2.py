@@ -33,6 +33,7 @@ __all__ = [
     "Neighbourhoods",
     "nearest_three",
     "interpolate_last",
+    "estimate_normals",
 ]
 
 
@@ -378,6 +379,45 @@ def interpolate_last(known_features: torch.Tensor, idx: torch.Tensor, w: torch.T
     return (gather_points(known_features, idx) * w.unsqueeze(-1)).sum(2)
 
 
+NORMAL_NEIGHBOURS = 16
+"""Nearest points (the point itself included) whose covariance gives a point's normal (:func:`estimate_normals`)."""
+
+
+@torch.no_grad()
+def estimate_normals(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS) -> torch.Tensor:
+    """Unit surface normals of a cloud by principal components of each point's ``k`` nearest points.
+
+    The normal is the eigenvector of the smallest eigenvalue of the neighbours' covariance, signed to
+    face the origin of ``points``' frame (the camera, for camera-frame points): ``n . p <= 0``. It needs
+    no image grid, so it is the same function of a training frame's sampled points and of the points a
+    prediction feeds the network. No gradient.
+
+    Parameters
+    ----------
+    points : (B, N, 3) tensor
+        Points (any unit); the sign convention assumes the viewpoint at the origin.
+    k : int
+        Neighbours, ``3 <= k``; ``min(k, N)`` are used.
+
+    Returns
+    -------
+    (B, N, 3) tensor
+        Unit normals, same dtype and device.
+    """
+    _check_xyz(points, "points")
+    if isinstance(k, bool) or not isinstance(k, int) or k < 3:
+        raise ValueError(f"k: expected an integer >= 3, got {k!r}")
+    k = min(k, points.shape[1])
+    idx = torch.cdist(points, points).topk(k, dim=-1, largest=False).indices  # (B, N, k)
+    nb = gather_points(points, idx)
+    centred = nb - nb.mean(dim=2, keepdim=True)
+    cov = centred.transpose(-1, -2) @ centred  # (B, N, 3, 3)
+    # float64: the smallest eigenvalue of a nearly flat neighbourhood is tiny beside the others
+    normals = torch.linalg.eigh(cov.double())[1][..., 0].to(points.dtype)
+    flip = (normals * points).sum(dim=-1, keepdim=True) > 0
+    return torch.where(flip, -normals, normals)
+
+
 class SetAbstraction(nn.Module):
     """Sample centres by FPS, group their ball neighbourhoods, apply a shared MLP, max-pool.
 
@@ -483,6 +523,10 @@ class PointNet2Backbone(nn.Module):
         Ball radii of the two local levels, in units of the normalised input.
     nsamples : (2,) ints
         Neighbours per ball.
+    in_features : int
+        Per-point input features besides the coordinates (0 = none, the default; 3 = surface normals):
+        the first set abstraction groups them with the coordinates and the last feature propagation
+        takes them as skip features.
 
     Attributes
     ----------
@@ -492,20 +536,23 @@ class PointNet2Backbone(nn.Module):
         kept to measure against).
     """
 
-    def __init__(self, width: float = 1.0, npoints=(512, 128), radii=(0.2, 0.4), nsamples=(32, 64)):
+    def __init__(self, width: float = 1.0, npoints=(512, 128), radii=(0.2, 0.4), nsamples=(32, 64), in_features: int = 0):
         super().__init__()
         if not width > 0:
             raise ValueError(f"width: expected a positive number, got {width}")
+        if isinstance(in_features, bool) or not isinstance(in_features, int) or in_features < 0:
+            raise ValueError(f"in_features: expected a non-negative integer, got {in_features!r}")
 
         def c(n: int) -> int:
             return max(8, int(round(n * width)))
 
-        self.sa1 = SetAbstraction(npoints[0], radii[0], nsamples[0], 0, [c(64), c(64), c(128)])
+        self.in_features = in_features
+        self.sa1 = SetAbstraction(npoints[0], radii[0], nsamples[0], in_features, [c(64), c(64), c(128)])
         self.sa2 = SetAbstraction(npoints[1], radii[1], nsamples[1], c(128), [c(128), c(128), c(256)])
         self.sa3 = SetAbstraction(None, None, None, c(256), [c(256), c(512), c(1024)])
         self.fp3 = FeaturePropagation(c(1024) + c(256), [c(256), c(256)])
         self.fp2 = FeaturePropagation(c(256) + c(128), [c(256), c(128)])
-        self.fp1 = FeaturePropagation(c(128) + 3, [c(128), c(128), c(128)])
+        self.fp1 = FeaturePropagation(c(128) + 3 + in_features, [c(128), c(128), c(128)])
         self.out_channels = c(128)
         self.channels_last = True
 
@@ -520,31 +567,48 @@ class PointNet2Backbone(nn.Module):
         i1, w1 = nearest_three(xyz, l1_xyz)
         return Neighbourhoods(c1, g1, c2, g2, i2, w2, i1, w1)
 
-    def forward(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> torch.Tensor:
+    def _check_features(self, xyz: torch.Tensor, features: torch.Tensor | None) -> None:
+        if self.in_features == 0:
+            if features is not None:
+                raise ValueError("features: this backbone takes no input features (in_features = 0)")
+            return
+        if features is None or features.shape != (*xyz.shape[:2], self.in_features):
+            got = None if features is None else tuple(features.shape)
+            raise ValueError(f"features: expected shape {(*xyz.shape[:2], self.in_features)}, got {got}")
+
+    def forward(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None,
+                features: torch.Tensor | None = None) -> torch.Tensor:
         """Per-point features ``(B, N, 3) -> (B, C, N)``.
 
         ``neighbourhoods`` (from :meth:`neighbourhoods` of the same points, e.g. cached per frame)
-        skips sampling, grouping and the nearest-neighbour search; channel-last only.
+        skips sampling, grouping and the nearest-neighbour search; channel-last only. ``features``:
+        ``(B, N, in_features)`` channel-last input features (required when ``in_features > 0``).
         """
         _check_xyz(xyz, "xyz")
         if self.channels_last:
-            return self.forward_last(xyz, neighbourhoods).transpose(1, 2)
+            return self.forward_last(xyz, neighbourhoods, features).transpose(1, 2)
         if neighbourhoods is not None:
             raise ValueError("neighbourhoods: only supported with channels_last = True")
-        l1_xyz, l1 = self.sa1(xyz, None)
+        self._check_features(xyz, features)
+        f0 = None if features is None else features.transpose(1, 2)
+        l1_xyz, l1 = self.sa1(xyz, f0)
         l2_xyz, l2 = self.sa2(l1_xyz, l1)
         l3_xyz, l3 = self.sa3(l2_xyz, l2)
         l2 = self.fp3(l2_xyz, l3_xyz, l2, l3)
         l1 = self.fp2(l1_xyz, l2_xyz, l1, l2)
-        return self.fp1(xyz, l1_xyz, xyz.transpose(1, 2), l1)
+        skip = xyz.transpose(1, 2) if f0 is None else torch.cat([xyz.transpose(1, 2), f0], dim=1)
+        return self.fp1(xyz, l1_xyz, skip, l1)
 
-    def forward_last(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> torch.Tensor:
+    def forward_last(self, xyz: torch.Tensor, neighbourhoods: Neighbourhoods | None = None,
+                     features: torch.Tensor | None = None) -> torch.Tensor:
         """Channel-last per-point features ``(B, N, 3) -> (B, N, C)`` (see :meth:`forward`)."""
         _check_xyz(xyz, "xyz")
+        self._check_features(xyz, features)
         nb = self.neighbourhoods(xyz) if neighbourhoods is None else neighbourhoods
-        l1_xyz, l1 = self.sa1.forward_last(xyz, None, nb.centres1, nb.groups1)
+        l1_xyz, l1 = self.sa1.forward_last(xyz, features, nb.centres1, nb.groups1)
         l2_xyz, l2 = self.sa2.forward_last(l1_xyz, l1, nb.centres2, nb.groups2)
         _, l3 = self.sa3.forward_last(l2_xyz, l2)
         l2 = self.fp3.forward_last(l2.shape[1], l2, l3, None, None)
         l1 = self.fp2.forward_last(l1.shape[1], l1, l2, nb.interp2_idx, nb.interp2_w)
-        return self.fp1.forward_last(xyz.shape[1], xyz, l1, nb.interp1_idx, nb.interp1_w)
+        skip = xyz if features is None else torch.cat([xyz, features], dim=-1)
+        return self.fp1.forward_last(xyz.shape[1], skip, l1, nb.interp1_idx, nb.interp1_w)

@@ -1,0 +1,42 @@
+#!/bin/bash
+# Issue 32 item 2: the levers at equal compute on a lent GPU (docs/results/levers_gpu.md). Run from the repository root:
+#   bash docs/results/levers_gpu/run.sh          (on the GPU machine; OUT= a folder for the checkpoints)
+# The set-up of docs/results/capacity_gpu/run.sh (the same data, seed, schedule and 5 minutes per training, so its rows
+# join this table): 6000 laptop frames, then six trainings side by side on the one GPU, each a lever on the shipped
+# layout (width 0.5): none, normals, roll augmentation 30 deg, pose loss 0.1, pose loss 1, all three together.
+# It needs torch, numpy, scipy, h5py and trimesh (a trimesh wheel in $WHEELS, default .gpu/, is installed when
+# trimesh is missing); open3d and casadi are not needed (the numpy renderer, no pose validation).
+# FRAMES / TLIM (minutes per training) / DEVICE / WORKERS / PY are overridable for a dry run on a CPU:
+#   FRAMES=64 TLIM=0.3 DEVICE=cpu WORKERS=1 PY=.venv/bin/python bash docs/results/levers_gpu/run.sh
+set -u
+HERE=$(cd "$(dirname "$0")" && pwd)
+export PYTHONUNBUFFERED=1
+FRAMES=${FRAMES:-6000}; TLIM=${TLIM:-5}; DEVICE=${DEVICE:-cuda}; WORKERS=${WORKERS:-16}; PY=${PY:-python3}
+RUNS="base normals roll30 pose01 pose1 all"
+OUT=${OUT:-/tmp/gpu_out}; mkdir -p "$OUT"; LOGS=/tmp/gpu_logs; rm -rf $LOGS /tmp/gpu_lt /tmp/gpu_runs /tmp/gpu_last; mkdir -p $LOGS /tmp/gpu_last
+t0=$(date +%s); stamp() { echo "[$(( $(date +%s) - t0 )) s] $*" | tee -a $LOGS/timeline.txt; }
+if ! $PY -c "import trimesh" 2>/dev/null; then
+  $PY -m pip install -q --no-index --no-deps --no-compile --target /tmp/site ${WHEELS:-.gpu}/trimesh-*.whl && export PYTHONPATH=/tmp/site
+fi
+export PYTHONPATH=${PYTHONPATH:+$PYTHONPATH:}$PWD
+stamp "start; $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null); nproc $(nproc)"
+$PY -c "import torch, numpy, scipy, h5py, trimesh; print('torch', torch.__version__, 'cuda', torch.cuda.is_available(), 'numpy', numpy.__version__, 'scipy', scipy.__version__)" 2>&1 | tee -a $LOGS/timeline.txt
+timeout 170 $PY -m ancsh.cli data generate --category laptop --split train --frames $FRAMES --workers $WORKERS \
+  --shard-size $(( (FRAMES + WORKERS - 1) / WORKERS )) --seed 40 --out /tmp/gpu_lt --quiet > $LOGS/generate.txt 2>&1
+stamp "generate rc $? $(tail -1 $LOGS/generate.txt)"
+for cfg in $RUNS; do
+  timeout $(python3 -c "print(int($TLIM * 60 + 100))") $PY -m ancsh.cli train --category laptop --config $HERE/$cfg.json \
+    --data /tmp/gpu_lt --out /tmp/gpu_runs/$cfg --device $DEVICE --time-limit-min $TLIM --no-progress > $LOGS/train_$cfg.txt 2>&1 &
+done
+wait
+stamp "trainings done"
+for cfg in $RUNS; do
+  d=/tmp/gpu_runs/$cfg; cp $d/history.csv $LOGS/history_$cfg.csv 2>/dev/null
+  [ -f $d/best.pt ] && $PY $HERE/../capacity_gpu/strip.py $d/best.pt $OUT/${cfg}_best.pt >> $LOGS/timeline.txt 2>&1
+  [ -f $d/last.pt ] && $PY $HERE/../capacity_gpu/strip.py $d/last.pt /tmp/gpu_last/${cfg}_last.pt >> $LOGS/timeline.txt 2>&1
+done
+nvidia-smi > $LOGS/nvidia_smi.txt 2>&1
+stamp "end"
+tar czf $OUT/logs.tar.gz -C /tmp gpu_logs
+tar cf $OUT/last.tar -C /tmp gpu_last
+ls -la $OUT

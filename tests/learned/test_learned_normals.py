@@ -1,0 +1,114 @@
+"""Surface normals as input channels (``TrainConfig.input_normals``): the estimate, the backbone's extra
+inputs, and a network that trains, saves, reloads and predicts with them."""
+
+import numpy as np
+import pytest
+import torch
+from scipy.spatial.transform import Rotation
+
+from ancsh.learned.network.config import TrainConfig
+from ancsh.learned.network.models import build_network
+from ancsh.learned.network.pointnet2 import PointNet2Backbone, estimate_normals
+
+
+def _sphere_patch(rng, n, centre, radius):
+    """Points of the camera-facing half of a sphere and their outward normals."""
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:, 2] = -np.abs(d[:, 2])  # the half towards the camera at the origin
+    return centre + radius * d, d
+
+
+def test_normals_of_a_sphere_are_its_radii_facing_the_camera():
+    rng = np.random.default_rng(0)
+    pts, outward = _sphere_patch(rng, 2000, np.array([0.1, -0.05, 1.5]), 0.3)
+    n = estimate_normals(torch.from_numpy(pts[None])).numpy()[0]
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-9)
+    assert (np.einsum("ni,ni->n", n, pts) <= 0).all()  # every normal faces the camera
+    angle = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", n, outward), -1, 1)))
+    assert np.median(angle) < 3.0  # a curved surface: the 16-point patch tilts the estimate a little
+
+
+def test_normals_turn_with_the_cloud_and_ignore_the_point_order():
+    rng = np.random.default_rng(1)
+    pts, _ = _sphere_patch(rng, 500, np.array([0.0, 0.0, 2.0]), 0.4)
+    x = torch.from_numpy(pts[None])
+    n = estimate_normals(x)[0].numpy()
+    perm = rng.permutation(len(pts))
+    np.testing.assert_allclose(estimate_normals(x[:, perm])[0].numpy(), n[perm], atol=1e-9)
+    # a rotation about the camera centre keeps the viewpoint, so the signed normals rotate with the points
+    R = Rotation.from_rotvec([0.1, -0.2, 0.15]).as_matrix()
+    rotated = estimate_normals(torch.from_numpy((pts @ R.T)[None]))[0].numpy()
+    np.testing.assert_allclose(rotated, n @ R.T, atol=1e-7)
+    with pytest.raises(ValueError, match="points"):
+        estimate_normals(x[..., :2])
+    with pytest.raises(ValueError, match="k"):
+        estimate_normals(x, k=2)
+
+
+def test_backbone_takes_the_features_in_both_layouts_and_refuses_missing_ones():
+    torch.manual_seed(0)
+    bb = PointNet2Backbone(width=0.125, npoints=(32, 8), nsamples=(8, 8), in_features=3).eval()
+    xyz = torch.rand(2, 64, 3)
+    feats = torch.nn.functional.normalize(torch.randn(2, 64, 3), dim=-1).requires_grad_()
+    last = bb(xyz, features=feats)
+    bb.channels_last = False
+    torch.testing.assert_close(bb(xyz, features=feats), last, atol=1e-5, rtol=1e-5)
+    bb.channels_last = True
+    bb.train()
+    bb(xyz, features=feats).mean().backward()
+    assert feats.grad.abs().sum() > 0  # the features reach the output
+    assert bb.sa1.mlp[0].in_channels == 6 and bb.fp1.mlp[0].in_channels == bb.sa1.out_channels + 6
+    with pytest.raises(ValueError, match="features"):
+        bb(xyz)
+    with pytest.raises(ValueError, match="features"):
+        PointNet2Backbone(width=0.125, npoints=(32, 8), nsamples=(8, 8))(xyz, features=feats)
+    with pytest.raises(ValueError, match="in_features"):
+        PointNet2Backbone(in_features=-1)
+
+
+def test_config_builds_a_normals_network_whose_output_depends_on_the_normals():
+    cfg = TrainConfig(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8), input_normals=True)
+    assert cfg.network_kwargs()["normals"] is True
+    assert TrainConfig.from_dict(cfg.to_dict()) == cfg
+    net = build_network("ancsh", 2, 1, **cfg.network_kwargs()).eval()
+    plain = build_network("ancsh", 2, 1, **TrainConfig(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8)).network_kwargs())
+    assert sum(p.numel() for p in net.parameters()) > sum(p.numel() for p in plain.parameters())
+    rng = np.random.default_rng(2)
+    pts, _ = _sphere_patch(rng, 64, np.array([0.0, 0.0, 1.0]), 0.2)
+    x = torch.from_numpy(pts[None].astype(np.float32))
+    # the same cloud moved behind the camera (its centroid mirrored through the origin): the same centred
+    # coordinates, every normal's sign flipped -- a network without normals cannot tell them apart
+    n_x, n_far = estimate_normals(x), estimate_normals(x - 2 * x.mean(dim=1, keepdim=True))
+    assert torch.allclose(n_x, -n_far, atol=1e-5)  # viewed from the other side: the signs flip
+    out_x = net(x)["npcs"]
+    out_far = net(x - 2 * x.mean(dim=1, keepdim=True))["npcs"]
+    assert not torch.allclose(out_x, out_far, atol=1e-4)
+    plain.eval()
+    torch.testing.assert_close(plain(x)["npcs"], plain(x - 2 * x.mean(dim=1, keepdim=True))["npcs"], atol=1e-4, rtol=1e-4)
+    with pytest.raises(ValueError, match="input_normals"):
+        TrainConfig(input_normals="yes")
+    with pytest.raises(ValueError, match="normals"):
+        build_network("ancsh", 2, 1, normals=1)
+
+
+def test_a_normals_network_trains_saves_and_predicts(tmp_path, tiny_arrays, tiny_config):
+    import dataclasses
+
+    from ancsh.learned.inference.provider import LearnedProvider
+    from ancsh.learned.network.weights import export_weights, load_network
+    from ancsh.learned.training.train import Trainer
+    from ancsh.solvers.types import Observation
+
+    cfg = dataclasses.replace(tiny_config, input_normals=True, max_steps=3, checkpoint_every=3, augment_roll_deg=20.0)
+    tr = Trainer(cfg, tiny_arrays, tiny_arrays, out_dir=tmp_path / "run", progress=False)
+    tr.fit(3)
+    ck = tr.save_checkpoint(tmp_path / "run" / "last.pt")
+    w = export_weights(ck, tmp_path / "laptop_normals.pt")
+    loaded = load_network(w)
+    assert loaded.config.input_normals and loaded.model.normals
+    x = torch.from_numpy(tiny_arrays.points[:2].astype(np.float32))
+    tr.model.eval()
+    torch.testing.assert_close(loaded.model.eval()(x)["npcs"], tr.model(x)["npcs"])
+    corr = LearnedProvider(loaded, seed=0).correspond(Observation(tiny_arrays.points[0].astype(np.float64)))
+    assert np.isfinite(corr.npcs).all()
