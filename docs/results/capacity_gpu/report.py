@@ -18,16 +18,17 @@ RUNS = {"w05": "width 0.5, 256/64 centres, 32/32 neighbours, 1 backbone (the shi
 STEPS = (2000, 5000, 7000, 10000)
 
 
-def history(run):
-    with open(HERE / f"history_{run}.csv") as f:
+def history(run, here=HERE):
+    with open(Path(here) / f"history_{run}.csv") as f:
         return list(csv.DictReader(f))
 
 
-def curves() -> list[str]:
+def curves(runs=tuple(RUNS), here=HERE) -> list[str]:
+    """Learning-curve table of the runs whose ``history_<run>.csv`` lie in ``here``."""
     out = ["| run | steps in 300 s | s / step | " + " | ".join(f"step {s}: NPCS err / axis (°) / val loss" for s in STEPS)
            + " | last: NPCS err / seg acc / assoc acc |", "|---" * (4 + len(STEPS)) + "|"]
-    for run in RUNS:
-        rows = history(run)
+    for run in runs:
+        rows = history(run, here)
         by_step = {int(r["step"]): r for r in rows}
         last = rows[-1]
         cells = []

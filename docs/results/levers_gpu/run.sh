@@ -8,11 +8,13 @@
 # trimesh is missing); open3d and casadi are not needed (the numpy renderer, no pose validation).
 # FRAMES / TLIM (minutes per training) / DEVICE / WORKERS / PY are overridable for a dry run on a CPU:
 #   FRAMES=64 TLIM=0.3 DEVICE=cpu WORKERS=1 PY=.venv/bin/python bash docs/results/levers_gpu/run.sh
+# RUNS names the configurations (<run>.json beside this script); the replicates of the second call:
+#   RUNS="base_s41 base_s42 base_s43 pose1_s41 pose1_s42 pose1_s43" TLIM=2.25 bash docs/results/levers_gpu/run.sh
 set -u
 HERE=$(cd "$(dirname "$0")" && pwd)
 export PYTHONUNBUFFERED=1
 FRAMES=${FRAMES:-6000}; TLIM=${TLIM:-5}; DEVICE=${DEVICE:-cuda}; WORKERS=${WORKERS:-16}; PY=${PY:-python3}
-RUNS="base normals roll30 pose01 pose1 all"
+RUNS=${RUNS:-"base normals roll30 pose01 pose1 all"}
 OUT=${OUT:-/tmp/gpu_out}; mkdir -p "$OUT"; LOGS=/tmp/gpu_logs; rm -rf $LOGS /tmp/gpu_lt /tmp/gpu_runs /tmp/gpu_last; mkdir -p $LOGS /tmp/gpu_last
 t0=$(date +%s); stamp() { echo "[$(( $(date +%s) - t0 )) s] $*" | tee -a $LOGS/timeline.txt; }
 if ! $PY -c "import trimesh" 2>/dev/null; then
