@@ -25,7 +25,7 @@ def history(run, here=HERE):
 
 def curves(runs=tuple(RUNS), here=HERE) -> list[str]:
     """Learning-curve table of the runs whose ``history_<run>.csv`` lie in ``here``."""
-    out = ["| run | steps in 300 s | s / step | " + " | ".join(f"step {s}: NPCS err / axis (°) / val loss" for s in STEPS)
+    out = ["| run | steps | s / step | " + " | ".join(f"step {s}: NPCS err / axis (°) / val loss" for s in STEPS)
            + " | last: NPCS err / seg acc / assoc acc |", "|---" * (4 + len(STEPS)) + "|"]
     for run in runs:
         rows = history(run, here)
@@ -78,17 +78,26 @@ def paired(dirs, reference="w05", seed=0, draws=2000) -> list[str]:
     picks = rng.integers(0, len(names), (draws, len(names)))
     out = [f"| network | mean part rotation (°) | minus {reference} | 95 % interval (instances resampled) "
            f"| frames lower than {reference} |", "|---" * 5 + "|"]
-    r0 = np.asarray(ref["per_frame"]["exact_reduced"]["rot_deg"], float).mean(axis=1)
+    def frame_rotation(rep):  # mean over parts per frame; NaN where the fit failed (no errors recorded)
+        return np.array([np.nan if e is None else np.mean(e) for e in rep["per_frame"]["exact_reduced"]["rot_deg"]])
+
+    r0 = frame_rotation(ref)
     for name, rep in reps.items():
         if list(rep["per_frame"]["instance"]) != list(inst):
             raise ValueError(f"{name}: not the frames of {reference}")
-        r = np.asarray(rep["per_frame"]["exact_reduced"]["rot_deg"], float).mean(axis=1)
-        diff = r - r0
-        per_inst = np.array([diff[inst == n].mean() for n in names])
-        counts = np.array([(inst == n).sum() for n in names])
+        r = frame_rotation(rep)
+        if np.isnan(r).any() or np.isnan(r0).any():  # compare on the frames both fitted
+            keep = ~(np.isnan(r) | np.isnan(r0))
+            out_name = f"{name} ({(~keep).sum()} failed fits left out)"
+        else:
+            keep, out_name = np.ones(len(r), bool), name
+        r, r_ref, frame_inst = r[keep], r0[keep], inst[keep]
+        diff = r - r_ref
+        per_inst = np.array([diff[frame_inst == n].mean() if (frame_inst == n).any() else 0.0 for n in names])
+        counts = np.array([(frame_inst == n).sum() for n in names])
         boot = (per_inst[picks] * counts[picks]).sum(axis=1) / counts[picks].sum(axis=1)
         lo, hi = np.percentile(boot, [2.5, 97.5])
-        out.append(f"| {name} | {r.mean():.2f} | {diff.mean():+.2f} | [{lo:+.2f}, {hi:+.2f}] | {np.mean(diff < 0):.0%} |")
+        out.append(f"| {out_name} | {r.mean():.2f} | {diff.mean():+.2f} | [{lo:+.2f}, {hi:+.2f}] | {np.mean(diff < 0):.0%} |")
     return out
 
 

@@ -1,25 +1,51 @@
-"""Tables of docs/results/levers_gpu.md from the GPU run's histories and the CPU evaluations.
+"""Tables of docs/results/levers_gpu.md from the GPU runs' histories and the CPU evaluations.
 
-    python docs/results/levers_gpu/report.py EVAL_DIR [EVAL_DIR ...] > tables.md
+    python docs/results/levers_gpu/report.py EVAL_ROOT > tables.md
 
-Each EVAL_DIR is the --out folder of one `ancsh evaluate --category laptop ... --real builtin` of one run's
-best.pt (or of the shipped network); the tables are those of docs/results/capacity_gpu/report.py, whose
-functions this reuses, with the paired comparison against the run without a lever (``base``).
+EVAL_ROOT holds one folder ``lev_eval_<run>`` per run: the --out folder of
+``ancsh evaluate --category laptop --frames 300 --formulations exact_reduced --weights runs/levers_gpu/<run>_best.pt
+--real builtin``. The tables are those of docs/results/capacity_gpu/report.py (whose functions this reuses), with
+the paired comparisons against the run without a lever, and a summary of the seed replicates.
 """
 
+import json
 import sys
 from pathlib import Path
+
+import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "capacity_gpu"))
 
 from report import curves, paired, table1  # noqa: E402  (docs/results/capacity_gpu/report.py)
 
-RUNS = ("base", "normals", "roll30", "pose01", "pose1", "all")
+RUNS = ("base", "normals", "roll30", "pose01", "pose1", "all")  # the first call: 5 minutes each, seed 40
+REPLICATES = {"base": ("base_s41", "base_s42", "base_s43"), "pose1": ("pose1_s41", "pose1_s42", "pose1_s43")}  # 2.25 min
+
+
+def seed_summary(root: Path) -> list[str]:
+    """Per configuration of the replicates: each seed's mean part rotation and joint axis, their mean and spread."""
+    out = ["| configuration | seeds | mean part rotation (°) per seed | mean | std over seeds | joint axis (°) per seed | mean |",
+           "|---" * 7 + "|"]
+    for config, runs in REPLICATES.items():
+        rot, axis = [], []
+        for run in runs:
+            m = json.loads((root / f"lev_eval_{run}" / "laptop.json").read_text())["summary"]["methods"]["exact_reduced"]
+            rot.append(float(np.mean(m["rot_deg"]["mean"])))
+            axis.append(float(m["axis_deg"]["mean"][0]))
+        out.append(f"| {config} | {len(runs)} | {', '.join(f'{v:.2f}' for v in rot)} | {np.mean(rot):.2f} | {np.std(rot, ddof=1):.2f} "
+                   f"| {', '.join(f'{v:.2f}' for v in axis)} | {np.mean(axis):.2f} |")
+    return out
+
 
 if __name__ == "__main__":
-    print("\n".join(curves(RUNS, HERE)))
-    print()
-    print("\n".join(table1(sys.argv[1:])))
-    print()
-    print("\n".join(paired(sys.argv[1:], reference="base")))
+    root = Path(sys.argv[1])
+    reps = [r for runs in REPLICATES.values() for r in runs]
+    for title, runs, here, ref in (("levers, 5 minutes each", RUNS, HERE, "base"),
+                                   ("seed replicates, 2.25 minutes each", reps, HERE / "replicates", reps[0])):
+        dirs = [root / f"lev_eval_{r}" for r in runs]
+        print(f"### {title}\n")
+        print("\n".join(curves(runs, here)), end="\n\n")
+        print("\n".join(table1(dirs)), end="\n\n")
+        print("\n".join(paired(dirs, reference=ref)), end="\n\n")
+    print("\n".join(seed_summary(root)))
