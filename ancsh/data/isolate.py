@@ -485,12 +485,12 @@ def out_of_view(mask, stride: int = 1) -> tuple[bool, float]:
     m = np.asarray(mask, dtype=bool)
     if m.ndim != 2:
         raise ValueError(f"mask: expected an (H, W) image, got shape {m.shape}")
+    if isinstance(stride, bool) or not isinstance(stride, (int, float, np.integer, np.floating)) or int(stride) != stride or stride < 1:
+        raise ValueError(f"stride: expected a positive integer, got {stride!r}")
     outline = m & ~binary_erosion(m, border_value=0)
     n = int(np.count_nonzero(outline))
     if n == 0:
         return False, float("nan")
-    if isinstance(stride, bool) or int(stride) != stride or stride < 1:
-        raise ValueError(f"stride: expected a positive integer, got {stride!r}")
     k = max(OUT_OF_VIEW_PIXELS, 2 * int(stride))
     edge = np.zeros(m.shape, dtype=bool)
     edge[:k, :] = edge[-k:, :] = True

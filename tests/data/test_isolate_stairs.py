@@ -135,5 +135,8 @@ def test_a_segment_reaching_the_image_edge_runs_out_of_the_view_and_one_inside_d
     assert out_of_view(stops_short)[0] is False and out_of_view(stops_short, stride=2)[0] is True
     with pytest.raises(ValueError, match="mask"):
         out_of_view(np.zeros(10, dtype=bool))
-    with pytest.raises(ValueError, match="stride"):
-        out_of_view(sliver, stride=0)
+    for bad in (0, 1.5, "2", True):
+        with pytest.raises(ValueError, match="stride"):
+            out_of_view(sliver, stride=bad)
+    with pytest.raises(ValueError, match="stride"):  # checked before an empty mask's early answer too
+        out_of_view(np.zeros((10, 10), dtype=bool), stride=0)
