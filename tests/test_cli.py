@@ -40,3 +40,5 @@ def test_changed_options_give_back_the_command_line_of_the_non_default_options()
     defaults = {"categories": None, "frames": 20, "seed": 0, "box_extents": "max", "refiner": None}
     assert changed_options(args, defaults) == ["--categories", "laptop", "oven", "--seed", "3"]
     assert changed_options(argparse.Namespace(real_frames=7), {"real_frames": 50}) == ["--real-frames", "7"]
+    # a switch (store_true) is its bare flag; an option missing from the namespace counts as its default
+    assert changed_options(argparse.Namespace(quick=True, json=False), {"quick": False, "json": False, "seed": 0}) == ["--quick"]

@@ -29,13 +29,20 @@ def _number(text: str, convert, accept, expected: str):
 
 def changed_options(args, defaults: dict) -> list[str]:
     """The command-line tokens of the options of ``args`` that differ from ``defaults`` (``{dest: default}``, in
-    order): ``--dest-name value`` (every item of a list value), so that a report's command line re-runs it."""
+    order): ``--dest-name value`` (every item of a list value), or the bare ``--dest-name`` of a switch (a
+    ``store_true`` option: default ``False``, value ``True``), so that a report's command line re-runs it. An
+    option missing from ``args`` counts as its default."""
     tokens = []
     for dest, default in defaults.items():
-        value = getattr(args, dest)
-        if value != default:
-            values = value if isinstance(value, (list, tuple)) else [value]
-            tokens += [f"--{dest.replace('_', '-')}", *(str(v) for v in values)]
+        value = getattr(args, dest, default)
+        if value == default:
+            continue
+        flag = f"--{dest.replace('_', '-')}"
+        if value is True and default is False:
+            tokens.append(flag)
+            continue
+        values = value if isinstance(value, (list, tuple)) else [value]
+        tokens += [flag, *(str(v) for v in values)]
     return tokens
 
 

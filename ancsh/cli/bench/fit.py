@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from ...outputs import output_flags
-from .._args import non_negative_int
+from .._args import changed_options, non_negative_int
 
 
 def register(sub) -> None:
@@ -27,17 +27,9 @@ def register(sub) -> None:
 
 def _command(args) -> str:
     """The command line that reproduces ``args``."""
-    parts = ["ancsh bench fit"]
-    if args.quick:
-        parts.append("--quick")
-    if args.json:
-        parts.append("--json")
-    for flag in ("frames", "categories", "levels", "methods", "official_hypotheses"):
-        value = getattr(args, flag)
-        if value is not None:
-            parts.append(f"--{flag.replace('_', '-')} {value}")
-    if args.seed:
-        parts.append(f"--seed {args.seed}")
+    parts = ["ancsh bench fit", *changed_options(args, {"quick": False, "json": False, "frames": None, "categories": None,
+                                                        "levels": None, "methods": None, "official_hypotheses": None,
+                                                        "seed": 0})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     return " ".join(parts)
 

@@ -6,7 +6,7 @@ import time
 
 from ...outputs import output_flags
 from ...studies.uncertainty_calibration.measure import CALIBRATION_FRAMES_PER_TEST_FRAME, DEFAULT_PROVIDERS, PROVIDERS
-from .._args import non_negative_int
+from .._args import changed_options, non_negative_int
 
 
 def register(sub) -> None:
@@ -32,23 +32,12 @@ def register(sub) -> None:
 
 
 def _command(args) -> str:
-    parts = ["ancsh bench uncertainty", f"--frames {args.frames}"]
-    if getattr(args, "calibration_frames", None) is not None:
-        parts.append(f"--calibration-frames {args.calibration_frames}")
-    for flag in ("categories", "providers"):
-        if getattr(args, flag):
-            parts.append(f"--{flag} {getattr(args, flag)}")
-    if args.seed:
-        parts.append(f"--seed {args.seed}")
-    if args.calibration_seed != 1001:
-        parts.append(f"--calibration-seed {args.calibration_seed}")
+    """The command line that reproduces ``args``."""
+    parts = ["ancsh bench uncertainty", f"--frames {args.frames}",
+             *changed_options(args, {"calibration_frames": None, "categories": None, "providers": None, "seed": 0,
+                                     "calibration_seed": 1001})]
     parts += output_flags(args.out, update_docs=args.update_docs)
-    if args.install:
-        parts.append("--install")
-    if getattr(args, "save_records", None):
-        parts.append(f"--save-records {args.save_records}")
-    if getattr(args, "records", None):
-        parts.append("--records " + " ".join(str(r) for r in args.records))
+    parts += changed_options(args, {"install": False, "save_records": None, "records": None})
     return " ".join(parts)
 
 
