@@ -11,7 +11,7 @@ import shlex
 from pathlib import Path
 
 from ..outputs import output_flags, write_bytes_atomically
-from ._args import check_picture_path, non_negative_int
+from ._args import check_picture_path, non_negative_int, positive_int
 
 
 def register(sub) -> None:
@@ -76,6 +76,8 @@ def register(sub) -> None:
                    "network' row")
     e.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
                    "the category's shipped <category>_refine.pt")
+    e.add_argument("--refine-passes", type=positive_int, default=2,
+                   help="with --refine network: passes of the refinement network (default 2)")
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
     e.add_argument("--time-limit-min", type=float, help="stop after this many minutes, keeping the frames done")
@@ -391,6 +393,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
     if args.refiner is not None and args.refine != "network":
         raise ValueError("--refiner: a refinement network is evaluated with --refine network only")
+    if args.refine_passes != 2 and args.refine != "network":
+        raise ValueError("--refine-passes: the refinement network's passes are evaluated with --refine network only")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
     if args.real_all and not args.real:
@@ -411,7 +415,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         frames=frames, methods=methods, seed=args.seed, weights=args.weights, direct_weights=args.direct_weights,
         time_limit_s=None if args.time_limit_min is None else 60.0 * args.time_limit_min,
         num_threads=args.threads, progress=not args.no_progress, refine=args.refine, refiner=args.refiner, executor=executor,
-        device=_device(args),
+        device=_device(args), refine_passes=args.refine_passes,
     )
     with executor.session():  # one Ray connection for both splits
         ev = evaluate_category(args.category, **common)
@@ -448,6 +452,8 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts.append("--real-all")
     if args.refine:
         parts += ["--refine", args.refine]
+    if args.refine_passes != 2:
+        parts += ["--refine-passes", str(args.refine_passes)]
     if args.update_docs and args.out is None:
         parts.append("--update-docs")
     if args.seed:

@@ -162,13 +162,23 @@ def test_evaluate_adds_the_refinement_network_row(tmp_path, make_refiner):
     assert (ev["settings"]["refiner_step"], ev["settings"]["refiner_sha256"]) == (refiner.step, refiner.sha256)
     from ancsh.studies.table1.report import _weights_line
 
-    assert f"refinement network: `laptop_refine.pt` (step {refiner.step}, sha256 {refiner.sha256[:12]})" in \
+    assert f"refinement network: `laptop_refine.pt` (step {refiner.step}, sha256 {refiner.sha256[:12]}, 2 passes)" in \
         _weights_line(ev["settings"])
+    assert ev["settings"]["refine_passes"] == 2
     rec = ev["records"][0]["methods"]["network"]
     assert rec["network_refine"]["passes"] >= 1
     assert "network" in summarize(ev)["methods"]
+    one = evaluate_category("laptop", frames=2, methods=("exact_reduced",), refine="network", refiner=make_refiner(),
+                            refine_passes=1, progress=False)
+    assert one["settings"]["refine_passes"] == 1 and "1 pass)" in _weights_line(one["settings"])
+    assert all(r["methods"]["network"]["network_refine"]["passes"] <= 1 for r in one["records"])
     with pytest.raises(ValueError, match="refiner"):
         evaluate_category("laptop", frames=1, refiner=make_refiner(), progress=False)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="refine_passes"):
+            evaluate_category("laptop", frames=1, refine="network", refiner=make_refiner(), refine_passes=bad, progress=False)
+    with pytest.raises(ValueError, match="refine_passes"):
+        evaluate_category("laptop", frames=1, refine_passes=1, progress=False)
 
 
 def test_cli_refiner_needs_refine_network(tmp_path, make_refiner):
@@ -176,6 +186,9 @@ def test_cli_refiner_needs_refine_network(tmp_path, make_refiner):
                         "--refiner", str(make_refiner()), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "--refiner" in r.stderr and "Traceback" not in r.stderr
+    r = subprocess.run([sys.executable, "-m", "ancsh", "evaluate", "--category", "laptop", "--frames", "1",
+                        "--refine-passes", "1", "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and "--refine-passes" in r.stderr and "Traceback" not in r.stderr
 
 
 def test_refiner_is_loaded_as_an_ancsh_network(tmp_path, make_refiner):

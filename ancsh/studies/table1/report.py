@@ -432,5 +432,7 @@ def _weights_line(s: dict) -> str:
     line = f"`{Path(s['weights']).name}` (step {s['weights_step']}, sha256 {s['weights_sha256'][:12]})"
     if s.get("refiner"):
         sha = s.get("refiner_sha256") or ""
-        line += f"; refinement network: `{Path(s['refiner']).name}` (step {s.get('refiner_step')}, sha256 {sha[:12]})"
+        passes = s.get("refine_passes") or 2  # reports before the option ran two passes
+        line += (f"; refinement network: `{Path(s['refiner']).name}` (step {s.get('refiner_step')}, sha256 {sha[:12]}, "
+                 f"{passes} pass{'es' if passes > 1 else ''})")
     return line
