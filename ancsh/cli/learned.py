@@ -46,6 +46,8 @@ def register(sub) -> None:
                    "(ancsh/data/templates/refine_defaults.json)")
     p.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
                    "the category's shipped <category>_refine.pt")
+    p.add_argument("--refine-passes", type=positive_int, default=2,
+                   help="with --refine network: passes of the refinement network (default 2; one costs about half)")
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
@@ -183,6 +185,8 @@ def run_predict(args: argparse.Namespace) -> int:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
     if args.refiner is not None and args.refine != "network":
         raise ValueError("--refiner: a refinement network is used with --refine network only")
+    if args.refine_passes != 2 and args.refine != "network":
+        raise ValueError("--refine-passes: the refinement network's passes are used with --refine network only")
     if args.overwrite and args.urdf is None:
         raise ValueError("--overwrite: only with --urdf DIR")
     if args.urdf is not None:  # before any work
@@ -204,6 +208,7 @@ def run_predict(args: argparse.Namespace) -> int:
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
                          isolate=not args.no_isolate, hint=hint, refine=args.refine, refiner=args.refiner,
+                         refine_passes=args.refine_passes,
                          device=_device(args))
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
@@ -269,7 +274,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     if args.png is not None:
         args.png.mkdir(parents=True, exist_ok=True)
     provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine,
-                               refiner=args.refiner, device=_device(args))
+                               refiner=args.refiner, device=_device(args), refine_passes=args.refine_passes)
     if args.weights is not None:
         check_weights_category(provider, args.category, args.weights)
     statuses = {}

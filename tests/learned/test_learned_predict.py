@@ -2,6 +2,9 @@
 
 import dataclasses
 import json
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -148,3 +151,19 @@ def test_error_paths(files, rendered, tmp_path, capsys):
     assert main(["predict", "--depth", str(files / "depth.png"), "--intrinsics", str(files / "K.json"),
                  "--category", "laptop", "--mask", str(tmp_path / "mask.png")]) == 2
     assert "mask: expected shape" in capsys.readouterr().err
+
+
+def test_refine_passes_reach_the_refinement_network(files, rendered):
+    """``--refine-passes 1``: one pass of the shipped refinement network (its note lists one rotation change);
+    without ``--refine network`` the option is refused before any work."""
+    out = files / "one.json"
+    r = subprocess.run([sys.executable, "-m", "ancsh", "predict", "--depth", str(files / "depth.npy"), "--intrinsics",
+                        str(files / "K.json"), "--category", "laptop", "--refine", "network", "--refine-passes", "1",
+                        "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    notes = [n for n in json.loads(out.read_text())["notes"] if n.startswith("refinement network")]
+    assert len(notes) == 1 and re.search(r"rotation moved [0-9.]+ deg per pass", notes[0]), notes
+    r = subprocess.run([sys.executable, "-m", "ancsh", "predict", "--depth", str(files / "depth.npy"), "--intrinsics",
+                        str(files / "K.json"), "--category", "laptop", "--refine-passes", "1", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "--refine-passes" in r.stderr and "Traceback" not in r.stderr

@@ -303,7 +303,7 @@ def check_weights_category(provider, category: str, weights) -> None:
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
                   seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
-                  refiner=None, device="cpu") -> DepthPrediction:
+                  refiner=None, device="cpu", refine_passes: int = 2) -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is found first: :func:`ancsh.data.isolate.isolate_object` proposes
@@ -349,6 +349,9 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         category's shipped ``<category>_refine.pt``.
     device : str
         Where the network runs without a ``provider``: ``"cpu"`` (default), ``"cuda"`` or ``"auto"``.
+    refine_passes : int
+        With ``refine="network"`` and no ``provider``: passes of the refinement network (default 2; one pass costs
+        about half, ``docs/results/refine_network.md``).
 
     Raises
     ------
@@ -371,7 +374,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
 
             raise missing_weights_error(category)
         provider = LearnedProvider(category if weights is None else weights, seed=seed,
-                                   refine="network" if refine == "network" else "auto", refiner=refiner, device=device)
+                                   refine="network" if refine == "network" else "auto", refiner=refiner, device=device,
+                                   refine_passes=refine_passes)
         if weights is not None:
             check_weights_category(provider, category, weights)
     d = np.asarray(depth, dtype=np.float64)
