@@ -46,8 +46,9 @@ def register(sub) -> None:
                    "(ancsh/data/templates/refine_defaults.json)")
     p.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
                    "the category's shipped <category>_refine.pt")
-    p.add_argument("--refine-passes", type=positive_int, default=2,
-                   help="with --refine network: passes of the refinement network (default 2; one costs about half)")
+    p.add_argument("--refine-passes", type=positive_int,
+                   help="with --refine network: passes of the refinement network (default: DEFAULT_PASSES of "
+                   "ancsh.learned.inference.refine_network)")
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
@@ -78,8 +79,9 @@ def register(sub) -> None:
                    "network' row")
     e.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
                    "the category's shipped <category>_refine.pt")
-    e.add_argument("--refine-passes", type=positive_int, default=2,
-                   help="with --refine network: passes of the refinement network (default 2)")
+    e.add_argument("--refine-passes", type=positive_int,
+                   help="with --refine network: passes of the refinement network (default: DEFAULT_PASSES of "
+                   "ancsh.learned.inference.refine_network)")
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
     e.add_argument("--time-limit-min", type=float, help="stop after this many minutes, keeping the frames done")
@@ -168,6 +170,11 @@ def _command(argv_tail: list[str]) -> str:
     return "ancsh " + " ".join(shlex.quote(a) for a in argv_tail)
 
 
+def _passes(args: argparse.Namespace) -> dict:
+    """``refine_passes`` of ``--refine-passes`` (nothing when not given: the library's default)."""
+    return {} if args.refine_passes is None else {"refine_passes": args.refine_passes}
+
+
 def _device(args: argparse.Namespace):
     """The torch device of ``--device`` (a clear error naming the option when CUDA is asked for but absent)."""
     from ..learned.devices import resolve_device
@@ -185,7 +192,7 @@ def run_predict(args: argparse.Namespace) -> int:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
     if args.refiner is not None and args.refine != "network":
         raise ValueError("--refiner: a refinement network is used with --refine network only")
-    if args.refine_passes != 2 and args.refine != "network":
+    if args.refine_passes is not None and args.refine != "network":
         raise ValueError("--refine-passes: the refinement network's passes are used with --refine network only")
     if args.overwrite and args.urdf is None:
         raise ValueError("--overwrite: only with --urdf DIR")
@@ -208,7 +215,7 @@ def run_predict(args: argparse.Namespace) -> int:
     pred = predict_depth(depth, intr, args.category, mask=mask, max_depth=args.max_depth, weights=args.weights,
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
                          isolate=not args.no_isolate, hint=hint, refine=args.refine, refiner=args.refiner,
-                         refine_passes=args.refine_passes,
+                         **_passes(args),
                          device=_device(args))
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
@@ -274,7 +281,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     if args.png is not None:
         args.png.mkdir(parents=True, exist_ok=True)
     provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine,
-                               refiner=args.refiner, device=_device(args), refine_passes=args.refine_passes)
+                               refiner=args.refiner, device=_device(args), **_passes(args))
     if args.weights is not None:
         check_weights_category(provider, args.category, args.weights)
     statuses = {}
@@ -398,7 +405,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
     if args.refiner is not None and args.refine != "network":
         raise ValueError("--refiner: a refinement network is evaluated with --refine network only")
-    if args.refine_passes != 2 and args.refine != "network":
+    if args.refine_passes is not None and args.refine != "network":
         raise ValueError("--refine-passes: the refinement network's passes are evaluated with --refine network only")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
@@ -457,7 +464,7 @@ def _rebuild(args: argparse.Namespace) -> str:
         parts.append("--real-all")
     if args.refine:
         parts += ["--refine", args.refine]
-    if args.refine_passes != 2:
+    if args.refine_passes is not None:
         parts += ["--refine-passes", str(args.refine_passes)]
     if args.update_docs and args.out is None:
         parts.append("--update-docs")

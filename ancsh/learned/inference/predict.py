@@ -31,7 +31,7 @@ from .checks import (  # noqa: F401 - re-exported
     part_quality,
 )
 from .picture import draw_prediction  # noqa: F401 - re-exported
-from .refine_network import NetworkRefinement
+from .refine_network import DEFAULT_PASSES, NetworkRefinement
 
 __all__ = [
     "MIN_POINTS",
@@ -303,7 +303,7 @@ def check_weights_category(provider, category: str, weights) -> None:
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
                   seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
-                  refiner=None, device="cpu", refine_passes: int = 2) -> DepthPrediction:
+                  refiner=None, device="cpu", refine_passes: int = DEFAULT_PASSES) -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is found first: :func:`ancsh.data.isolate.isolate_object` proposes
@@ -350,8 +350,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     device : str
         Where the network runs without a ``provider``: ``"cpu"`` (default), ``"cuda"`` or ``"auto"``.
     refine_passes : int
-        With ``refine="network"`` and no ``provider``: passes of the refinement network (default 2; one pass costs
-        about half, ``docs/results/refine_network.md``).
+        With ``refine="network"`` and no ``provider``: passes of the refinement network (default
+        :data:`~ancsh.learned.inference.refine_network.DEFAULT_PASSES`; ``docs/results/refine_network.md``).
 
     Raises
     ------

@@ -26,6 +26,7 @@ import numpy as np
 from ...geometry._checks import check_generator
 from ...model.articulated import JointType
 from ...solvers.types import Correspondences, Observation
+from .refine_network import DEFAULT_PASSES
 from .voting import JointVote, vote_joints
 
 __all__ = ["REFINE_OPTIONS", "Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
@@ -192,7 +193,7 @@ class LearnedProvider:
     """
 
     def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
-                 refine: str | None = None, refiner=None, refine_passes: int = 2, device=None):
+                 refine: str | None = None, refiner=None, refine_passes: int = DEFAULT_PASSES, device=None):
         from ..network.weights import LoadedNetwork, load_network
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source)

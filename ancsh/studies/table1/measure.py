@@ -303,7 +303,7 @@ class _FrameEvaluator:
     method; ``worker(i)`` returns the frame's record (a pure function of the settings and ``i``)."""
 
     def __init__(self, category: str, seed: int, real, weights: str, direct_weights, num_threads: int, methods: tuple,
-                 device="cpu", instances: str = "test", refiner=None, real_split=None, refine_passes: int = 2):
+                 device="cpu", instances: str = "test", refiner=None, real_split=None, refine_passes: int | None = None):
         from ...data.generate import FrameGenerator, GenerationConfig
         from ...learned.inference.provider import DirectVotingPredictor, LearnedProvider
 
@@ -313,7 +313,7 @@ class _FrameEvaluator:
         self.generator = FrameGenerator(GenerationConfig(**cfg))
         self.provider = LearnedProvider(weights, seed=seed, num_threads=num_threads, device=device,
                                         refine="network" if "network" in methods else None, refiner=refiner,
-                                        refine_passes=refine_passes)
+                                        **({} if refine_passes is None else {"refine_passes": refine_passes}))
         self.voter = None if direct_weights is None else DirectVotingPredictor(direct_weights, seed=seed, device=device)
         self.seed, self.methods = int(seed), tuple(methods)
         self.library = None
@@ -399,7 +399,7 @@ def evaluate_category(
     real: str | None = None,
     refine: str | None = None,
     refiner=None,
-    refine_passes: int = 2,
+    refine_passes: int | None = None,
     executor=None,
     device="cpu",
     instances: str = "test",
@@ -435,8 +435,9 @@ def evaluate_category(
         training objects were seen in training) instead of the ``instances`` split's.
     refiner : str or Path, optional
         The refinement network of the ``network`` method (default: the category's shipped ``<category>_refine.pt``).
-    refine_passes : int
-        Passes of the refinement network in the ``network`` method (default 2, as ``LearnedProvider``).
+    refine_passes : int, optional
+        Passes of the refinement network in the ``network`` method (default
+        :data:`~ancsh.learned.inference.refine_network.DEFAULT_PASSES`, as ``LearnedProvider``).
     executor : LocalExecutor or RayExecutor, optional
         Where the frames are evaluated (:mod:`ancsh.executors`; default: in this process). Every
         frame is a pure function of the settings and its index, so the records -- all but the
@@ -471,9 +472,10 @@ def evaluate_category(
         methods = methods + (refine,)
     if refiner is not None and "network" not in methods:
         raise ValueError("refiner: a refinement network is evaluated with refine='network' only")
-    if isinstance(refine_passes, bool) or not isinstance(refine_passes, (int, np.integer)) or refine_passes < 1:
+    if refine_passes is not None and (isinstance(refine_passes, bool) or not isinstance(refine_passes, (int, np.integer))
+                                      or refine_passes < 1):
         raise ValueError(f"refine_passes: expected a positive integer, got {refine_passes!r}")
-    if refine_passes != 2 and "network" not in methods:
+    if refine_passes is not None and "network" not in methods:
         raise ValueError("refine_passes: the refinement network's passes are evaluated with refine='network' only")
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:
@@ -510,6 +512,7 @@ def evaluate_category(
     refiner_source = refiner_net = None
     if "network" in methods:  # loaded here: a missing or mismatched refinement network fails before any frame
         from ...learned.inference.provider import LearnedProvider
+        from ...learned.inference.refine_network import DEFAULT_PASSES
 
         refiner_net = LearnedProvider(network, refine="network", refiner=refiner).refiner.network
         refiner_source = refiner_net.source
@@ -527,7 +530,7 @@ def evaluate_category(
 
         bar = tqdm(total=int(frames), desc=f"evaluate {category}", unit="frame")
     worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device, instances,
-                   refiner_source, real_split, int(refine_passes))
+                   refiner_source, real_split, refine_passes)
     results = executor.imap(_FrameEvaluator, worker_args, range(int(frames)))
     try:
         for rec in results:
@@ -560,7 +563,8 @@ def evaluate_category(
             "time_limit_s": time_limit_s, "refine": refine, "refiner": refiner_source,
             "refiner_step": None if refiner_net is None else refiner_net.step,
             "refiner_sha256": None if refiner_net is None else refiner_net.sha256,
-            "refine_passes": int(refine_passes) if refiner_net is not None else None,
+            "refine_passes": (None if refiner_net is None else DEFAULT_PASSES if refine_passes is None
+                              else int(refine_passes)),
             "executor": executor.describe(), "device": device,
         },
         "timing": {"wall_s": time.perf_counter() - start},
