@@ -75,7 +75,7 @@ def register(sub) -> None:
     e.add_argument("--refine", choices=("template", "network"), help="also refine the exact_reduced fit: 'template' "
                    "against the category template (the nearest training instance, articulated ICP; kept where its score "
                    "on the points is better), the 'ANCSH-exact + category template' row; 'network' with the refinement "
-                   "network (the points in the fit's NAOCS orientation, two passes), the 'ANCSH-exact + refinement "
+                   "network (the points in the fit's NAOCS orientation, --refine-passes passes), the 'ANCSH-exact + refinement "
                    "network' row")
     e.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
                    "the category's shipped <category>_refine.pt")

@@ -154,16 +154,26 @@ def test_error_paths(files, rendered, tmp_path, capsys):
 
 
 def test_refine_passes_reach_the_refinement_network(files, rendered):
-    """``--refine-passes 1``: one pass of the shipped refinement network (its note lists one rotation change);
-    without ``--refine network`` the option is refused before any work."""
-    out = files / "one.json"
+    """``--refine-passes N``: up to N passes of the shipped refinement network (its note lists one rotation change per
+    pass run; the default runs DEFAULT_PASSES); without ``--refine network`` the option is refused before any work."""
+    from ancsh.learned.inference.refine_network import DEFAULT_PASSES
+
+    def passes_run(*extra):
+        out = files / "refined.json"
+        r = subprocess.run([sys.executable, "-m", "ancsh", "predict", "--depth", str(files / "depth.npy"), "--intrinsics",
+                            str(files / "K.json"), "--category", "laptop", "--refine", "network", *extra,
+                            "--out", str(out)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        notes = [n for n in json.loads(out.read_text())["notes"] if n.startswith("refinement network")]
+        assert len(notes) == 1, notes
+        moved = re.search(r"rotation moved ([0-9., ]+) deg per pass", notes[0])
+        return len(moved.group(1).split(",")), notes[0]
+
+    n_default, note = passes_run()
+    assert n_default <= DEFAULT_PASSES, note
+    n3, note = passes_run("--refine-passes", "3")
+    assert n3 > DEFAULT_PASSES or "converged" in note, note
     r = subprocess.run([sys.executable, "-m", "ancsh", "predict", "--depth", str(files / "depth.npy"), "--intrinsics",
-                        str(files / "K.json"), "--category", "laptop", "--refine", "network", "--refine-passes", "1",
-                        "--out", str(out)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    notes = [n for n in json.loads(out.read_text())["notes"] if n.startswith("refinement network")]
-    assert len(notes) == 1 and re.search(r"rotation moved [0-9.]+ deg per pass", notes[0]), notes
-    r = subprocess.run([sys.executable, "-m", "ancsh", "predict", "--depth", str(files / "depth.npy"), "--intrinsics",
-                        str(files / "K.json"), "--category", "laptop", "--refine-passes", "1", "--out", str(out)],
-                       capture_output=True, text=True)
+                        str(files / "K.json"), "--category", "laptop", "--refine-passes", "1", "--out",
+                        str(files / "x.json")], capture_output=True, text=True)
     assert r.returncode == 2 and "--refine-passes" in r.stderr and "Traceback" not in r.stderr

@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from ancsh.geometry.rotations import rotation_angle
 from ancsh.learned.inference.provider import LearnedProvider
-from ancsh.learned.inference.refine_network import refine_with_network
+from ancsh.learned.inference.refine_network import DEFAULT_PASSES, refine_with_network
 from ancsh.learned.network.config import TrainConfig
 from ancsh.learned.network.weights import load_network, weights_path
 from ancsh.learned.training.data import stack_frames
@@ -162,16 +162,18 @@ def test_evaluate_adds_the_refinement_network_row(tmp_path, make_refiner):
     assert (ev["settings"]["refiner_step"], ev["settings"]["refiner_sha256"]) == (refiner.step, refiner.sha256)
     from ancsh.studies.table1.report import _weights_line
 
-    assert f"refinement network: `laptop_refine.pt` (step {refiner.step}, sha256 {refiner.sha256[:12]}, 2 passes)" in \
+    passes = f"{DEFAULT_PASSES} pass{'es' if DEFAULT_PASSES > 1 else ''}"
+    assert f"refinement network: `laptop_refine.pt` (step {refiner.step}, sha256 {refiner.sha256[:12]}, {passes})" in \
         _weights_line(ev["settings"])
-    assert ev["settings"]["refine_passes"] == 2
+    assert ev["settings"]["refine_passes"] == DEFAULT_PASSES
     rec = ev["records"][0]["methods"]["network"]
     assert rec["network_refine"]["passes"] >= 1
     assert "network" in summarize(ev)["methods"]
-    one = evaluate_category("laptop", frames=2, methods=("exact_reduced",), refine="network", refiner=make_refiner(),
-                            refine_passes=1, progress=False)
-    assert one["settings"]["refine_passes"] == 1 and "1 pass)" in _weights_line(one["settings"])
-    assert all(r["methods"]["network"]["network_refine"]["passes"] <= 1 for r in one["records"])
+    three = evaluate_category("laptop", frames=2, methods=("exact_reduced",), refine="network", refiner=make_refiner(),
+                              refine_passes=3, progress=False)
+    assert three["settings"]["refine_passes"] == 3 and "3 passes)" in _weights_line(three["settings"])
+    ran = [r["methods"]["network"]["network_refine"]["passes"] for r in three["records"]]
+    assert max(ran) <= 3 and (max(ran) > DEFAULT_PASSES or DEFAULT_PASSES >= 3), ran  # the option reached the passes
     with pytest.raises(ValueError, match="refiner"):
         evaluate_category("laptop", frames=1, refiner=make_refiner(), progress=False)
     for bad in (0, 1.5, True):
@@ -206,8 +208,7 @@ def test_predict_refines_with_the_network_and_keeps_its_correspondences(tmp_path
     _, renderer = gen.instance(gen_frame.instance_index)
     depth = renderer.render(gen_frame.joint_states_abs, gen_frame.T_cam_base, gen_frame.intrinsics).depth
     mask = depth > 0
-    pred = predict_depth(depth, gen_frame.intrinsics, "laptop", mask=mask, refine="network",
-                         refiner=make_refiner())
+    pred = predict_depth(depth, gen_frame.intrinsics, "laptop", mask=mask, refine="network")  # the shipped refiner
     assert any(n.startswith("refinement network: kept") for n in pred.notes), pred.notes
     assert pred.result.ok
     with pytest.raises(ValueError, match="refiner"):

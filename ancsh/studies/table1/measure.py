@@ -22,7 +22,7 @@ then fit the same network output, so they differ only in how they use it:
 ``network`` (ANCSH-exact + refinement network, ours; only when asked for, ``refine="network"``)
     The ``exact_reduced`` fit refined by the category's refinement network
     (:func:`ancsh.learned.inference.refine_network.refine_with_network`: the points rotated into the fit's
-    NAOCS orientation, the network run again, the exact fit again; two passes), the ``exact_reduced``
+    NAOCS orientation, the network run again, the exact fit again; ``refine_passes`` passes), the ``exact_reduced``
     fit itself where no pass succeeded.
 ``template`` (ANCSH-exact + category template, ours; only when asked for, ``refine="template"``)
     The ``exact_reduced`` fit refined by articulated ICP against the nearest training instance of the
