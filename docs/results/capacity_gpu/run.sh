@@ -10,13 +10,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 export PYTHONUNBUFFERED=1
 FRAMES=${FRAMES:-6000}; TLIM=${TLIM:-5}; DEVICE=${DEVICE:-cuda}; WORKERS=${WORKERS:-16}; PY=${PY:-python3}
 OUT=${OUT:-/tmp/gpu_out}; mkdir -p "$OUT"; LOGS=/tmp/gpu_logs; rm -rf $LOGS /tmp/gpu_lt /tmp/gpu_runs; mkdir -p $LOGS
-t0=$(date +%s); stamp() { echo "[$(( $(date +%s) - t0 )) s] $*" | tee -a $LOGS/timeline.txt; }
-if ! $PY -c "import trimesh" 2>/dev/null; then
-  $PY -m pip install -q --no-index --no-deps --no-compile --target /tmp/site ${WHEELS:-.gpu}/trimesh-*.whl && export PYTHONPATH=/tmp/site
-fi
-export PYTHONPATH=${PYTHONPATH:+$PYTHONPATH:}$PWD
-stamp "start; $(nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null); nproc $(nproc)"
-$PY -c "import torch, numpy, scipy, h5py, trimesh; print('torch', torch.__version__, 'cuda', torch.cuda.is_available(), 'numpy', numpy.__version__, 'scipy', scipy.__version__)" 2>&1 | tee -a $LOGS/timeline.txt
+. "$HERE/../gpu_preamble.sh"  # stamp(), trimesh, PYTHONPATH, the machine in the timeline
 timeout 120 $PY $HERE/check.py $DEVICE > $LOGS/gpu_check.txt 2>&1; stamp "gpu check rc $? $(tail -1 $LOGS/gpu_check.txt)"
 timeout 170 $PY -m ancsh.cli data generate --category laptop --split train --frames $FRAMES --workers $WORKERS \
   --shard-size $(( (FRAMES + WORKERS - 1) / WORKERS )) --seed 40 --out /tmp/gpu_lt --quiet > $LOGS/generate.txt 2>&1
