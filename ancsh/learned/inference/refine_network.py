@@ -18,12 +18,17 @@ import numpy as np
 
 from ...solvers.types import FitResult, Observation
 
-__all__ = ["DEFAULT_PASSES", "NetworkRefinement", "refine_with_network"]
+__all__ = ["DEFAULT_PASSES", "NetworkRefinement", "passes_text", "refine_with_network"]
 
 DEFAULT_PASSES = 1
 """Passes of the refinement network at test time (CAPTRA and DeepIM use 1-4). One: measured against two on 300 test
 frames of each shipped refiner's category (``docs/results/refine_network.md``), one pass errs less on the oven,
 drawer and washing machine, as much on the eyeglasses and 0.14 deg more on the laptop, at half the cost."""
+
+
+def passes_text(passes: int) -> str:
+    """``"1 pass"``, ``"2 passes"``: a count of passes as reports and reasons write it."""
+    return f"{passes} pass{'es' if passes > 1 else ''}"
 
 
 @dataclass(frozen=True)
@@ -98,7 +103,7 @@ def refine_with_network(refiner, observation: Observation, fit_result: FitResult
     root = joint_tree_root(refiner.num_parts, refiner.network.joint_children)
     t0 = time.perf_counter()
     result, inference, changes = fit_result, None, []
-    reason = f"{passes} pass{'es' if passes > 1 else ''}"
+    reason = passes_text(int(passes))
     for p in range(int(passes)):
         R_start = result.T_cam_npcs[root].rotation
         inf = refiner.infer(observation, input_rotation=R_start.T)

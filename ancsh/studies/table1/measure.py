@@ -46,6 +46,7 @@ import numpy as np
 from ..._machine import machine_facts
 from ...solvers.types import Correspondences, FitResult, Observation
 from ...data.procedural import generator_version
+from ...learned.inference.refine_network import DEFAULT_PASSES
 from ...learned.network.weights import missing_weights_error
 from ...learned.network.weights import shipped_categories  # noqa: F401  (re-exported: the evaluation's category list)
 from ...outputs import json_safe  # noqa: F401  (re-exported)
@@ -303,7 +304,7 @@ class _FrameEvaluator:
     method; ``worker(i)`` returns the frame's record (a pure function of the settings and ``i``)."""
 
     def __init__(self, category: str, seed: int, real, weights: str, direct_weights, num_threads: int, methods: tuple,
-                 device="cpu", instances: str = "test", refiner=None, real_split=None, refine_passes: int | None = None):
+                 device="cpu", instances: str = "test", refiner=None, real_split=None, refine_passes: int = DEFAULT_PASSES):
         from ...data.generate import FrameGenerator, GenerationConfig
         from ...learned.inference.provider import DirectVotingPredictor, LearnedProvider
 
@@ -313,7 +314,7 @@ class _FrameEvaluator:
         self.generator = FrameGenerator(GenerationConfig(**cfg))
         self.provider = LearnedProvider(weights, seed=seed, num_threads=num_threads, device=device,
                                         refine="network" if "network" in methods else None, refiner=refiner,
-                                        **({} if refine_passes is None else {"refine_passes": refine_passes}))
+                                        refine_passes=refine_passes)
         self.voter = None if direct_weights is None else DirectVotingPredictor(direct_weights, seed=seed, device=device)
         self.seed, self.methods = int(seed), tuple(methods)
         self.library = None
@@ -477,6 +478,7 @@ def evaluate_category(
         raise ValueError(f"refine_passes: expected a positive integer, got {refine_passes!r}")
     if refine_passes is not None and "network" not in methods:
         raise ValueError("refine_passes: the refinement network's passes are evaluated with refine='network' only")
+    passes = DEFAULT_PASSES if refine_passes is None else int(refine_passes)
     bad = [m for m in methods if m not in METHODS]
     if bad or not methods:
         raise ValueError(f"methods: expected keys of {list(METHODS)}, got {list(methods)}")
@@ -512,7 +514,6 @@ def evaluate_category(
     refiner_source = refiner_net = None
     if "network" in methods:  # loaded here: a missing or mismatched refinement network fails before any frame
         from ...learned.inference.provider import LearnedProvider
-        from ...learned.inference.refine_network import DEFAULT_PASSES
 
         refiner_net = LearnedProvider(network, refine="network", refiner=refiner).refiner.network
         refiner_source = refiner_net.source
@@ -530,7 +531,7 @@ def evaluate_category(
 
         bar = tqdm(total=int(frames), desc=f"evaluate {category}", unit="frame")
     worker_args = (category, int(seed), real, network.source, direct, int(num_threads), methods, device, instances,
-                   refiner_source, real_split, refine_passes)
+                   refiner_source, real_split, passes)
     results = executor.imap(_FrameEvaluator, worker_args, range(int(frames)))
     try:
         for rec in results:
@@ -563,8 +564,7 @@ def evaluate_category(
             "time_limit_s": time_limit_s, "refine": refine, "refiner": refiner_source,
             "refiner_step": None if refiner_net is None else refiner_net.step,
             "refiner_sha256": None if refiner_net is None else refiner_net.sha256,
-            "refine_passes": (None if refiner_net is None else DEFAULT_PASSES if refine_passes is None
-                              else int(refine_passes)),
+            "refine_passes": None if refiner_net is None else passes,
             "executor": executor.describe(), "device": device,
         },
         "timing": {"wall_s": time.perf_counter() - start},

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..._machine import describe_machine
+from ...learned.inference.refine_network import passes_text
 from ...outputs import json_safe
 from ..report import utc_date, write_text
 from .measure import METHODS, PAPER_TABLE1, PAPER_TABLE2
@@ -434,5 +435,5 @@ def _weights_line(s: dict) -> str:
         sha = s.get("refiner_sha256") or ""
         passes = s.get("refine_passes") or 2  # reports before the option ran two passes
         line += (f"; refinement network: `{Path(s['refiner']).name}` (step {s.get('refiner_step')}, sha256 {sha[:12]}, "
-                 f"{passes} pass{'es' if passes > 1 else ''})")
+                 f"{passes_text(passes)})")
     return line
