@@ -53,10 +53,15 @@ def register(sub) -> None:
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
-    p.add_argument("--urdf", type=Path, metavar="DIR", help="write the fitted object as a URDF folder (of the 5 category "
-                   "templates nearest to the fit, the one that best explains the depth, reshaped to the fit; the base "
-                   "in the camera frame, the fitted joint states in joint_states.json); a failed fit writes none")
+    p.add_argument("--urdf", type=Path, metavar="DIR", help="write the fitted object as a URDF folder (of the 20 category "
+                   "templates nearest to the fit, reshaped to it, the one that best explains the depth, the best 3 "
+                   "aligned to it by articulated ICP; the base in the camera frame, the joint states in "
+                   "joint_states.json); a failed fit writes none")
     p.add_argument("--overwrite", action="store_true", help="with --urdf: replace the files of an existing folder")
+    p.add_argument("--urdf-align", type=non_negative_int, default=None, metavar="N",
+                   help="with --urdf: align the best N templates to the depth by articulated ICP (default 3: the URDF's "
+                   "pose and joint states are then the aligned model's, which explains the depth better; 0: the fit's "
+                   "own pose and joint states)")
     add_device_argument(p)
     p.set_defaults(func=run_predict)
     p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
@@ -196,6 +201,8 @@ def run_predict(args: argparse.Namespace) -> int:
         raise ValueError("--refine-passes: the refinement network's passes are used with --refine network only")
     if args.overwrite and args.urdf is None:
         raise ValueError("--overwrite: only with --urdf DIR")
+    if args.urdf_align is not None and args.urdf is None:
+        raise ValueError("--urdf-align: only with --urdf DIR")
     if args.urdf is not None:  # before any work
         if args.depth.is_dir():
             raise ValueError("--urdf: one folder cannot hold the objects of a folder of depth images; predict each file")
@@ -249,12 +256,14 @@ def run_predict(args: argparse.Namespace) -> int:
         print(f"  picture: {save_figure(draw_prediction(depth, pred, intr, rgb=rgb), args.png)}")
     if args.urdf is not None:
         if r.ok:
+            from ..learned.inference.predict import URDF_ALIGN
             from ..solvers.twin import ObservedDepth
 
             object_mask = mask if mask is not None else pred.object_mask(depth.shape)
             observed = None if object_mask is None else ObservedDepth(depth, intr, object_mask)
-            print(f"  URDF: {pred.to_urdf(args.urdf, overwrite=args.overwrite, observed=observed)} (joint states in "
-                  f"{args.urdf / 'joint_states.json'})")
+            align = URDF_ALIGN if args.urdf_align is None else args.urdf_align
+            print(f"  URDF: {pred.to_urdf(args.urdf, overwrite=args.overwrite, observed=observed, align=align, rng=args.seed)}"
+                  f" (joint states in {args.urdf / 'joint_states.json'})")
         else:
             print(f"  URDF: none (the fit failed: {r.status.value})")
     return 0 if r.ok else 1

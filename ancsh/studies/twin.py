@@ -7,8 +7,10 @@ correspondences (``oracle``, the fit's own floor) -- becomes its articulated mod
 lines: what ``--urdf`` writes), rendered at the fitted object pose and joint states from the input camera and
 compared with the noisy depth on the object's pixels (:func:`ancsh.solvers.render_compare.compare_depth`). The
 target of issue 34: a median |residual| within 1 cm. With ``candidates`` > 1 each fit's model is also chosen by
-render-and-compare among that many nearest templates (``fitted_model(..., observed=..., candidates=K)``, what
-``ancsh predict --urdf`` does), and both choices are reported side by side on the same fits.
+render-and-compare among that many nearest templates (``fitted_model(..., observed=..., candidates=K)``), and with
+``align`` > 0 the best ``align`` of them are also moved onto the depth by articulated ICP
+(:func:`ancsh.solvers.twin.align_model`; what ``ancsh predict --urdf`` does); the choices are reported side by side on
+the same fits.
 """
 
 from __future__ import annotations
@@ -35,22 +37,25 @@ one); ``learned+template``: that fit refined against the category template (``Le
 score says so; what ``ancsh predict --refine template`` does); ``oracle``: exact ground-truth correspondences."""
 
 
-def selection_name(candidates: int) -> str:
-    """The report's name of a template choice: ``"nearest"`` (1) or ``"best of K"``."""
-    return "nearest" if candidates == 1 else f"best of {candidates}"
+def selection_name(candidates: int, align: int = 0) -> str:
+    """The report's name of a template choice: ``"nearest"`` (1), ``"best of K"``, ``"best of K, A aligned"``."""
+    name = "nearest" if candidates == 1 else f"best of {candidates}"
+    return f"{name}, {align} aligned" if align else name
 
 
 def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(1,), refine=None) -> list[dict]:
-    """One frame's records for one provider's correspondences, one per template choice in ``candidates`` (1: the
-    nearest template; K > 1: the best of the K nearest by render-and-compare): the fit (``config``: its FitConfig,
-    made once; ``refine(observation, corr, fit)``, optional: a refinement outcome whose ``.result`` replaces it and
-    whose ``.accepted`` is recorded), its model rendered, the comparison."""
+    """One frame's records for one provider's correspondences, one per template choice in ``candidates`` (``K`` or
+    ``(K, A)``; K = 1: the nearest template; K > 1: the best of the K nearest by render-and-compare; A > 0: the best A
+    of them aligned to the depth, :func:`ancsh.solvers.twin.fitted_model`'s ``align``): the fit (``config``: its
+    FitConfig, made once; ``refine(observation, corr, fit)``, optional: a refinement outcome whose ``.result``
+    replaces it and whose ``.accepted`` is recorded), its model rendered, the comparison."""
     from ..data.render import ModelRenderer
     from ..model.edit import with_limits
     from ..solvers import Observation, fit
     from ..solvers.render_compare import compare_depth
     from ..solvers.twin import ObservedDepth, fitted_model
 
+    choices = [(int(c), 0) if np.isscalar(c) else (int(c[0]), int(c[1])) for c in candidates]
     t0 = time.perf_counter()
     obs = Observation(frame.points)
     result = fit(obs, corr, "exact_reduced", config=config, rng=seed)
@@ -60,14 +65,15 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
         result, extra = outcome.result, {"refined": bool(outcome.accepted)}
     fit_ms = 1e3 * (time.perf_counter() - t0)
     if not result.ok:
-        return [{"selection": selection_name(k), "status": result.status.value, **extra} for k in candidates]
+        return [{"selection": selection_name(k, a), "status": result.status.value, **extra} for k, a in choices]
     mask = frame.depth > 0
     observed = ObservedDepth(frame.depth, frame.intrinsics, mask)
     out = []
-    for k in candidates:
-        rec = {"selection": selection_name(k), "status": result.status.value, **extra}
+    for k, a in choices:
+        rec = {"selection": selection_name(k, a), "status": result.status.value, **extra}
         t1 = time.perf_counter()
-        twin = fitted_model(result, corr, library, observed=observed if k > 1 else None, candidates=k)
+        twin = fitted_model(result, corr, library, observed=observed if k > 1 or a else None, candidates=k, align=a,
+                            rng=seed)
         if twin is None:
             rec["status"] = "no_template"
             out.append(rec)
@@ -77,6 +83,8 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
         rendered = ModelRenderer(model).render(q, twin.T_cam_B, frame.intrinsics).depth
         cmp = compare_depth(rendered, frame.depth, mask)
         rec.update(cmp.to_dict(), template=twin.template, time_ms=fit_ms + 1e3 * (time.perf_counter() - t1))
+        if a:
+            rec["aligned"] = bool(twin.aligned)
         out.append(rec)
     return out
 
@@ -102,10 +110,11 @@ _REFINES = {"learned+network": "network", "learned+template": "template"}
 
 
 def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool = True, box_extents: str = "max",
-                 candidates: int = 1) -> dict:
+                 candidates: int = 1, align: int = 0) -> dict:
     """Records of ``frames`` test frames per category, provider and template choice (see the module docstring);
     ``box_extents``: the fits' :attr:`~ancsh.solvers.fit.FitConfig.box_extents`; ``candidates`` > 1 adds the choice
-    among that many nearest templates by render-and-compare beside the nearest one."""
+    among that many nearest templates by render-and-compare beside the nearest one, ``align`` > 0 that choice with
+    the best ``align`` of them aligned to the depth."""
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.templates import load_template_library
     from ..learned.inference.provider import LearnedProvider
@@ -117,7 +126,9 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
         raise ValueError(f"frames: expected a positive integer, got {frames!r}")
     if isinstance(candidates, bool) or int(candidates) != candidates or candidates < 1:
         raise ValueError(f"candidates: expected a positive integer, got {candidates!r}")
-    choices = (1,) if candidates == 1 else (1, int(candidates))
+    if isinstance(align, bool) or int(align) != align or align < 0:
+        raise ValueError(f"align: expected a non-negative integer, got {align!r}")
+    choices = [(1, 0)] + ([(int(candidates), 0)] if candidates > 1 else []) + ([(int(candidates), int(align))] if align else [])
     from ..solvers import FitConfig
 
     config = FitConfig(box_extents=box_extents)
@@ -145,7 +156,8 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
             if progress:
                 print(f"twin {cat} frame {i + 1}/{frames}", flush=True)
     return {"records": records, "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed),
-                                             "box_extents": box_extents, "candidates": int(candidates)}}
+                                             "box_extents": box_extents, "candidates": int(candidates),
+                                             "align": int(align)}}
 
 
 def summarize(results: dict) -> list[dict]:
@@ -153,8 +165,8 @@ def summarize(results: dict) -> list[dict]:
     |residual|, explained, see-through, the share of frames within :data:`TARGET_M`."""
     rows = []
     recs = results["records"]
-    k = int(results["settings"].get("candidates", 1))
-    selections = [selection_name(1)] + ([selection_name(k)] if k > 1 else [])
+    k, a = int(results["settings"].get("candidates", 1)), int(results["settings"].get("align", 0))
+    selections = [selection_name(1)] + ([selection_name(k)] if k > 1 else []) + ([selection_name(k, a)] if a else [])
     for cat in results["settings"]["categories"]:
         for name, selection in [(INSTANCE, INSTANCE)] + [(n, c) for n in PROVIDERS for c in selections]:
             sel = [r for r in recs if r["category"] == cat and r["provider"] == name
@@ -171,6 +183,7 @@ def summarize(results: dict) -> list[dict]:
                 "explained": float(np.mean([r["explained"] for r in ok])) if ok else float("nan"),
                 "see_through": float(np.mean([r["see_through"] for r in ok])) if ok else float("nan"),
                 "refined": float(np.mean([r["refined"] for r in sel])) if sel and "refined" in sel[0] else None,
+                "aligned": float(np.mean([r["aligned"] for r in ok])) if ok and "aligned" in ok[0] else None,
             })
     return rows
 
@@ -203,16 +216,20 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "`ancsh.solvers.render_compare`. Learned part boxes: `FitConfig.box_extents` "
         f"`{s.get('box_extents', 'max')}` (`docs/results/box_extents.md`). Template: `nearest` = the template nearest "
         "to the fitted part boxes; `best of K` = of the K nearest, the one whose render has the lowest median "
-        "|residual| against the input depth (`fitted_model(..., observed=..., candidates=K)`, as `ancsh predict --urdf` "
-        "chooses), the same fits.",
+        "|residual| against the input depth (`fitted_model(..., observed=..., candidates=K)`), the same fits; "
+        "`best of K, A aligned` = the A of those with the lowest residuals each moved onto the observed points by "
+        "articulated ICP (object pose and joint states, `ancsh.solvers.twin.align_model`), the lowest residual of all "
+        "kept, as `ancsh predict --urdf` exports it ('aligned' = the share of frames where an aligned model won).",
         "",
-        "| category | provider | template | frames | failed fits | refined | median residual (mm) | mean of frames (mm) | "
-        "frames within 1 cm | explained | see-through |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| category | provider | template | frames | failed fits | refined | aligned | median residual (mm) | "
+        "mean of frames (mm) | frames within 1 cm | explained | see-through |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         refined = "-" if r["refined"] is None else f"{r['refined']:.0%}"
+        aligned = "-" if r["aligned"] is None else f"{r['aligned']:.0%}"
         md.append(f"| {r['category']} | {r['provider']} | {r['selection']} | {r['frames']} | {r['failed']} | {refined} | "
+                  f"{aligned} | "
                   f"{1e3 * r['median_residual_m']:.1f} | {1e3 * r['mean_residual_m']:.1f} | {r['within_target']:.0%} | "
                   f"{r['explained']:.2f} | {r['see_through']:.3f} |")
     write_text(path, "\n".join(md) + "\n")

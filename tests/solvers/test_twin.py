@@ -116,16 +116,20 @@ def test_predict_writes_the_urdf_and_refuses_to_overwrite(tmp_path, capsys):
     (tmp_path / "K.json").write_text(json.dumps(fr.intrinsics.to_json()))
     args = ["predict", "--depth", str(tmp_path / "d.npy"), "--intrinsics", str(tmp_path / "K.json"), "--category",
             "laptop", "--out", str(tmp_path / "r.json")]
-    assert main([*args, "--urdf", str(tmp_path / "twin")]) == 0
+    assert main([*args, "--urdf", str(tmp_path / "twin"), "--urdf-align", "0"]) == 0  # the fit's own pose and state
     robot, states = _reload(tmp_path / "twin" / "laptop.urdf")
     result = json.loads((tmp_path / "r.json").read_text())
     assert states["display_hinge"] == pytest.approx(result["joints"][0]["state_abs"], abs=1e-9)
     capsys.readouterr()
     assert main([*args, "--urdf", str(tmp_path / "twin")]) == 2
     assert "--urdf: " in capsys.readouterr().err
-    assert main([*args, "--urdf", str(tmp_path / "twin"), "--overwrite"]) == 0
+    assert main([*args, "--urdf", str(tmp_path / "twin"), "--overwrite"]) == 0  # aligned to the depth (the default)
+    _, aligned = _reload(tmp_path / "twin" / "laptop.urdf")
+    assert np.isfinite(aligned["display_hinge"])
     assert main([*args, "--overwrite"]) == 2
     assert "--overwrite: only with --urdf" in capsys.readouterr().err
+    assert main([*args, "--urdf-align", "2"]) == 2
+    assert "--urdf-align: only with --urdf" in capsys.readouterr().err
     (tmp_path / "link").symlink_to(tmp_path / "elsewhere", target_is_directory=True)
     (tmp_path / "elsewhere").mkdir()
     assert main([*args, "--urdf", str(tmp_path / "link"), "--overwrite"]) == 2  # refused before any work
@@ -173,3 +177,74 @@ def test_the_observed_depth_chooses_the_template_that_explains_it_best(tmp_path)
             ObservedDepth(**{"depth": fr.depth, "intrinsics": fr.intrinsics, "object_mask": fr.depth > 0, **bad})
     with pytest.raises(ValueError, match="candidates: expected a positive integer"):
         fitted_model(res, corr, lib, observed=observed, candidates=0)
+
+
+def _oven_frame():
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+
+    gen = FrameGenerator(GenerationConfig(category="oven", split="test", seed=0))
+    return gen, gen.frame(0, keep_depth=True)
+
+
+def test_alignment_moves_a_misplaced_model_back_onto_its_depth():
+    """``align_model``: the frame's own instance, posed 2 degrees, 1 cm and 3 degrees of door off its true pose and
+    state, is moved back onto the depth by articulated ICP: pose and state recovered near the truth, the residual
+    down to the sensor noise's."""
+    from ancsh.geometry.rotations import exp_so3
+    from ancsh.solvers.twin import FittedModel, ObservedDepth, align_model, depth_residual
+
+    gen, fr = _oven_frame()
+    model, _ = gen.instance(fr.instance_index)
+    observed = ObservedDepth(fr.depth, fr.intrinsics, fr.depth > 0)
+    truth = FittedModel(model, fr.T_cam_base, np.asarray(fr.joint_states_abs, dtype=float), "instance")
+    rng = np.random.default_rng(4)
+    axis = rng.normal(size=3)
+    turn = Sim3(exp_so3(np.radians(2.0) * axis / np.linalg.norm(axis)), 0.01 * np.array([0.6, -0.8, 0.0]))
+    q = np.clip(truth.states + np.radians(3.0), model.lower_limits, model.upper_limits)
+    off = FittedModel(model, turn @ fr.T_cam_base, q, "instance")
+    floor, before = depth_residual(truth, observed), depth_residual(off, observed)
+    back = align_model(off, observed, rng=0)
+    assert back.aligned and back.template == "instance" and back.model is model
+    assert back.median_residual_m == pytest.approx(depth_residual(back, observed), abs=1e-12)
+    assert back.median_residual_m < before and back.median_residual_m < floor + 0.25 * (before - floor)
+    R_err = back.T_cam_B.rotation @ fr.T_cam_base.rotation.T
+    assert np.degrees(np.arccos(np.clip((np.trace(R_err) - 1) / 2, -1, 1))) < 0.5
+    assert np.linalg.norm(back.T_cam_B.translation - fr.T_cam_base.translation) < 0.003
+    assert np.degrees(np.abs(back.states - truth.states)).max() < 1.0
+    with pytest.raises(ValueError, match="twin: expected a FittedModel"):
+        align_model(model, observed)
+    with pytest.raises(ValueError, match="observed: expected an ObservedDepth"):
+        align_model(off, fr.depth)
+
+
+def test_the_aligned_choice_never_explains_the_depth_worse_and_is_what_the_urdf_holds(tmp_path):
+    """``fitted_model(..., align=A)``: the best A of the K templates are aligned; the kept model's residual is at most
+    the unaligned best's and is its own render's; the exported URDF holds the kept model's pose and states."""
+    from ancsh.data.templates import load_template_library
+    from ancsh.solvers import Observation, fit
+    from ancsh.solvers.providers.oracle import OracleProvider
+    from ancsh.solvers.twin import ObservedDepth, depth_residual, export_fit_urdf, fitted_model
+
+    _, fr = _oven_frame()
+    obs = Observation(fr.points)
+    corr = OracleProvider(fr, "none", rng=0).correspond(obs)
+    res = fit(obs, corr, "exact_reduced", rng=0)
+    lib = load_template_library("oven")
+    observed = ObservedDepth(fr.depth, fr.intrinsics, fr.depth > 0)
+    best = fitted_model(res, corr, lib, observed=observed, candidates=4)
+    kept = fitted_model(res, corr, lib, observed=observed, candidates=4, align=2, rng=0)
+    assert not best.aligned and kept.median_residual_m <= best.median_residual_m
+    assert kept.median_residual_m == pytest.approx(depth_residual(kept, observed), abs=1e-12)
+    path, exported = export_fit_urdf(res, corr, lib, tmp_path / "twin", observed=observed, candidates=4, align=2, rng=0)
+    assert exported.template == kept.template and exported.aligned == kept.aligned
+    robot, states = _reload(path)
+    assert [states[j.name] for j in exported.model.joints] == pytest.approx(exported.states, abs=1e-12)
+    base = exported.model.part_names[0]
+    pose = robot.get_transform(base, "camera") @ robot.link_map[base].visuals[0].origin
+    fk = exported.model.forward_kinematics(exported.states)[0]
+    assert np.abs(pose - (exported.T_cam_B @ fk).matrix()).max() < 1e-9
+    for bad, message in ((dict(align=-1), "align: expected a non-negative integer"),
+                         (dict(align=True), "align: expected a non-negative integer"),
+                         (dict(align=1, observed=None), "align: aligning the model needs the observed depth")):
+        with pytest.raises(ValueError, match=message):
+            fitted_model(res, corr, lib, **{"observed": observed, "candidates": 4, **bad})

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ancsh.cli import main
-from ancsh.learned.inference.predict import URDF_CANDIDATES
+from ancsh.learned.inference.predict import URDF_ALIGN, URDF_CANDIDATES
 from ancsh.studies.twin import TARGET_M, measure_twin, summarize
 
 
@@ -33,10 +33,15 @@ def test_the_network_refinement_runs_only_where_a_refiner_is_shipped():
 def test_cli_writes_the_report_and_checks_categories(tmp_path, capsys):
     out = tmp_path / "twin.md"
     assert main(["bench", "twin", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
-    assert "| laptop | oracle | nearest | 1 | 0 |" in out.read_text() and f"| laptop | oracle | best of {URDF_CANDIDATES} | 1 | 0 |" in out.read_text()
+    text = out.read_text()
+    assert "| laptop | oracle | nearest | 1 | 0 |" in text and f"| laptop | oracle | best of {URDF_CANDIDATES} | 1 | 0 |" in text
+    assert f"| laptop | oracle | best of {URDF_CANDIDATES}, {URDF_ALIGN} aligned | 1 | 0 |" in text
     data = json.loads(out.with_suffix(".json").read_text())
-    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 9
-    assert "--candidates" not in data["command"]
+    assert data["command"].startswith("ancsh bench twin --categories laptop --frames 1") and len(data["records"]) == 13
+    assert "--candidates" not in data["command"] and "--align" not in data["command"]
+    assert main(["bench", "twin", "--categories", "laptop", "--candidates", "1", "--align", "2", "--out",
+                 str(tmp_path / "y.md")]) == 2
+    assert "--align: aligns the best of several templates" in capsys.readouterr().err
     assert main(["bench", "twin", "--categories", "nothing", "--out", str(tmp_path / "x.md")]) == 2
     assert "--categories: no shipped weights for ['nothing']" in capsys.readouterr().err
 
@@ -58,18 +63,23 @@ def test_unit_diagonal_boxes_reach_the_twin(tmp_path):
 
 def test_the_best_of_k_templates_is_chosen_on_the_same_fit_and_never_explains_the_depth_worse():
     """``candidates=K``: the same fits, the template chosen by render-and-compare; per frame its residual is at most the
-    nearest template's (the nearest is among the K); the choice is recorded beside the nearest one."""
-    results = measure_twin(["laptop"], frames=2, progress=False, candidates=3)
+    nearest template's (the nearest is among the K), and the aligned choice's at most that; the choices are recorded
+    side by side."""
+    results = measure_twin(["laptop"], frames=2, progress=False, candidates=3, align=1)
     by_key = {}
     for r in results["records"]:
         by_key.setdefault((r["frame"], r["provider"]), {})[r["selection"]] = r
     assert len(by_key) == 10
-    assert all(set(v) == ({"instance"} if p == "instance" else {"nearest", "best of 3"}) for (_, p), v in by_key.items())
+    assert all(set(v) == ({"instance"} if p == "instance" else {"nearest", "best of 3", "best of 3, 1 aligned"})
+               for (_, p), v in by_key.items())
     for (_, provider), v in by_key.items():
         if provider == "instance":
             continue
         assert v["best of 3"]["median_abs_residual_m"] <= v["nearest"]["median_abs_residual_m"] + 1e-12
-    assert results["settings"]["candidates"] == 3
+        aligned = v["best of 3, 1 aligned"]
+        assert aligned["median_abs_residual_m"] <= v["best of 3"]["median_abs_residual_m"] + 1e-12
+        assert aligned["aligned"] == (aligned["median_abs_residual_m"] < v["best of 3"]["median_abs_residual_m"])
+    assert results["settings"]["candidates"] == 3 and results["settings"]["align"] == 1
     for frame in (0, 1):  # a refinement starts from the learned fit: where it is not kept, nothing changes
         plain = by_key[(frame, "learned")]["nearest"]
         for provider in ("learned+template", "learned+network"):

@@ -63,6 +63,9 @@ MAX_VERIFIED = 5
 #: (``docs/results/twin.md``: against the nearest alone; 20 instead of 5 lowered the oracle cabinets' median residual
 #: by 1-5 mm for 0.2-0.3 s more per export).
 URDF_CANDIDATES = 20
+#: ... and the best this many of them are aligned to the depth by articulated ICP (:func:`ancsh.solvers.twin.align_model`;
+#: ``docs/results/twin.md``: the learned fits' median residual 2-4x lower, for about 0.5 s more per export).
+URDF_ALIGN = 3
 
 
 # --------------------------------------------------------------------------------------------
@@ -203,12 +206,13 @@ class DepthPrediction:
     correspondences: object = None
 
     def to_urdf(self, folder, *, T_frame_cam=None, root: str = "camera", overwrite: bool = False, observed=None,
-                candidates: int = URDF_CANDIDATES):
+                candidates: int = URDF_CANDIDATES, align: int = URDF_ALIGN, rng=0):
         """Write the fitted object as a URDF folder (:func:`ancsh.solvers.twin.export_fit_urdf`): the category
         template nearest to the fit reshaped to it (with ``observed``, the depth this prediction was made from as an
         :class:`~ancsh.solvers.twin.ObservedDepth`: the one of the ``candidates`` nearest whose render explains that
-        depth best), the base in the camera frame (or ``root``, the frame of ``T_frame_cam``: the camera's pose
-        there), the fitted states in ``joint_states.json``.
+        depth best, after the best ``align`` of them were moved onto it by articulated ICP), the base in the camera
+        frame (or ``root``, the frame of ``T_frame_cam``: the camera's pose there), the states in
+        ``joint_states.json`` (the fit's, or the aligned model's).
 
         Returns the ``.urdf`` path. A failed prediction is refused (``ValueError`` naming its status)."""
         from ...data.templates import load_template_library
@@ -219,7 +223,8 @@ class DepthPrediction:
                              "is not exported")
         path, _ = export_fit_urdf(self.result, self.correspondences, load_template_library(self.category), folder,
                                   T_frame_cam=T_frame_cam, root=root, name=self.category, overwrite=overwrite,
-                                  observed=observed, candidates=candidates if observed is not None else 1)
+                                  observed=observed, candidates=candidates if observed is not None else 1,
+                                  align=align if observed is not None else 0, rng=rng)
         return path
 
     def object_mask(self, shape) -> np.ndarray | None:

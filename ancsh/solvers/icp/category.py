@@ -56,6 +56,7 @@ __all__ = [
     "TemplateRefinement",
     "fitted_layout",
     "fitted_template",
+    "local_icp",
     "refine_fit",
     "template_fit_uncertainty",
 ]
@@ -63,8 +64,9 @@ __all__ = [
 BOX_SCALINGS = ("parts", "object")
 
 
-def _local_icp() -> ArticulatedIcpConfig:
-    """One local start from the fit: no joint-range starts or restarts, no rescue, a short gate schedule."""
+def local_icp() -> ArticulatedIcpConfig:
+    """Articulated ICP from one estimate (the fit's): one local start, no joint-range starts or restarts, no rescue, a
+    short gate schedule (:func:`ancsh.solvers.twin.align_config` runs it longer)."""
     return ArticulatedIcpConfig(max_iterations=10, gate_start=0.04, gate_end=0.02, gate_decay=0.7, joint_starts=0,
                                 joint_restarts=False, candidates=1, rescue_angle=0.0, start_iterations=3, num_points=400,
                                 solver_iterations=5)
@@ -72,7 +74,7 @@ def _local_icp() -> ArticulatedIcpConfig:
 
 def _continuation_icp() -> ArticulatedIcpConfig:
     """A few iterations at the final gate, from the first scale's result."""
-    return replace(_local_icp(), max_iterations=4, gate_start=0.02, start_iterations=2)
+    return replace(local_icp(), max_iterations=4, gate_start=0.02, start_iterations=2)
 
 
 @dataclass(frozen=True)
@@ -106,7 +108,7 @@ class RefineConfig:
     templates : int
         The nearest library entries tried (each with every scale).
     icp : ArticulatedIcpConfig
-        Articulated ICP at the first scale (default: one local start from the fit, see :func:`_local_icp`).
+        Articulated ICP at the first scale (default: one local start from the fit, see :func:`local_icp`).
     continuation : ArticulatedIcpConfig
         Articulated ICP at the other scales, from the first scale's result (default: a few iterations).
     release_revolute : bool
@@ -123,7 +125,7 @@ class RefineConfig:
     margin: float = 0.0
     part_tolerance: float = 0.02
     templates: int = 1
-    icp: ArticulatedIcpConfig = field(default_factory=_local_icp)
+    icp: ArticulatedIcpConfig = field(default_factory=local_icp)
     continuation: ArticulatedIcpConfig = field(default_factory=_continuation_icp)
     release_revolute: bool = False
 
