@@ -366,6 +366,8 @@ def _orientation(path: Path, links: dict, model: ArticulatedModel, info: dict) -
     # themselves are not consistently y-up); otherwise the ROS convention (z up)
     up = np.array([0.0, 1.0, 0.0]) if uses_gltf else np.array([0.0, 0.0, 1.0])
     axes = [R_main[:, i] for i in range(3) if abs(R_main[:, i] @ up) < 0.5]
+    if not axes:  # a main link tilted so that no axis lies within 60 deg of horizontal: its two most nearly horizontal
+        axes = [R_main[:, i] for i in np.argsort(np.abs(R_main.T @ up))[:2]]
     return canonical_rotation(model, up, front=estimate_front(model, up, axes))
 
 

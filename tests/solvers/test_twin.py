@@ -248,3 +248,19 @@ def test_the_aligned_choice_never_explains_the_depth_worse_and_is_what_the_urdf_
                          (dict(align=1, observed=None), "align: aligning the model needs the observed depth")):
         with pytest.raises(ValueError, match=message):
             fitted_model(res, corr, lib, **{"observed": observed, "candidates": 4, **bad})
+
+
+def test_a_model_written_tilted_so_no_axis_is_horizontal_loads_back(tmp_path):
+    """``load_urdf`` of an exported model whose base is turned so that every base axis is 54.7 degrees from the
+    root's up (the camera-frame root of ``predict --urdf`` puts a base anywhere): it loads with the written parts and
+    joints instead of finding no horizontal axis to face."""
+    from scipy.spatial.transform import Rotation
+
+    from ancsh.data.urdf import load_urdf
+
+    model = make_object("oven", 2)
+    R = Rotation.align_vectors([[0.0, 0.0, 1.0]], [np.ones(3) / np.sqrt(3.0)])[0].as_matrix()  # (1,1,1) -> up
+    assert np.allclose(np.abs(R.T @ [0.0, 0.0, 1.0]), 1 / np.sqrt(3.0))
+    path = write_urdf(model, tmp_path / "tilted", states=model.rest_states, T_root_base=Sim3(R, np.array([0.0, 0.0, 1.0])))
+    back = load_urdf(path)
+    assert back.num_parts == model.num_parts and [j.name for j in back.joints] == [j.name for j in model.joints]
