@@ -14,6 +14,15 @@ from ..outputs import output_flags, write_bytes_atomically
 from ._args import check_picture_path, non_negative_int, positive_int
 
 
+def _add_refiner_arguments(p) -> None:
+    """``--refiner`` and ``--refine-passes`` of ``predict`` and ``evaluate``."""
+    p.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
+                   "the category's shipped <category>_refine.pt")
+    p.add_argument("--refine-passes", type=positive_int,
+                   help="with --refine network: passes of the refinement network (default: DEFAULT_PASSES of "
+                   "ancsh.learned.inference.refine_network)")
+
+
 def register(sub) -> None:
     from ._args import add_executor_arguments
     from ..learned.devices import add_device_argument
@@ -44,11 +53,7 @@ def register(sub) -> None:
                    "score on the points is better), 'network' with the refinement network on the points in the fit's "
                    "NAOCS orientation, 'auto' (default) the template where measured to help "
                    "(ancsh/data/templates/refine_defaults.json)")
-    p.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
-                   "the category's shipped <category>_refine.pt")
-    p.add_argument("--refine-passes", type=positive_int,
-                   help="with --refine network: passes of the refinement network (default: DEFAULT_PASSES of "
-                   "ancsh.learned.inference.refine_network)")
+    _add_refiner_arguments(p)
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
@@ -82,11 +87,7 @@ def register(sub) -> None:
                    "on the points is better), the 'ANCSH-exact + category template' row; 'network' with the refinement "
                    "network (the points in the fit's NAOCS orientation, --refine-passes passes), the 'ANCSH-exact + refinement "
                    "network' row")
-    e.add_argument("--refiner", type=Path, help="with --refine network: a refinement network's weights file instead of "
-                   "the category's shipped <category>_refine.pt")
-    e.add_argument("--refine-passes", type=positive_int,
-                   help="with --refine network: passes of the refinement network (default: DEFAULT_PASSES of "
-                   "ancsh.learned.inference.refine_network)")
+    _add_refiner_arguments(e)
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
     e.add_argument("--time-limit-min", type=float, help="stop after this many minutes, keeping the frames done")
