@@ -218,8 +218,9 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "to the fitted part boxes; `best of K` = of the K nearest, the one whose render has the lowest median "
         "|residual| against the input depth (`fitted_model(..., observed=..., candidates=K)`), the same fits; "
         "`best of K, A aligned` = the A of those with the lowest residuals each moved onto the observed points by "
-        "articulated ICP (object pose and joint states, `ancsh.solvers.twin.align_model`), the lowest residual of all "
-        "kept, as `ancsh predict --urdf` exports it ('aligned' = the share of frames where an aligned model won).",
+        "articulated ICP (object pose and joint states, `ancsh.solvers.twin.align_model`), then the other K - A ranked "
+        "again at the aligned pose and the best A of them aligned too, the lowest residual of all kept, as `ancsh "
+        "predict --urdf` exports it ('aligned' = the share of frames where an aligned model won).",
         "",
         "| category | provider | template | frames | failed fits | refined | aligned | median residual (mm) | "
         "mean of frames (mm) | frames within 1 cm | explained | see-through |",
