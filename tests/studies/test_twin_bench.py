@@ -21,10 +21,13 @@ def test_an_oracle_fit_model_explains_its_depth_within_the_target():
     assert rows["learned+network"]["frames"] == 2 and 0.0 <= rows["learned+network"]["refined"] <= 1.0  # laptop ships one
 
 
-def test_the_network_refinement_runs_only_where_a_refiner_is_shipped():
-    from ancsh.learned.network.weights import weights_path
+def test_the_network_refinement_runs_only_where_a_refiner_is_shipped(monkeypatch, tmp_path):
+    """A category without a shipped refinement network (its refiner file missing here) has no learned+network rows."""
+    from ancsh.learned.network import weights
 
-    assert not weights_path("safe", "refine").is_file()
+    shipped = weights.weights_path
+    monkeypatch.setattr(weights, "weights_path", lambda category, kind="ancsh": tmp_path / "none.pt" if kind == "refine"
+                        else shipped(category, kind))
     results = measure_twin(["safe"], frames=1, progress=False, candidates=1)
     assert {r["provider"] for r in results["records"]} == {"instance", "learned", "learned+template", "oracle"}
     assert "learned+network" not in {r["provider"] for r in summarize(results)}
