@@ -154,9 +154,10 @@ def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: st
         return best
     best = _aligned_best(ranked[:int(align)], best, observed, rng)
     if best.aligned and len(ranked) > align:
-        # The aligned pose is nearer the object than the fit's: the other templates, ranked again there, compete for
-        # the same alignment (all share the frame B and the fitted joint lines).
-        again = sorted((replace(t, T_cam_B=best.T_cam_B, states=best.states, median_residual_m=None)
+        # The aligned pose is nearer the object than the fit's: the other templates, ranked again there (the same
+        # states relative to rest; all share the frame B and the fitted joint lines), compete for the same alignment.
+        opening = np.asarray(best.states) - best.model.rest_states
+        again = sorted((replace(t, T_cam_B=best.T_cam_B, states=t.model.rest_states + opening, median_residual_m=None)
                         for t in ranked[int(align):]), key=lambda t: depth_residual(t, observed))
         best = _aligned_best(again[:int(align)], best, observed, rng)
     return best
