@@ -64,7 +64,7 @@ MAX_VERIFIED = 5
 #: by 1-5 mm for 0.2-0.3 s more per export).
 URDF_CANDIDATES = 20
 #: ... and the best this many of them are aligned to the depth by articulated ICP (:func:`ancsh.solvers.twin.align_model`;
-#: ``docs/results/twin.md``: the learned fits' median residual 2-4x lower, for about 0.5 s more per export).
+#: ``docs/results/twin.md``: the learned fits' median residual 2-4x lower, for about 1 s more per export on one core).
 URDF_ALIGN = 3
 
 
