@@ -63,8 +63,7 @@ MAX_VERIFIED = 5
 #: (``docs/results/twin.md``: against the nearest alone; 20 instead of 5 lowered the oracle cabinets' median residual
 #: by 1-5 mm for 0.2-0.3 s more per export).
 URDF_CANDIDATES = 20
-#: ... and the best this many of them are aligned to the depth by articulated ICP (:func:`ancsh.solvers.twin.align_model`;
-#: ``docs/results/twin.md``: the learned fits' median residual 2-4x lower, for about 1 s more per export on one core).
+#: ... the best this many aligned to the depth (``align_model``; twin.md: residual 2-4x lower, ~1 s per export).
 URDF_ALIGN = 3
 
 
@@ -210,9 +209,8 @@ class DepthPrediction:
         """Write the fitted object as a URDF folder (:func:`ancsh.solvers.twin.export_fit_urdf`): the category
         template nearest to the fit reshaped to it (with ``observed``, the depth this prediction was made from as an
         :class:`~ancsh.solvers.twin.ObservedDepth`: the one of the ``candidates`` nearest whose render explains that
-        depth best, after the best ``align`` of them were moved onto it by articulated ICP), the base in the camera
-        frame (or ``root``, the frame of ``T_frame_cam``: the camera's pose there), the states in
-        ``joint_states.json`` (the fit's, or the aligned model's).
+        depth best, the best ``align`` moved onto it first), the base in the camera frame (or ``root``, the frame of
+        ``T_frame_cam``: the camera's pose there), the states in ``joint_states.json`` (the fit's or the aligned model's).
 
         Returns the ``.urdf`` path. A failed prediction is refused (``ValueError`` naming its status)."""
         from ...data.templates import load_template_library
