@@ -157,8 +157,9 @@ def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: st
         # The aligned pose is nearer the object than the fit's: the other templates, ranked again there (the same
         # states relative to rest; all share the frame B and the fitted joint lines), compete for the same alignment.
         opening = np.asarray(best.states) - best.model.rest_states
-        again = sorted((replace(t, T_cam_B=best.T_cam_B, states=t.model.rest_states + opening, median_residual_m=None)
-                        for t in ranked[int(align):]), key=lambda t: depth_residual(t, observed))
+        moved = [replace(t, T_cam_B=best.T_cam_B, states=t.model.rest_states + opening) for t in ranked[int(align):]]
+        again = sorted((replace(t, median_residual_m=depth_residual(t, observed)) for t in moved),
+                       key=lambda t: t.median_residual_m)  # align_model starts from these residuals
         best = _aligned_best(again[:int(align)], best, observed, rng)
     return best
 

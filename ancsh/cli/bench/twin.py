@@ -40,13 +40,14 @@ def run(args: argparse.Namespace) -> int:
     categories = shipped_categories_option(args.categories)
     if args.candidates is None:
         args.candidates = URDF_CANDIDATES
+    default_align = URDF_ALIGN if args.candidates > 1 else 0
     if args.align is None:
-        args.align = URDF_ALIGN if args.candidates > 1 else 0
+        args.align = default_align
     if args.align and args.candidates == 1:
         raise ValueError("--align: aligns the best of several templates; give --candidates K > 1 as well")
     parts = ["bench", "twin", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "box_extents": "max",
                                                           "candidates": URDF_CANDIDATES,
-                                                          "align": URDF_ALIGN if args.candidates > 1 else 0})]
+                                                          "align": default_align})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="twin.md", command="twin")
