@@ -263,8 +263,12 @@ def run_predict(args: argparse.Namespace) -> int:
             object_mask = mask if mask is not None else pred.object_mask(depth.shape)
             observed = None if object_mask is None else ObservedDepth(depth, intr, object_mask)
             align = URDF_ALIGN if args.urdf_align is None else args.urdf_align
-            print(f"  URDF: {pred.to_urdf(args.urdf, overwrite=args.overwrite, observed=observed, align=align, rng=args.seed)}"
-                  f" (joint states in {args.urdf / 'joint_states.json'})")
+            path, twin = pred.export_urdf(args.urdf, overwrite=args.overwrite, observed=observed, align=align,
+                                          rng=args.seed)
+            print(f"  URDF: {path} (joint states in {args.urdf / 'joint_states.json'})")
+            print(f"    model: template {twin.template}" + ("" if twin.median_residual_m is None else
+                  f", {'aligned to the depth' if twin.aligned else 'at the fitted pose and states'}, median |depth "
+                  f"residual| {1e3 * twin.median_residual_m:.1f} mm on the object's pixels"))
         else:
             print(f"  URDF: none (the fit failed: {r.status.value})")
     return 0 if r.ok else 1

@@ -120,12 +120,14 @@ def test_predict_writes_the_urdf_and_refuses_to_overwrite(tmp_path, capsys):
     robot, states = _reload(tmp_path / "twin" / "laptop.urdf")
     result = json.loads((tmp_path / "r.json").read_text())
     assert states["display_hinge"] == pytest.approx(result["joints"][0]["state_abs"], abs=1e-9)
-    capsys.readouterr()
+    assert "at the fitted pose and states, median |depth residual|" in capsys.readouterr().out
     assert main([*args, "--urdf", str(tmp_path / "twin")]) == 2
     assert "--urdf: " in capsys.readouterr().err
     assert main([*args, "--urdf", str(tmp_path / "twin"), "--overwrite"]) == 0  # aligned to the depth (the default)
     _, aligned = _reload(tmp_path / "twin" / "laptop.urdf")
     assert np.isfinite(aligned["display_hinge"])
+    line = next(x for x in capsys.readouterr().out.splitlines() if "model: template" in x)
+    assert "median |depth residual|" in line and " mm on the object's pixels" in line  # what was written, and how well
     assert main([*args, "--overwrite"]) == 2
     assert "--overwrite: only with --urdf" in capsys.readouterr().err
     assert main([*args, "--urdf-align", "2"]) == 2

@@ -33,26 +33,10 @@ from .checks import (  # noqa: F401 - re-exported
 from .picture import draw_prediction  # noqa: F401 - re-exported
 from .refine_network import DEFAULT_PASSES, NetworkRefinement
 
-__all__ = [
-    "MIN_POINTS",
-    "SIZE_TOLERANCE",
-    "MIN_INLIER_RATIO",
-    "MAX_RELATIVE_RESIDUAL",
-    "MAX_VERIFIED",
-    "MIN_P_OBJECT",
-    "DepthPrediction",
-    "fit_candidate",
-    "check_confidence",
-    "check_plausibility",
-    "check_weights_category",
-    "part_quality",
-    "depth_to_points",
-    "draw_prediction",
-    "predict_depth",
-    "read_depth",
-    "read_intrinsics",
-    "read_mask",
-]
+__all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MIN_P_OBJECT",
+           "DepthPrediction", "fit_candidate", "check_confidence", "check_plausibility",
+           "check_weights_category", "part_quality", "depth_to_points", "draw_prediction", "predict_depth",
+           "read_depth", "read_intrinsics", "read_mask"]
 
 
 #: Fewer valid points than this: no fit is tried (status ``too_few_points``).
@@ -204,26 +188,30 @@ class DepthPrediction:
     render_compare: object = None
     correspondences: object = None
 
-    def to_urdf(self, folder, *, T_frame_cam=None, root: str = "camera", overwrite: bool = False, observed=None,
-                candidates: int = URDF_CANDIDATES, align: int = URDF_ALIGN, rng=0):
+    def to_urdf(self, folder, **options):
+        """:meth:`export_urdf`'s ``.urdf`` path (the same options)."""
+        return self.export_urdf(folder, **options)[0]
+
+    def export_urdf(self, folder, *, T_frame_cam=None, root: str = "camera", overwrite: bool = False, observed=None,
+                    candidates: int = URDF_CANDIDATES, align: int = URDF_ALIGN, rng=0):
         """Write the fitted object as a URDF folder (:func:`ancsh.solvers.twin.export_fit_urdf`): the category
         template nearest to the fit reshaped to it (with ``observed``, the depth this prediction was made from as an
         :class:`~ancsh.solvers.twin.ObservedDepth`: the one of the ``candidates`` nearest whose render explains that
         depth best, the best ``align`` moved onto it first), the base in the camera frame (or ``root``, the frame of
         ``T_frame_cam``: the camera's pose there), the states in ``joint_states.json`` (the fit's or the aligned model's).
 
-        Returns the ``.urdf`` path. A failed prediction is refused (``ValueError`` naming its status)."""
+        Returns ``(path, FittedModel)``: the ``.urdf`` file and the model written (its template, whether it was aligned,
+        its median |residual| against ``observed``). A failed prediction is refused (``ValueError`` naming its status)."""
         from ...data.templates import load_template_library
         from ...solvers.twin import export_fit_urdf
 
         if not self.result.ok or self.correspondences is None:
             raise ValueError(f"prediction: a failed prediction (status {self.result.status.value}: {self.result.message}) "
                              "is not exported")
-        path, _ = export_fit_urdf(self.result, self.correspondences, load_template_library(self.category), folder,
+        return export_fit_urdf(self.result, self.correspondences, load_template_library(self.category), folder,
                                   T_frame_cam=T_frame_cam, root=root, name=self.category, overwrite=overwrite,
                                   observed=observed, candidates=candidates if observed is not None else 1,
                                   align=align if observed is not None else 0, rng=rng)
-        return path
 
     def object_mask(self, shape) -> np.ndarray | None:
         """The pixels ``(H, W)`` bool this prediction took as the object: the isolated segment, else (a user's mask,
