@@ -20,11 +20,17 @@ import numpy as np
 from ..geometry.transforms import Sim3
 from .types import Correspondences, FitResult
 
-__all__ = ["ALIGN_POINTS", "FittedModel", "ObservedDepth", "align_config", "align_model", "compare_fit", "depth_residual",
+__all__ = ["ALIGN_POINTS", "ALIGN_SCALES", "EXPORT_BOX_EXTENTS", "FittedModel", "ObservedDepth", "align_config", "align_model", "compare_fit", "depth_residual",
            "export_fit_urdf", "fitted_model", "render_fit"]
 
 #: :func:`align_model` uses at most this many of the object's observed pixels (a seeded random subsample).
 ALIGN_POINTS = 1500
+#: :func:`align_model` also tries the model scaled by these factors (about its base frame's origin) and keeps the one
+#: that explains the depth best (``docs/results/twin.md``: the learned boxes are a few per cent off in size).
+ALIGN_SCALES = (1.0, 0.96, 1.04)
+#: The part boxes an exported model is shaped from (:func:`~ancsh.solvers.icp.category.fitted_layout`'s
+#: ``box_extents``): the NPCS sides scaled to the unit diagonal (the learned cabinets' "max" boxes overshoot).
+EXPORT_BOX_EXTENTS = "unit_diagonal"
 
 
 @dataclass(frozen=True)
@@ -92,7 +98,7 @@ class FittedModel:
 
 
 def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: str = "fitted",
-                 observed: ObservedDepth | None = None, candidates: int = 1, align: int = 0,
+                 observed: ObservedDepth | None = None, candidates: int = 1, align: int = 0, box_extents: str = "fit",
                  rng=0) -> FittedModel | None:
     """The model of a successful articulated fit, or ``None`` when no template is available here.
 
@@ -110,7 +116,8 @@ def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: st
     again at that aligned pose and states, and the ``align`` best of those aligned too; the model with the lowest
     residual of all, aligned or not, is kept (``docs/results/twin.md``: with 3 of 20, the learned fits' median
     residual 2-4x lower).
-    ``rng`` seeds the alignment's point subsample.
+    ``box_extents``: the part boxes the template is shaped from (:func:`~ancsh.solvers.icp.category.fitted_layout`;
+    an export uses :data:`EXPORT_BOX_EXTENTS`). ``rng`` seeds the alignment's point subsample.
 
     Raises
     ------
@@ -131,7 +138,7 @@ def fitted_model(fit: FitResult, corr: Correspondences, templates, *, joints: st
         raise ValueError(f"align: expected a non-negative integer, got {align!r}")
     if align and observed is None:
         raise ValueError("align: aligning the model needs the observed depth (observed=)")
-    layout = fitted_layout(fit, corr)
+    layout = fitted_layout(fit, corr, box_extents=box_extents)
     nearest = templates.nearest(layout.centres, layout.sizes, count=int(candidates) if observed is not None else 1)
     if not nearest:
         return None
@@ -182,10 +189,12 @@ def align_config():
     return replace(local_icp(), max_iterations=15, num_points=ALIGN_POINTS, uncertainty=False)
 
 
-def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, rng=0) -> FittedModel:
+def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, scales=ALIGN_SCALES,
+                rng=0) -> FittedModel:
     """Move a fitted model onto the depth it should explain: articulated ICP of ``twin.model`` (object pose and joint
     states; the joint lines stay the model's) against the object's observed points, from ``twin``'s pose and
-    states.
+    states; the same for the model scaled by each of ``scales`` (about the origin of its base frame; prismatic
+    states scale with it); the one whose render explains the depth best is kept.
 
     The category template is not the observed instance: the pose and states that fit the instance's
     correspondences leave the template's surface off the observed one by its shape difference (and by the fit's own
@@ -198,14 +207,16 @@ def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, rng=
         The depth and the object's pixels (back-projected; at most :data:`ALIGN_POINTS` of them, drawn with ``rng``).
     config : ArticulatedIcpConfig, optional
         Default :func:`align_config`.
+    scales : sequence of float
+        Positive scale factors of the model (1 = as given; default :data:`ALIGN_SCALES`).
     rng : numpy.random.Generator or int
 
     Returns
     -------
     FittedModel
-        The aligned model (:attr:`FittedModel.aligned`) with its :attr:`~FittedModel.median_residual_m`, when its
-        render explains the depth better than ``twin``'s; else ``twin`` with its residual (an ICP that lost the
-        points changes nothing).
+        The aligned model (:attr:`FittedModel.aligned`; a scaled copy of the model where a factor other than 1
+        won) with its :attr:`~FittedModel.median_residual_m`, when its render explains the depth better than
+        ``twin``'s; else ``twin`` with its residual (an ICP that lost the points changes nothing).
     """
     from ..data.render import backproject
     from ..model.edit import with_limits
@@ -216,6 +227,9 @@ def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, rng=
         raise ValueError(f"twin: expected a FittedModel, got {type(twin).__name__}")
     if not isinstance(observed, ObservedDepth):
         raise ValueError(f"observed: expected an ObservedDepth, got {type(observed).__name__}")
+    scales = tuple(float(f) for f in np.atleast_1d(np.asarray(scales, dtype=np.float64)))
+    if not scales or not all(np.isfinite(f) and f > 0 for f in scales):
+        raise ValueError(f"scales: expected positive finite factors, got {scales!r}")
     config = align_config() if config is None else config
     before = twin.median_residual_m
     if before is None:
@@ -224,14 +238,31 @@ def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, rng=
     points = backproject(observed.depth, observed.intrinsics, observed.object_mask)
     if len(points) < 6:
         return twin
+    best = twin
+    for factor in scales:
+        model, q = _scaled_model(twin, factor)
+        wide = with_limits(model, np.minimum(model.lower_limits, q), np.maximum(model.upper_limits, q))  # as exported
+        icp = articulated_icp(wide, points, ArticulatedPose(twin.T_cam_B, q), config=config, rng=rng)
+        if icp.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
+            continue
+        moved = FittedModel(model, icp.T_cam_base, np.asarray(icp.q, dtype=np.float64), twin.template, aligned=True)
+        residual = depth_residual(moved, observed)
+        if residual < best.median_residual_m:
+            best = replace(moved, median_residual_m=residual)
+    return best
+
+
+def _scaled_model(twin: FittedModel, factor: float):
+    """``twin``'s model scaled by ``factor`` about its base frame's origin and its states there (prismatic openings
+    scaled); the model itself at 1."""
+    from ..model.edit import scaled
+
     model, q = twin.model, np.asarray(twin.states, dtype=np.float64)
-    wide = with_limits(model, np.minimum(model.lower_limits, q), np.maximum(model.upper_limits, q))  # as exported
-    icp = articulated_icp(wide, points, ArticulatedPose(twin.T_cam_B, q), config=config, rng=rng)
-    if icp.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
-        return twin
-    moved = FittedModel(model, icp.T_cam_base, np.asarray(icp.q, dtype=np.float64), twin.template, aligned=True)
-    residual = depth_residual(moved, observed)
-    return replace(moved, median_residual_m=residual) if residual < before else twin
+    if factor == 1.0:
+        return model, q
+    big = scaled(model, factor)
+    prismatic = np.array([not j.is_revolute for j in model.joints], dtype=bool)
+    return big, big.rest_states + np.where(prismatic, factor, 1.0) * (q - model.rest_states)
 
 
 def depth_residual(twin: FittedModel, observed: ObservedDepth) -> float:
@@ -274,7 +305,8 @@ def _with_fitted_joints(model, fit: FitResult, corr: Correspondences, layout):
 
 def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *, T_frame_cam: Sim3 | None = None,
                     root: str = "camera", name: str | None = None, overwrite: bool = False,
-                    observed: ObservedDepth | None = None, candidates: int = 1, align: int = 0, rng=0):
+                    observed: ObservedDepth | None = None, candidates: int = 1, align: int = 0,
+                    box_extents: str = EXPORT_BOX_EXTENTS, rng=0):
     """Write a fit as a URDF folder (:func:`ancsh.model.urdf_export.write_urdf`): one link per part, the template's
     meshes reshaped to the fit, joints with the fitted axes and pivots, the category's limits, the fitted states
     in ``joint_states.json``, the base placed in the camera frame (``root="camera"``) or in a frame the user gives.
@@ -296,9 +328,9 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
         Robot name and file stem (default: the template's category).
     overwrite : bool
         Replace the files of an existing non-empty folder.
-    observed, candidates, align, rng
+    observed, candidates, align, box_extents, rng
         Choose the template by render-and-compare against the depth the fit was made from, and align it to that
-        depth (:func:`fitted_model`).
+        depth; the part boxes it is shaped from (:func:`fitted_model`).
 
     Returns
     -------
@@ -317,7 +349,8 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
         raise ValueError(f"fit: expected a FitResult, got {type(fit).__name__}")
     if not fit.ok:
         raise ValueError(f"fit: a failed fit (status {fit.status.value}: {fit.message}) is not exported")
-    twin = fitted_model(fit, corr, templates, observed=observed, candidates=candidates, align=align, rng=rng)
+    twin = fitted_model(fit, corr, templates, observed=observed, candidates=candidates, align=align,
+                        box_extents=box_extents, rng=rng)
     if twin is None:
         raise ValueError(f"templates: no template of {templates.category!r} is available here to give the parts shapes")
     T = twin.T_cam_B if T_frame_cam is None else T_frame_cam @ twin.T_cam_B

@@ -53,7 +53,7 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
     from ..model.edit import with_limits
     from ..solvers import Observation, fit
     from ..solvers.render_compare import compare_depth
-    from ..solvers.twin import ObservedDepth, fitted_model
+    from ..solvers.twin import EXPORT_BOX_EXTENTS, ObservedDepth, fitted_model
 
     choices = [(int(c), 0) if np.isscalar(c) else (int(c[0]), int(c[1])) for c in candidates]
     t0 = time.perf_counter()
@@ -73,7 +73,7 @@ def twin_frame(frame, corr, library, *, seed: int = 0, config=None, candidates=(
         rec = {"selection": selection_name(k, a), "status": result.status.value, **extra}
         t1 = time.perf_counter()
         twin = fitted_model(result, corr, library, observed=observed if k > 1 or a else None, candidates=k, align=a,
-                            rng=seed)
+                            box_extents=EXPORT_BOX_EXTENTS, rng=seed)
         if twin is None:
             rec["status"] = "no_template"
             out.append(rec)
@@ -209,16 +209,18 @@ def write_twin_report(results: dict, path, *, command: str) -> Path:
         "first, the metric's floor: the frame's own instance rendered noise-free at its true pose and states "
         "(`instance`: what the sensor noise alone leaves). "
         "each fit's model "
-        "(`ancsh.solvers.twin.fitted_model`: the nearest category template reshaped to the fitted part boxes, with the "
+        "(`ancsh.solvers.twin.fitted_model`: the nearest category template reshaped to the fitted part boxes -- their "
+        "NPCS sides scaled to the unit diagonal, `EXPORT_BOX_EXTENTS` -- with the "
         "fitted joint lines, as `ancsh predict --urdf` writes it) rendered at the fitted pose and states from the input "
         "camera and compared with the noisy depth on the object's pixels (`compare_depth`). Residual: per frame the "
         f"median |observed - model| (metres); target: within {100 * TARGET_M:.0f} cm. Explained / see-through as in "
-        "`ancsh.solvers.render_compare`. Learned part boxes: `FitConfig.box_extents` "
-        f"`{s.get('box_extents', 'max')}` (`docs/results/box_extents.md`). Template: `nearest` = the template nearest "
+        "`ancsh.solvers.render_compare`. The fits' `FitConfig.box_extents`: "
+        f"`{s.get('box_extents', 'max')}` (`docs/results/box_extents.md`; the refinements' fits use it). Template: `nearest` = the template nearest "
         "to the fitted part boxes; `best of K` = of the K nearest, the one whose render has the lowest median "
         "|residual| against the input depth (`fitted_model(..., observed=..., candidates=K)`), the same fits; "
         "`best of K, A aligned` = the A of those with the lowest residuals each moved onto the observed points by "
-        "articulated ICP (object pose and joint states, `ancsh.solvers.twin.align_model`), then the other K - A ranked "
+        "articulated ICP (object pose and joint states; the model also scaled by each of `ALIGN_SCALES`, "
+        "`ancsh.solvers.twin.align_model`), then the other K - A ranked "
         "again at the aligned pose and the best A of them aligned too, the lowest residual of all kept, as `ancsh "
         "predict --urdf` exports it ('aligned' = the share of frames where an aligned model won).",
         "",

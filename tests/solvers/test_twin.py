@@ -219,6 +219,48 @@ def test_alignment_moves_a_misplaced_model_back_onto_its_depth():
         align_model(off, fr.depth)
 
 
+def test_alignment_finds_the_size_of_a_model_made_too_small():
+    """``align_model(..., scales=...)``: the frame's own instance shrunk by 4 % (a learned box's size error) at its true
+    pose is aligned best by its factor-1.04 copy, back at the instance's size; with ``scales=(1.0,)`` the size stays."""
+    from ancsh.model.edit import scaled
+    from ancsh.solvers.twin import FittedModel, ObservedDepth, align_model, depth_residual
+
+    gen, fr = _oven_frame()
+    model, _ = gen.instance(fr.instance_index)
+    observed = ObservedDepth(fr.depth, fr.intrinsics, fr.depth > 0)
+    small = FittedModel(scaled(model, 1 / 1.04), fr.T_cam_base, np.asarray(fr.joint_states_abs, dtype=float), "small")
+    fixed = align_model(small, observed, scales=(1.0,), rng=0)
+    grown = align_model(small, observed, scales=(1.0, 0.96, 1.04), rng=0)
+
+    def size(m):
+        return np.linalg.norm(np.ptp(np.concatenate([p.mesh.vertices for p in m.parts]), axis=0))
+
+    assert size(fixed.model) == pytest.approx(size(small.model), rel=1e-12)
+    assert grown.aligned and size(grown.model) == pytest.approx(size(model), rel=1e-9)
+    assert grown.median_residual_m < fixed.median_residual_m
+    assert grown.median_residual_m == pytest.approx(depth_residual(grown, observed), abs=1e-12)
+    for bad in ((), (1.0, -1.0), (np.nan,)):
+        with pytest.raises(ValueError, match="scales: expected positive finite factors"):
+            align_model(small, observed, scales=bad)
+
+
+def test_a_prismatic_opening_scales_with_the_model():
+    """``_scaled_model``: a drawer scaled by 1.1 keeps its parts where the scaled original puts them (the prismatic
+    openings scaled too)."""
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.solvers.twin import FittedModel, _scaled_model
+
+    gen = FrameGenerator(GenerationConfig(category="drawer", split="test", seed=0))
+    fr = gen.frame(0)
+    model, _ = gen.instance(fr.instance_index)
+    q = np.asarray(fr.joint_states_abs, dtype=float)
+    big, q_big = _scaled_model(FittedModel(model, fr.T_cam_base, q, "drawer"), 1.1)
+    for T, T_big in zip(model.forward_kinematics(q), big.forward_kinematics(q_big)):
+        np.testing.assert_allclose(T_big.translation, 1.1 * T.translation, atol=1e-12)
+        np.testing.assert_allclose(T_big.rotation, T.rotation, atol=1e-12)
+    assert _scaled_model(FittedModel(model, fr.T_cam_base, q, "drawer"), 1.0)[0] is model
+
+
 def test_the_aligned_choice_never_explains_the_depth_worse_and_is_what_the_urdf_holds(tmp_path):
     """``fitted_model(..., align=A)``: the best A of the K templates are aligned; the kept model's residual is at most
     the unaligned best's and is its own render's; the exported URDF holds the kept model's pose and states."""

@@ -191,7 +191,7 @@ def _joint_motion_cam(axis, pivot, state: float, revolute: bool) -> Sim3:
     return Sim3(np.eye(3), state * np.asarray(axis))
 
 
-def fitted_layout(fit: FitResult, corr: Correspondences) -> FittedLayout:
+def fitted_layout(fit: FitResult, corr: Correspondences, *, box_extents: str = "fit") -> FittedLayout:
     """The parts of a successful articulated fit moved back to rest (see :class:`FittedLayout`).
 
     Parameters
@@ -200,6 +200,10 @@ def fitted_layout(fit: FitResult, corr: Correspondences) -> FittedLayout:
         A successful fit with part poses, boxes, camera joints and joint states.
     corr : Correspondences
         The correspondences it was fitted to (joint tree and types).
+    box_extents : str
+        ``"fit"``: the part boxes as fitted; ``"unit_diagonal"``: their NPCS sides scaled to the unit diagonal every
+        NPCS box has by definition (as :attr:`~ancsh.solvers.fit.FitConfig.box_extents` ``"unit_diagonal"`` does;
+        the same for a fit made with it; ``docs/results/box_extents.md``: closer to the truth on the cabinets).
 
     Raises
     ------
@@ -210,6 +214,7 @@ def fitted_layout(fit: FitResult, corr: Correspondences) -> FittedLayout:
         raise ValueError(f"fit: expected a FitResult, got {type(fit).__name__}")
     if not isinstance(corr, Correspondences):
         raise ValueError(f"corr: expected Correspondences, got {type(corr).__name__}")
+    check_choice(box_extents, "box_extents", ("fit", "unit_diagonal"))
     if not fit.ok:
         raise ValueError(f"fit: only a successful fit can be refined, got status {fit.status.value!r}")
     M, K = corr.num_parts, corr.num_joints
@@ -229,6 +234,9 @@ def fitted_layout(fit: FitResult, corr: Correspondences) -> FittedLayout:
         undo[c] = undo[p] @ U.inverse()
     rest = [undo[j] @ T for j, T in enumerate(fit.T_cam_npcs)]
     ext = np.array([b.extents / T.scale for b, T in zip(fit.boxes_cam, fit.T_cam_npcs)])
+    if box_extents == "unit_diagonal":
+        norms = np.linalg.norm(ext, axis=1, keepdims=True)
+        ext = np.divide(ext, norms, out=ext.copy(), where=norms > 0)
     R = fit.T_cam_npcs[root].rotation
     corners = []
     for T, e in zip(rest, ext):

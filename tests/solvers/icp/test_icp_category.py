@@ -216,3 +216,27 @@ def test_bad_inputs_give_clear_errors(scene):
         lib.nearest(np.zeros((3, 3)), np.ones((2, 3)))
     with pytest.raises(ValueError, match="index"):
         lib.model(len(lib))
+
+
+def test_unit_diagonal_layout_is_the_fit_made_with_unit_diagonal_boxes(scene):
+    """``fitted_layout(..., box_extents="unit_diagonal")``: every part's NPCS sides of unit length together; the same
+    layout as that of the fit made with ``FitConfig(box_extents="unit_diagonal")``, whose own boxes it leaves as they
+    are; the poses as the fitted boxes' layout has them."""
+    from ancsh.solvers import FitConfig
+
+    corr = dataclasses.replace(scene["corr"], npcs_extents=None)  # boxes from the inliers' NPCS, as a network's
+    as_made = fit(scene["obs"], corr, "exact_reduced", rng=0)
+    made = fit(scene["obs"], corr, "exact_reduced", config=FitConfig(box_extents="unit_diagonal"), rng=0)
+    assert made.ok and as_made.ok
+    as_fit = fitted_layout(as_made, corr)
+    unit = fitted_layout(as_made, corr, box_extents="unit_diagonal")
+    np.testing.assert_allclose(np.linalg.norm(unit.npcs_extents, axis=1), 1.0, atol=1e-12)
+    assert np.abs(np.linalg.norm(as_fit.npcs_extents, axis=1) - 1.0).max() > 1e-3  # the "max" boxes are not
+    for other in (fitted_layout(made, corr), fitted_layout(made, corr, box_extents="unit_diagonal")):
+        np.testing.assert_allclose(other.npcs_extents, unit.npcs_extents, atol=1e-9)
+        np.testing.assert_allclose(other.sizes, unit.sizes, atol=1e-9)
+        assert other.diagonal == pytest.approx(unit.diagonal, rel=1e-9)
+    for a, b in zip(unit.T_B_npcs, as_fit.T_B_npcs):
+        np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-12)
+    with pytest.raises(ValueError, match="box_extents"):
+        fitted_layout(as_made, corr, box_extents="max")
