@@ -47,7 +47,8 @@ MAX_VERIFIED = 5
 #: (``docs/results/twin.md``: against the nearest alone; 20 instead of 5 lowered the oracle cabinets' median residual
 #: by 1-5 mm for 0.2-0.3 s more per export).
 URDF_CANDIDATES = 20
-#: ... the best this many aligned to the depth (``align_model``; twin.md: residual 2-4x lower, ~1 s per export).
+#: ... the best this many aligned to the depth (``align_model``, each at 3 sizes; twin.md: residual 2-4x lower;
+#: ~3 s of CPU per export, ~1 s at one size).
 URDF_ALIGN = 3
 
 
