@@ -65,7 +65,7 @@ def register(sub) -> None:
     p.add_argument("--overwrite", action="store_true", help="with --urdf: replace the files of an existing folder")
     p.add_argument("--urdf-align", type=non_negative_int, default=None, metavar="N",
                    help="with --urdf: align the best N templates to the depth by articulated ICP, each at its size and "
-                   "4%% smaller and larger (default 3, about 3 s: the URDF's pose, joint states and size are then the "
+                   "4%% smaller and larger (default 3, about 2.7 s in all: the URDF's pose, joint states and size are then the "
                    "aligned model's, which explains the depth better; 0: the fit's own pose and joint states)")
     add_device_argument(p)
     p.set_defaults(func=run_predict)
