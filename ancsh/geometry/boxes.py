@@ -81,3 +81,11 @@ class OrientedBox:
     def transformed(self, T) -> "OrientedBox":
         """The box mapped by a :class:`~ancsh.geometry.transforms.Sim3` ``T``."""
         return OrientedBox(T.apply(self.center), T.rotation @ self.rotation, self.extents * T.scale)
+
+
+def unit_diagonal(extents) -> np.ndarray:
+    """Box side lengths ``(..., 3)`` scaled so that each box's diagonal is 1 (what every NPCS box has by
+    definition); an all-zero row stays zero."""
+    extents = np.asarray(extents, dtype=np.float64)
+    norms = np.linalg.norm(extents, axis=-1, keepdims=True)
+    return np.divide(extents, norms, out=extents.copy(), where=norms > 0)

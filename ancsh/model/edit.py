@@ -15,7 +15,7 @@ from ..geometry._checks import as_rotation
 from ..geometry.transforms import Sim3
 from .articulated import ArticulatedModel, Joint, Part
 
-__all__ = ["reparameterized", "restructured", "scaled", "simplified", "with_limits", "with_orientation"]
+__all__ = ["reparameterized", "restructured", "scaled", "scaled_states", "simplified", "with_limits", "with_orientation"]
 
 
 def _model(model: ArticulatedModel, parts, joints, **kw) -> ArticulatedModel:
@@ -50,6 +50,14 @@ def scaled(model: ArticulatedModel, factor: float) -> ArticulatedModel:
         origin = Sim3(j.origin.rotation, factor * j.origin.translation)
         joints.append(replace(j, pivot=factor * j.pivot, origin=origin, lower=s * j.lower, upper=s * j.upper, rest=s * j.rest))
     return _model(model, parts, joints)
+
+
+def scaled_states(model: ArticulatedModel, q, factor: float) -> np.ndarray:
+    """Joint states ``(K,)`` of ``model`` carried to ``scaled(model, factor)``: prismatic states (metres) scale,
+    revolute ones (radians) do not, so every part keeps its place relative to the scaled base."""
+    revolute = np.array([j.is_revolute for j in model.joints], dtype=bool)
+    q = np.asarray(q, dtype=np.float64)
+    return np.where(revolute, q, float(factor) * q)
 
 
 def simplified(model: ArticulatedModel, max_faces: int) -> ArticulatedModel:

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..geometry._checks import check_bool, check_choice, check_generator, check_int, check_number
 from ..geometry.robust import robust_loss, robust_weights
-from ..geometry.boxes import OrientedBox
+from ..geometry.boxes import OrientedBox, unit_diagonal
 from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .terms import (
@@ -698,8 +698,8 @@ class _Fit:
         else:
             sel = inliers & (self.labels == j)
             extents = 2.0 * np.max(np.abs(self.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
-            if self.config.box_extents == "unit_diagonal" and np.linalg.norm(extents) > 0:
-                extents = extents / np.linalg.norm(extents)
+            if self.config.box_extents == "unit_diagonal":
+                extents = unit_diagonal(extents)
         return OrientedBox(T.translation, T.rotation, T.scale * extents)
 
 

@@ -232,10 +232,8 @@ def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, scal
     if not scales or not all(np.isfinite(f) and f > 0 for f in scales):
         raise ValueError(f"scales: expected positive finite factors, got {scales!r}")
     config = align_config() if config is None else config
-    before = twin.median_residual_m
-    if before is None:
-        before = depth_residual(twin, observed)
-        twin = replace(twin, median_residual_m=before)
+    if twin.median_residual_m is None:
+        twin = replace(twin, median_residual_m=depth_residual(twin, observed))
     points = backproject(observed.depth, observed.intrinsics, observed.object_mask)
     if len(points) < 6:
         return twin
@@ -260,16 +258,12 @@ def align_model(twin: FittedModel, observed: ObservedDepth, *, config=None, scal
 
 
 def _scaled_model(twin: FittedModel, factor: float):
-    """``twin``'s model scaled by ``factor`` about its base frame's origin and its states there (prismatic openings
-    scaled); the model itself at 1."""
-    from ..model.edit import scaled
+    """``twin``'s model scaled by ``factor`` about its base frame's origin and its states there
+    (:func:`~ancsh.model.edit.scaled_states`); the model itself at 1."""
+    from ..model.edit import scaled, scaled_states
 
-    model, q = twin.model, np.asarray(twin.states, dtype=np.float64)
-    if factor == 1.0:
-        return model, q
-    big = scaled(model, factor)
-    prismatic = np.array([not j.is_revolute for j in model.joints], dtype=bool)
-    return big, big.rest_states + np.where(prismatic, factor, 1.0) * (q - model.rest_states)
+    model = twin.model if factor == 1.0 else scaled(twin.model, factor)
+    return model, scaled_states(twin.model, twin.states, factor)
 
 
 def depth_residual(twin: FittedModel, observed: ObservedDepth) -> float:

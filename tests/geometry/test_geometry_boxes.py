@@ -75,3 +75,15 @@ def test_box_arrays_are_copied_and_read_only(rng):
     assert box.center[0] == 0.0
     with pytest.raises(ValueError):
         box.extents[0] = 2.0
+
+
+def test_unit_diagonal_scales_each_box_to_a_unit_diagonal_and_keeps_its_proportions():
+    from ancsh.geometry.boxes import unit_diagonal
+
+    rng = np.random.default_rng(3)
+    ext = np.vstack([rng.uniform(0.1, 2.0, size=(4, 3)), np.zeros(3)])
+    out = unit_diagonal(ext)
+    np.testing.assert_allclose(np.linalg.norm(out[:4], axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(out[:4] * np.linalg.norm(ext[:4], axis=1, keepdims=True), ext[:4], atol=1e-12)
+    np.testing.assert_array_equal(out[4], 0.0)  # a degenerate box is left as it is
+    np.testing.assert_allclose(unit_diagonal(ext[0]), out[0], atol=0)

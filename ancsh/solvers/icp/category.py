@@ -40,10 +40,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...geometry._checks import check_bool, check_choice, check_generator, check_number
-from ...geometry.boxes import OrientedBox
+from ...geometry.boxes import OrientedBox, unit_diagonal
 from ...geometry.rotations import axis_angle_matrix
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel, Joint, JointType, Part
+from ...model.edit import scaled_states
 from ..types import Correspondences, FitResult, FitStatus, Observation
 from .articulated import ArticulatedIcpConfig, FitScore, FitScorer, articulated_icp
 from .template import ArticulatedPose, ModelSurface
@@ -235,8 +236,7 @@ def fitted_layout(fit: FitResult, corr: Correspondences, *, box_extents: str = "
     rest = [undo[j] @ T for j, T in enumerate(fit.T_cam_npcs)]
     ext = np.array([b.extents / T.scale for b, T in zip(fit.boxes_cam, fit.T_cam_npcs)])
     if box_extents == "unit_diagonal":
-        norms = np.linalg.norm(ext, axis=1, keepdims=True)
-        ext = np.divide(ext, norms, out=ext.copy(), where=norms > 0)
+        ext = unit_diagonal(ext)
     R = fit.T_cam_npcs[root].rotation
     corners = []
     for T, e in zip(rest, ext):
@@ -612,7 +612,6 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
         if s_first is None:
             name, s_first = ft.source, s_in
         q0 = np.clip(model.rest_states + fit.joint_states, model.lower_limits, model.upper_limits)
-        revolute = np.array([j.is_revolute for j in model.joints], dtype=bool)
         start, start_f = ArticulatedPose(layout.T_cam_B, q0), 1.0
         for i, f in enumerate(config.scales):
             m_f = _scaled(model, f)
@@ -620,7 +619,7 @@ def refine_fit(observation: Observation, fit: FitResult, corr: Correspondences, 
             # The first scale runs the whole ICP from the fit; the others continue from its result.
             g = f / start_f
             T = start.T_cam_base
-            init = ArticulatedPose(Sim3(T.rotation, T.translation), np.where(revolute, start.q, g * start.q))
+            init = ArticulatedPose(Sim3(T.rotation, T.translation), scaled_states(model, start.q, g))
             icp = articulated_icp(m_f, observation, init, config=config.icp if i == 0 else config.continuation, rng=rng,
                                   surface=surface)
             if icp.status not in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
