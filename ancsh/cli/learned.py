@@ -82,11 +82,11 @@ def register(sub) -> None:
     e.add_argument("--formulations", nargs="+", metavar="METHOD",
                    help="methods (default all but template): per_part (NPCS), naocs, soft, exact_reduced, exact_maximal, "
                    "template (= --refine template)")
-    e.add_argument("--refine", choices=("template", "network"), help="also refine the exact_reduced fit: 'template' "
-                   "against the category template (the nearest training instance, articulated ICP; kept where its score "
-                   "on the points is better), the 'ANCSH-exact + category template' row; 'network' with the refinement "
-                   "network (the points in the fit's NAOCS orientation, --refine-passes passes), the 'ANCSH-exact + refinement "
-                   "network' row")
+    e.add_argument("--refine", nargs="+", choices=("template", "network"), help="also refine the exact_reduced fit: "
+                   "'template' against the category template (the nearest training instance, articulated ICP; kept where "
+                   "its score on the points is better), the 'ANCSH-exact + category template' row; 'network' with the "
+                   "refinement network (the points in the fit's NAOCS orientation, --refine-passes passes), the "
+                   "'ANCSH-exact + refinement network' row; both: both rows, on the same network output")
     _add_refiner_arguments(e)
     e.add_argument("--frames", type=int, help="test frames (default 3000, about the paper's count; 300 with --quick)")
     e.add_argument("--quick", action="store_true", help="a quick run: 300 frames (about a minute) unless --frames")
@@ -417,9 +417,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
         raise ValueError(f"--frames: expected a positive number of frames, got {frames}")
     if args.threads < 1:
         raise ValueError(f"--threads: expected a positive number of threads, got {args.threads}")
-    if args.refiner is not None and args.refine != "network":
+    if args.refiner is not None and "network" not in (args.refine or ()):
         raise ValueError("--refiner: a refinement network is evaluated with --refine network only")
-    if args.refine_passes is not None and args.refine != "network":
+    if args.refine_passes is not None and "network" not in (args.refine or ()):
         raise ValueError("--refine-passes: the refinement network's passes are evaluated with --refine network only")
     if args.time_limit_min is not None and not args.time_limit_min > 0:
         raise ValueError(f"--time-limit-min: expected a positive number of minutes, got {args.time_limit_min}")
@@ -477,7 +477,7 @@ def _rebuild(args: argparse.Namespace) -> str:
     if args.real_all:
         parts.append("--real-all")
     if args.refine:
-        parts += ["--refine", args.refine]
+        parts += ["--refine", *dict.fromkeys(args.refine)]
     if args.refine_passes is not None:
         parts += ["--refine-passes", str(args.refine_passes)]
     if args.update_docs and args.out is None:

@@ -126,14 +126,16 @@ def test_report_json_reads_back_with_one_line_per_frame_entry(tmp_path):
 
 
 def test_quick_evaluation_writes_the_report(tmp_path):
+    """Both refinements in one run: every method's row, on the same network output."""
     code = main(["evaluate", "--category", "laptop", "--quick", "--frames", "2", "--out", str(tmp_path), "--no-progress",
-                 "--refine", "template"])
+                 "--refine", "template", "network"])
     assert code == 0
     md = (tmp_path / "laptop.md").read_text()
-    evaluated = {k: m for k, m in ev.METHODS.items() if k != "network"}  # the refinement network: its own test
+    evaluated = ev.METHODS
     for label in [m.label for m in evaluated.values()] + ["paper: NPCS", "paper: NAOCS", "paper: ANCSH",
                                                            "Table 2", "Direct voting", "voted joints in NAOCS", "--frames 2",
-                                                           "--refine template", "category-template refinement: kept on"]:
+                                                           "--refine template network", "category-template refinement: kept on",
+                                                           "refinement network: `laptop_refine.pt`"]:
         assert label in md
     data = json.loads((tmp_path / "laptop.json").read_text())
     assert data["settings"]["frames"] == 2 and set(data["summary"]["methods"]) == set(evaluated)
@@ -154,6 +156,8 @@ def test_missing_weights_name_the_available_ones(monkeypatch, tmp_path):
         ev.evaluate_category("laptop", frames=1, progress=False)
     with pytest.raises(ValueError, match="methods"):
         ev.evaluate_category("laptop", frames=1, methods=("bogus",), progress=False)
+    with pytest.raises(ValueError, match="refine: expected None, one of"):
+        ev.evaluate_category("laptop", frames=1, refine=("template", "icp"), progress=False)
     with pytest.raises(ValueError, match="category"):
         ev.evaluate_category("toaster", frames=1, progress=False)
 

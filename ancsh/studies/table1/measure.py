@@ -398,7 +398,7 @@ def evaluate_category(
     num_threads: int = 1,
     progress: bool = True,
     real: str | None = None,
-    refine: str | None = None,
+    refine=None,
     refiner=None,
     refine_passes: int | None = None,
     executor=None,
@@ -427,10 +427,11 @@ def evaluate_category(
     real : str, optional
         A catalog of imported real objects (``"builtin"`` = the shipped one): render its *test*
         objects of ``category`` instead of the procedural test instances (the real test split).
-    refine : str, optional
+    refine : str or sequence of str, optional
         ``"template"``: add the ``template`` method (the ``exact_reduced`` fit refined against the
         category's template library, :func:`ancsh.data.templates.load_template_library`); ``"network"``:
-        add the ``network`` method (refined by the refinement network ``refiner``).
+        add the ``network`` method (refined by the refinement network ``refiner``); both (a sequence): both
+        rows, on the same network output.
     real_split : str, optional
         With ``real``: ``"all"`` renders every imported object of the category (train and test objects; the
         training objects were seen in training) instead of the ``instances`` split's.
@@ -467,10 +468,10 @@ def evaluate_category(
     from ...learned.network.weights import available_weights, load_network, weights_path
 
     methods = tuple(methods)
-    if refine not in (None, *REFINEMENTS):
-        raise ValueError(f"refine: expected None or one of {REFINEMENTS}, got {refine!r}")
-    if refine is not None and refine not in methods:
-        methods = methods + (refine,)
+    refinements = () if refine is None else (refine,) if isinstance(refine, str) else tuple(refine)
+    if not all(isinstance(r, str) and r in REFINEMENTS for r in refinements):
+        raise ValueError(f"refine: expected None, one of {REFINEMENTS} or a sequence of them, got {refine!r}")
+    methods = methods + tuple(r for r in dict.fromkeys(refinements) if r not in methods)
     if refiner is not None and "network" not in methods:
         raise ValueError("refiner: a refinement network is evaluated with refine='network' only")
     if refine_passes is not None and (isinstance(refine_passes, bool) or not isinstance(refine_passes, (int, np.integer))
@@ -561,7 +562,9 @@ def evaluate_category(
             "num_points": gen.config.num_points, "generator_version": generator_version(category),
             "part_names": list(fr0.part_names), "joint_names": list(fr0.joint_names),
             "joint_types": [t.value for t in fr0.gt.joint_types],
-            "time_limit_s": time_limit_s, "refine": refine, "refiner": refiner_source,
+            "time_limit_s": time_limit_s,
+            "refine": (refinements[0] if len(refinements) == 1 else list(refinements)) if refinements else None,
+            "refiner": refiner_source,
             "refiner_step": None if refiner_net is None else refiner_net.step,
             "refiner_sha256": None if refiner_net is None else refiner_net.sha256,
             "refine_passes": None if refiner_net is None else passes,
