@@ -51,8 +51,8 @@ def register(sub) -> None:
     p.add_argument("--refine", choices=("auto", "template", "network", "none"), default="auto",
                    help="refine the fit: 'template' against the category template (articulated ICP, kept where its "
                    "score on the points is better), 'network' with the refinement network on the points in the fit's "
-                   "NAOCS orientation, 'auto' (default) the template where measured to help "
-                   "(ancsh/data/templates/refine_defaults.json)")
+                   "NAOCS orientation, 'auto' (default) the one measured to help the category most, or none "
+                   "(ancsh/data/templates/refine_defaults.json, `ancsh bench refine-defaults`)")
     _add_refiner_arguments(p)
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
     p.add_argument("--out", type=Path, help="write the result JSON here")

@@ -283,18 +283,21 @@ def load_template_library(category: str, real: str | None = "builtin") -> Templa
     return build_template_library(category, real=real)
 
 
-def refine_default(category: str) -> bool:
-    """Whether category-template refinement is on by default (``refine="auto"``) for ``category``.
+def refine_default(category: str) -> str | None:
+    """What ``refine="auto"`` does for ``category``: ``"template"`` (refine against the category template),
+    ``"network"`` (the refinement network) or ``None`` (no refinement).
 
     Read from ``ancsh/data/templates/refine_defaults.json``, written by ``ancsh bench refine-defaults
-    --install`` from each category's full evaluation (``ancsh evaluate --refine template``, e.g.
-    ``docs/results/<category>.md``): on only where the refinement lowered the mean rotation error of
-    every part there without raising any joint's mean state error by more than 5 %. Unknown
-    categories: off.
+    --install`` from each category's full evaluation (``ancsh evaluate --refine template network``, e.g.
+    ``docs/results/<category>.md``; the rule: :data:`ancsh.studies.refinement.HELPS_RULE`). Unknown categories:
+    ``None``. (A file of the earlier form, ``true`` / ``false`` per category, reads as ``"template"`` / ``None``.)
     """
     path = Path(__file__).resolve().parent / "templates" / "refine_defaults.json"
     try:
         data = json.loads(path.read_text())
     except FileNotFoundError:
-        return False
-    return bool(data.get("categories", {}).get(category, False))
+        return None
+    choice = data.get("categories", {}).get(category)
+    if choice is True:
+        return "template"
+    return choice if choice in ("template", "network") else None

@@ -22,20 +22,51 @@ import numpy as np
 
 from .report import utc_date, write_text
 
-__all__ = ["HELPS_RULE", "RefineDefault", "defaults_from_reports", "install_defaults", "refinement_helps", "refinement_rows", "run_template_refinement", "write_summary"]
+__all__ = ["HELPS_RULE", "REFINEMENTS", "RefineDefault", "defaults_from_reports", "install_defaults", "refinement_helps", "refinement_rows", "run_template_refinement", "write_summary"]
 
 
-HELPS_RULE = ("on where, on the procedural test split of the category's full evaluation (`ancsh evaluate --refine "
-              "template`, the shipped weights), the refinement lowered the mean rotation error of every part and did "
-              "not raise any joint's mean state error by more than 5 %")
+REFINEMENTS = ("template", "network")
+"""What ``refine="auto"`` may choose per category: the category template or the refinement network."""
+
+HELPS_RULE = ("a refinement (the category template, the refinement network) helps a category where, in its full "
+              "evaluation (`ancsh evaluate --refine template network`, the shipped weights), it lowered the mean "
+              "rotation error of every part on the procedural test split without raising any joint's mean state error "
+              "by more than 5 %, and, where the report has a real split, did not raise the mean rotation error over "
+              "the parts there nor any joint's mean state error by more than 5 %; of the refinements that help, "
+              "refine='auto' takes the one with the lower mean rotation error over the parts on the procedural split")
 
 
-def refinement_helps(summary: dict) -> bool:
-    """The rule of :data:`HELPS_RULE` on one evaluation's :func:`~ancsh.studies.table1.summarize` result."""
-    a, b = summary["methods"]["exact_reduced"], summary["methods"]["template"]
+def _helps(a: dict, b: dict) -> str | None:
+    """``None`` where row ``b`` (refined) passes the procedural rule of :data:`HELPS_RULE` against ``a``, else why not."""
     rot_a, rot_b = np.array(a["rot_deg"]["mean"], dtype=float), np.array(b["rot_deg"]["mean"], dtype=float)
     st_a, st_b = np.array(a["state_err"]["mean"], dtype=float), np.array(b["state_err"]["mean"], dtype=float)
-    return bool(np.all(rot_b < rot_a) and np.all(st_b <= 1.05 * st_a))
+    if not np.all(rot_b < rot_a):
+        return "some part's rotation not lower"
+    if not np.all(st_b <= 1.05 * st_a):
+        return "a joint's state error more than 5 % higher"
+    return None
+
+
+def _real_ok(a: dict, b: dict) -> str | None:
+    """``None`` where row ``b`` passes the real-split rule of :data:`HELPS_RULE` against ``a``, else why not."""
+    rot_a, rot_b = np.array(a["rot_deg"]["mean"], dtype=float), np.array(b["rot_deg"]["mean"], dtype=float)
+    st_a, st_b = np.array(a["state_err"]["mean"], dtype=float), np.array(b["state_err"]["mean"], dtype=float)
+    if rot_b.mean() > rot_a.mean():
+        return f"on the real split the mean rotation rose ({rot_a.mean():.2f} -> {rot_b.mean():.2f} deg)"
+    if not np.all(st_b <= 1.05 * st_a):
+        return "on the real split a joint's state error more than 5 % higher"
+    return None
+
+
+def refinement_helps(summary: dict, key: str = "template", real_summary: dict | None = None) -> bool:
+    """The rule of :data:`HELPS_RULE` for refinement ``key`` on one evaluation's :func:`~ancsh.studies.table1.summarize`
+    result (and its real split's, where given)."""
+    m = summary["methods"]
+    if _helps(m["exact_reduced"], m[key]) is not None:
+        return False
+    if real_summary is None or key not in real_summary["methods"]:
+        return True
+    return _real_ok(real_summary["methods"]["exact_reduced"], real_summary["methods"][key]) is None
 
 
 @dataclass(frozen=True)
@@ -45,36 +76,78 @@ class RefineDefault:
     Attributes
     ----------
     category : str
-    on : bool
-        Whether ``refine="auto"`` refines against the category template.
+    choice : str or None
+        What ``refine="auto"`` does: ``"template"`` (refine against the category template), ``"network"`` (the
+        refinement network) or ``None`` (no refinement).
     reason : str
-        Why (the rule's verdict, or why there was no evidence).
+        Why (the rule's verdict per refinement, or why there was no evidence).
     report : str or None
         The evaluation report read (``<category>.json``), None where there was none.
     command : str or None
         The command that produced that report.
     frames : int or None
         Its procedural test frames.
-    rot_deg, rot_deg_refined : tuple of float
-        Per part, mean rotation error (degrees) of ANCSH-exact and of the refined fit.
-    state_err, state_err_refined : tuple of float
-        Per joint, mean joint-state error (degrees for revolute joints, object units for prismatic ones).
+    rot_deg : tuple of float
+        Per part, mean rotation error (degrees) of ANCSH-exact on the procedural split.
+    state_err : tuple of float
+        Per joint, its mean joint-state error (degrees for revolute joints, object units for prismatic ones).
+    refined : dict
+        Per refinement in the report (``"template"``, ``"network"``): ``rot_deg``, ``state_err`` (procedural
+        split), ``real_rot_deg``, ``real_state_err`` (real split, where evaluated, with ``real_rot_deg_base``,
+        ``real_state_err_base`` of ANCSH-exact there), ``helps`` and ``reason``.
     """
 
     category: str
-    on: bool
+    choice: str | None
     reason: str
     report: str | None = None
     command: str | None = None
     frames: int | None = None
     rot_deg: tuple = ()
-    rot_deg_refined: tuple = ()
     state_err: tuple = ()
-    state_err_refined: tuple = ()
+    refined: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def on(self) -> bool:
+        """Whether ``refine="auto"`` refines at all."""
+        return self.choice is not None
+
+
+def _decide(cat: str, report: dict, path: Path) -> RefineDefault:
+    """:func:`defaults_from_reports`' decision for one current report."""
+    from .targets import is_shipped
+
+    methods = report["summary"]["methods"]
+    real = (report.get("real") or {}).get("summary")
+    command = report.get("command")
+    a = methods["exact_reduced"]
+    refined, reasons = {}, []
+    for key in REFINEMENTS:
+        if key not in methods:
+            continue
+        b = methods[key]
+        entry = {"rot_deg": tuple(b["rot_deg"]["mean"]), "state_err": tuple(b["state_err"]["mean"])}
+        why = _helps(a, b)
+        if key == "network" and not is_shipped(cat, report["settings"].get("refiner_sha256"), "refine"):
+            why = "its refinement-network rows are of another refiner than the shipped one (stale)"
+        if why is None and real is not None and key in real["methods"]:
+            ra, rb = real["methods"]["exact_reduced"], real["methods"][key]
+            entry.update(real_rot_deg=tuple(rb["rot_deg"]["mean"]), real_state_err=tuple(rb["state_err"]["mean"]),
+                         real_rot_deg_base=tuple(ra["rot_deg"]["mean"]), real_state_err_base=tuple(ra["state_err"]["mean"]))
+            why = _real_ok(ra, rb)
+        entry.update(helps=why is None, reason=why or "helps")
+        refined[key] = entry
+        reasons.append(f"{key}: {why or 'helps'}")
+    helping = [k for k in refined if refined[k]["helps"]]
+    choice = min(helping, key=lambda k: float(np.mean(refined[k]["rot_deg"]))) if helping else None
+    if len(helping) > 1:
+        reasons.append(f"{choice} has the lower mean rotation")
+    return RefineDefault(cat, choice, "; ".join(reasons), str(path), command, int(report["settings"]["frames"]),
+                         tuple(a["rot_deg"]["mean"]), tuple(a["state_err"]["mean"]), refined)
 
 
 def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
-    """Apply :func:`refinement_helps` to each category's full evaluation report.
+    """Apply the rule of :data:`HELPS_RULE` to each category's full evaluation report.
 
     Parameters
     ----------
@@ -86,8 +159,9 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     Returns
     -------
     list of RefineDefault
-        One per category; off where the report is missing, has no refined (``template``) rows, or was
-        made with other weights than the shipped ones or on frames of another generator version (stale).
+        One per category; no refinement where the report is missing, has no refined (``template`` or ``network``)
+        rows, or was made with other weights than the shipped ones or on frames of another generator version
+        (stale); the refinement network only where its rows are of the shipped refiner.
     """
     import json
 
@@ -102,35 +176,22 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     for cat in (list(categories) if categories else shipped_categories()):
         path = reports_dir / f"{cat}.json"
         if not path.is_file():
-            out.append(RefineDefault(cat, False, f"no evaluation report {path}"))
+            out.append(RefineDefault(cat, None, f"no evaluation report {path}"))
             continue
         report = json.loads(path.read_text())
         methods = report["summary"]["methods"]
         command = report.get("command")
-        if "template" not in methods or "exact_reduced" not in methods:
-            out.append(RefineDefault(cat, False, "its report has no refined rows (run `ancsh evaluate --refine template`)",
+        if "exact_reduced" not in methods or not set(REFINEMENTS) & set(methods):
+            out.append(RefineDefault(cat, None, "its report has no refined rows (run `ancsh evaluate --refine template "
+                                     "network`)", str(path), command))
+        elif not is_shipped(cat, report["settings"].get("weights_sha256")):
+            out.append(RefineDefault(cat, None, "its report is of other weights than the shipped ones (stale)",
                                      str(path), command))
-            continue
-        if not is_shipped(cat, report["settings"].get("weights_sha256")):
-            out.append(RefineDefault(cat, False, "its report is of other weights than the shipped ones (stale)",
-                                     str(path), command))
-            continue
-        if report["settings"].get("generator_version") != generator_version(cat):
-            out.append(RefineDefault(cat, False, f"its report's frames are not of today's generator (version "
+        elif report["settings"].get("generator_version") != generator_version(cat):
+            out.append(RefineDefault(cat, None, f"its report's frames are not of today's generator (version "
                                      f"{generator_version(cat)}; stale)", str(path), command))
-            continue
-        a, b = methods["exact_reduced"], methods["template"]
-        on = refinement_helps(report["summary"])
-        rot_a, rot_b = tuple(a["rot_deg"]["mean"]), tuple(b["rot_deg"]["mean"])
-        st_a, st_b = tuple(a["state_err"]["mean"]), tuple(b["state_err"]["mean"])
-        if on:
-            reason = "every part's rotation lower, no joint state more than 5 % higher"
-        elif not all(y < x for x, y in zip(rot_a, rot_b)):
-            reason = "some part's rotation not lower"
         else:
-            reason = "a joint's state error more than 5 % higher"
-        out.append(RefineDefault(cat, on, reason, str(path), command, int(report["settings"]["frames"]),
-                                 rot_a, rot_b, st_a, st_b))
+            out.append(_decide(cat, report, path))
     return out
 
 
@@ -140,10 +201,10 @@ def install_defaults(decisions: list[RefineDefault], command: str, path=None) ->
     import json
 
     target = Path(path) if path is not None else Path(__file__).resolve().parents[1] / "data" / "templates" / "refine_defaults.json"
-    evidence = {d.category: {k: v for k, v in dataclasses.asdict(d).items() if k not in ("category", "on")}
+    evidence = {d.category: {k: v for k, v in dataclasses.asdict(d).items() if k not in ("category", "choice")}
                 for d in decisions}
     return write_text(target, json.dumps({"measured_by": command, "rule": HELPS_RULE,
-                                          "categories": {d.category: d.on for d in decisions}, "evidence": evidence},
+                                          "categories": {d.category: d.choice for d in decisions}, "evidence": evidence},
                                          indent=1) + "\n")
 
 

@@ -395,14 +395,15 @@ def _report_entries(path, key: str, what: str):
         raise ValueError(f"{path}: not a {what} report ({exc!r})") from None
 
 
-def is_shipped(category, weights_sha256) -> bool:
-    """Whether ``weights_sha256`` is that of the ANCSH weights shipped for ``category`` (False when none are)."""
+def is_shipped(category, weights_sha256, kind: str = "ancsh") -> bool:
+    """Whether ``weights_sha256`` is that of the weights of ``kind`` (``"ancsh"``, ``"refine"``, ...) shipped for
+    ``category`` (False when none are)."""
     from ..outputs import file_sha256
     from ..learned.network.weights import weights_path
 
     if not category or not weights_sha256:
         return False
-    shipped = weights_path(category)
+    shipped = weights_path(category, kind)
     return shipped.is_file() and file_sha256(shipped) == weights_sha256
 
 

@@ -86,6 +86,14 @@ def test_shipped_weights_prediction_is_a_successful_fit_of_the_object(files, ren
         assert all(p["scale_std"] is None or p["scale_std"] != p["scale_std"] for p in unc["parts"])  # not estimated
     elif "category template" in refined["message"]:  # the base candidate: no covariance (docs/json_schema.md)
         assert refined["uncertainty"] is None
+    by_network = predict_depth(depth, intrinsics, "laptop", refine="network").to_json()
+    assert by_network["ok"] and "refinement network: kept" in " ".join(by_network.get("notes", [])) + by_network["message"]
+    # the refiner's fits carry the factors measured for them and that refiner (raw where none were measured)
+    from ancsh.learned.network.weights import weights_path
+    from ancsh.outputs import file_sha256
+
+    expected = inflation_for("learned-network", "laptop", weights_sha256=file_sha256(weights_path("laptop", "refine"))).source
+    assert by_network["uncertainty"]["inflation"]["source"] == expected
     pred = predict_depth(depth, intrinsics, "laptop", refine="none")
     data = pred.to_json()
     assert data["ok"] and data["formulation"] == "exact_reduced"

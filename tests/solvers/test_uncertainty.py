@@ -559,3 +559,21 @@ def test_learned_template_provider_calibrates_the_refined_fits_only():
     assert len(records["rotation"]) == 2 * refined and records["scale"] == []  # two parts per frame; no scale
     assert all(np.all(np.isfinite(r.covariance)) for r in records["rotation"] + records["joint_state"])
     assert len(measured["records"]["laptop"]["learned"]["test"]["scale"]) > 0  # the learned row keeps its scale
+
+
+@pytest.mark.slow
+def test_learned_network_provider_calibrates_the_refiners_fits():
+    """``learned-network`` records the frames whose refinement-network pass was accepted, with the exact fit's
+    covariance on the refiner's correspondences (a scale row too); its errors differ from the first stage's."""
+    from ancsh.studies.uncertainty_calibration import DEFAULT_PROVIDERS, CalibrationConfig, measure
+
+    assert "learned-network" not in DEFAULT_PROVIDERS
+    cfg = CalibrationConfig(categories=("laptop",), providers=("learned", "learned-network"), frames=4, calibration_frames=4)
+    measured = measure(cfg)
+    counts = measured["counts"]["laptop"]["learned-network"]["test"]
+    records = measured["records"]["laptop"]["learned-network"]["test"]
+    refined = counts["frames"] - counts["failed"]
+    assert counts["frames"] + counts["not_refined"] == 4 and refined >= 1
+    assert len(records["rotation"]) == 2 * refined and len(records["scale"]) == 2 * refined
+    first = measured["records"]["laptop"]["learned"]["test"]["rotation"]
+    assert not np.allclose([r.error for r in records["rotation"][:2]], [r.error for r in first[:2]])

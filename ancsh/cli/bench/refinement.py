@@ -22,13 +22,16 @@ def register(sub) -> None:
     p.add_argument("--update-docs", action="store_true", help="write into docs/results/ (when --out is not given)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(func=run)
-    d = sub.add_parser("refine-defaults", help="decide refine='auto' per category from the full evaluations "
-                       "(ancsh evaluate --refine template reports) and optionally install it",
-                       description="Read each category's <category>.json of `ancsh evaluate --refine template` in "
-                       "--reports, apply the rule (every part's mean rotation error lower, no joint's mean state error "
-                       "more than 5 % higher, on the procedural test split) where the report is of the shipped weights, "
-                       "print the decisions; --install writes ancsh/data/templates/refine_defaults.json (categories "
-                       "without such a report: off).")
+    d = sub.add_parser("refine-defaults", help="decide refine='auto' per category (the category template, the "
+                       "refinement network or neither) from the full evaluations (ancsh evaluate --refine template "
+                       "network reports) and optionally install it",
+                       description="Read each category's <category>.json of `ancsh evaluate --refine template network` "
+                       "in --reports; a refinement helps where it lowered every part's mean rotation error without "
+                       "raising any joint's mean state error by more than 5 % on the procedural test split and, where "
+                       "the report has a real split, did not raise the mean rotation over the parts nor a joint's state "
+                       "error by more than 5 % there; auto takes the helping one with the lower mean rotation. Only "
+                       "reports of the shipped weights (and refiner) count. Prints the decisions; --install writes "
+                       "ancsh/data/templates/refine_defaults.json (categories without such a report: no refinement).")
     d.add_argument("--reports", type=Path, required=True, metavar="DIR", help="the evaluation reports (e.g. docs/results)")
     d.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
     d.add_argument("--install", action="store_true", help="write ancsh/data/templates/refine_defaults.json")
@@ -73,11 +76,12 @@ def run_defaults(args: argparse.Namespace) -> int:
     decisions = defaults_from_reports(args.reports, args.categories)
     print(f"refine='auto' per category ({HELPS_RULE}):")
     for d in decisions:
-        nums = ""
-        if d.rot_deg:
-            nums = (f"; rotation {_fmt(d.rot_deg, '.2f')} -> {_fmt(d.rot_deg_refined, '.2f')} deg, joint state "
-                    f"{_fmt(d.state_err, '.3g')} -> {_fmt(d.state_err_refined, '.3g')} ({d.frames} frames)")
-        print(f"  {d.category}: {'on' if d.on else 'off'} -- {d.reason}{nums}")
+        nums = "".join(f"; {k}: rotation {_fmt(d.rot_deg, '.2f')} -> {_fmt(r['rot_deg'], '.2f')} deg, joint state "
+                       f"{_fmt(d.state_err, '.3g')} -> {_fmt(r['state_err'], '.3g')}"
+                       + (f" (real split: rotation {_fmt(r['real_rot_deg_base'], '.2f')} -> {_fmt(r['real_rot_deg'], '.2f')})"
+                          if "real_rot_deg" in r else "") for k, r in d.refined.items())
+        frames = f" ({d.frames} frames)" if d.frames else ""
+        print(f"  {d.category}: {d.choice or 'none'} -- {d.reason}{nums}{frames}")
     if args.install:
         print(f"installed {install_defaults(decisions, command)}")
     return 0

@@ -334,7 +334,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         A pixel or box on the object, for isolation.
     refine : str or None
         Refinement of the fit (:meth:`LearnedProvider.refine`): ``"template"`` (the category template),
-        ``"network"`` (the refinement network), ``"auto"`` (the template where measured to help),
+        ``"network"`` (the refinement network), ``"auto"`` (the one measured to help the category most, or none),
         ``None`` / ``"none"`` (off); default: the provider's option (a provider made here: ``"auto"``).
     refiner : str or Path, optional
         With ``refine="network"`` and no ``provider``: a refinement network's weights file instead of the
@@ -467,12 +467,13 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     corr, raw = infer(provider, obs)
     t_net = time.perf_counter() - t0
     result = fit(obs, corr, formulation, rng=seed)
-    template_fit = False
+    template_fit = network_fit = False
     if result.ok and formulation != "per_part":
         refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
         if isinstance(refined, NetworkRefinement):
             if refined.accepted:
                 result, corr, raw = refined.result, refined.inference.correspondences, refined.inference.prediction
+                network_fit = True
             notes.append(f"refinement network: {'kept' if refined.accepted else 'not kept'} ({refined.reason}; rotation "
                          f"moved {', '.join(f'{a:.1f}' for a in refined.rotation_change_deg) or '-'} deg per pass, "
                          f"{1e3 * refined.time_s:.0f} ms)")
@@ -483,7 +484,7 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     labels = np.asarray(corr.part_labels)
     quality = part_quality(result, pts, corr, raw)
     result = check_plausibility(result, labels, category, quality)
-    result = inflate_uncertainty(result, category, provider, template=template_fit)
+    result = inflate_uncertainty(result, category, provider, template=template_fit, network=network_fit)
     p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
     comparison, p_object, t_rc = None, None, 0.0
     if result.ok and mask is not None:
@@ -618,13 +619,16 @@ def _without_occluders(isolation, attempt, depth):
                                       "model left out as occluders")
 
 
-def inflate_uncertainty(result, category: str, provider, *, template: bool = False, tracked: str | None = None):
+def inflate_uncertainty(result, category: str, provider, *, template: bool = False, network: bool = False,
+                        tracked: str | None = None):
     """The fit with its standard deviations inflated by the factors measured for these weights of
     ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights.
     ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits.
     ``template``: the fit was refined by the category template (an accepted
     :meth:`LearnedProvider.refine`), whose covariance is the template ICP's: the factors measured for
     those fits apply (provider ``"learned-template"`` of ``ancsh bench uncertainty``).
+    ``network``: the fit is the refinement network's (an accepted refinement): the factors measured for
+    those fits and that refiner apply (provider ``"learned-network"``).
     ``tracked``: the source of a warm tracked frame (``"network"``, ``"carried"``, ``"template"``): the
     factors measured on tracked frames of that source (provider ``"learned-tracked-<source>"`` of
     ``ancsh bench tracking --calibration-sequences``) apply where measured, else the single-frame ones."""
@@ -634,6 +638,10 @@ def inflate_uncertainty(result, category: str, provider, *, template: bool = Fal
 
     if result.uncertainty is None:
         return result
+    if network:
+        inflation = first_measured_inflation(("learned-network",), str(category),
+                                             weights_sha256=getattr(provider.refiner.network, "sha256", None))
+        return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
     single = "learned-template" if template else "learned"
     inflation = first_measured_inflation((tracked_provider("learned", tracked) if tracked else None, single), str(category),
                                          weights_sha256=getattr(provider.network, "sha256", None))

@@ -180,11 +180,11 @@ class LearnedProvider:
         instance of the network's category; kept only where its score on the observed points beats the
         fit's), ``"network"`` runs the refinement network ``refiner`` on the points in the fit's NAOCS
         orientation and fits again (:func:`~ancsh.learned.inference.refine_network.refine_with_network`),
-        ``None`` / ``"none"`` leaves it, ``"auto"`` refines against the template where that was measured
-        to help (:func:`ancsh.data.templates.refine_default`).
+        ``None`` / ``"none"`` leaves it, ``"auto"`` does what was measured to help the category most
+        (:func:`ancsh.data.templates.refine_default`: the template, the refinement network or neither).
     refiner : str, Path or LoadedNetwork, optional
         With ``refine="network"``: the refinement network (default: the category's shipped
-        ``<category>_refine.pt``), loaded when first needed.
+        ``<category>_refine.pt``, also what ``"auto"`` uses), loaded when first needed.
     refine_passes : int
         Passes of the refinement network.
     device : str or torch.device, optional
@@ -249,14 +249,19 @@ class LearnedProvider:
 
     def refines(self, refine: str | None = "provider") -> bool:
         """Whether :meth:`refine` refines (``refine``: an override of the provider's option, as there)."""
+        return self.refine_choice(refine) is not None
+
+    def refine_choice(self, refine: str | None = "provider") -> str | None:
+        """What :meth:`refine` does: ``"template"``, ``"network"`` or ``None`` (``refine``: an override of the
+        provider's option, as there; ``"auto"`` resolved by :func:`ancsh.data.templates.refine_default`)."""
         from ...data.templates import refine_default
 
         option = self.refine_option if refine == "provider" else refine
         if option not in REFINE_OPTIONS:
             raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {option!r}")
         if option == "auto":
-            return self.category is not None and refine_default(self.category)
-        return option in ("template", "network")
+            return None if self.category is None else refine_default(self.category)
+        return option if option in ("template", "network") else None
 
     def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0,
                config=None):
@@ -281,9 +286,10 @@ class LearnedProvider:
         TemplateRefinement, NetworkRefinement or None
             ``None`` when refinement is off; else its outcome (``.result`` is the fit to use).
         """
-        if not self.refines(refine):
+        choice = self.refine_choice(refine)
+        if choice is None:
             return None
-        if (self.refine_option if refine == "provider" else refine) == "network":
+        if choice == "network":
             from .refine_network import refine_with_network
 
             return refine_with_network(self.refiner, observation, fit, formulation=fit.formulation,

@@ -53,9 +53,10 @@ from .statistics import QUANTITIES, ErrorRecord, error_records
 __all__ = ["CalibrationConfig", "merge_records", "measure", "save_records", "load_records", "PROVIDERS",
            "DEFAULT_PROVIDERS"]
 
-PROVIDERS = ("oracle-realistic", "learned", "learned-template")
+PROVIDERS = ("oracle-realistic", "learned", "learned-template", "learned-network")
 #: What runs without ``--providers``: ``learned-template`` (the learned fits refined by the category
-#: template, ICP covariances; about half a second more per frame) only when asked for.
+#: template, ICP covariances; about half a second more per frame) and ``learned-network`` (refined by the
+#: category's refinement network) only when asked for.
 DEFAULT_PROVIDERS = ("oracle-realistic", "learned")
 #: Default calibration frames per test frame (:attr:`CalibrationConfig.calibration_frames`).
 CALIBRATION_FRAMES_PER_TEST_FRAME = 2
@@ -82,7 +83,10 @@ class CalibrationConfig:
         forced on), only the frames whose refinement was accepted as the ``articulated`` candidate (the
         others keep the learned fit, which the ``learned`` row calibrates, or carry no covariance: counted
         as ``not_refined``); their covariance is the template ICP's, without a
-        scale (chosen by the scale search), so they have no ``scale`` row.
+        scale (chosen by the scale search), so they have no ``scale`` row. ``learned-network``: the learned
+        fits refined by the category's shipped refinement network (``refine="network"``, its default passes),
+        the frames whose refinement was accepted (the others counted as ``not_refined``); the exact fit's
+        covariance on the refiner's correspondences.
     frames : int
         Test frames per category.
     calibration_frames : int or None
@@ -148,10 +152,11 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
     no_uncertainty = FitConfig(uncertainty=False)
     for cat in config.categories:
         learned = None
-        if {"learned", "learned-template"} & set(config.providers):
+        if {"learned", "learned-template", "learned-network"} & set(config.providers):
             from ...learned.inference.provider import LearnedProvider
 
-            learned = LearnedProvider(cat, seed=config.seed, num_threads=1)
+            learned = LearnedProvider(cat, seed=config.seed, num_threads=1,
+                                      refine="network" if "learned-network" in config.providers else None)
         records[cat] = {p: {} for p in config.providers}
         counts[cat] = {p: {} for p in config.providers}
         for split, seed, n_frames in (("calibration", config.calibration_seed, config.n_calibration),
@@ -160,7 +165,7 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
             for p in config.providers:
                 records[cat][p][split] = {q: [] for q in QUANTITIES}
                 counts[cat][p][split] = {"frames": 0, "failed": 0, "singular": 0}
-                if p == "learned-template":
+                if p in ("learned-template", "learned-network"):
                     counts[cat][p][split]["not_refined"] = 0
             t0 = time.perf_counter()
             for i in range(n_frames):
@@ -178,12 +183,14 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
                     else:
                         corr = OracleProvider(frame.gt, p.split("-", 1)[1], rng, joint_limits=_limits(model)).correspond(obs)
                     result = fit(obs, corr, config.formulation, rng=i)
-                    if p == "learned-template" and result.ok:
-                        refined = learned.refine(obs, corr, result, refine="template", rng=i)
+                    if p in ("learned-template", "learned-network") and result.ok:
+                        refined = learned.refine(obs, corr, result, refine=p.split("-", 1)[1], rng=i)
                         if not refined.accepted or refined.result.uncertainty is None:  # kept the input, or base
                             counts[cat][p][split]["not_refined"] += 1
                             continue
                         result = refined.result
+                        if p == "learned-network":  # the fit of the refiner's correspondences
+                            corr, raw = refined.inference.correspondences, refined.inference.prediction
                     if p.startswith("learned"):
                         result = check_plausibility(result, corr.part_labels, cat, part_quality(result, frame.points, corr, raw))
                     if split == "test":

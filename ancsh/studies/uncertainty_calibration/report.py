@@ -180,7 +180,8 @@ def write_report(measured: dict, summary: dict, config: CalibrationConfig, out_m
             f"{_pct(r['inflated'][0])} / {_pct(r['inflated'][1])} | {'yes' if _within(r['inflated']) else '**no**'} |")
     lines += ["", "Fits per split (failed: no estimate or a failed plausibility check, not scored; singular: some "
               "quantity undetermined, its errors not scored; not refined: learned-template frames whose template "
-              "refinement kept the learned fit or chose the base candidate, which carries no covariance):", "",
+              "refinement kept the learned fit or chose the base candidate, which carries no covariance, and "
+              "learned-network frames whose refinement failed):", "",
               "| category | provider | calibration frames / failed / singular | test frames / failed / singular |",
               "|---|---|---|---|"]
     for cat, per in measured["counts"].items():
@@ -230,11 +231,12 @@ def install(summary: dict, config: CalibrationConfig, command: str, path=None) -
     path = INFLATION_PATH if path is None else Path(path)
     table = load_inflation_table(path)
     for p, per_cat in summary["factors"].items():
-        if p.startswith("learned"):  # the factors hold for the network they were measured with
+        if p.startswith("learned"):  # the factors hold for the network they were measured with (the refiner's fits: it)
             from ...learned.network.weights import weights_path
             from ...outputs import file_sha256
 
-            per_cat = {c: {**f, "weights_sha256": file_sha256(weights_path(c))} for c, f in per_cat.items()}
+            kind = "refine" if p == "learned-network" else "ancsh"
+            per_cat = {c: {**f, "weights_sha256": file_sha256(weights_path(c, kind))} for c, f in per_cat.items()}
         table["providers"].setdefault(p, {}).update(per_cat)
         table.setdefault("commands", {})[p] = command  # what measured each provider's maps (the last run per provider)
     table["formulation"] = config.formulation
