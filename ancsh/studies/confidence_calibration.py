@@ -20,7 +20,8 @@ __all__ = ["choose_calibrator", "collect", "constant_calibrator", "fit_calibrato
 
 
 def collect(category: str, frames: int, *, seed: int = 7, provider=None, progress: bool = True) -> dict:
-    """Features and labels of ``frames`` rendered held-out frames (test split, base seed ``seed``).
+    """Features and labels of ``frames`` rendered held-out frames (test split, base seed ``seed``), each fitted
+    and refined as ``ancsh predict`` does (the provider's ``refine`` option; a provider made here: ``"auto"``).
 
     Returns ``{"X": (F, D), "good": (F,) bool, "rot_deg": (F,) worst part rotation error (inf when the fit failed)}``.
     """
@@ -29,20 +30,21 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..evaluation import evaluate_fit
     from ..learned.inference.predict import infer, part_quality
-    from ..learned.inference.provider import LearnedProvider
+    from ..learned.inference.provider import LearnedProvider, apply_refinement
     from ..solvers import Observation, fit
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 4:
         raise ValueError(f"frames: expected an integer >= 4, got {frames!r}")
-    provider = provider or LearnedProvider(category, seed=seed)
+    provider = provider or LearnedProvider(category, seed=seed, refine="auto")
     gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=seed))
     X, rot = [], []
     for i in tqdm(range(int(frames)), desc=f"calibrate {category}", disable=not progress, dynamic_ncols=True):
         frame = gen.frame(i)
         obs = Observation(frame.points)
         corr, raw = infer(provider, obs)
-        result = fit(obs, corr, "exact_reduced", rng=i)
-        X.append(fit_features(part_quality(result, frame.points, corr, raw), category))
+        refined = apply_refinement(provider, obs, corr, raw, fit(obs, corr, "exact_reduced", rng=i), rng=i)
+        result = refined.result
+        X.append(fit_features(part_quality(result, frame.points, refined.correspondences, refined.prediction), category))
         rec = evaluate_fit(result, frame.gt)
         rec = rec.to_dict() if hasattr(rec, "to_dict") else rec  # a dict, or a dataclass with to_dict()
         rot.append(max((p["rot_deg"] for p in rec["parts"]), default=np.inf) if rec["ok"] else np.inf)

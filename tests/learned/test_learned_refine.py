@@ -109,3 +109,24 @@ def test_refine_defaults_follow_the_rule_on_current_reports_only(tmp_path):
     assert data["evidence"]["laptop"]["command"] == "ancsh evaluate --category laptop"
     with pytest.raises(ValueError, match="reports_dir"):
         defaults_from_reports(tmp_path / "missing")
+
+
+def test_apply_refinement_says_what_the_result_rests_on():
+    """Scenario: one rendered laptop frame refined three ways: none keeps the fit and its correspondences; the
+    network's accepted pass brings its own correspondences and prediction; the template keeps the network's."""
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.learned.inference.provider import apply_refinement
+
+    fr = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0)).frame(1)
+    obs = Observation(fr.points)
+    p = LearnedProvider("laptop", refine="network")
+    inf = p.infer(obs)
+    res = fit(obs, inf.correspondences, "exact_reduced", rng=0)
+    none = apply_refinement(p, obs, inf.correspondences, inf.prediction, res, refine="none")
+    assert none.result is res and none.correspondences is inf.correspondences and none.kind is None and none.note is None
+    net = apply_refinement(p, obs, inf.correspondences, inf.prediction, res, rng=0)
+    assert net.kind == "network" and net.result is not res and net.correspondences is not inf.correspondences
+    assert net.prediction is not inf.prediction and net.note.startswith("refinement network: kept")
+    tpl = apply_refinement(p, obs, inf.correspondences, inf.prediction, res, refine="template", rng=0)
+    assert tpl.correspondences is inf.correspondences and tpl.note.startswith("category-template refinement")
+    assert tpl.kind == ("template" if "kept" in tpl.note.split("(")[0] and "not kept" not in tpl.note else None)

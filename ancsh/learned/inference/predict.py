@@ -31,7 +31,8 @@ from .checks import (  # noqa: F401 - re-exported
     part_quality,
 )
 from .picture import draw_prediction  # noqa: F401 - re-exported
-from .refine_network import DEFAULT_PASSES, NetworkRefinement
+from .provider import RefinedFit, apply_refinement
+from .refine_network import DEFAULT_PASSES
 
 __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MIN_P_OBJECT",
            "DepthPrediction", "fit_candidate", "check_confidence", "check_plausibility",
@@ -467,24 +468,16 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     corr, raw = infer(provider, obs)
     t_net = time.perf_counter() - t0
     result = fit(obs, corr, formulation, rng=seed)
-    template_fit = network_fit = False
-    if result.ok and formulation != "per_part":
-        refined = provider.refine(obs, corr, result, refine=refine, rng=seed)
-        if isinstance(refined, NetworkRefinement):
-            if refined.accepted:
-                result, corr, raw = refined.result, refined.inference.correspondences, refined.inference.prediction
-                network_fit = True
-            notes.append(f"refinement network: {'kept' if refined.accepted else 'not kept'} ({refined.reason}; rotation "
-                         f"moved {', '.join(f'{a:.1f}' for a in refined.rotation_change_deg) or '-'} deg per pass, "
-                         f"{1e3 * refined.time_s:.0f} ms)")
-        elif refined is not None:
-            result, template_fit = refined.result, refined.accepted
-            notes.append(f"category-template refinement: {'kept' if refined.accepted else 'not kept'} "
-                         f"({refined.reason}; template {refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")
+    refined = RefinedFit(result, corr, raw, None, None)
+    if formulation != "per_part":
+        refined = apply_refinement(provider, obs, corr, raw, result, refine=refine, rng=seed)
+    result, corr, raw = refined.result, refined.correspondences, refined.prediction
+    notes += [refined.note] if refined.note else []
     labels = np.asarray(corr.part_labels)
     quality = part_quality(result, pts, corr, raw)
     result = check_plausibility(result, labels, category, quality)
-    result = inflate_uncertainty(result, category, provider, template=template_fit, network=network_fit)
+    result = inflate_uncertainty(result, category, provider, template=refined.kind == "template",
+                                 network=refined.kind == "network")
     p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
     comparison, p_object, t_rc = None, None, 0.0
     if result.ok and mask is not None:

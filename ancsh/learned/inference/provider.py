@@ -29,7 +29,8 @@ from ...solvers.types import Correspondences, Observation
 from .refine_network import DEFAULT_PASSES
 from .voting import JointVote, vote_joints
 
-__all__ = ["REFINE_OPTIONS", "Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "predict_points"]
+__all__ = ["REFINE_OPTIONS", "Inference", "LearnedProvider", "Prediction", "DirectVotingPredictor", "RefinedFit",
+           "apply_refinement", "predict_points"]
 
 REFINE_OPTIONS = (None, "none", "template", "network", "auto")
 """Values of ``LearnedProvider(refine=...)``."""
@@ -394,6 +395,54 @@ class LearnedProvider:
             weights=pred.seg_prob[rows, labels],
         )
         return Inference(corr, pred, tuple(votes))
+
+
+@dataclass(frozen=True)
+class RefinedFit:
+    """A fit after :func:`apply_refinement`: what to report and judge it by.
+
+    Attributes
+    ----------
+    result : FitResult
+        The refined fit where a refinement was accepted, else the input fit.
+    correspondences : Correspondences
+        Those the result was fitted to (the refinement network's where its fit is kept).
+    prediction : Prediction or None
+        The network output behind them.
+    kind : str or None
+        ``"template"`` or ``"network"``: the accepted refinement that made ``result``; ``None``: none.
+    note : str or None
+        One line on what the refinement did (``None`` when none ran).
+    """
+
+    result: object
+    correspondences: Correspondences
+    prediction: object
+    kind: str | None
+    note: str | None
+
+
+def apply_refinement(provider: LearnedProvider, observation: Observation, corr: Correspondences, prediction, fit, *,
+                     refine: str | None = "provider", rng=0) -> RefinedFit:
+    """Refine ``fit`` (of ``corr``, the network output ``prediction``) as ``provider`` is set to
+    (:meth:`LearnedProvider.refine`; ``refine`` overrides its option) and say what the result rests on -- the
+    one rule of ``ancsh predict`` and the calibrations measured for its fits."""
+    from .refine_network import NetworkRefinement
+
+    refined = provider.refine(observation, corr, fit, refine=refine, rng=rng) if fit.ok else None
+    if refined is None:
+        return RefinedFit(fit, corr, prediction, None, None)
+    if isinstance(refined, NetworkRefinement):
+        note = (f"refinement network: {'kept' if refined.accepted else 'not kept'} ({refined.reason}; rotation moved "
+                f"{', '.join(f'{a:.1f}' for a in refined.rotation_change_deg) or '-'} deg per pass, "
+                f"{1e3 * refined.time_s:.0f} ms)")
+        if refined.accepted:
+            return RefinedFit(refined.result, refined.inference.correspondences, refined.inference.prediction, "network",
+                              note)
+        return RefinedFit(fit, corr, prediction, None, note)
+    note = (f"category-template refinement: {'kept' if refined.accepted else 'not kept'} ({refined.reason}; template "
+            f"{refined.template or 'none'}, {1e3 * refined.time_s:.0f} ms)")
+    return RefinedFit(refined.result, corr, prediction, "template" if refined.accepted else None, note)
 
 
 class DirectVotingPredictor:
