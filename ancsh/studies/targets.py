@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
-    "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
+    "NETWORK_METHOD", "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
     "collect_targets", "limit_lines", "roll_gains", "target_lines",
 ]
 
@@ -29,6 +29,10 @@ TARGET_METHOD = "exact_reduced"
 REFINED_METHOD = "template"
 """The report's row of the same fits refined against the category template (``ancsh evaluate --refine template``),
 shown beside the targets' method."""
+
+NETWORK_METHOD = "network"
+"""The report's row of the same fits refined by the refinement network (``ancsh evaluate --refine network``), shown
+beside the targets' method."""
 
 REAL_RATIO_GOAL = 1.25
 """Goal for the real split: rotation error at most this multiple of the procedural split's, per part."""
@@ -98,6 +102,9 @@ class TargetRow:
     refined_rot_deg : tuple of float or None
         Mean rotation error per part of the same fits refined against the category template
         (:data:`REFINED_METHOD`, ``ancsh evaluate --refine template``); ``None`` when the report has no such row.
+    network_rot_deg, network_axis_deg : tuple of float or None
+        Mean rotation error per part and joint-axis error per joint of the same fits refined by the refinement
+        network (:data:`NETWORK_METHOD`, ``ancsh evaluate --refine network``); ``None`` without such a row.
     """
 
     category: str
@@ -114,6 +121,8 @@ class TargetRow:
     shipped_sha256: str | None
     generator_version: int | None = None
     refined_rot_deg: tuple[float, ...] | None = None
+    network_rot_deg: tuple[float, ...] | None = None
+    network_axis_deg: tuple[float, ...] | None = None
 
     @property
     def stale(self) -> str:
@@ -148,6 +157,16 @@ class TargetRow:
     def refined_met(self) -> bool | None:
         """Every part of the template-refined fits at most the paper's rotation error (``None`` without either)."""
         return _all_at_most(self.refined_ratio, 1.0)
+
+    @property
+    def network_ratio(self) -> tuple[float, ...] | None:
+        """The network-refined rotation error over the paper's, per part (``None`` without either)."""
+        return _over(self.network_rot_deg, self.paper_rot_deg)
+
+    @property
+    def network_met(self) -> bool | None:
+        """Every part of the network-refined fits at most the paper's rotation error (``None`` without either)."""
+        return _all_at_most(self.network_ratio, 1.0)
 
     @property
     def axis_met(self) -> bool | None:
@@ -211,6 +230,10 @@ def _read_row(path: Path, shipped_sha256: str | None) -> TargetRow:
         generator_version=settings.get("generator_version"),
         refined_rot_deg=_means(summary, "rot_deg", path, REFINED_METHOD)
         if REFINED_METHOD in (summary.get("methods") or {}) else None,
+        network_rot_deg=_means(summary, "rot_deg", path, NETWORK_METHOD)
+        if NETWORK_METHOD in (summary.get("methods") or {}) else None,
+        network_axis_deg=_means(summary, "axis_deg", path, NETWORK_METHOD)
+        if NETWORK_METHOD in (summary.get("methods") or {}) else None,
     )
 
 
@@ -252,14 +275,24 @@ def _refined_cell(r: TargetRow) -> str:
     return _join(r.refined_rot_deg, ".2f") + ("" if ratio is None else ", " + _join(ratio, ".1f") + "x" + _verdict(r.refined_met))
 
 
+def _network_cell(r: TargetRow) -> str:
+    if r.network_rot_deg is None:
+        return "- (no `--refine network` row)"
+    ratio = r.network_ratio
+    text = _join(r.network_rot_deg, ".2f") + ("" if ratio is None else ", " + _join(ratio, ".1f") + "x" + _verdict(r.network_met))
+    return text + "; axis " + _join(r.network_axis_deg, ".2f") + (
+        "" if r.paper_axis_deg is None else ", " + _join(_over(r.network_axis_deg, r.paper_axis_deg), ".1f") + "x")
+
+
 def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[str, tuple[float, float]]) -> list[str]:
     """Markdown: one row per category (figures of :func:`collect_targets`), with the training time spent
     on its shipped network against :data:`TRAINING_BUDGET_MIN`: ``training_min[category]`` is
     ``(own, parent)`` minutes, ``parent`` those of the network it was fine-tuned from (0 if none)."""
     lines = [
         "| category | parts | frames (real) | rotation (°), ours | paper | ours / paper | joint axis (°), ours | paper "
-        "| real / procedural rotation | + category template: rotation (°), / paper | training (min) of 240 | report |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| real / procedural rotation | + category template: rotation (°), / paper | + refinement network: rotation (°), "
+        "/ paper; joint axis (°), / paper | training (min) of 240 | report |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         ratio = r.paper_ratio
@@ -274,6 +307,7 @@ def target_lines(rows: list[TargetRow], missing: list[str], training_min: dict[s
             f"{'-' if r.paper_axis_deg is None else _join(r.paper_axis_deg, '.1f') + _verdict(r.axis_met)} | "
             f"{'-' if real is None else _join(real, '.2f') + 'x' + _verdict(r.real_met)} | "
             f"{_refined_cell(r)} | "
+            f"{_network_cell(r)} | "
             f"{minutes} | "
             f"{'stale: ' + r.stale if r.stale else 'current'} |"
         )

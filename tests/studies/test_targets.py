@@ -12,11 +12,14 @@ from ancsh.studies.targets import (
 )
 
 
-def _report(category, rot, axis, sha, *, real_rot=None, paper=True, refined_rot=None):
-    """A minimal `ancsh evaluate` report of the documented schema (docs/REPORT_SCHEMAS.md)."""
+def _report(category, rot, axis, sha, *, real_rot=None, paper=True, refined_rot=None, network=None):
+    """A minimal `ancsh evaluate` report of the documented schema (docs/REPORT_SCHEMAS.md); ``network``: the
+    refinement network's ``(rot, axis)`` row."""
     summary = {"methods": {"exact_reduced": {"rot_deg": {"mean": list(rot)}, "axis_deg": {"mean": list(axis)}}}}
     if refined_rot is not None:  # `ancsh evaluate --refine template`
         summary["methods"]["template"] = {"rot_deg": {"mean": list(refined_rot)}, "axis_deg": {"mean": list(axis)}}
+    if network is not None:  # `ancsh evaluate --refine network`
+        summary["methods"]["network"] = {"rot_deg": {"mean": list(network[0])}, "axis_deg": {"mean": list(network[1])}}
     data = {
         "category": category,
         "settings": {"part_names": [f"p{i}" for i in range(len(rot))], "joint_names": [f"j{k}" for k in range(len(axis))],
@@ -43,11 +46,15 @@ def test_rows_compare_with_the_paper_and_the_real_split(tmp_path):
                                                              real_rot=real)))
     oven_paper = PAPER_TABLE1["oven"]["ANCSH"]["rot_deg"]
     refined = [oven_paper[0] * 0.5, oven_paper[1] * 1.5]  # the template-refined row: one part under the paper
-    (tmp_path / "oven.json").write_text(json.dumps(_report("oven", [9.0, 9.0], [1.0], "0" * 64, refined_rot=refined)))
+    net_rot, net_axis = [oven_paper[0] * 0.9, oven_paper[1] * 0.8], [PAPER_TABLE1["oven"]["ANCSH"]["axis_deg"][0] * 3]
+    (tmp_path / "oven.json").write_text(json.dumps(_report("oven", [9.0, 9.0], [1.0], "0" * 64, refined_rot=refined,
+                                                           network=(net_rot, net_axis))))
     rows, missing = collect_targets(tmp_path)
     by = {r.category: r for r in rows}
     lap, oven = by["laptop"], by["oven"]
-    assert lap.refined_rot_deg is None and lap.refined_met is None
+    assert lap.refined_rot_deg is None and lap.refined_met is None and lap.network_rot_deg is None and lap.network_met is None
+    assert oven.network_ratio == pytest.approx([0.9, 0.8]) and oven.network_met is True
+    assert oven.network_axis_deg == pytest.approx(net_axis)
     assert oven.refined_ratio == pytest.approx([0.5, 1.5]) and oven.refined_met is False
     assert lap.paper_ratio == pytest.approx(np.divide(under, paper["rot_deg"]))
     assert lap.rotation_met is True and lap.axis_met is False and lap.real_met is True and not lap.stale
@@ -62,6 +69,8 @@ def test_rows_compare_with_the_paper_and_the_real_split(tmp_path):
     md = "\n".join(target_lines(rows, missing, {}))
     assert "stale: other weights" in md and "| current |" in md and "(met)" in md and "**not met**" in md and "No report for: " in md
     assert f"| {refined[0]:.2f} / {refined[1]:.2f}, 0.5 / 1.5x (**not met**) |" in md and "- (no `--refine template` row)" in md
+    assert f"| {net_rot[0]:.2f} / {net_rot[1]:.2f}, 0.9 / 0.8x (met); axis {net_axis[0]:.2f}, 3.0x |" in md
+    assert "- (no `--refine network` row)" in md
 
 
 def test_bad_reports_are_named(tmp_path):
