@@ -113,8 +113,8 @@ class RefineDefault:
         return self.choice is not None
 
 
-def _decide(cat: str, report: dict, path: Path) -> RefineDefault:
-    """:func:`defaults_from_reports`' decision for one current report."""
+def _decide(cat: str, report: dict, path: Path, vetoes: dict) -> RefineDefault:
+    """:func:`defaults_from_reports`' decision for one current report (``vetoes``: as there)."""
     from .targets import is_shipped
 
     methods = report["summary"]["methods"]
@@ -135,6 +135,8 @@ def _decide(cat: str, report: dict, path: Path) -> RefineDefault:
             entry.update(real_rot_deg=tuple(rb["rot_deg"]["mean"]), real_state_err=tuple(rb["state_err"]["mean"]),
                          real_rot_deg_base=tuple(ra["rot_deg"]["mean"]), real_state_err_base=tuple(ra["state_err"]["mean"]))
             why = _real_ok(ra, rb)
+        if why is None and (cat, key) in vetoes:
+            why = f"vetoed: {vetoes[(cat, key)]}"
         entry.update(helps=why is None, reason=why or "helps")
         refined[key] = entry
         reasons.append(f"{key}: {why or 'helps'}")
@@ -146,7 +148,7 @@ def _decide(cat: str, report: dict, path: Path) -> RefineDefault:
                          tuple(a["rot_deg"]["mean"]), tuple(a["state_err"]["mean"]), refined)
 
 
-def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
+def defaults_from_reports(reports_dir, categories=None, vetoes=None) -> list[RefineDefault]:
     """Apply the rule of :data:`HELPS_RULE` to each category's full evaluation report.
 
     Parameters
@@ -155,6 +157,10 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
         A folder of ``ancsh evaluate`` reports (``<category>.json``).
     categories : iterable of str, optional
         Default: every category with shipped ANCSH weights.
+    vetoes : dict, optional
+        ``{(category, refinement): reason}``: evidence the reports do not hold (e.g. real sensor frames,
+        ``ancsh bench real-frames``) against a refinement that passes the rule; it is not chosen, and the
+        reason is recorded with the decision.
 
     Returns
     -------
@@ -172,6 +178,11 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
     reports_dir = Path(reports_dir)
     if not reports_dir.is_dir():
         raise ValueError(f"reports_dir: not a folder: {reports_dir}")
+    vetoes = dict(vetoes or {})
+    bad = [k for k in vetoes if not (isinstance(k, tuple) and len(k) == 2 and k[1] in REFINEMENTS)
+           or not str(vetoes[k]).strip()]
+    if bad:
+        raise ValueError(f"vetoes: expected {{(category, one of {REFINEMENTS}): reason}}, got {bad}")
     out = []
     for cat in (list(categories) if categories else shipped_categories()):
         path = reports_dir / f"{cat}.json"
@@ -191,7 +202,7 @@ def defaults_from_reports(reports_dir, categories=None) -> list[RefineDefault]:
             out.append(RefineDefault(cat, None, f"its report's frames are not of today's generator (version "
                                      f"{generator_version(cat)}; stale)", str(path), command))
         else:
-            out.append(_decide(cat, report, path))
+            out.append(_decide(cat, report, path, vetoes))
     return out
 
 

@@ -107,6 +107,13 @@ def test_refine_defaults_follow_the_rule_on_current_reports_only(tmp_path):
                                   "microwave": None, "safe": "template", "washing_machine": "network", "box": None,
                                   "no_report": None}
     assert data["evidence"]["laptop"]["command"] == "ancsh evaluate --category laptop"
+    # evidence the reports do not hold vetoes a refinement that passes the rule: the other one, or none, is chosen
+    vetoed = {d.category: d for d in defaults_from_reports(tmp_path, ["oven", "washing_machine"], {
+        ("oven", "network"): "worse on real sensor frames", ("washing_machine", "network"): "worse on real sensor frames"})}
+    assert vetoed["oven"].choice is None and "vetoed: worse on real sensor frames" in vetoed["oven"].refined["network"]["reason"]
+    assert vetoed["washing_machine"].choice == "template"
+    with pytest.raises(ValueError, match="vetoes"):
+        defaults_from_reports(tmp_path, ["oven"], {("oven", "icp"): "why"})
     with pytest.raises(ValueError, match="reports_dir"):
         defaults_from_reports(tmp_path / "missing")
 

@@ -35,6 +35,10 @@ def register(sub) -> None:
     d.add_argument("--reports", type=Path, required=True, metavar="DIR", help="the evaluation reports (e.g. docs/results)")
     d.add_argument("--categories", nargs="+", help="categories (default: every one with shipped weights)")
     d.add_argument("--install", action="store_true", help="write ancsh/data/templates/refine_defaults.json")
+    d.add_argument("--veto", action="append", default=[], metavar="CATEGORY:REFINEMENT=REASON",
+                   help="do not choose REFINEMENT (template or network) for CATEGORY although its reports pass the "
+                   "rule, for the evidence REASON names (e.g. real sensor frames); recorded with the decision "
+                   "(repeatable)")
     d.set_defaults(func=run_defaults)
 
 
@@ -65,15 +69,23 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_defaults(args: argparse.Namespace) -> int:
-    from ...studies.refinement import HELPS_RULE, _fmt, defaults_from_reports, install_defaults
+    from ...studies.refinement import HELPS_RULE, REFINEMENTS, _fmt, defaults_from_reports, install_defaults
 
     parts = ["bench", "refine-defaults", "--reports", str(args.reports)]
     if args.categories:
         parts += ["--categories", *args.categories]
     if args.install:
         parts.append("--install")
+    vetoes = {}
+    for text in args.veto:
+        key, sep, reason = text.partition("=")
+        cat, colon, refinement = key.partition(":")
+        if not (sep and colon and cat.strip() and refinement.strip() in REFINEMENTS and reason.strip()):
+            raise ValueError(f"--veto: expected CATEGORY:REFINEMENT=REASON with REFINEMENT one of {REFINEMENTS}, got {text!r}")
+        vetoes[(cat.strip(), refinement.strip())] = reason.strip()
+        parts += ["--veto", text]
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
-    decisions = defaults_from_reports(args.reports, args.categories)
+    decisions = defaults_from_reports(args.reports, args.categories, vetoes)
     print(f"refine='auto' per category ({HELPS_RULE}):")
     for d in decisions:
         nums = "".join(f"; {k}: rotation {_fmt(d.rot_deg, '.2f')} -> {_fmt(r['rot_deg'], '.2f')} deg, joint state "
