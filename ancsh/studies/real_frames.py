@@ -77,7 +77,7 @@ def _run(frame, category, mode, provider, truth, *, seed, num_points):
 
 
 def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: int = 1024, progress: bool = True,
-                        weights=None) -> dict:
+                        weights=None, refine=None) -> dict:
     """Run the real-frame benchmark (module docstring) on ``folders``.
 
     Parameters
@@ -93,6 +93,9 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
     weights : dict, optional
         ``{category: weights file}`` instead of the shipped networks (a network under test; its calibrations of
         ``p_good`` / ``p_object`` apply only where they were made with it).
+    refine : dict, optional
+        ``{category: "template" | "network" | "none"}`` instead of ``"auto"`` (what ``ancsh predict`` does; the
+        calibrations were measured on its fits).
 
     Returns
     -------
@@ -104,7 +107,7 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
     from ..learned.inference.provider import LearnedProvider
     from ..learned.network.weights import shipped_categories, weights_path
 
-    weights = dict(weights or {})
+    weights, refine = dict(weights or {}), dict(refine or {})
     frames = [load_real_frame(f) for f in folders]
     negatives = list(categories) if categories else list(shipped_categories())
     providers = {}
@@ -112,7 +115,7 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
     def provider(category):
         if category not in providers:
             source = weights.get(category, category)
-            providers[category] = (LearnedProvider(source, seed=seed, refine="auto")
+            providers[category] = (LearnedProvider(source, seed=seed, refine=refine.get(category, "auto"))
                                    if category in weights or weights_path(category).is_file() else None)
         return providers[category]
 
@@ -136,7 +139,7 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
     used = {c: {"file": str(w), "sha256": getattr(providers[c].network, "sha256", None)}
             for c, w in weights.items() if providers.get(c) is not None}
     return {"records": records, "frames": summaries, "predictions": predictions, "frame_data": frames,
-            "isolation": isolation, "weights": used}
+            "isolation": isolation, "weights": used, "refine": refine}
 
 
 #: Isolation is timed alone this many times per frame and category (the median is reported).
@@ -216,6 +219,8 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         *([("Networks under test (not the shipped ones): " + ", ".join(
             f"{c} `{w['file']}` (sha256 {str(w['sha256'])[:12]})" for c, w in results["weights"].items())), ""]
           if results.get("weights") else []),
+        *([("Refinements other than `--refine auto` (its calibrations of p_good / p_object were made on auto's fits): "
+            + ", ".join(f"{c} `{o}`" for c, o in results["refine"].items())), ""] if results.get("refine") else []),
         "Each object is predicted as a user would run `ancsh predict`: with its mask (`mask`), without one (`auto`) and "
         "with a `--pixel` hint at the mask's centre (`pixel`); on a frame with no object of any category, every category "
         "with shipped weights runs without a mask and must not report `success`. Exit = the exit code of `ancsh predict` "
@@ -292,6 +297,7 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), json_safe({"command": command, "date": prov.date, "machine": prov.machine,
                                                      "frames": results["frames"], "records": recs,
-                                                     "isolation_ms": timed, "weights": results.get("weights") or {}}),
+                                                     "isolation_ms": timed, "weights": results.get("weights") or {},
+                                                     "refine": results.get("refine") or {}}),
                indent=1)
     return path

@@ -107,3 +107,22 @@ def test_a_network_under_test_replaces_the_shipped_one_and_is_named(frames, tmp_
         capsys.readouterr()
         assert main(["bench", "real-frames", str(negative), *bad, "--out", str(tmp_path / "x.md"), "--quiet"]) == 2
         assert why in capsys.readouterr().err
+
+
+def test_another_refinement_than_auto_is_run_and_named(frames, tmp_path, capsys):
+    """``--refine CATEGORY=OPTION``: that category's runs refine with OPTION (the network's pass shows in the notes),
+    the report names it; bad values and --update-docs are refused."""
+    laptop, negative, _ = frames
+    out = tmp_path / "refined" / "real_frames.md"
+    assert main(["bench", "real-frames", str(laptop), "--refine", "laptop=network", "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.with_suffix(".json").read_text())
+    assert data["refine"] == {"laptop": "network"} and "--refine laptop=network" in data["command"]
+    assert "Refinements other than `--refine auto`" in out.read_text()
+    assert any(n.startswith("refinement network:") for r in data["records"] for n in r.get("notes", []))
+    for bad, why in ((["--refine", "laptop=icp"], "expected template, network or none"),
+                     (["--refine", "laptop=none", "--refine", "laptop=network"], "given twice"),
+                     (["--refine", "laptop=none", "--update-docs"], "not with --update-docs")):
+        capsys.readouterr()
+        assert main(["bench", "real-frames", str(negative), *bad, "--quiet"] + ([] if "--update-docs" in bad else
+                                                                               ["--out", str(tmp_path / "x.md")])) == 2
+        assert why in capsys.readouterr().err

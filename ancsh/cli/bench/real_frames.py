@@ -25,6 +25,10 @@ def register(sub) -> None:
     p.add_argument("--update-docs", action="store_true", help="write docs/results/real_frames.md (when --out is not given)")
     p.add_argument("--weights", action="append", default=[], metavar="CATEGORY=FILE",
                    help="a network under test instead of the category's shipped one (repeatable)")
+    p.add_argument("--refine", action="append", default=[], metavar="CATEGORY=OPTION",
+                   help="refine CATEGORY's fits with OPTION (template, network or none) instead of its default "
+                   "(--refine auto of ancsh predict; its p_good / p_object calibrations were made on auto's fits) "
+                   "(repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -55,11 +59,22 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--weights", item]
     if weights and args.update_docs:
         raise ValueError("--weights: not with --update-docs (docs/results/real_frames.md is the shipped networks')")
+    refine = {}
+    for item in args.refine:
+        category, option = named_value(item, "--refine", "CATEGORY=OPTION")
+        if option not in ("template", "network", "none"):
+            raise ValueError(f"--refine {item}: expected template, network or none after '='")
+        if category in refine:
+            raise ValueError(f"--refine: {category!r} given twice")
+        refine[category] = option
+        parts += ["--refine", item]
+    if refine and args.update_docs:
+        raise ValueError("--refine: not with --update-docs (docs/results/real_frames.md is ancsh predict's default)")
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="real_frames.md", command="real-frames")
     results = measure_real_frames(folders, categories=args.categories, seed=args.seed, num_points=args.points,
-                                  progress=not args.quiet, weights=weights)
+                                  progress=not args.quiet, weights=weights, refine=refine)
     write_real_frames_report(results, path, command=command)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
