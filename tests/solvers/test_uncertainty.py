@@ -544,36 +544,24 @@ def test_records_of_separate_runs_merge_by_category_the_last_holder_winning():
 
 
 @pytest.mark.slow
-def test_learned_template_provider_calibrates_the_refined_fits_only():
-    """``learned-template`` records the frames whose template refinement was accepted (their errors against
-    the refined fits' ICP covariances), counts the others, and has no scale row; it runs only when asked."""
+def test_refined_learned_providers_calibrate_the_refined_fits_only():
+    """``learned-template`` / ``learned-network`` record the frames whose template refinement / refinement-network
+    pass was accepted (their errors against the refined fits' covariances: the template ICP's, without a scale row;
+    the exact fit's on the refiner's correspondences, with one), count the others, and run only when asked."""
     from ancsh.studies.uncertainty_calibration import DEFAULT_PROVIDERS, CalibrationConfig, measure
 
-    assert "learned-template" not in DEFAULT_PROVIDERS and "learned-template" not in CalibrationConfig().providers
-    cfg = CalibrationConfig(categories=("laptop",), providers=("learned", "learned-template"), frames=4, calibration_frames=4)
+    refined_providers = ("learned-template", "learned-network")
+    assert not set(refined_providers) & set(DEFAULT_PROVIDERS) and not set(refined_providers) & set(CalibrationConfig().providers)
+    cfg = CalibrationConfig(categories=("laptop",), providers=("learned", *refined_providers), frames=4, calibration_frames=4)
     measured = measure(cfg)
-    counts = measured["counts"]["laptop"]["learned-template"]["test"]
-    records = measured["records"]["laptop"]["learned-template"]["test"]
-    refined = counts["frames"] - counts["failed"]
-    assert counts["frames"] + counts["not_refined"] == 4 and refined >= 1
-    assert len(records["rotation"]) == 2 * refined and records["scale"] == []  # two parts per frame; no scale
-    assert all(np.all(np.isfinite(r.covariance)) for r in records["rotation"] + records["joint_state"])
-    assert len(measured["records"]["laptop"]["learned"]["test"]["scale"]) > 0  # the learned row keeps its scale
-
-
-@pytest.mark.slow
-def test_learned_network_provider_calibrates_the_refiners_fits():
-    """``learned-network`` records the frames whose refinement-network pass was accepted, with the exact fit's
-    covariance on the refiner's correspondences (a scale row too); its errors differ from the first stage's."""
-    from ancsh.studies.uncertainty_calibration import DEFAULT_PROVIDERS, CalibrationConfig, measure
-
-    assert "learned-network" not in DEFAULT_PROVIDERS
-    cfg = CalibrationConfig(categories=("laptop",), providers=("learned", "learned-network"), frames=4, calibration_frames=4)
-    measured = measure(cfg)
-    counts = measured["counts"]["laptop"]["learned-network"]["test"]
-    records = measured["records"]["laptop"]["learned-network"]["test"]
-    refined = counts["frames"] - counts["failed"]
-    assert counts["frames"] + counts["not_refined"] == 4 and refined >= 1
-    assert len(records["rotation"]) == 2 * refined and len(records["scale"]) == 2 * refined
-    first = measured["records"]["laptop"]["learned"]["test"]["rotation"]
-    assert not np.allclose([r.error for r in records["rotation"][:2]], [r.error for r in first[:2]])
+    first = measured["records"]["laptop"]["learned"]["test"]
+    assert len(first["scale"]) > 0  # the learned row keeps its scale
+    for p in refined_providers:
+        counts, records = measured["counts"]["laptop"][p]["test"], measured["records"]["laptop"][p]["test"]
+        refined = counts["frames"] - counts["failed"]
+        assert counts["frames"] + counts["not_refined"] == 4 and refined >= 1, p
+        assert len(records["rotation"]) == 2 * refined, p  # two parts per frame
+        assert len(records["scale"]) == (0 if p == "learned-template" else 2 * refined), p
+        assert all(np.all(np.isfinite(r.covariance)) for r in records["rotation"] + records["joint_state"]), p
+    net = measured["records"]["laptop"]["learned-network"]["test"]["rotation"]
+    assert not np.allclose([r.error for r in net[:2]], [r.error for r in first["rotation"][:2]])  # the refiner's fits
