@@ -184,13 +184,13 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
                         corr = OracleProvider(frame.gt, p.split("-", 1)[1], rng, joint_limits=_limits(model)).correspond(obs)
                     result = fit(obs, corr, config.formulation, rng=i)
                     if p in ("learned-template", "learned-network") and result.ok:
-                        refined = learned.refine(obs, corr, result, refine=p.split("-", 1)[1], rng=i)
-                        if not refined.accepted or refined.result.uncertainty is None:  # kept the input, or base
+                        from ...learned.inference.provider import apply_refinement
+
+                        refined = apply_refinement(learned, obs, corr, raw, result, refine=p.split("-", 1)[1], rng=i)
+                        if refined.kind is None or refined.result.uncertainty is None:  # kept the input, or base
                             counts[cat][p][split]["not_refined"] += 1
                             continue
-                        result = refined.result
-                        if p == "learned-network":  # the fit of the refiner's correspondences
-                            corr, raw = refined.inference.correspondences, refined.inference.prediction
+                        result, corr, raw = refined.result, refined.correspondences, refined.prediction
                     if p.startswith("learned"):
                         result = check_plausibility(result, corr.part_labels, cat, part_quality(result, frame.points, corr, raw))
                     if split == "test":
