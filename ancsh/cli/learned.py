@@ -80,8 +80,8 @@ def register(sub) -> None:
     )
     e.add_argument("--category", required=True)
     e.add_argument("--formulations", nargs="+", metavar="METHOD",
-                   help="methods (default all but template): per_part (NPCS), naocs, soft, exact_reduced, exact_maximal, "
-                   "template (= --refine template)")
+                   help="methods (default all but the refinements): per_part (NPCS), naocs, soft, exact_reduced, "
+                   "exact_maximal, template (= --refine template), network (= --refine network)")
     e.add_argument("--refine", nargs="+", choices=("template", "network"), help="also refine the exact_reduced fit: "
                    "'template' against the category template (the nearest training instance, articulated ICP; kept where "
                    "its score on the points is better), the 'ANCSH-exact + category template' row; 'network' with the "
