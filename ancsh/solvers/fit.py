@@ -100,6 +100,10 @@ class FitConfig:
     npcs_bias_weight : float
         0 (default): off. ``> 0``: per-part NPCS-bias rotations about the NPCS origins in the data term,
         prior ``w |b_j|^2`` (:class:`~ancsh.solvers.terms.NpcsBiasPriorTerm`; ``docs/results/fit_translation.md``).
+    npcs_scale_bias : bool
+        With ``npcs_bias_weight > 0``: each part's NPCS bias also scales about its origin (a log-scale under the
+        same prior, the data term weighted as the reverse regression in it; :meth:`~ancsh.solvers.terms.Context.data_pose`).
+        Default ``False``.
     robust : str or None
         ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
         the moments (each round reweights the points and re-solves with the same program).
@@ -135,6 +139,7 @@ class FitConfig:
     common_scale_weight: float = 0.0
     naocs_prior_weight: float = 0.1
     npcs_bias_weight: float = 0.0
+    npcs_scale_bias: bool = False
     robust: str | None = None
     robust_scale: float = 0.02
     irls_iterations: int = 5
@@ -145,7 +150,7 @@ class FitConfig:
     uncertainty: bool = True
 
     def __post_init__(self):
-        for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty"):
+        for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty", "npcs_scale_bias"):
             check_bool(getattr(self, name), name)
         for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
             check_int(getattr(self, name), name, minimum=lo)
@@ -159,6 +164,8 @@ class FitConfig:
         check_choice(self.box_extents, "box_extents", ("max", "unit_diagonal"))
         if self.robust is not None and self.robust not in FIT_ROBUST_KERNELS:
             raise ValueError(f"robust: expected None or one of {FIT_ROBUST_KERNELS}, got {self.robust!r}")
+        if self.npcs_scale_bias and not self.npcs_bias_weight > 0:
+            raise ValueError("npcs_scale_bias: needs the NPCS biases (npcs_bias_weight > 0)")
 
     @classmethod
     def paper(cls, **overrides) -> "FitConfig":
@@ -502,6 +509,7 @@ class _Fit:
             self.structure, self.form.parameterisation, bool(cfg.optimize_scale),
             self.form.terms(cfg, self.corr) + ((TemporalPriorTerm,) if self.previous is not None else ()),
             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
+            npcs_scale_bias=cfg.npcs_scale_bias,
         )
         prog = get_program(key)
         limits = self._limits()
@@ -577,7 +585,8 @@ class _Fit:
         else:
             key = ProgramKey(self.structure, self.form.parameterisation, True,
                              self.form.terms(replace(cfg, optimize_scale=True), self.corr),
-                             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0)
+                             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
+                             npcs_scale_bias=cfg.npcs_scale_bias)
         prog = get_program(key)
         states = offsets = bias = None
         if solution is not None:

@@ -25,7 +25,8 @@ With ``free_canonical`` the canonical parameters ``Gt_j`` and revolute pivots ``
 offset variables appended to ``x`` (see :class:`~ancsh.solvers.terms.Canonical`); the
 ``naocs_prior`` term must then be among the terms. With ``npcs_bias`` every part gets an NPCS-bias rotation
 vector after them (the data terms compare the points through ``R_j exp(b_j)``; the ``npcs_bias_prior`` term must
-be among the terms).
+be among the terms), with ``npcs_scale_bias`` also a log-scale ``beta_j`` (through ``s_j exp(beta_j) R_j exp(b_j)``,
+see :meth:`~ancsh.solvers.terms.Context.data_pose`).
 
 Seams
 -----
@@ -77,6 +78,8 @@ class ProgramKey:
     npcs_bias : bool
         Per-part NPCS-bias rotation variables (3 per part, appended to ``x`` after the canonical
         offsets) in the data terms; the ``npcs_bias_prior`` term must then be among the terms.
+    npcs_scale_bias : bool
+        With ``npcs_bias``: a fourth bias variable per part, a log-scale about the NPCS origin.
     """
 
     structure: KinematicStructure
@@ -85,8 +88,11 @@ class ProgramKey:
     terms: tuple
     free_canonical: bool = False
     npcs_bias: bool = False
+    npcs_scale_bias: bool = False
 
     def __post_init__(self):
+        if self.npcs_scale_bias and not self.npcs_bias:
+            raise ValueError("npcs_scale_bias: needs the NPCS-bias variables (npcs_bias=True)")
         classes = []
         for t in self.terms:
             if isinstance(t, type) and issubclass(t, EnergyTerm):
@@ -132,8 +138,9 @@ class Solution:
         ``reduced``: joint states relative to rest (radians / metres); ``None`` for ``maximal``.
     canonical_offsets : CanonicalOffsets or None
         With free canonical parameters, their solved offsets; else ``None``.
-    npcs_bias : (M, 3) float64 or None
-        With NPCS-bias variables, each part's bias rotation vector (radians, NPCS frame); else ``None``.
+    npcs_bias : (M, 3) or (M, 4) float64 or None
+        With NPCS-bias variables, each part's bias rotation vector (radians, NPCS frame), with a scale bias
+        also its log-scale (fourth column); else ``None``.
     """
 
     T_cam_npcs: tuple
@@ -245,8 +252,9 @@ class Program:
         if key.npcs_bias:
             if NpcsBiasPriorTerm not in key.terms:
                 raise ValueError(f"terms: NPCS-bias variables need the {NpcsBiasPriorTerm.name!r} term")
-            bias = [ca.SX.sym(f"b{j}", 3) for j in range(st.num_parts)]
-            layout["npcs_bias"] = slice(int(x.numel()), int(x.numel()) + 3 * st.num_parts)
+            dims = 4 if key.npcs_scale_bias else 3
+            bias = [ca.SX.sym(f"b{j}", dims) for j in range(st.num_parts)]
+            layout["npcs_bias"] = slice(int(x.numel()), int(x.numel()) + dims * st.num_parts)
             x = ca.vertcat(x, *bias)
         self.x = x
         self._layout = layout
@@ -331,7 +339,8 @@ class Program:
                   npcs_bias=None) -> np.ndarray:
         """The start ``x``: zero (the :class:`~ancsh.solvers.terms.ProgramStart` itself) with the
         joint states ``(K,)`` (relative to rest; ``reduced`` only), the canonical offsets (free
-        canonical parameters only) and the NPCS biases ``(M, 3)`` (NPCS-bias programs only) when given.
+        canonical parameters only) and the NPCS biases ``(M, 3)`` (``(M, 4)`` with scale biases; NPCS-bias programs
+        only) when given.
 
         With the start poses of a :class:`Solution` and its states, offsets and biases this ``x``
         reproduces the solution (how a solution is linearised in another program of its structure).
@@ -340,7 +349,12 @@ class Program:
         if npcs_bias is not None:
             if "npcs_bias" not in self._layout:
                 raise ValueError("npcs_bias: this program has no NPCS-bias variables")
-            x0[self._layout["npcs_bias"]] = np.asarray(npcs_bias, dtype=np.float64).ravel()
+            b = np.asarray(npcs_bias, dtype=np.float64).ravel()
+            sl = self._layout["npcs_bias"]
+            if b.size != sl.stop - sl.start:
+                raise ValueError(f"npcs_bias: expected {(sl.stop - sl.start) // self.key.structure.num_parts} values per "
+                                 f"part, got shape {np.shape(npcs_bias)}")
+            x0[sl] = b
         if joint_states is not None:
             if not self.has_joint_states:
                 raise ValueError("joint_states: this program has no joint-state variables (maximal parameterisation)")
@@ -436,7 +450,7 @@ class Program:
             for i, k in enumerate(sorted(self.canonical.dq)):
                 dq[k] = off[3 * (M + i) : 3 * (M + i) + 3]
             offsets = CanonicalOffsets(off[: 3 * M].reshape(M, 3).copy(), dq)
-        bias = x[lay["npcs_bias"]].reshape(st.num_parts, 3).copy() if "npcs_bias" in lay else None
+        bias = x[lay["npcs_bias"]].reshape(st.num_parts, -1).copy() if "npcs_bias" in lay else None
         return Solution(parts, T_cam_naocs, states, offsets, bias)
 
     def nlpsol(self, options: dict):

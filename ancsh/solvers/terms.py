@@ -183,11 +183,25 @@ class Context:
     def data_pose(self, j: int) -> PoseExpr:
         """The pose the observed points of part ``j`` are compared with: the part pose, or with an NPCS
         bias (:class:`NpcsBiasPriorTerm`) ``s_j R_j exp(b_j) c + t_j``, the provider's NPCS of part ``j`` taken as
-        rotated by ``exp(-b_j)`` about the NPCS origin."""
+        rotated by ``exp(-b_j)`` about the NPCS origin; with a scale bias ``beta_j`` (a fourth bias variable)
+        ``s_j exp(beta_j) R_j exp(b_j) c + t_j``, also scaled by ``exp(-beta_j)`` about it."""
         P = self.poses[j]
         if self.npcs_bias is None:
             return P
-        return PoseExpr(P.R @ exp_so3_sx(self.npcs_bias[j]), P.t, P.s)
+        b = self.npcs_bias[j]
+        if b.numel() == 4:
+            return PoseExpr(P.R @ exp_so3_sx(b[:3]), P.t, P.s * ca.exp(b[3]))
+        return PoseExpr(P.R @ exp_so3_sx(b), P.t, P.s)
+
+    def data_weight(self, j: int):
+        """Factor of part ``j``'s point-to-point data residual: 1, or with a scale bias ``exp(-beta_j)``, which
+        makes the data term the reverse regression in ``beta_j`` (camera points onto NPCS:
+        ``|exp(-beta_j) (p - t_j) / s_j - R_j exp(b_j) c|``, up to the fixed ``s_j``), so that per-point NPCS noise
+        does not shrink the part's scale (the forward least-squares scale is shrunk by it; see
+        ``docs/results/fit_translation.md``)."""
+        if self.npcs_bias is None or self.npcs_bias[j].numel() != 4:
+            return 1.0
+        return ca.exp(-self.npcs_bias[j][3])
 
     # -- per part ---------------------------------------------------------------------
     def Gs(self, j: int) -> ca.SX:
@@ -355,8 +369,9 @@ class DataTerm(EnergyTerm):
             pbar = ctx.params.get(f"pbar{j}", 3)
             sR = P.s * P.R
             A = ca.horzcat(sR, sR @ cbar + P.t - pbar)
-            out.append(ca.vec(A @ Lm - B) / ctx.L)
-            out.append(sqrt_c0)
+            k = ctx.data_weight(j)
+            out.append(k * ca.vec(A @ Lm - B) / ctx.L)
+            out.append(k * sqrt_c0)
         return ca.vertcat(*out)
 
     def fill(self, structure: KinematicStructure, inputs: ProgramInputs) -> dict:
@@ -537,7 +552,10 @@ class NpcsBiasPriorTerm(EnergyTerm):
     absorbs it into the part's rotation and keeps the NPCS origin in place). With NPCS biases the data terms
     compare the points with ``s_j R_j exp(b_j) c + t_j`` (:meth:`Context.data_pose`): ``b_j`` takes up
     what the part's data want beyond the joints, at the cost ``w |b_j|^2``, while ``R_j`` (reported)
-    keeps the joints exact. Only meaningful in a program with NPCS-bias variables (``ProgramKey.npcs_bias``).
+    keeps the joints exact. With scale biases (``ProgramKey.npcs_scale_bias``) each part's log-scale ``beta_j``
+    about its NPCS origin joins ``b_j`` under the same prior (an isotropic NPCS error, which a per-part similarity
+    also absorbs; the point-to-point data term then weighs the part by ``exp(-beta_j)``, :meth:`Context.data_weight`).
+    Only meaningful in a program with NPCS-bias variables (``ProgramKey.npcs_bias``).
     """
 
     name = "npcs_bias_prior"

@@ -15,7 +15,7 @@ origin); :func:`tables` turns the records into the page's markdown tables. The v
   with exact joint parameters (no axis, pivot or NAOCS noise), and without the warp: exact NAOCS parameters, exact
   joint parameters (the official scheme and the bias weight 0.1 at ``realistic`` only);
 - ``"sources"`` (issue 35, item 7): per-part fits, the default exact fit and the exact fit with NPCS biases (weight
-  0.01) at ``realistic`` and at ``realistic`` with one corruption switched off at a time (label flips, outliers, the
+  0.01; rotations, and rotations and scales: ``FitConfig.npcs_scale_bias``) at ``realistic`` and at ``realistic`` with one corruption switched off at a time (label flips, outliers, the
   NPCS warp, the joint parameters' noise, the per-point NPCS noise).
 
 Rows labelled with the old default pin ``scale_estimator="symmetric"`` (the default when the page was measured), so
@@ -63,7 +63,8 @@ def _methods(variant: str) -> dict:
     official = OfficialSettings()
     if variant == "sources":
         return {"per_part": per_part(scale_estimator="reverse"), "exact (default)": exact(scale_estimator="reverse"),
-                "exact npcs_bias 0.01": exact(scale_estimator="reverse", npcs_bias_weight=0.01)}
+                "exact npcs_bias 0.01": exact(scale_estimator="reverse", npcs_bias_weight=0.01),
+                "exact npcs_bias+scale 0.01": exact(scale_estimator="reverse", npcs_bias_weight=0.01, npcs_scale_bias=True)}
     if variant == "coupling":
         return {
             "official": lambda obs, corr, rng, clean: fit_official(obs, corr, settings=official, rng=rng),

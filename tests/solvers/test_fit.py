@@ -417,6 +417,38 @@ def test_npcs_bias_takes_up_a_rotated_npcs_and_keeps_the_origins(fit_case, formu
         assert np.linalg.norm(Ta.translation - Tb.translation) < 1e-4
 
 
+@pytest.mark.parametrize("solver", ["lm", "ipopt", "lsq"])
+def test_npcs_scale_bias_takes_up_a_scaled_npcs_and_keeps_the_origins(fit_case, solver):
+    """One part's NPCS shrunk and turned about its origin: rotation biases alone leave its origin off (the scale
+    error moves it); with scale biases every NPCS origin is recovered and the joints hold; the option needs the
+    NPCS biases. (Reduced coordinates, whose part scales are ``sigma G_s``: the maximal ones keep each part's
+    estimated scale, which already holds such an error.)"""
+    formulation = "exact_reduced"
+    from ancsh.geometry.rotations import exp_so3
+
+    case = fit_case(29, num_parts=3, tree=True, joint_types="revolute")
+    c = case.correspondences
+    turn = exp_so3(np.radians(3.0) * np.array([0.0, 0.6, 0.8]))
+    on = c.part_labels == 2
+    npcs = c.npcs.copy()
+    npcs[on] = (npcs[on] @ turn) / 1.06  # an isotropic and a rotational error about the NPCS origin
+    corr = replace(c, npcs=npcs, joint_limits=None)
+    base = dict(ransac=False, scale_estimator="umeyama", naocs_prior_weight=0.0, npcs_bias_weight=1e-6)
+    rotation_only = fit(case.observation, corr, formulation, solver, config=FitConfig(**base))
+    scaled = fit(case.observation, corr, formulation, solver, config=FitConfig(npcs_scale_bias=True, **base))
+    assert rotation_only.ok and scaled.ok
+
+    def origin_error(res):
+        return max(np.linalg.norm(a.translation - b.translation) for a, b in zip(res.T_cam_npcs, case.gt.T_cam_npcs))
+
+    assert origin_error(rotation_only) > 1e-4, origin_error(rotation_only)
+    assert origin_error(scaled) < 1e-2 * origin_error(rotation_only), (origin_error(scaled), origin_error(rotation_only))
+    assert scaled.cost_per_term["data"] < 1e-6 * rotation_only.cost_per_term["data"]
+    assert scaled.max_constraint_violation < 1e-7
+    with pytest.raises(ValueError, match="npcs_scale_bias: needs the NPCS biases"):
+        FitConfig(npcs_scale_bias=True)
+
+
 def test_unit_diagonal_boxes_undo_the_inflation_by_npcs_noise(fit_case):
     """Without NPCS extents from the provider the boxes come from the inliers' NPCS: noise and the points' reach put
     them off the unit diagonal every NPCS box has; ``box_extents="unit_diagonal"`` scales them onto it, closer to

@@ -62,20 +62,48 @@ def test_term_jacobian_matches_central_differences(name, parameterisation, free_
     np.testing.assert_allclose(analytic, numeric, rtol=1e-6, atol=1e-7)
 
 
+@pytest.mark.parametrize("scale_bias", [False, True])
 @pytest.mark.parametrize("parameterisation", ["maximal", "reduced"])
 @pytest.mark.parametrize("name", ["data", "point_to_plane", "npcs_bias_prior"])
-def test_npcs_bias_jacobians_match_central_differences(name, parameterisation, numeric_derivative):
-    """The data terms through NPCS-bias rotations, and the bias prior, differentiated in every variable."""
-    rng = np.random.default_rng(zlib.crc32(f"bias{name}{parameterisation}".encode()))
+def test_npcs_bias_jacobians_match_central_differences(name, parameterisation, scale_bias, numeric_derivative):
+    """The data terms through NPCS-bias rotations (and scales), and the bias prior, differentiated in every variable."""
+    rng = np.random.default_rng(zlib.crc32(f"bias{name}{parameterisation}{scale_bias}".encode()))
     terms = tuple(dict.fromkeys((name, "naocs_prior", "npcs_bias_prior")))
-    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical=True, npcs_bias=True))
+    prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical=True, npcs_bias=True,
+                              npcs_scale_bias=scale_bias))
     p = prog.params.pack(_random_values(prog, rng))
     x = rng.normal(scale=0.3, size=prog.num_x)
     value = lambda x_: np.asarray(prog.residual(x_, p)).ravel()  # noqa: E731
     np.testing.assert_allclose(np.asarray(prog.jacobian(x, p)), numeric_derivative(value, x), rtol=1e-6, atol=1e-7)
     bias = prog.unpack(x, p).npcs_bias
-    assert bias.shape == (STRUCTURE.num_parts, 3)
+    assert bias.shape == (STRUCTURE.num_parts, 4 if scale_bias else 3)
     np.testing.assert_array_equal(prog.initial_x(npcs_bias=bias)[-bias.size:], bias.ravel())
+    with pytest.raises(ValueError, match="npcs_bias: expected"):
+        prog.initial_x(npcs_bias=np.zeros((STRUCTURE.num_parts, 3 if scale_bias else 4)))
+
+
+def test_the_scale_bias_weighs_the_data_term_as_the_reverse_regression():
+    """With a log-scale bias beta the point-to-point residual is the plain one through ``s exp(beta)``, times
+    ``exp(-beta)``; at beta = 0 it is the plain residual; the scale bias needs the NPCS biases."""
+    rng = np.random.default_rng(5)
+    plain = Program(ProgramKey(STRUCTURE, "maximal", True, ("data", "npcs_bias_prior"), npcs_bias=True))
+    scaled = Program(ProgramKey(STRUCTURE, "maximal", True, ("data", "npcs_bias_prior"), npcs_bias=True,
+                                npcs_scale_bias=True))
+    values = _random_values(scaled, rng)
+    p0, p1 = plain.params.pack(values), scaled.params.pack(values)
+    M = STRUCTURE.num_parts
+    x = rng.normal(scale=0.3, size=scaled.num_x)
+    bias = x[-4 * M:].reshape(M, 4)
+    x0 = np.concatenate([x[:-4 * M], bias[:, :3].ravel()])
+    data_rows = slice(0, 13 * M)
+    r1 = np.asarray(scaled.residual(x, p1)).ravel()[data_rows]
+    x_zero = x.copy()
+    x_zero[-4 * M:] = np.hstack([bias[:, :3], np.zeros((M, 1))]).ravel()
+    np.testing.assert_allclose(np.asarray(scaled.residual(x_zero, p1)).ravel()[data_rows],
+                               np.asarray(plain.residual(x0, p0)).ravel()[data_rows], rtol=1e-12, atol=1e-12)
+    assert not np.allclose(r1, np.asarray(plain.residual(x0, p0)).ravel()[data_rows])
+    with pytest.raises(ValueError, match="npcs_scale_bias: needs the NPCS-bias variables"):
+        ProgramKey(STRUCTURE, "maximal", True, ("data",), npcs_scale_bias=True)
 
 
 def test_npcs_bias_needs_its_prior_and_zero_bias_is_the_plain_data_term():
