@@ -79,3 +79,30 @@ def test_headline_compares_translation_part_by_part():
     assert met and table["laptop/base"]["per_part"] == {"trans": 0.012, "rot_deg": 3.0}
     recs[1]["parts"][1]["trans"] = 0.003  # per-part's display translation lower than the exact fit's
     assert not _translation_by_part(recs, "realistic", "exact", ["per_part", "official"])[1]
+
+
+def test_exact_config_reaches_the_exact_methods_only(tmp_path, capsys):
+    """``--exact-config``: the exact formulations fit with those FitConfig fields (the NPCS biases move their
+    result), the others with the defaults; the command line in the report re-runs it; bad values are refused."""
+    from ancsh.cli import main
+
+    config = bench.BenchConfig(categories=("laptop",), frames_per_category=1, levels=("realistic",), num_points=300,
+                               methods=("per_part/umeyama", "exact_reduced/lm"))
+    from dataclasses import replace
+
+    biased = replace(config, exact_config={"npcs_bias_weight": 0.01, "npcs_scale_bias": True})
+    assert biased.exact_config == (("npcs_bias_weight", 0.01), ("npcs_scale_bias", True))
+    frames = bench.load_frames(config)
+    plain_recs = bench.run_benchmark(config, frames=frames)["records"]
+    biased_recs = bench.run_benchmark(biased, frames=frames)["records"]
+    by = lambda recs, m: [(r["parts"], r["joints"]) for r in recs if r["method"] == m]  # noqa: E731
+    assert by(plain_recs, "per_part/umeyama") == by(biased_recs, "per_part/umeyama")
+    assert by(plain_recs, "exact_reduced/lm") != by(biased_recs, "exact_reduced/lm")
+    out = tmp_path / "fit.md"
+    assert main(["bench", "fit", "--frames", "1", "--categories", "laptop", "--levels", "realistic", "--methods",
+                 "exact_reduced/lm", "--exact-config", '{"npcs_bias_weight": 0.01}', "--out", str(out)]) == 0
+    assert """--exact-config '{"npcs_bias_weight": 0.01}'""" in out.read_text()
+    for bad, why in (("[1]", "expected a JSON object"), ("{x", "not JSON"), ('{"bogus": 1}', "exact_config")):
+        capsys.readouterr()
+        assert main(["bench", "fit", "--quick", "--exact-config", bad, "--out", str(tmp_path / "x.md")]) == 2
+        assert why in capsys.readouterr().err

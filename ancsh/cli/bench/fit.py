@@ -22,16 +22,20 @@ def register(sub) -> None:
     p.add_argument("--official-hypotheses", type=int, default=None,
                    help="RANSAC hypotheses of the official baseline (default: the official 200)")
     p.add_argument("--seed", type=non_negative_int, default=0)
+    p.add_argument("--exact-config", default=None, metavar="JSON",
+                   help="FitConfig fields for the exact formulations only, as a JSON object (e.g. "
+                   "'{\"npcs_bias_weight\": 0.01, \"npcs_scale_bias\": true}'); the other methods keep the defaults")
     p.set_defaults(func=run)
 
 
 def _command(args) -> str:
     """The command line that reproduces ``args``."""
-    parts = ["ancsh bench fit", *changed_options(args, {"quick": False, "json": False, "frames": None, "categories": None,
-                                                        "levels": None, "methods": None, "official_hypotheses": None,
-                                                        "seed": 0})]
+    import shlex
+
+    parts = changed_options(args, {"quick": False, "json": False, "frames": None, "categories": None, "levels": None,
+                                   "methods": None, "official_hypotheses": None, "seed": 0, "exact_config": None})
     parts += output_flags(args.out, update_docs=args.update_docs)
-    return " ".join(parts)
+    return " ".join(["ancsh bench fit", *(shlex.quote(str(t)) for t in parts)])
 
 
 def run(args) -> int:
@@ -51,6 +55,16 @@ def run(args) -> int:
         changes["official_hypotheses"] = args.official_hypotheses
     if args.methods:
         changes["methods"] = tuple(c.strip() for c in args.methods.split(",") if c.strip())
+    if args.exact_config is not None:
+        import json
+
+        try:
+            fields = json.loads(args.exact_config)
+        except ValueError as exc:
+            raise ValueError(f"--exact-config: not JSON ({exc})") from None
+        if not isinstance(fields, dict):
+            raise ValueError(f"--exact-config: expected a JSON object of FitConfig fields, got {args.exact_config!r}")
+        changes["exact_config"] = tuple(fields.items())
     config = replace(config, **changes)
     command = _command(args)
     t0 = time.perf_counter()

@@ -74,6 +74,9 @@ class BenchConfig:
         Method names to run (``()`` = all available).
     rendered : bool
         Use rendered partial views when ``ancsh.data.generate`` is available.
+    exact_config : tuple of (str, value)
+        :class:`~ancsh.solvers.fit.FitConfig` fields for the exact formulations' methods (``exact_*``), e.g.
+        ``(("npcs_bias_weight", 0.01),)``; ``()`` = the default ``FitConfig`` (every other method keeps it).
     """
 
     categories: tuple = ()
@@ -84,6 +87,7 @@ class BenchConfig:
     official_hypotheses: int = 200
     methods: tuple = ()
     rendered: bool = True
+    exact_config: tuple = ()
 
     def __post_init__(self):
         from ...solvers.providers.oracle import CORRUPTION_PRESETS
@@ -98,6 +102,16 @@ class BenchConfig:
         object.__setattr__(self, "categories", tuple(self.categories))
         object.__setattr__(self, "levels", tuple(self.levels))
         object.__setattr__(self, "methods", tuple(self.methods))
+        exact = tuple((str(k), v) for k, v in (self.exact_config.items() if isinstance(self.exact_config, dict)
+                                               else self.exact_config))
+        object.__setattr__(self, "exact_config", exact)
+        if exact:
+            from ...solvers.fit import FitConfig
+
+            try:
+                FitConfig(**dict(exact))
+            except TypeError as exc:
+                raise ValueError(f"exact_config: {exc}") from None
 
 
 QUICK = BenchConfig(frames_per_category=2, levels=("none", "realistic"), num_points=512)
@@ -199,18 +213,22 @@ def _official_method(config: BenchConfig) -> Method:
     return Method("official", lambda obs, corr, rng, sample: fit_official(obs, corr, settings=settings, rng=rng))
 
 
-def _core_methods() -> list:
-    """One method per (formulation, backend) of the core's FORMULATIONS registry (empty if absent)."""
+def _core_methods(exact_config: tuple = ()) -> list:
+    """One method per (formulation, backend) of the core's FORMULATIONS registry (empty if absent); the exact
+    formulations with the ``FitConfig`` fields ``exact_config``."""
     try:
-        from ...solvers.fit import FORMULATIONS, fit
+        from ...solvers.fit import FORMULATIONS, FitConfig, fit
     except ImportError:
         return []
     methods = []
+    exact = FitConfig(**dict(exact_config)) if exact_config else None
     for name, form in FORMULATIONS.items():
+        config = exact if name.startswith("exact") else None
         for solver in form.solvers:
             methods.append(Method(
                 f"{name}/{solver}",
-                lambda obs, corr, rng, sample, _n=name, _s=solver: fit(obs, corr, formulation=_n, solver=_s, rng=rng),
+                lambda obs, corr, rng, sample, _n=name, _s=solver, _c=config: fit(obs, corr, formulation=_n, solver=_s,
+                                                                                  config=_c, rng=rng),
             ))
     return methods
 
@@ -235,7 +253,7 @@ def _gt_refit_method() -> Method | None:
 
 def available_methods(config: BenchConfig) -> list:
     """The methods of ``config`` (all available when ``config.methods`` is empty)."""
-    methods = _core_methods() + [_official_method(config)]
+    methods = _core_methods(config.exact_config) + [_official_method(config)]
     ref = _gt_refit_method()
     if ref is not None:
         methods.append(ref)
