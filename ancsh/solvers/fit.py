@@ -104,6 +104,10 @@ class FitConfig:
         With ``npcs_bias_weight > 0``: each part's NPCS bias also scales about its origin (a log-scale under the
         same prior, the data term weighted as the reverse regression in it; :meth:`~ancsh.solvers.terms.Context.data_pose`).
         Default ``False``.
+    npcs_stretch_bias : bool
+        With ``npcs_scale_bias``: each part's NPCS bias also stretches about its origin (a symmetric traceless
+        matrix under the same prior), so the bias is any linear map near the identity -- what a per-part affine fit
+        absorbs. Point-to-point data term only. Default ``False``.
     robust : str or None
         ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
         the moments (each round reweights the points and re-solves with the same program).
@@ -140,6 +144,7 @@ class FitConfig:
     naocs_prior_weight: float = 0.1
     npcs_bias_weight: float = 0.0
     npcs_scale_bias: bool = False
+    npcs_stretch_bias: bool = False
     robust: str | None = None
     robust_scale: float = 0.02
     irls_iterations: int = 5
@@ -150,7 +155,7 @@ class FitConfig:
     uncertainty: bool = True
 
     def __post_init__(self):
-        for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty", "npcs_scale_bias"):
+        for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty", "npcs_scale_bias", "npcs_stretch_bias"):
             check_bool(getattr(self, name), name)
         for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
             check_int(getattr(self, name), name, minimum=lo)
@@ -166,6 +171,8 @@ class FitConfig:
             raise ValueError(f"robust: expected None or one of {FIT_ROBUST_KERNELS}, got {self.robust!r}")
         if self.npcs_scale_bias and not self.npcs_bias_weight > 0:
             raise ValueError("npcs_scale_bias: needs the NPCS biases (npcs_bias_weight > 0)")
+        if self.npcs_stretch_bias and not self.npcs_scale_bias:
+            raise ValueError("npcs_stretch_bias: needs the NPCS scale biases (npcs_scale_bias=True)")
 
     @classmethod
     def paper(cls, **overrides) -> "FitConfig":
@@ -509,7 +516,7 @@ class _Fit:
             self.structure, self.form.parameterisation, bool(cfg.optimize_scale),
             self.form.terms(cfg, self.corr) + ((TemporalPriorTerm,) if self.previous is not None else ()),
             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
-            npcs_scale_bias=cfg.npcs_scale_bias,
+            npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias,
         )
         prog = get_program(key)
         limits = self._limits()
@@ -586,7 +593,7 @@ class _Fit:
             key = ProgramKey(self.structure, self.form.parameterisation, True,
                              self.form.terms(replace(cfg, optimize_scale=True), self.corr),
                              free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
-                             npcs_scale_bias=cfg.npcs_scale_bias)
+                             npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias)
         prog = get_program(key)
         states = offsets = bias = None
         if solution is not None:

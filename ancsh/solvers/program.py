@@ -26,7 +26,8 @@ offset variables appended to ``x`` (see :class:`~ancsh.solvers.terms.Canonical`)
 ``naocs_prior`` term must then be among the terms. With ``npcs_bias`` every part gets an NPCS-bias rotation
 vector after them (the data terms compare the points through ``R_j exp(b_j)``; the ``npcs_bias_prior`` term must
 be among the terms), with ``npcs_scale_bias`` also a log-scale ``beta_j`` (through ``s_j exp(beta_j) R_j exp(b_j)``,
-see :meth:`~ancsh.solvers.terms.Context.data_pose`).
+see :meth:`~ancsh.solvers.terms.Context.data_pose`), with ``npcs_stretch_bias`` also a symmetric traceless stretch
+``S_j`` (through ``s_j exp(beta_j) R_j exp(b_j) (I + S_j)``).
 
 Seams
 -----
@@ -80,6 +81,9 @@ class ProgramKey:
         offsets) in the data terms; the ``npcs_bias_prior`` term must then be among the terms.
     npcs_scale_bias : bool
         With ``npcs_bias``: a fourth bias variable per part, a log-scale about the NPCS origin.
+    npcs_stretch_bias : bool
+        With ``npcs_scale_bias``: five more bias variables per part, a symmetric traceless stretch about the NPCS
+        origin (with the rotation and the log-scale, any linear map near the identity; 9 per part).
     """
 
     structure: KinematicStructure
@@ -89,10 +93,13 @@ class ProgramKey:
     free_canonical: bool = False
     npcs_bias: bool = False
     npcs_scale_bias: bool = False
+    npcs_stretch_bias: bool = False
 
     def __post_init__(self):
         if self.npcs_scale_bias and not self.npcs_bias:
             raise ValueError("npcs_scale_bias: needs the NPCS-bias variables (npcs_bias=True)")
+        if self.npcs_stretch_bias and not self.npcs_scale_bias:
+            raise ValueError("npcs_stretch_bias: needs the NPCS scale biases (npcs_scale_bias=True)")
         classes = []
         for t in self.terms:
             if isinstance(t, type) and issubclass(t, EnergyTerm):
@@ -138,9 +145,10 @@ class Solution:
         ``reduced``: joint states relative to rest (radians / metres); ``None`` for ``maximal``.
     canonical_offsets : CanonicalOffsets or None
         With free canonical parameters, their solved offsets; else ``None``.
-    npcs_bias : (M, 3) or (M, 4) float64 or None
+    npcs_bias : (M, 3), (M, 4) or (M, 9) float64 or None
         With NPCS-bias variables, each part's bias rotation vector (radians, NPCS frame), with a scale bias
-        also its log-scale (fourth column); else ``None``.
+        also its log-scale (fourth column), with a stretch bias also its five stretch parameters
+        (:func:`~ancsh.solvers.terms.stretch_sx`); else ``None``.
     """
 
     T_cam_npcs: tuple
@@ -252,7 +260,7 @@ class Program:
         if key.npcs_bias:
             if NpcsBiasPriorTerm not in key.terms:
                 raise ValueError(f"terms: NPCS-bias variables need the {NpcsBiasPriorTerm.name!r} term")
-            dims = 4 if key.npcs_scale_bias else 3
+            dims = 9 if key.npcs_stretch_bias else 4 if key.npcs_scale_bias else 3
             bias = [ca.SX.sym(f"b{j}", dims) for j in range(st.num_parts)]
             layout["npcs_bias"] = slice(int(x.numel()), int(x.numel()) + dims * st.num_parts)
             x = ca.vertcat(x, *bias)
@@ -339,7 +347,7 @@ class Program:
                   npcs_bias=None) -> np.ndarray:
         """The start ``x``: zero (the :class:`~ancsh.solvers.terms.ProgramStart` itself) with the
         joint states ``(K,)`` (relative to rest; ``reduced`` only), the canonical offsets (free
-        canonical parameters only) and the NPCS biases ``(M, 3)`` (``(M, 4)`` with scale biases; NPCS-bias programs
+        canonical parameters only) and the NPCS biases ``(M, 3)`` (``(M, 4)`` with scale biases, ``(M, 9)`` with stretch biases; NPCS-bias programs
         only) when given.
 
         With the start poses of a :class:`Solution` and its states, offsets and biases this ``x``

@@ -1,4 +1,5 @@
 """Energy terms and constraints of articulated fitting, each defined ONCE in CasADi.
+Long: the term registry and the symbolic context every term reads belong together (one definition per residual).
 
 Every term is a small class that turns the symbolic part poses of a :class:`Context` into a
 CasADi expression: a least-squares residual ``r`` (energy ``|r|^2``), an equality ``g == 0``
@@ -184,14 +185,23 @@ class Context:
         """The pose the observed points of part ``j`` are compared with: the part pose, or with an NPCS
         bias (:class:`NpcsBiasPriorTerm`) ``s_j R_j exp(b_j) c + t_j``, the provider's NPCS of part ``j`` taken as
         rotated by ``exp(-b_j)`` about the NPCS origin; with a scale bias ``beta_j`` (a fourth bias variable)
-        ``s_j exp(beta_j) R_j exp(b_j) c + t_j``, also scaled by ``exp(-beta_j)`` about it."""
+        ``s_j exp(beta_j) R_j exp(b_j) c + t_j``, also scaled by ``exp(-beta_j)`` about it; with a stretch bias
+        (five more, :func:`stretch_sx`) ``s_j exp(beta_j) R_j exp(b_j) (I + S_j) c + t_j``: any linear distortion near
+        the identity about the NPCS origin. Then ``R`` of the returned pose is not a rotation."""
         P = self.poses[j]
         if self.npcs_bias is None:
             return P
         b = self.npcs_bias[j]
+        if b.numel() == 9:
+            return PoseExpr(P.R @ exp_so3_sx(b[:3]) @ (ca.SX.eye(3) + stretch_sx(b[4:])), P.t, P.s * ca.exp(b[3]))
         if b.numel() == 4:
             return PoseExpr(P.R @ exp_so3_sx(b[:3]), P.t, P.s * ca.exp(b[3]))
         return PoseExpr(P.R @ exp_so3_sx(b), P.t, P.s)
+
+    @property
+    def npcs_stretch(self) -> bool:
+        """Whether the data poses carry stretch biases (their ``R`` is then not a rotation)."""
+        return self.npcs_bias is not None and self.npcs_bias[0].numel() == 9
 
     def data_weight(self, j: int):
         """Factor of part ``j``'s point-to-point data residual: 1, or with a scale bias ``exp(-beta_j)``, which
@@ -199,7 +209,7 @@ class Context:
         ``|exp(-beta_j) (p - t_j) / s_j - R_j exp(b_j) c|``, up to the fixed ``s_j``), so that per-point NPCS noise
         does not shrink the part's scale (the forward least-squares scale is shrunk by it; see
         ``docs/results/fit_translation.md``)."""
-        if self.npcs_bias is None or self.npcs_bias[j].numel() != 4:
+        if self.npcs_bias is None or self.npcs_bias[j].numel() < 4:
             return 1.0
         return ca.exp(-self.npcs_bias[j][3])
 
@@ -269,6 +279,16 @@ def exp_so3_sx(w) -> ca.SX:
     b = ca.if_else(small, 0.5 - th2 / 24.0 + th2 * th2 / 720.0, (1.0 - ca.cos(th)) / th2_safe)
     K = hat_sx(w)
     return ca.SX.eye(3) + a * K + b * (K @ K)
+
+
+def stretch_sx(e) -> ca.SX:
+    """The symmetric traceless ``(3, 3)`` matrix of five parameters ``e``:
+    ``[[e0, e2, e3], [e2, e1, e4], [e3, e4, -e0 - e1]]`` (an NPCS stretch bias, :meth:`Context.data_pose`)."""
+    return ca.vertcat(
+        ca.horzcat(e[0], e[2], e[3]),
+        ca.horzcat(e[2], e[1], e[4]),
+        ca.horzcat(e[3], e[4], -e[0] - e[1]),
+    )
 
 
 def axis_angle_sx(u, theta) -> ca.SX:
@@ -554,7 +574,9 @@ class NpcsBiasPriorTerm(EnergyTerm):
     what the part's data want beyond the joints, at the cost ``w |b_j|^2``, while ``R_j`` (reported)
     keeps the joints exact. With scale biases (``ProgramKey.npcs_scale_bias``) each part's log-scale ``beta_j``
     about its NPCS origin joins ``b_j`` under the same prior (an isotropic NPCS error, which a per-part similarity
-    also absorbs; the point-to-point data term then weighs the part by ``exp(-beta_j)``, :meth:`Context.data_weight`).
+    also absorbs; the point-to-point data term then weighs the part by ``exp(-beta_j)``, :meth:`Context.data_weight`),
+    with stretch biases (``ProgramKey.npcs_stretch_bias``) also a symmetric traceless stretch ``S_j`` (five parameters),
+    so the part's NPCS may be off by any linear map near the identity about its origin, as a per-part affine fit allows.
     Only meaningful in a program with NPCS-bias variables (``ProgramKey.npcs_bias``).
     """
 
@@ -628,6 +650,9 @@ class PointToPlaneTerm(EnergyTerm):
     residual_dims = 1
 
     def expression(self, ctx: Context) -> ca.SX:
+        if ctx.npcs_stretch:
+            raise ValueError(f"terms: the {self.name!r} term needs rotations (its normals turn with R_j); "
+                             "NPCS stretch biases are for the point-to-point data term")
         out = []
         for j in range(len(ctx.poses)):
             P = ctx.data_pose(j)

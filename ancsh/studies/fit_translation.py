@@ -31,7 +31,7 @@ import numpy as np
 
 __all__ = ["LEVEL_INDEX", "VARIANTS", "measure", "npcs_anchor", "tables"]
 
-VARIANTS = ("causes", "reverse", "coupling", "sources")
+VARIANTS = ("causes", "reverse", "coupling", "sources", "stretch")
 # The corruption presets' index in the full fit benchmark (levels none, low, realistic, high): its seed stream.
 LEVEL_INDEX = {"low": 1, "realistic": 2, "high": 3, "realistic_exact_naocs": 2, "realistic_no_warp": 2,
                "realistic_exact_joints": 2, "no_warp_exact_naocs": 2, "no_warp_exact_joints": 2, "realistic_no_flips": 2,
@@ -61,6 +61,12 @@ def _methods(variant: str) -> dict:
                                                  config=c, rng=rng)
 
     official = OfficialSettings()
+    if variant == "stretch":
+        scaled = dict(scale_estimator="reverse", npcs_scale_bias=True)
+        return {"per_part": per_part(scale_estimator="reverse"), "exact (default)": exact(scale_estimator="reverse"),
+                "exact npcs_bias+scale 0.01": exact(npcs_bias_weight=0.01, **scaled),
+                **{f"exact npcs_bias+scale+stretch {w:g}": exact(npcs_bias_weight=w, npcs_stretch_bias=True, **scaled)
+                   for w in (0.1, 0.03, 0.01, 0.003)}}
     if variant == "sources":
         return {"per_part": per_part(scale_estimator="reverse"), "exact (default)": exact(scale_estimator="reverse"),
                 "exact npcs_bias 0.01": exact(scale_estimator="reverse", npcs_bias_weight=0.01),
@@ -101,6 +107,8 @@ def _levels(variant: str) -> dict:
     from ..solvers.providers.oracle import CORRUPTION_PRESETS
 
     real = CORRUPTION_PRESETS["realistic"]
+    if variant == "stretch":
+        return {"realistic": real, "realistic_no_npcs_noise": replace(real, npcs_sigma=0.0)}
     if variant == "sources":
         return {"realistic": real, "realistic_no_flips": replace(real, flip_fraction=0.0),
                 "realistic_no_outliers": replace(real, outlier_fraction=0.0), "realistic_no_warp": replace(real, npcs_warp=0.0),

@@ -449,6 +449,38 @@ def test_npcs_scale_bias_takes_up_a_scaled_npcs_and_keeps_the_origins(fit_case, 
         FitConfig(npcs_scale_bias=True)
 
 
+@pytest.mark.parametrize("solver", ["lm", "ipopt", "lsq"])
+def test_npcs_stretch_bias_takes_up_a_linearly_distorted_npcs(fit_case, solver):
+    """One part's NPCS stretched, shrunk and turned about its origin (any linear map near the identity): rotation and
+    scale biases leave its origin off (the stretch moves it); with stretch biases every NPCS origin is recovered, the
+    data fit exactly and the joints hold; the option needs the scale biases."""
+    from ancsh.geometry.rotations import exp_so3
+
+    case = fit_case(29, num_parts=3, tree=True, joint_types="revolute")
+    c = case.correspondences
+    turn = exp_so3(np.radians(3.0) * np.array([0.0, 0.6, 0.8]))
+    stretch = np.eye(3) + np.array([[0.04, 0.02, -0.03], [0.02, -0.05, 0.01], [-0.03, 0.01, 0.01]])
+    on = c.part_labels == 2
+    npcs = c.npcs.copy()
+    npcs[on] = (npcs[on] @ (turn @ stretch)) / 1.06  # c -> (turn stretch)^T c / 1.06 about the NPCS origin
+    corr = replace(c, npcs=npcs, joint_limits=None)
+    base = dict(ransac=False, scale_estimator="umeyama", naocs_prior_weight=0.0, npcs_bias_weight=1e-6,
+                npcs_scale_bias=True)
+    scaled = fit(case.observation, corr, "exact_reduced", solver, config=FitConfig(**base))
+    stretched = fit(case.observation, corr, "exact_reduced", solver, config=FitConfig(npcs_stretch_bias=True, **base))
+    assert scaled.ok and stretched.ok
+
+    def origin_error(res):
+        return max(np.linalg.norm(a.translation - b.translation) for a, b in zip(res.T_cam_npcs, case.gt.T_cam_npcs))
+
+    assert origin_error(scaled) > 1e-4, origin_error(scaled)
+    assert origin_error(stretched) < 1e-2 * origin_error(scaled), (origin_error(stretched), origin_error(scaled))
+    assert stretched.cost_per_term["data"] < 1e-6 * scaled.cost_per_term["data"]
+    assert stretched.max_constraint_violation < 1e-7
+    with pytest.raises(ValueError, match="npcs_stretch_bias: needs the NPCS scale biases"):
+        FitConfig(npcs_bias_weight=0.01, npcs_stretch_bias=True)
+
+
 def test_unit_diagonal_boxes_undo_the_inflation_by_npcs_noise(fit_case):
     """Without NPCS extents from the provider the boxes come from the inliers' NPCS: noise and the points' reach put
     them off the unit diagonal every NPCS box has; ``box_extents="unit_diagonal"`` scales them onto it, closer to

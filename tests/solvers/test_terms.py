@@ -62,24 +62,63 @@ def test_term_jacobian_matches_central_differences(name, parameterisation, free_
     np.testing.assert_allclose(analytic, numeric, rtol=1e-6, atol=1e-7)
 
 
-@pytest.mark.parametrize("scale_bias", [False, True])
 @pytest.mark.parametrize("parameterisation", ["maximal", "reduced"])
-@pytest.mark.parametrize("name", ["data", "point_to_plane", "npcs_bias_prior"])
-def test_npcs_bias_jacobians_match_central_differences(name, parameterisation, scale_bias, numeric_derivative):
-    """The data terms through NPCS-bias rotations (and scales), and the bias prior, differentiated in every variable."""
-    rng = np.random.default_rng(zlib.crc32(f"bias{name}{parameterisation}{scale_bias}".encode()))
+@pytest.mark.parametrize("name, bias_dims", [(n, d) for n in ("data", "point_to_plane", "npcs_bias_prior")
+                                             for d in (3, 4, 9) if (n, d) != ("point_to_plane", 9)])
+def test_npcs_bias_jacobians_match_central_differences(name, parameterisation, bias_dims, numeric_derivative):
+    """The data terms through NPCS-bias rotations (and scales, and stretches), and the bias prior, differentiated in
+    every variable. (Point-to-plane needs rotations: it refuses stretch biases, tested below.)"""
+    rng = np.random.default_rng(zlib.crc32(f"bias{name}{parameterisation}{bias_dims}".encode()))
     terms = tuple(dict.fromkeys((name, "naocs_prior", "npcs_bias_prior")))
     prog = Program(ProgramKey(STRUCTURE, parameterisation, True, terms, free_canonical=True, npcs_bias=True,
-                              npcs_scale_bias=scale_bias))
+                              npcs_scale_bias=bias_dims > 3, npcs_stretch_bias=bias_dims == 9))
     p = prog.params.pack(_random_values(prog, rng))
     x = rng.normal(scale=0.3, size=prog.num_x)
     value = lambda x_: np.asarray(prog.residual(x_, p)).ravel()  # noqa: E731
     np.testing.assert_allclose(np.asarray(prog.jacobian(x, p)), numeric_derivative(value, x), rtol=1e-6, atol=1e-7)
     bias = prog.unpack(x, p).npcs_bias
-    assert bias.shape == (STRUCTURE.num_parts, 4 if scale_bias else 3)
+    assert bias.shape == (STRUCTURE.num_parts, bias_dims)
     np.testing.assert_array_equal(prog.initial_x(npcs_bias=bias)[-bias.size:], bias.ravel())
     with pytest.raises(ValueError, match="npcs_bias: expected"):
-        prog.initial_x(npcs_bias=np.zeros((STRUCTURE.num_parts, 3 if scale_bias else 4)))
+        prog.initial_x(npcs_bias=np.zeros((STRUCTURE.num_parts, 3 if bias_dims > 3 else 4)))
+
+
+def test_the_stretch_bias_is_a_symmetric_traceless_map_and_zero_stretch_is_the_scale_bias():
+    """The stretch is symmetric and traceless (:func:`stretch_sx`); with stretch biases the point-to-point data
+    residual is the scale-bias program's at zero stretch and differs from it elsewhere (that it maps the NPCS by
+    ``I + S``: ``test_fit.py::test_npcs_stretch_bias_takes_up_a_linearly_distorted_npcs``); the point-to-plane term
+    and a stretch without scale biases are refused."""
+    import casadi as ca
+
+    from ancsh.solvers.terms import stretch_sx
+
+    e = np.array([0.3, -0.1, 0.2, 0.05, -0.4])
+    S = np.asarray(ca.Function("S", [sym := ca.SX.sym("e", 5)], [stretch_sx(sym)])(e))
+    np.testing.assert_allclose(S, S.T)
+    assert abs(np.trace(S)) < 1e-15 and np.count_nonzero(S) == 9
+    rng = np.random.default_rng(6)
+    scaled = Program(ProgramKey(STRUCTURE, "maximal", True, ("data", "npcs_bias_prior"), npcs_bias=True,
+                                npcs_scale_bias=True))
+    stretched = Program(ProgramKey(STRUCTURE, "maximal", True, ("data", "npcs_bias_prior"), npcs_bias=True,
+                                   npcs_scale_bias=True, npcs_stretch_bias=True))
+    values = _random_values(stretched, rng)
+    M = STRUCTURE.num_parts
+    x = rng.normal(scale=0.3, size=stretched.num_x)
+    bias = x[-9 * M:].reshape(M, 9)
+    x4 = np.concatenate([x[:-9 * M], bias[:, :4].ravel()])
+    data_rows = slice(0, 13 * M)
+    x_zero = x.copy()
+    x_zero[-9 * M:] = np.hstack([bias[:, :4], np.zeros((M, 5))]).ravel()
+    r_zero = np.asarray(stretched.residual(x_zero, stretched.params.pack(values))).ravel()[data_rows]
+    np.testing.assert_allclose(r_zero, np.asarray(scaled.residual(x4, scaled.params.pack(values))).ravel()[data_rows],
+                               rtol=1e-12, atol=1e-12)
+    r = np.asarray(stretched.residual(x, stretched.params.pack(values))).ravel()[data_rows]
+    assert not np.allclose(r, r_zero)
+    with pytest.raises(ValueError, match="'point_to_plane' term needs rotations"):
+        Program(ProgramKey(STRUCTURE, "maximal", True, ("point_to_plane", "npcs_bias_prior"), npcs_bias=True,
+                           npcs_scale_bias=True, npcs_stretch_bias=True))
+    with pytest.raises(ValueError, match="npcs_stretch_bias: needs the NPCS scale biases"):
+        ProgramKey(STRUCTURE, "maximal", True, ("data", "npcs_bias_prior"), npcs_bias=True, npcs_stretch_bias=True)
 
 
 def test_the_scale_bias_weighs_the_data_term_as_the_reverse_regression():

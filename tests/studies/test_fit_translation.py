@@ -57,3 +57,23 @@ def test_the_sources_variant_switches_off_one_corruption_at_a_time():
                        "realistic_no_npcs_noise": {"npcs_sigma"}}
     assert all(v == 0 for name, c in levels.items() for k, v in asdict(c).items() if k in changed[name])
     assert {LEVEL_INDEX[name] for name in levels} == {LEVEL_INDEX["realistic"]}  # one stream: only the knob differs
+
+
+def test_evaluate_with_sets_the_fit_defaults_inside_its_block_and_refuses_bad_fields(capsys):
+    import ancsh.solvers
+    from ancsh.cli.bench.fit_translation import fit_config_defaults
+    from ancsh.solvers.fit import FitConfig
+
+    with fit_config_defaults({"npcs_bias_weight": 0.01, "npcs_scale_bias": True}):
+        c = ancsh.solvers.FitConfig()
+        assert (c.npcs_bias_weight, c.npcs_scale_bias) == (0.01, True)
+        assert ancsh.solvers.FitConfig(npcs_bias_weight=0.1).npcs_bias_weight == 0.1  # the caller's field wins
+    assert ancsh.solvers.FitConfig is FitConfig and FitConfig().npcs_bias_weight == 0.0
+    for bad, says in (("{nope", "not JSON|Expecting"), ("[1]", "JSON object"), ('{"no_such_field": 1}', "no_such_field"),
+                      ('{"npcs_stretch_bias": true}', "needs the NPCS scale biases")):
+        with pytest.raises(SystemExit) as e:
+            main(["evaluate-with", bad, "evaluate", "--help"])
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert "fit_config:" in err and any(s in err for s in says.split("|")), err
+    assert ancsh.solvers.FitConfig is FitConfig

@@ -1,15 +1,17 @@
 """``python -m ancsh.cli.bench.fit_translation``: the measurements of ``docs/results/fit_translation.md``
 (:mod:`ancsh.studies.fit_translation`).
 
-``measure --variant causes|reverse|coupling|sources --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
+``measure --variant causes|reverse|coupling|sources|stretch --frames N --out R.json`` writes the records; ``tables R.json`` prints the page's
 tables; ``anchor --category C --frames N`` measures where the shipped network's NPCS error is smallest; ``evaluate-symmetric ARGS`` runs ``ancsh ARGS`` (e.g. ``evaluate --category laptop ...``) with the previous
 default scale estimator of the exact fits (``FitConfig(scale_estimator="symmetric")``), for the page's
-before/after rows.
+before/after rows; ``evaluate-with JSON ARGS`` runs ``ancsh ARGS`` with the ``FitConfig`` fields of ``JSON`` as the
+defaults of every fit (e.g. the NPCS biases on the shipped networks' predictions).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 
@@ -32,6 +34,9 @@ def main(argv=None) -> int:
     a.add_argument("--frames", type=int, default=40)
     e = sub.add_parser("evaluate-symmetric", help="an ancsh command with the previous default scale estimator")
     e.add_argument("ancsh_args", nargs=argparse.REMAINDER)
+    w = sub.add_parser("evaluate-with", help="an ancsh command with other FitConfig defaults (a JSON object)")
+    w.add_argument("fit_config", help='FitConfig fields, e.g. \'{"npcs_bias_weight": 0.01}\'')
+    w.add_argument("ancsh_args", nargs=argparse.REMAINDER)
     args = p.parse_args(argv)
     if args.what == "measure":
         from ...studies.fit_translation import measure
@@ -59,24 +64,47 @@ def main(argv=None) -> int:
         with open(args.records) as f:
             print("\n".join(tables(json.load(f))))
         return 0
-    return _evaluate_symmetric(args.ancsh_args)
+    if args.what == "evaluate-with":
+        from ...solvers.fit import FitConfig
+
+        try:
+            defaults = json.loads(args.fit_config)
+            if not isinstance(defaults, dict):
+                raise ValueError("expected a JSON object of FitConfig fields")
+            FitConfig(**defaults)
+        except (ValueError, TypeError) as e:  # JSONDecodeError is a ValueError; an unknown field a TypeError
+            p.error(f"fit_config: {e}")
+        with fit_config_defaults(defaults):
+            return _ancsh(args.ancsh_args)
+    with fit_config_defaults({"scale_estimator": "symmetric"}):
+        return _ancsh(args.ancsh_args)
 
 
-def _evaluate_symmetric(ancsh_args: list[str]) -> int:
-    """``ancsh ancsh_args`` with ``ancsh.solvers.FitConfig()`` defaulting to the symmetric scale estimator."""
-    import ancsh.solvers
-    from ...solvers.fit import FitConfig
+def _ancsh(ancsh_args: list[str]) -> int:
     from .. import main as ancsh_main
 
-    class _Symmetric:
+    return ancsh_main(ancsh_args)
+
+
+@contextlib.contextmanager
+def fit_config_defaults(defaults: dict):
+    """Within the block ``ancsh.solvers.FitConfig(**kw)`` is ``FitConfig(**{**defaults, **kw})``: the fields of
+    ``defaults`` (name -> value) become the defaults of every fit that looks ``FitConfig`` up at call time (the
+    ``ancsh`` commands do); restored after."""
+    import ancsh.solvers
+    from ...solvers.fit import FitConfig
+
+    class _Defaults:
         paper = staticmethod(FitConfig.paper)
 
         def __new__(cls, **kw):
-            kw.setdefault("scale_estimator", "symmetric")
-            return FitConfig(**kw)
+            return FitConfig(**{**defaults, **kw})
 
-    ancsh.solvers.FitConfig = _Symmetric
-    return ancsh_main(ancsh_args)
+    ancsh.solvers.FitConfig = _Defaults
+    try:
+        yield
+    finally:
+        ancsh.solvers.FitConfig = FitConfig
 
 
 if __name__ == "__main__":  # pragma: no cover
