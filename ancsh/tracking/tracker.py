@@ -410,10 +410,17 @@ def fit_frame(provider, observation: Observation, config: TrackerConfig, categor
     ``too_few_points`` without calling the provider. This is the per-frame baseline of tracking
     and the tracker's re-initialisation.
     """
+    result, corr, _ = _cold_fit(provider, observation, config, category, rng)
+    return result, corr
+
+
+def _cold_fit(provider, observation: Observation, config: TrackerConfig, category: str | None, rng):
+    """:func:`fit_frame` and whether its result rests on the refinement network's correspondences:
+    ``(FitResult, Correspondences or None, refined)``."""
     if observation.num_points < config.min_points:
         return FitResult.failure(FitStatus.TOO_FEW_POINTS, f"{observation.num_points} points, at least {config.min_points} "
                                  "are needed for a fit", formulation=config.formulation, solver="none",
-                                 num_points=observation.num_points), None
+                                 num_points=observation.num_points), None, False
     corr = provider.correspond(observation)
     result = fit(observation, corr, config.formulation, config.solver, config.fit, rng=rng)
     checked = check_fit(result, observation.points_cam, corr, category, config.max_relative_residual)
@@ -426,8 +433,8 @@ def fit_frame(provider, observation: Observation, config: TrackerConfig, categor
             refined = check_fit(ref.result, observation.points_cam, ref.inference.correspondences, category,
                                 config.max_relative_residual)
             if refined.ok:
-                return refined, ref.inference.correspondences
-    return checked, corr
+                return refined, ref.inference.correspondences, True
+    return checked, corr, False
 
 
 @dataclass
@@ -443,6 +450,7 @@ class _Track:
     anchor: PreviousSolution | None = None  # the solution of the last network frame
     anchor_before: PreviousSolution | None = None  # and of the network frame before it (same track)
     anchor_gap: int = 1  # frames between the two
+    refined: bool = False  # the last network frame's correspondences are the refinement network's
 
 
 class CategoryTracker:
@@ -517,19 +525,22 @@ class CategoryTracker:
         elif self._track is not None:
             result, corr, source = self._warm(observation)
             if result.ok:
-                self._advance(observation, result, corr, source == "network")
-                return self._frame(index, TrackStatus.TRACKED, result.message, result, source, t0)
+                network = source == "network"
+                self._advance(observation, result, corr, network, refined=cfg.refine_network if network else None)
+                return self._frame(index, TrackStatus.TRACKED, result.message, result, source, t0,
+                                   refined=self._track.refined)
             why = f"warm fit failed ({result.status.value}: {result.message}); "
-        result, corr = fit_frame(self.provider, observation, cfg, self.category, self.rng)
+        result, corr, by_refiner = _cold_fit(self.provider, observation, cfg, self.category, self.rng)
         if not result.ok:
             self._track = None
             return self._lost(index, f"{why}cold fit failed ({result.status.value}: {result.message})", t0)
         status = TrackStatus.REINITIALISED if self._started else TrackStatus.INITIALISED
         self._started = True
         self._track = None
-        self._advance(observation, result, corr, True)
-        result, how, refined = self._start_template(observation, result, corr)
-        return self._frame(index, status, why + "cold fit (network + RANSAC)" + how, result, "network", t0, template=refined)
+        self._advance(observation, result, corr, True, refined=by_refiner)
+        result, how, from_template = self._start_template(observation, result, corr)
+        return self._frame(index, status, why + "cold fit (network + RANSAC)" + how, result, "network", t0,
+                           template=from_template, refined=by_refiner and not from_template)
 
     def _start_template(self, observation, result: FitResult, corr):
         """Refine a cold fit against the category template and carry it (``template_categories``):
@@ -681,8 +692,9 @@ class CategoryTracker:
                      rng=self.rng, **kwargs)
         return dataclasses.replace(result, inliers=result.inliers[:n]) if result.inliers.shape[0] == 2 * n else result
 
-    def _advance(self, observation, result: FitResult, corr, network: bool) -> None:
-        """Carry an accepted fit to the next frame."""
+    def _advance(self, observation, result: FitResult, corr, network: bool, refined: bool | None = None) -> None:
+        """Carry an accepted fit to the next frame; ``refined``: whether a network frame's correspondences are the
+        refinement network's (``None``: as the last network frame's)."""
         from .carried import CarriedTemplate
 
         cfg = self.config
@@ -696,18 +708,24 @@ class CategoryTracker:
         else:
             template, since = tr.template, tr.since_network + 1
             anchor, anchor_before, gap = tr.anchor, tr.anchor_before, tr.anchor_gap
+        if refined is None:
+            refined = bool(tr is not None and tr.refined)
         self._track = _Track(result, corr, template, since, prior, None if tr is None else tr.prior, anchor, anchor_before,
-                             gap)
+                             gap, bool(refined))
 
-    def _frame(self, index, status, message, result, source, t0, template: bool = False) -> TrackedFrame:
+    def _frame(self, index, status, message, result, source, t0, template: bool = False,
+               refined: bool = False) -> TrackedFrame:
         """``template``: the fit is the carried category template's (its covariance the template ICP's).
-        A learned provider's covariances are inflated by the factors measured for these weights: of
+        ``refined``: it rests on the refinement network's correspondences (of this frame, or carried from the last
+        network frame). A learned provider's covariances are inflated by the factors measured for these weights: of
         tracked frames of this source (``learned-tracked-<source>``) for a warm frame, of single-frame
-        fits (``learned``, ``learned-template``) for a cold one or where none were measured."""
+        fits (``learned``, ``learned-template``) for a cold one or where none were measured; a refined fit's by those
+        measured for the refinement network's single-frame fits (``learned-network``: no tracked frames were
+        measured with it)."""
         if getattr(result, "uncertainty", None) is not None and self.category is not None and hasattr(self.provider, "network"):
             from ..learned.inference.predict import inflate_uncertainty  # as ancsh predict: the factors measured for these weights
 
-            result = inflate_uncertainty(result, self.category, self.provider, template=template,
+            result = inflate_uncertainty(result, self.category, self.provider, template=template, network=refined,
                                          tracked=source if status == TrackStatus.TRACKED else None)
         return TrackedFrame(index, status, message, result, np.asarray(result.joint_states, dtype=np.float64).copy(), source,
                             int(result.iterations), time.perf_counter() - t0)

@@ -357,6 +357,54 @@ def test_category_tracker_inflates_warm_frames_by_the_maps_of_their_source(tmp_p
         np.testing.assert_allclose(u.joint_state_std, factors[u.inflation.source] * u.raw().joint_state_std)
 
 
+
+def test_frames_resting_on_the_refinement_network_take_its_inflation(tmp_path, monkeypatch):
+    """With ``refine_network`` the cold fit (refined), the warm network frames and the frames carried from them rest on
+    the refinement network's correspondences: they take the factors measured for its single-frame fits
+    (``learned-network``, matched by the refiner's SHA-256), not the first stage's; without it, as before."""
+    import types
+
+    import ancsh.solvers.inflation as unc
+
+    table = {"providers": {"learned": {"laptop": {"joint_state": 3.0, "weights_sha256": "abc"}},
+                           "learned-tracked-carried": {"laptop": {"joint_state": 7.0, "weights_sha256": "abc"}},
+                           "learned-network": {"laptop": {"joint_state": 5.0, "weights_sha256": "ref"}}}}
+    (tmp_path / "inflation.json").write_text(json.dumps(table))
+    monkeypatch.setattr(unc, "INFLATION_PATH", tmp_path / "inflation.json")
+    oracle = FrameOracle()
+
+    class Refiner:
+        network = types.SimpleNamespace(config=types.SimpleNamespace(is_refiner=True), joint_children=(1,),
+                                        source="stand-in", sha256="ref")
+        num_parts = 2
+
+        def correspond(self, observation, *, input_rotation=None):
+            return oracle.correspond(observation)
+
+        def infer(self, observation, *, input_rotation=None):
+            return types.SimpleNamespace(correspondences=oracle.correspond(observation))
+
+    oracle.network, oracle.refine_option, oracle.refiner = types.SimpleNamespace(sha256="abc"), "network", Refiner()
+    gen = _generator(length=4, noise=True)
+    sources = {}
+    for refine in (True, False):
+        cfg = dataclasses.replace(NO_TEMPLATE, network_every=3, refine_network=refine)
+        tracker = CategoryTracker(oracle, cfg, category="laptop")
+        out = []
+        for i in range(4):
+            oracle.frame = gen.frame(i)
+            out.append(tracker.step(Observation(oracle.frame.points)))
+        assert [o.source for o in out] == ["network", "carried", "carried", "network"]
+        sources[refine] = [o.result.uncertainty.inflation.source for o in out]
+        for o in out:
+            u = o.result.uncertainty
+            factor = {"learned/laptop": 3.0, "learned-tracked-carried/laptop": 7.0, "learned-network/laptop": 5.0}
+            np.testing.assert_allclose(u.joint_state_std, factor[u.inflation.source] * u.raw().joint_state_std)
+    assert sources[True] == ["learned-network/laptop"] * 4
+    assert sources[False] == ["learned/laptop", "learned-tracked-carried/laptop", "learned-tracked-carried/laptop",
+                              "learned/laptop"]
+
+
 # --------------------------------------------------------------------------------------------
 # instance-level tracker
 # --------------------------------------------------------------------------------------------
