@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .report import Provenance, write_text
+from .targets import TRAINING_BUDGET_MIN
 
 __all__ = ["target_tables", "training_settings", "weights_tables", "write_weights_report"]
 
@@ -82,13 +83,15 @@ def target_tables(reports, rows: list[dict]) -> tuple[list[str], list[str]]:
     reports = Path(reports)
     target_rows, missing = collect_targets(reports)
     ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh" and not r.get("refiner")}
-    minutes = {c: (r["train_min"], r["parent_min"]) for c, r in ancsh_rows.items()}
+    refiner_min = {r["category"]: r["train_min"] for r in rows if r["kind"] == "ancsh" and r.get("refiner")}
+    minutes = {c: (r["train_min"], r["parent_min"], refiner_min.get(c, 0.0)) for c, r in ancsh_rows.items()}
     targets = target_lines(target_rows, missing, minutes)
     gains = roll_gains(reports / "roll_equivariance.json")
     unshipped = unshipped_minutes()
     gaps = train_test_ratios(reports / "train_test_gap.json")
     limits = limit_lines([budget_projection(t, ancsh_rows[t.category], gains.get(t.category, float("nan")),
-                                            unshipped.get(t.category, 0.0), gaps.get(t.category, float("nan")))
+                                            unshipped.get(t.category, 0.0), gaps.get(t.category, float("nan")),
+                                            refiner_min.get(t.category, 0.0))
                           for t in target_rows if t.category in ancsh_rows])
     return targets, limits
 
@@ -139,14 +142,14 @@ def write_weights_report(path, rows: list[dict], tables, targets: list[str], lim
             "paper's, and the real test split's rotation error over the procedural one (goal: at most 1.25x per "
             "part), and the same fits refined against the category template where the report has that row "
             "(`ancsh evaluate --refine template`, an option of the learned provider). Training: minutes of one core spent on the shipped network, + those of the network it was "
-            "fine-tuned from, against the budget of 4 core-hours (240 min) per "
-            "category. A report marked stale evaluated "
+            "fine-tuned from, (+ those of the shipped refinement network), against issue 32's budget of "
+            f"{TRAINING_BUDGET_MIN / 60:.0f} core-hours ({TRAINING_BUDGET_MIN:.0f} min) per category. A report marked stale evaluated "
             "other weights than the shipped file, or frames of an older generator.", "",
             *targets, "",
             "## What limits the targets: more of the same training within the budget", "",
             "Per category (`ancsh.studies.targets.budget_projection`): the factor by which the worst part's "
-            "rotation error must fall to meet the paper's; the training minutes left of the 240 (the shipped lineage's and "
-            "the runs not shipped, `ancsh/weights/unshipped_training.json`); and what a power "
+            f"rotation error must fall to meet the paper's; the training minutes left of the {TRAINING_BUDGET_MIN:.0f} (the shipped "
+            "lineage's, the shipped refiner's and the runs not shipped, `ancsh/weights/unshipped_training.json`); and what a power "
             "law fitted to the shipped run's own history projects at the budget's end, as a multiple of today's "
             "error -- from the validation NPCS error (the learning-curve table above) and from the pose "
             "validations (the quantity judged; exponent >= 0: no longer falling, projected 1.00). The power "

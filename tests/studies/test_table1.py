@@ -198,7 +198,8 @@ def test_real_split_is_evaluated_beside_the_procedural_one(tmp_path, make_oven_u
     (alone_row,), _ = collect_targets(tmp_path / "alone")
     assert alone_row.real_rot_deg is None and alone_row.real_ratio is None and alone_row.real_met is None
     md = target_lines(rows, missing, {"oven": (10.0, 5.0)})
-    assert "| oven | base, door |" in md[2] and "10 + 5" in md[2] and "| current |" in md[2]
+    assert "| oven | base, door |" in md[2] and "10 + 5 |" in md[2] and "| current |" in md[2]
+    assert "| 10 + 5 (+ 7) |" in target_lines(rows, missing, {"oven": (10.0, 5.0, 7.0)})[2]  # with its refiner's minutes
     with pytest.raises(ValueError, match="no real test object"):
         ev.evaluate_category("laptop", real=str(catalog), **kw)
 

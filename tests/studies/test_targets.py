@@ -135,6 +135,9 @@ def test_budget_projection_follows_the_runs_own_power_laws():
     assert met.needed == pytest.approx(2.0) and met.reachable is True
     md = "\n".join(limit_lines([p_spent, met]))
     assert "**projected not to reach it**" in md and "met already" in md
+    # the shipped refiner's and the unshipped runs' minutes are spent budget too
+    both = budget_projection(_target_row("oven", rot), weights_row, unshipped_min=50.0, refiner_min=100.0)
+    assert both.left_min == pytest.approx(left - 150.0)
 
 
 def test_roll_gains_keep_only_rows_measured_on_the_shipped_weights(tmp_path):
