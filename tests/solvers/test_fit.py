@@ -417,68 +417,48 @@ def test_npcs_bias_takes_up_a_rotated_npcs_and_keeps_the_origins(fit_case, formu
         assert np.linalg.norm(Ta.translation - Tb.translation) < 1e-4
 
 
+_STRETCH = np.eye(3) + np.array([[0.04, 0.02, -0.03], [0.02, -0.05, 0.01], [-0.03, 0.01, 0.01]])
+# bias -> (the linear error of part 2's NPCS about its origin besides a turn and a 6 % shrink, the biases without it,
+#          the option with it, the refusal of the option alone)
+_BIAS_CASES = {
+    "scale": (np.eye(3), {}, {"npcs_scale_bias": True}, ({"npcs_scale_bias": True}, "npcs_scale_bias: needs the NPCS biases")),
+    "stretch": (_STRETCH, {"npcs_scale_bias": True}, {"npcs_stretch_bias": True},
+                ({"npcs_bias_weight": 0.01, "npcs_stretch_bias": True}, "npcs_stretch_bias: needs the NPCS scale biases")),
+}
+
+
 @pytest.mark.parametrize("solver", ["lm", "ipopt", "lsq"])
-def test_npcs_scale_bias_takes_up_a_scaled_npcs_and_keeps_the_origins(fit_case, solver):
-    """One part's NPCS shrunk and turned about its origin: rotation biases alone leave its origin off (the scale
-    error moves it); with scale biases every NPCS origin is recovered and the joints hold; the option needs the
-    NPCS biases. (Reduced coordinates, whose part scales are ``sigma G_s``: the maximal ones keep each part's
-    estimated scale, which already holds such an error.)"""
-    formulation = "exact_reduced"
+@pytest.mark.parametrize("bias", sorted(_BIAS_CASES))
+def test_npcs_scale_and_stretch_biases_take_up_a_distorted_npcs_and_keep_the_origins(fit_case, solver, bias):
+    """One part's NPCS shrunk and turned (``scale``), and also stretched (``stretch``: any linear map near the identity),
+    about its origin: the biases without the option leave its origin off (the scale or stretch error moves it); with it
+    every NPCS origin is recovered, the data fit exactly and the joints hold; the option alone is refused.
+    (Reduced coordinates, whose part scales are ``sigma G_s``: the maximal ones keep each part's estimated scale,
+    which already holds a scale error.)"""
     from ancsh.geometry.rotations import exp_so3
 
+    linear, without, option, (refused, says) = _BIAS_CASES[bias]
     case = fit_case(29, num_parts=3, tree=True, joint_types="revolute")
     c = case.correspondences
     turn = exp_so3(np.radians(3.0) * np.array([0.0, 0.6, 0.8]))
     on = c.part_labels == 2
     npcs = c.npcs.copy()
-    npcs[on] = (npcs[on] @ turn) / 1.06  # an isotropic and a rotational error about the NPCS origin
+    npcs[on] = (npcs[on] @ (turn @ linear)) / 1.06  # c -> (turn linear)^T c / 1.06 about the NPCS origin
     corr = replace(c, npcs=npcs, joint_limits=None)
-    base = dict(ransac=False, scale_estimator="umeyama", naocs_prior_weight=0.0, npcs_bias_weight=1e-6)
-    rotation_only = fit(case.observation, corr, formulation, solver, config=FitConfig(**base))
-    scaled = fit(case.observation, corr, formulation, solver, config=FitConfig(npcs_scale_bias=True, **base))
-    assert rotation_only.ok and scaled.ok
+    base = dict(ransac=False, scale_estimator="umeyama", naocs_prior_weight=0.0, npcs_bias_weight=1e-6, **without)
+    before = fit(case.observation, corr, "exact_reduced", solver, config=FitConfig(**base))
+    after = fit(case.observation, corr, "exact_reduced", solver, config=FitConfig(**option, **base))
+    assert before.ok and after.ok
 
     def origin_error(res):
         return max(np.linalg.norm(a.translation - b.translation) for a, b in zip(res.T_cam_npcs, case.gt.T_cam_npcs))
 
-    assert origin_error(rotation_only) > 1e-4, origin_error(rotation_only)
-    assert origin_error(scaled) < 1e-2 * origin_error(rotation_only), (origin_error(scaled), origin_error(rotation_only))
-    assert scaled.cost_per_term["data"] < 1e-6 * rotation_only.cost_per_term["data"]
-    assert scaled.max_constraint_violation < 1e-7
-    with pytest.raises(ValueError, match="npcs_scale_bias: needs the NPCS biases"):
-        FitConfig(npcs_scale_bias=True)
-
-
-@pytest.mark.parametrize("solver", ["lm", "ipopt", "lsq"])
-def test_npcs_stretch_bias_takes_up_a_linearly_distorted_npcs(fit_case, solver):
-    """One part's NPCS stretched, shrunk and turned about its origin (any linear map near the identity): rotation and
-    scale biases leave its origin off (the stretch moves it); with stretch biases every NPCS origin is recovered, the
-    data fit exactly and the joints hold; the option needs the scale biases."""
-    from ancsh.geometry.rotations import exp_so3
-
-    case = fit_case(29, num_parts=3, tree=True, joint_types="revolute")
-    c = case.correspondences
-    turn = exp_so3(np.radians(3.0) * np.array([0.0, 0.6, 0.8]))
-    stretch = np.eye(3) + np.array([[0.04, 0.02, -0.03], [0.02, -0.05, 0.01], [-0.03, 0.01, 0.01]])
-    on = c.part_labels == 2
-    npcs = c.npcs.copy()
-    npcs[on] = (npcs[on] @ (turn @ stretch)) / 1.06  # c -> (turn stretch)^T c / 1.06 about the NPCS origin
-    corr = replace(c, npcs=npcs, joint_limits=None)
-    base = dict(ransac=False, scale_estimator="umeyama", naocs_prior_weight=0.0, npcs_bias_weight=1e-6,
-                npcs_scale_bias=True)
-    scaled = fit(case.observation, corr, "exact_reduced", solver, config=FitConfig(**base))
-    stretched = fit(case.observation, corr, "exact_reduced", solver, config=FitConfig(npcs_stretch_bias=True, **base))
-    assert scaled.ok and stretched.ok
-
-    def origin_error(res):
-        return max(np.linalg.norm(a.translation - b.translation) for a, b in zip(res.T_cam_npcs, case.gt.T_cam_npcs))
-
-    assert origin_error(scaled) > 1e-4, origin_error(scaled)
-    assert origin_error(stretched) < 1e-2 * origin_error(scaled), (origin_error(stretched), origin_error(scaled))
-    assert stretched.cost_per_term["data"] < 1e-6 * scaled.cost_per_term["data"]
-    assert stretched.max_constraint_violation < 1e-7
-    with pytest.raises(ValueError, match="npcs_stretch_bias: needs the NPCS scale biases"):
-        FitConfig(npcs_bias_weight=0.01, npcs_stretch_bias=True)
+    assert origin_error(before) > 1e-4, origin_error(before)
+    assert origin_error(after) < 1e-2 * origin_error(before), (origin_error(after), origin_error(before))
+    assert after.cost_per_term["data"] < 1e-6 * before.cost_per_term["data"]
+    assert after.max_constraint_violation < 1e-7
+    with pytest.raises(ValueError, match=says):
+        FitConfig(**refused)
 
 
 def test_unit_diagonal_boxes_undo_the_inflation_by_npcs_noise(fit_case):

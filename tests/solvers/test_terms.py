@@ -86,7 +86,7 @@ def test_npcs_bias_jacobians_match_central_differences(name, parameterisation, b
 def test_the_stretch_bias_is_a_symmetric_traceless_map_and_zero_stretch_is_the_scale_bias():
     """The stretch is symmetric and traceless (:func:`stretch_sx`); with stretch biases the point-to-point data
     residual is the scale-bias program's at zero stretch and differs from it elsewhere (that it maps the NPCS by
-    ``I + S``: ``test_fit.py::test_npcs_stretch_bias_takes_up_a_linearly_distorted_npcs``); the point-to-plane term
+    ``I + S``: ``test_fit.py::test_npcs_scale_and_stretch_biases_take_up_a_distorted_npcs_and_keep_the_origins``); the point-to-plane term
     and a stretch without scale biases are refused."""
     import casadi as ca
 
