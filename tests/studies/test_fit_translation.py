@@ -77,3 +77,20 @@ def test_evaluate_with_sets_the_fit_defaults_inside_its_block_and_refuses_bad_fi
         err = capsys.readouterr().err
         assert "fit_config:" in err and any(s in err for s in says.split("|")), err
     assert ancsh.solvers.FitConfig is FitConfig
+
+
+def test_the_stretch_variant_sets_the_linear_biases_beside_the_default_and_per_part_fits():
+    from dataclasses import asdict
+
+    from ancsh.studies.fit_translation import _levels, _methods
+
+    methods = _methods("stretch")
+    stretched = [m for m in methods if "stretch" in m]
+    assert {"per_part", "exact (default)", "exact npcs_bias+scale 0.01"} <= set(methods) and len(stretched) == 4
+    closure = {name: methods[name].__closure__ for name in stretched}
+    configs = [c.cell_contents for cells in closure.values() for c in cells if type(c.cell_contents).__name__ == "FitConfig"]
+    assert len(configs) == 4 and all(c.npcs_stretch_bias and c.npcs_scale_bias and c.npcs_bias_weight > 0 for c in configs)
+    levels = _levels("stretch")
+    real = asdict(levels["realistic"])
+    assert set(levels) == {"realistic", "realistic_no_npcs_noise"}
+    assert {k for k, v in asdict(levels["realistic_no_npcs_noise"]).items() if v != real[k]} == {"npcs_sigma"}
