@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
-    "NETWORK_METHOD", "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection",
+    "NETWORK_METHOD", "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection", "refiner_minutes",
     "collect_targets", "limit_lines", "roll_gains", "target_lines",
 ]
 
@@ -44,6 +44,21 @@ shipped)."""
 
 UNSHIPPED_PATH = Path(__file__).resolve().parents[1] / "weights" / "unshipped_training.json"
 """Ledger of training runs whose networks were not shipped (they spent budget all the same)."""
+
+
+def refiner_minutes(rows: list[dict]) -> dict[str, float]:
+    """Per category, the training minutes of the shipped refinement network's lineage beyond the first stage's:
+    its own and those of the networks it was fine-tuned from (an earlier refiner), less the first stage's lineage.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`ancsh.learned.network.weights.weights_summary` rows (``kind``, ``refiner``, ``category``,
+        ``train_min``, ``parent_min``).
+    """
+    first = {r["category"]: r["train_min"] + r["parent_min"] for r in rows if r["kind"] == "ancsh" and not r.get("refiner")}
+    return {r["category"]: max(0.0, r["train_min"] + r["parent_min"] - first[r["category"]])
+            for r in rows if r["kind"] == "ancsh" and r.get("refiner") and r["category"] in first}
 
 
 def unshipped_minutes(path=None) -> dict[str, float]:

@@ -199,3 +199,14 @@ def test_unshipped_runs_spend_the_budget(tmp_path):
     ledger.write_text(json.dumps({"runs": [{"category": "oven", "minutes": -1}]}))
     with pytest.raises(ValueError, match="minutes"):
         unshipped_minutes(ledger)
+
+
+def test_a_refiners_minutes_are_its_lineage_beyond_the_first_stage():
+    from ancsh.studies.targets import refiner_minutes
+
+    rows = [dict(kind="ancsh", refiner=False, category="oven", train_min=20.0, parent_min=200.0),
+            dict(kind="ancsh", refiner=True, category="oven", train_min=130.0, parent_min=220.0),  # from the first stage
+            dict(kind="ancsh", refiner=False, category="wm", train_min=40.0, parent_min=165.0),
+            dict(kind="ancsh", refiner=True, category="wm", train_min=68.0, parent_min=362.0),  # from an earlier refiner
+            dict(kind="direct_voting", refiner=False, category="wm", train_min=15.0, parent_min=0.0)]
+    assert refiner_minutes(rows) == pytest.approx({"oven": 130.0, "wm": 68.0 + 362.0 - 205.0})
