@@ -142,7 +142,7 @@ def write_weights_report(path, rows: list[dict], tables, targets: list[str], lim
             "paper's, and the real test split's rotation error over the procedural one (goal: at most 1.25x per "
             "part), and the same fits refined against the category template where the report has that row "
             "(`ancsh evaluate --refine template`, an option of the learned provider). Training: minutes of one core spent on the shipped network, + those of the network it was "
-            "fine-tuned from, (+ those of the shipped refinement network), against issue 32's budget of "
+            "fine-tuned from (+ those of the shipped refinement network's lineage beyond it), against issue 32's budget of "
             f"{TRAINING_BUDGET_MIN / 60:.0f} core-hours ({TRAINING_BUDGET_MIN:.0f} min) per category. A report marked stale evaluated "
             "other weights than the shipped file, or frames of an older generator.", "",
             *targets, "",
