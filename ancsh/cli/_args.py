@@ -14,6 +14,21 @@ def named_value(item: str, option: str, form: str) -> tuple[str, str]:
     return name, value
 
 
+def fit_config_fields(text: str, option: str) -> dict:
+    """The JSON object of ``FitConfig`` fields given as ``option`` (e.g. ``'{"npcs_bias_weight": 0.01}'``); text that
+    is not JSON, or JSON that is not an object, is refused naming ``option`` (the fields themselves are checked where
+    the ``FitConfig`` is built)."""
+    import json
+
+    try:
+        fields = json.loads(text)
+    except ValueError as exc:
+        raise ValueError(f"{option}: not JSON ({exc})") from None
+    if not isinstance(fields, dict):
+        raise ValueError(f"{option}: expected a JSON object of FitConfig fields, got {text!r}")
+    return fields
+
+
 def _number(text: str, convert, accept, expected: str):
     """``convert(text)`` when ``accept`` takes it, else argparse's error "expected <expected>, got ..."."""
     import argparse

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from ...outputs import output_flags
-from .._args import changed_options, non_negative_int
+from .._args import changed_options, fit_config_fields, non_negative_int
 
 
 def register(sub) -> None:
@@ -56,15 +56,7 @@ def run(args) -> int:
     if args.methods:
         changes["methods"] = tuple(c.strip() for c in args.methods.split(",") if c.strip())
     if args.exact_config is not None:
-        import json
-
-        try:
-            fields = json.loads(args.exact_config)
-        except ValueError as exc:
-            raise ValueError(f"--exact-config: not JSON ({exc})") from None
-        if not isinstance(fields, dict):
-            raise ValueError(f"--exact-config: expected a JSON object of FitConfig fields, got {args.exact_config!r}")
-        changes["exact_config"] = tuple(fields.items())
+        changes["exact_config"] = tuple(fit_config_fields(args.exact_config, "--exact-config").items())
     config = replace(config, **changes)
     command = _command(args)
     t0 = time.perf_counter()

@@ -66,13 +66,15 @@ def main(argv=None) -> int:
         return 0
     if args.what == "evaluate-with":
         from ...solvers.fit import FitConfig
+        from .._args import fit_config_fields
 
         try:
-            defaults = json.loads(args.fit_config)
-            if not isinstance(defaults, dict):
-                raise ValueError("expected a JSON object of FitConfig fields")
+            defaults = fit_config_fields(args.fit_config, "fit_config")
+        except ValueError as e:
+            p.error(str(e))
+        try:
             FitConfig(**defaults)
-        except (ValueError, TypeError) as e:  # JSONDecodeError is a ValueError; an unknown field a TypeError
+        except (ValueError, TypeError) as e:  # a bad value; an unknown field
             p.error(f"fit_config: {e}")
         with fit_config_defaults(defaults):
             return _ancsh(args.ancsh_args)
