@@ -11,6 +11,7 @@ from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.data.procedural import CATEGORY_INFO, PAPER_CATEGORIES
 from ancsh.evaluation import evaluate_fit
 from ancsh.studies import table1 as ev
+from ancsh.studies.table1.statistics import AXIS_FLIP_DEG, axis_tail
 from ancsh.solvers.types import Correspondences, Observation
 
 
@@ -51,11 +52,30 @@ def test_paper_tables_match_the_categories():
                 assert len(values) == K
 
 
-def _record(visibility, rot, ok=True):
+def _record(visibility, rot, ok=True, axis_deg=1.0):
     parts = [{"name": f"p{j}", "rot_deg": r, "trans": 0.1 * r, "scale_rel": 0.0, "iou": 0.5} for j, r in enumerate(rot)]
-    joints = [{"name": "j0", "type": "revolute", "state_err": rot[1] - rot[0], "axis_deg": 1.0, "line_dist": float("nan")}]
+    joints = [{"name": "j0", "type": "revolute", "state_err": rot[1] - rot[0], "axis_deg": axis_deg, "line_dist": float("nan")}]
     return {"visibility": visibility, "network_ms": 1.0, "generate_ms": 1.0,
             "methods": {"per_part": {"ok": ok, "parts": parts if ok else [], "joints": joints if ok else [], "fit_ms": 2.0}}}
+
+
+def test_axis_tail_counts_wrong_axes_apart_from_the_rest():
+    """Frames above the threshold are counted per joint; the rest's mean leaves them and NaN out."""
+    values = np.array([[1.0, 50.0], [3.0, np.nan], [89.0, 2.0], [45.0, 4.0]])
+    tail = axis_tail(values)
+    assert tail == {"threshold_deg": AXIS_FLIP_DEG, "over": [1, 1], "frames": [4, 3],
+                    "mean_within": [pytest.approx((1 + 3 + 45) / 3), pytest.approx(3.0)]}
+    assert axis_tail(np.full((2, 1), 90.0))["mean_within"] == [None]
+    assert axis_tail(values, threshold_deg=0.5)["over"] == [4, 3]
+    with pytest.raises(ValueError, match="values"):
+        axis_tail(np.ones(3))
+    recs = [_record([0.5, 0.5], [1.0, 2.0], axis_deg=a) for a in (2.0, 4.0, 88.0)] + [
+        _record([0.5, 0.5], [1.0, 2.0], ok=False, axis_deg=120.0)]
+    evaluation = {"category": "x", "records": recs, "timing": {"wall_s": 1.0},
+                  "settings": {"methods": ["per_part"], "part_names": ["p0", "p1"], "joint_names": ["j0"]}}
+    row = ev.summarize(evaluation)["methods"]["per_part"]
+    assert row["axis_tail"]["over"] == [1] and row["axis_tail"]["frames"] == [3]  # the failed fit left out
+    assert row["axis_tail"]["mean_within"] == [pytest.approx(3.0)] and row["axis_deg"]["mean"] == [pytest.approx(94 / 3)]
 
 
 def test_error_budget_recovers_a_known_npcs_rotation_and_matches_the_fit():
@@ -145,6 +165,11 @@ def test_quick_evaluation_writes_the_report(tmp_path):
     assert data["paper"]["table1"]["ANCSH"]["rot_deg"] == [6.7, 4.3]
     assert list(data) == ["category", "command", "date", "ancsh_version", "settings", "summary", "paper", "per_frame"]
     assert set(data["per_frame"]) == {"instance", "visibility", *evaluated} and len(data["per_frame"]["instance"]) == 2
+    for key in evaluated:  # per-frame axis errors, one per joint, and their tail in the summary and in Table 2
+        axes = data["per_frame"][key]["axis_deg"]
+        assert len(axes) == 2 and all(a is None or len(a) == 1 for a in axes)
+        assert sum(data["summary"]["methods"][key]["axis_tail"]["frames"]) == sum(a is not None for a in axes)
+    assert "Axis over 45°: frames (mean of the rest, °)" in md
     assert (tmp_path / "laptop_occlusion.png").stat().st_size > 0
 
 

@@ -6,9 +6,11 @@ import numpy as np
 
 from .measure import BUDGET_METRICS, JOINT_METRICS, PART_METRICS
 
-__all__ = ["OCCLUSION_EDGES", "occlusion_bins", "summarize"]
+__all__ = ["AXIS_FLIP_DEG", "OCCLUSION_EDGES", "axis_tail", "occlusion_bins", "summarize"]
 
-__all__ = ["summarize"]
+AXIS_FLIP_DEG = 45.0
+"""A joint-axis error above this angle (degrees) reads as the wrong axis (a door hinged at its bottom edge taken for
+one hinged at its side), not as a noisy estimate of the right one: :func:`axis_tail` counts such frames apart."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -27,6 +29,35 @@ def _stats(values: np.ndarray) -> dict:
     return out
 
 
+def axis_tail(values, threshold_deg: float = AXIS_FLIP_DEG) -> dict:
+    """How much of a joint-axis mean comes from frames whose axis is the wrong one.
+
+    Parameters
+    ----------
+    values : array_like, shape (F, K)
+        Joint-axis angle errors (degrees) of ``F`` frames and ``K`` joints; NaN entries are left out.
+    threshold_deg : float
+        Errors above it count as a wrong axis (:data:`AXIS_FLIP_DEG`).
+
+    Returns
+    -------
+    dict
+        Per joint: ``over`` (frames above the threshold), ``frames`` (finite entries), ``mean_within`` (the mean
+        of the others, ``None`` where there are none) and ``threshold_deg``.
+    """
+    v = np.asarray(values, dtype=float)
+    if v.ndim != 2:
+        raise ValueError(f"values: expected shape (F, K), got {v.shape}")
+    over, frames, within = [], [], []
+    for col in v.T:
+        col = col[np.isfinite(col)]
+        keep = col[col <= threshold_deg]
+        over.append(int(col.size - keep.size))
+        frames.append(int(col.size))
+        within.append(float(keep.mean()) if keep.size else None)
+    return {"threshold_deg": float(threshold_deg), "over": over, "frames": frames, "mean_within": within}
+
+
 def summarize(evaluation: dict) -> dict:
     """Means and medians per method, part and joint; Table 2 rows; timings; occlusion bins."""
     recs = evaluation["records"]
@@ -43,6 +74,7 @@ def summarize(evaluation: dict) -> dict:
             row[name] = _stats(vals)
         for name in JOINT_METRICS:
             row[name] = _stats(np.array([[j[name] for j in e["joints"]] for e in ok]).reshape(-1, K))
+        row["axis_tail"] = axis_tail(np.array([[j["axis_deg"] for j in e["joints"]] for e in ok]).reshape(-1, K))
         fit_ms = [r["methods"][key]["fit_ms"] for r in recs]
         row["fit_ms"] = {"mean": float(np.mean(fit_ms)), "median": float(np.median(fit_ms))} if fit_ms else None
         refs = [r["methods"][key]["refine"] for r in recs if "refine" in r["methods"][key]]
@@ -62,6 +94,7 @@ def summarize(evaluation: dict) -> dict:
         out["table2"]["naocs_vote"] = {
             name: _stats(np.array([[j[name] for j in d] for d in nj]).reshape(-1, K)) for name in ("axis_deg", "line_dist")
         }
+        out["table2"]["naocs_vote"]["axis_tail"] = axis_tail(np.array([[j["axis_deg"] for j in d] for d in nj]).reshape(-1, K))
     bud = [r["budget"] for r in recs if "budget" in r]
     if bud:
         out["budget"] = {
@@ -74,6 +107,8 @@ def summarize(evaluation: dict) -> dict:
             name: _stats(np.array([[j[name] for j in d["joints"]] for d in dv]).reshape(-1, K))
             for name in ("axis_deg", "line_dist")
         }
+        out["table2"]["direct_voting"]["axis_tail"] = axis_tail(
+            np.array([[j["axis_deg"] for j in d["joints"]] for d in dv]).reshape(-1, K))
         out["timing"]["direct_voting_network_ms"] = float(np.mean([d["network_ms"] for d in dv]))
     for name in ("network_ms", "generate_ms"):
         vals = [r[name] for r in recs]
