@@ -389,8 +389,8 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real
         md.append(f"| *paper: {label}* | {_fmt(row.get('axis_deg'), '.1f')} | {_fmt(row.get('line_dist'), '.3f')} | |")
     md += ["", "Camera-frame joint errors after fitting include the error of the fitted part poses (the axis is "
            "carried into the camera by the base pose); the NAOCS row measures the network's joint vote alone. "
-           f"An axis more than {AXIS_FLIP_DEG:g}° off is the wrong axis (a side-hinged door read as hinged at its "
-           "bottom), not a noisy estimate of the right one: the last column counts those frames per joint and gives "
+           f"An axis more than {AXIS_FLIP_DEG:g}° off is the wrong axis (for example an oven's side-hinged door read as "
+           "hinged at its bottom), not a noisy estimate of the right one: the last column counts those frames per joint and gives "
            "the mean of the others, so a few such frames carrying a mean can be told from a spread of small errors."]
     if "direct_voting" not in summary["table2"]:
         md += ["", f"No direct-voting network is shipped for {category} (shipped weights: "
