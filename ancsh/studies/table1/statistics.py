@@ -58,6 +58,16 @@ def axis_tail(values, threshold_deg: float = AXIS_FLIP_DEG) -> dict:
     return {"threshold_deg": float(threshold_deg), "over": over, "frames": frames, "mean_within": within}
 
 
+def _joint_summary(joints: list, names, K: int) -> dict:
+    """Mean / median per joint of each metric in ``names`` over frames (``joints``: per frame, one dict per joint),
+    then, where ``axis_deg`` is among them, its :func:`axis_tail`."""
+    vals = {name: np.array([[j[name] for j in js] for js in joints]).reshape(-1, K) for name in names}
+    out = {name: _stats(v) for name, v in vals.items()}
+    if "axis_deg" in vals:
+        out["axis_tail"] = axis_tail(vals["axis_deg"])
+    return out
+
+
 def summarize(evaluation: dict) -> dict:
     """Means and medians per method, part and joint; Table 2 rows; timings; occlusion bins."""
     recs = evaluation["records"]
@@ -72,9 +82,7 @@ def summarize(evaluation: dict) -> dict:
             if name.startswith("iou"):
                 vals = 100.0 * vals
             row[name] = _stats(vals)
-        for name in JOINT_METRICS:
-            row[name] = _stats(np.array([[j[name] for j in e["joints"]] for e in ok]).reshape(-1, K))
-        row["axis_tail"] = axis_tail(np.array([[j["axis_deg"] for j in e["joints"]] for e in ok]).reshape(-1, K))
+        row.update(_joint_summary([e["joints"] for e in ok], JOINT_METRICS, K))
         fit_ms = [r["methods"][key]["fit_ms"] for r in recs]
         row["fit_ms"] = {"mean": float(np.mean(fit_ms)), "median": float(np.median(fit_ms))} if fit_ms else None
         refs = [r["methods"][key]["refine"] for r in recs if "refine" in r["methods"][key]]
@@ -91,10 +99,7 @@ def summarize(evaluation: dict) -> dict:
         out["methods"][key] = row
     nj = [r["naocs_joints"] for r in recs if "naocs_joints" in r]
     if nj:
-        out["table2"]["naocs_vote"] = {
-            name: _stats(np.array([[j[name] for j in d] for d in nj]).reshape(-1, K)) for name in ("axis_deg", "line_dist")
-        }
-        out["table2"]["naocs_vote"]["axis_tail"] = axis_tail(np.array([[j["axis_deg"] for j in d] for d in nj]).reshape(-1, K))
+        out["table2"]["naocs_vote"] = _joint_summary(nj, ("axis_deg", "line_dist"), K)
     bud = [r["budget"] for r in recs if "budget" in r]
     if bud:
         out["budget"] = {
@@ -103,12 +108,7 @@ def summarize(evaluation: dict) -> dict:
         out["budget"]["seg_acc"] = _stats(np.array([[b["seg_acc"]] for b in bud]))
     dv = [r["direct_voting"] for r in recs if "direct_voting" in r]
     if dv:
-        out["table2"]["direct_voting"] = {
-            name: _stats(np.array([[j[name] for j in d["joints"]] for d in dv]).reshape(-1, K))
-            for name in ("axis_deg", "line_dist")
-        }
-        out["table2"]["direct_voting"]["axis_tail"] = axis_tail(
-            np.array([[j["axis_deg"] for j in d["joints"]] for d in dv]).reshape(-1, K))
+        out["table2"]["direct_voting"] = _joint_summary([d["joints"] for d in dv], ("axis_deg", "line_dist"), K)
         out["timing"]["direct_voting_network_ms"] = float(np.mean([d["network_ms"] for d in dv]))
     for name in ("network_ms", "generate_ms"):
         vals = [r[name] for r in recs]
