@@ -393,11 +393,13 @@ def _run_calibrate_object(args: argparse.Namespace) -> int:
         raise ValueError(f"--frames: expected at least 8 frames with --object, got {args.frames}")
     data = collect_object_evidence(args.category, args.frames, seed=args.seed, progress=not args.no_progress,
                                    scenes=args.scenes)
-    half = np.arange(len(data["is_object"])) % 2 == 0
+    half = data["frame"] % 2 == 0  # a frame's fits (one per refinement) on one side
     calibration = fit_object_calibrator(data["X"][half], data["is_object"][half])
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))
+    calibration["refinements"] = data["refinements"]
     source = [s for s, h in zip(data["source"], half) if not h]
-    check = measure(calibration, data["X"][~half], data["is_object"][~half], source, MIN_P_OBJECT)
+    refinement = [r for r, h in zip(data["refinement"], half) if not h]
+    check = measure(calibration, data["X"][~half], data["is_object"][~half], source, MIN_P_OBJECT, refinement)
     out, command = _calibrate_output(args)
     paths = write_object_report(args.category, calibration, check, data, out, command=command, threshold=MIN_P_OBJECT)
     print(f"{args.category}: {100 * check['_all']['true_accept']:.0f}% of its objects accepted, "

@@ -21,8 +21,13 @@ margin) with
   calibrations: with 150 scenes the washing machine accepted 83 % of its scene segments (and 3 % of the others), but
   the box accepted a robot arm on the real mug frame (``docs/results/real_frames.md``).
 
-Only fits that pass the plausibility checks count (the others fail before ``p_object`` is asked). Half of
-the frames (alternating) fit the model, the other half measure it; ``--install`` writes
+Every frame is fitted once per refinement (:data:`REFINEMENTS`: the first stage alone, refined against the
+category template, refined by the refinement network; each where the category has it), and the model is fitted on
+all of them: ``ancsh predict --refine none|template|network|auto`` is judged by one model measured on fits of each
+kind. (A model fitted on the default refinement's fits alone rejected correct unrefined laptop fits: their
+render-and-compare evidence is a little weaker than the refined fits' it had learnt.) Only fits that pass the
+plausibility checks count (the others fail before ``p_object`` is asked). Half of the frames (alternating, a
+frame's fits together) fit the model, the other half measure it; ``--install`` writes
 ``ancsh/weights/<category>_object.json``, which :func:`ancsh.learned.inference.predict.predict_depth` uses.
 """
 
@@ -37,14 +42,29 @@ from ..data.scenes import clutter_model
 from ..learned.inference.confidence import OBJECT_FEATURES, object_features, probability_good
 from .report import Provenance, write_text
 
-__all__ = ["collect_object_evidence", "fit_object_calibrator", "write_object_report"]
+__all__ = ["REFINEMENTS", "available_refinements", "collect_object_evidence", "fit_object_calibrator", "measure",
+           "write_object_report"]
 
 #: A scene's candidate segment is the object when its IoU with the object's visible pixels reaches this.
 SCENE_OBJECT_IOU = 0.5
+#: The refinements whose fits the model is measured on (``LearnedProvider.refine`` options; ``"network"`` where the
+#: category ships a refinement network, ``"template"`` where it has a template library).
+REFINEMENTS = ("none", "template", "network")
 
 
-def _scene_candidates(depth, intrinsics, visible, category, provider, seed) -> tuple[list, int]:
-    """``([(features, is_object), ...], failed)`` for the candidates ``ancsh predict`` would verify without a mask."""
+def available_refinements(category: str) -> tuple[str, ...]:
+    """The :data:`REFINEMENTS` ``category`` has: ``"none"`` always, the others where their model is shipped."""
+    from ..data.templates import library_path
+    from ..learned.network.weights import weights_path
+
+    have = {"none": True, "template": library_path(category).is_file(),
+            "network": weights_path(category, "refine").is_file()}
+    return tuple(r for r in REFINEMENTS if have[r])
+
+
+def _scene_candidates(depth, intrinsics, visible, category, provider, seed, refinements=("none",)) -> tuple[list, int]:
+    """``([(features, is_object, refinement), ...], failed)`` for the candidates ``ancsh predict`` would verify
+    without a mask, each fitted once per refinement of ``refinements``; ``failed`` counts the fits that failed."""
     from ..data.isolate import isolate_object
     from ..learned.inference.predict import MAX_VERIFIED
 
@@ -56,43 +76,58 @@ def _scene_candidates(depth, intrinsics, visible, category, provider, seed) -> t
     for c in chosen:
         mask = iso.mask_of(c)
         iou = np.count_nonzero(mask & visible) / max(np.count_nonzero(mask | visible), 1)
-        x = _features(depth, intrinsics, mask, category, provider, seed) if mask.sum() >= 100 else None
-        if x is None:
-            failed += 1
-            continue
-        out.append((x, bool(iou >= SCENE_OBJECT_IOU)))
+        for refine in refinements:
+            x = _features(depth, intrinsics, mask, category, provider, seed, refine) if mask.sum() >= 100 else None
+            if x is None:
+                failed += 1
+                continue
+            out.append((x, bool(iou >= SCENE_OBJECT_IOU), refine))
     return out, failed
 
 
-def _features(depth, intrinsics, mask, category, provider, seed):
-    """The object features of ``ancsh predict --mask`` on one depth image, or ``None`` when the fit fails its checks."""
+def _features(depth, intrinsics, mask, category, provider, seed, refine="provider"):
+    """The object features of ``ancsh predict --mask --refine REFINE`` on one depth image, or ``None`` when the fit
+    fails its checks (``refine``: a ``LearnedProvider.refine`` option; ``"provider"``: the provider's)."""
     from ..learned.inference.predict import fit_candidate, object_diagonal
 
-    a = fit_candidate(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None, "provider",
-                 object_gate=False)
+    a = fit_candidate(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None, refine,
+                      object_gate=False)
     if not a["result"].ok or a["comparison"] is None:
         return None
     return object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category, a["pts"])
 
 
-def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progress: bool = True, scenes: int = 0) -> dict:
-    """Features of positives and negatives (module docstring): ``frames`` positive frames, about as many negatives.
+def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progress: bool = True, scenes: int = 0,
+                            refinements=None) -> dict:
+    """Features of positives and negatives (module docstring): ``frames`` positive frames, about as many negatives,
+    each frame fitted once per refinement.
+
+    Parameters
+    ----------
+    refinements : sequence of str, optional
+        ``LearnedProvider.refine`` options each frame is fitted with (default: :func:`available_refinements`).
 
     Returns
     -------
     dict
-        ``{"X": (F, D), "is_object": (F,) bool, "source": [str], "failed": {source: count}}``.
+        One row per fit that passed its checks: ``{"X": (F, D), "is_object": (F,) bool, "source": [str],
+        "refinement": [str], "frame": (F,) int (the frame's index: a frame's fits share it), "failed": {source:
+        fits}, "refinements": [str]}``.
     """
     from tqdm import tqdm
 
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.noise import DepthNoise, apply_noise
     from ..data.procedural import CATEGORIES, CATEGORY_INFO
-    from ..data.render import ModelRenderer, sample_viewpoint
+    from ..data.render import Intrinsics, ModelRenderer, sample_viewpoint
     from ..learned.inference.provider import LearnedProvider
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 8:
         raise ValueError(f"frames: expected an integer >= 8, got {frames!r}")
+    refinements = available_refinements(category) if refinements is None else tuple(refinements)
+    unknown = [r for r in refinements if r not in REFINEMENTS]
+    if not refinements or unknown:
+        raise ValueError(f"refinements: expected a non-empty selection of {REFINEMENTS}, got {list(refinements)!r}")
     provider = LearnedProvider(category, seed=seed, refine="auto")
     others = [c for c in CATEGORIES if c != category]
     per_other = max(4, int(frames) // len(others))
@@ -102,13 +137,20 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
     rng = np.random.default_rng(seed)
     noise = DepthNoise()
     gens = {}
-    X, y, src, failed = [], [], [], {}
-    for source, i in tqdm(jobs, desc=f"object evidence {category}", disable=not progress, dynamic_ncols=True):
+    X, y, src, ref, index, failed = [], [], [], [], [], {}
+
+    def add(x, is_object, source, refine, frame):
+        X.append(x)
+        y.append(is_object)
+        src.append(source)
+        ref.append(refine)
+        index.append(frame)
+
+    for frame_index, (source, i) in enumerate(tqdm(jobs, desc=f"object evidence {category}", disable=not progress,
+                                                   dynamic_ncols=True)):
         if source == "clutter":
             model = clutter_model(rng, CATEGORY_INFO[category].typical_size)
             T = sample_viewpoint(category, rng, model, np.zeros(0))
-            from ..data.render import Intrinsics
-
             intr = Intrinsics()
             depth = ModelRenderer(model).render(np.zeros(0), T, intr).depth
         else:
@@ -119,13 +161,12 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
             depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, intr).depth
         depth = apply_noise(depth, noise, rng)
         mask = depth > 0
-        x = _features(depth, intr, mask, category, provider, i) if mask.sum() >= 100 else None
-        if x is None:
-            failed[source] = failed.get(source, 0) + 1
-            continue
-        X.append(x)
-        y.append(source == category)
-        src.append(source)
+        for refine in refinements:
+            x = _features(depth, intr, mask, category, provider, i, refine) if mask.sum() >= 100 else None
+            if x is None:
+                failed[source] = failed.get(source, 0) + 1
+            else:
+                add(x, source == category, source, refine, frame_index)
     from ..data.scenes import render_scene
 
     scene_gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=seed + 1))
@@ -133,15 +174,15 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
                   dynamic_ncols=True):
         scene = render_scene(scene_gen, i, rng)
         depth = apply_noise(scene.depth, noise, rng)
-        found, n_failed = _scene_candidates(depth, scene.intrinsics, scene.visible & (depth > 0), category, provider, i)
+        found, n_failed = _scene_candidates(depth, scene.intrinsics, scene.visible & (depth > 0), category, provider, i,
+                                            refinements)
         if n_failed:
             failed["scene"] = failed.get("scene", 0) + n_failed
-        for x, is_object in found:
-            X.append(x)
-            y.append(is_object)
-            src.append(f"{category} in a scene" if is_object else "scene: not the object")
+        for x, is_object, refine in found:
+            add(x, is_object, f"{category} in a scene" if is_object else "scene: not the object", refine, len(jobs) + i)
     return {"X": np.asarray(X).reshape(-1, len(OBJECT_FEATURES)), "is_object": np.asarray(y, dtype=bool), "source": src,
-            "failed": failed}
+            "refinement": ref, "frame": np.asarray(index, dtype=np.int64), "failed": failed,
+            "refinements": list(refinements)}
 
 
 def fit_object_calibrator(X, is_object) -> dict:
@@ -155,16 +196,27 @@ def fit_object_calibrator(X, is_object) -> dict:
             **standardised_logistic(X, y, balanced=True), "frames": int(len(y)), "object_rate": float(y.mean())}
 
 
-def measure(calibration: dict, X, is_object, source, threshold: float) -> dict:
-    """Per source on the check frames: frames and the share accepted (``p_object >= threshold``)."""
+def measure(calibration: dict, X, is_object, source, threshold: float, refinement=None) -> dict:
+    """Per source on the check frames: fits and the share accepted (``p_object >= threshold``); ``"_all"``: the
+    shares of objects and of other things accepted; with ``refinement`` (a refinement per row), ``"_refinement"``:
+    those two shares per refinement."""
     p = np.array([probability_good(calibration, x) for x in np.asarray(X)])
+    y = np.asarray(is_object, dtype=bool)
+
+    def shares(sel):
+        obj, other = sel & y, sel & ~y
+        return {"true_accept": float(np.mean(p[obj] >= threshold)) if obj.any() else float("nan"),
+                "false_accept": float(np.mean(p[other] >= threshold)) if other.any() else float("nan"),
+                "objects": int(obj.sum()), "others": int(other.sum())}
+
     out = {}
     for s in sorted(set(source)):
         sel = np.array([t == s for t in source])
         out[s] = {"frames": int(sel.sum()), "accepted": float(np.mean(p[sel] >= threshold)), "p_mean": float(p[sel].mean())}
-    y = np.asarray(is_object, dtype=bool)
-    out["_all"] = {"true_accept": float(np.mean(p[y] >= threshold)) if y.any() else float("nan"),
-                   "false_accept": float(np.mean(p[~y] >= threshold)) if (~y).any() else float("nan")}
+    out["_all"] = shares(np.ones(len(y), dtype=bool))
+    if refinement is not None:
+        refinement = list(refinement)
+        out["_refinement"] = {r: shares(np.array([t == r for t in refinement])) for r in dict.fromkeys(refinement)}
     return out
 
 
@@ -176,7 +228,15 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
     paths = {"md": out / f"{category}_object.md", "json": out / f"{category}_object.json"}
     write_text(paths["json"], json.dumps(calibration, indent=1) + "\n")
     rows = "\n".join(f"| {s} | {'yes' if s.split(' ')[0] == category else 'no'} | {r['frames']} | {r['p_mean']:.2f} | "
-                     f"{100 * r['accepted']:.0f}% |" for s, r in check.items() if s != "_all")
+                     f"{100 * r['accepted']:.0f}% |" for s, r in check.items() if not s.startswith("_"))
+    by_refinement = check.get("_refinement") or {}
+    refinement_table = "".join(
+        f"| {r} | {v['objects']} | {100 * v['true_accept']:.0f}% | {v['others']} | {100 * v['false_accept']:.0f}% |\n"
+        for r, v in by_refinement.items())
+    if refinement_table:
+        refinement_table = ("Per refinement (`ancsh predict --refine`), on the check frames:\n\n"
+                            f"| refinement | {category} fits | accepted | other fits | accepted |\n|---|---|---|---|---|\n"
+                            + refinement_table + "\n")
     failed = ", ".join(f"{s} {n}" for s, n in sorted(data["failed"].items())) or "none"
     coef = ", ".join(f"{f} {c:+.2f}" for f, c in zip(calibration["features"], calibration["coef"]))
     write_text(paths["md"], (
@@ -184,16 +244,18 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
         f"Command: `{command}`  \nDate: {prov.date}; machine: {prov.machine_text}  \n"
         "Study: `ancsh.studies.object_evidence`\n\n"
         f"A logistic regression (scikit-learn, balanced classes) on {', '.join(OBJECT_FEATURES)} of the {category} "
-        f"network's fit to masked, noisy renders: the {category}'s held-out instances (objects) against the other "
+        f"network's fits to masked, noisy renders, each frame fitted with every refinement of "
+        f"{', '.join(data.get('refinements') or ['provider'])} (one model for all): the {category}'s held-out "
+        "instances (objects) against the other "
         "categories' held-out instances and rendered clutter of the category's size (not objects)" + (
             f", and to the candidate segments of rendered scenes (a held-out {category} on a floor or a staircase, a "
             "wall or a curtain behind, clutter beside) isolated without a mask: the object's segment against the rest"
             if any(" scene" in s for s in data["source"]) else "") + ". Fits that fail "
-        f"the plausibility checks never reach `p_object` and are left out (failed: {failed}). Fitted on "
-        f"{calibration['frames']} frames, measured on the other half; `ancsh predict` reports `not_this_category` "
-        f"below {threshold}.\n\n"
+        f"the plausibility checks never reach `p_object` and are left out (failed fits: {failed}). Fitted on "
+        f"{calibration['frames']} fits (half of the frames, alternating), measured on the other half; `ancsh predict` "
+        f"reports `not_this_category` below {threshold}.\n\n"
         f"On the check frames: {100 * check['_all']['true_accept']:.0f}% of the {category}'s fits accepted, "
-        f"{100 * check['_all']['false_accept']:.0f}% of the others'.\n\n"
-        "| source | object | check frames | mean p_object | accepted |\n|---|---|---|---|---|\n" + rows + "\n\n"
+        f"{100 * check['_all']['false_accept']:.0f}% of the others'.\n\n" + refinement_table +
+        "| source | object | check fits | mean p_object | accepted |\n|---|---|---|---|---|\n" + rows + "\n\n"
         f"Standardised coefficients: {coef}; intercept {calibration['intercept']:+.2f}.\n"))
     return paths

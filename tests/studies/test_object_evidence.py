@@ -8,7 +8,7 @@ import pytest
 from ancsh.cli import main
 from ancsh.learned.inference.confidence import OBJECT_FEATURES, probability_good
 from ancsh.data.scenes import clutter_model
-from ancsh.studies.object_evidence import fit_object_calibrator, measure
+from ancsh.studies.object_evidence import REFINEMENTS, available_refinements, collect_object_evidence, fit_object_calibrator, measure
 
 
 def test_clutter_is_a_rigid_mesh_about_the_size_asked_for():
@@ -36,14 +36,45 @@ def test_the_regression_separates_what_its_features_separate_and_measures_per_so
         fit_object_calibrator(pos, np.ones(60, bool))
 
 
+def test_measure_splits_the_acceptance_per_refinement():
+    rng = np.random.default_rng(2)
+    d = len(OBJECT_FEATURES)
+    X = np.vstack([rng.normal(2.0, 0.3, (20, d)), rng.normal(-2.0, 0.3, (20, d))])
+    y = np.r_[np.ones(20, bool), np.zeros(20, bool)]
+    cal = fit_object_calibrator(X, y)
+    # the "none" fits' objects look like other things here: only its share of objects accepted drops
+    X_check = X.copy()
+    refinement = ["none", "network"] * 20
+    X_check[:20:2] = -2.0
+    out = measure(cal, X_check, y, ["laptop"] * 20 + ["clutter"] * 20, 0.5, refinement)
+    by = out["_refinement"]
+    assert list(by) == ["none", "network"]
+    assert by["none"]["objects"] == 10 and by["none"]["others"] == 10
+    assert by["none"]["true_accept"] == 0.0 and by["network"]["true_accept"] == 1.0
+    assert by["none"]["false_accept"] == 0.0 and by["network"]["false_accept"] == 0.0
+    assert out["_all"]["true_accept"] == 0.5
+    assert "_refinement" not in measure(cal, X, y, ["laptop"] * 20 + ["clutter"] * 20, 0.5)
+
+
+def test_every_shipped_refinement_is_measured_and_unknown_ones_are_refused():
+    # every category ships a template library and a refinement network (ancsh/weights/<category>_refine.pt)
+    assert available_refinements("laptop") == REFINEMENTS
+    with pytest.raises(ValueError, match="refinements"):
+        collect_object_evidence("laptop", 8, refinements=("icp",))
+    with pytest.raises(ValueError, match="refinements"):
+        collect_object_evidence("laptop", 8, refinements=())
+
+
 @pytest.mark.slow
 def test_calibrate_object_writes_a_report_and_a_model_predict_can_read(tmp_path, capsys):
     assert main(["calibrate", "--category", "laptop", "--object", "--frames", "8", "--out", str(tmp_path), "--no-progress"]) == 0
     cal = json.loads((tmp_path / "laptop_object.json").read_text())
     assert cal["features"] == list(OBJECT_FEATURES) and len(cal["coef"]) == len(OBJECT_FEATURES)
-    assert len(cal["weights_sha256"]) == 64
+    assert len(cal["weights_sha256"]) == 64 and cal["refinements"] == list(REFINEMENTS)
     text = (tmp_path / "laptop_object.md").read_text()
     assert "ancsh calibrate --category laptop --object --frames 8" in text and "| laptop | yes |" in text
+    for refinement in REFINEMENTS:  # each refinement's fits measured apart
+        assert f"\n| {refinement} | " in text
     assert main(["calibrate", "--category", "laptop", "--object", "--frames", "5", "--out", str(tmp_path)]) == 2
     assert "--frames: expected at least 8 frames with --object" in capsys.readouterr().err
     assert "rendered scenes" not in text and "in a scene" not in text
@@ -62,8 +93,9 @@ def test_scene_candidates_are_labelled_by_their_overlap_with_the_object():
     scene = render_scene(FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)), 0, 0, stairs=False)
     found, failed = _scene_candidates(scene.depth, scene.intrinsics, scene.visible, "laptop",
                                       LearnedProvider("laptop", seed=0), 0)
-    assert len(found) + failed >= 1 and all(len(x) == len(OBJECT_FEATURES) for x, _ in found)
-    assert any(is_object for _, is_object in found)  # the laptop's segment (alone, or with what is attached to it)
+    assert len(found) + failed >= 1 and all(len(x) == len(OBJECT_FEATURES) for x, _, _ in found)
+    assert any(is_object for _, is_object, _ in found)  # the laptop's segment (alone, or with what is attached to it)
+    assert {r for _, _, r in found} == {"none"}  # fitted once per refinement asked for: the first stage alone
 
 
 def test_planar_share_tells_a_wall_from_a_corner():
