@@ -380,6 +380,21 @@ def _install_calibration(args: argparse.Namespace, report_json, target) -> None:
         print(f"installed {target}")
 
 
+def _installed_object_calibration(category: str, weights_sha256: str) -> dict | None:
+    """The shipped ``p_object`` model of ``category`` where it was calibrated for these weights and features."""
+    import json
+
+    from ..learned.inference.confidence import OBJECT_FEATURES, object_calibration_path
+
+    path = object_calibration_path(category)
+    if not path.is_file():
+        return None
+    calibration = json.loads(path.read_text())
+    if calibration.get("weights_sha256") != weights_sha256 or calibration.get("features") != list(OBJECT_FEATURES):
+        return None
+    return calibration
+
+
 def _run_calibrate_object(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -400,8 +415,12 @@ def _run_calibrate_object(args: argparse.Namespace) -> int:
     source = [s for s, h in zip(data["source"], half) if not h]
     refinement = [r for r, h in zip(data["refinement"], half) if not h]
     check = measure(calibration, data["X"][~half], data["is_object"][~half], source, MIN_P_OBJECT, refinement)
+    installed = _installed_object_calibration(args.category, calibration["weights_sha256"])
+    before = None if installed is None else measure(installed, data["X"][~half], data["is_object"][~half], source,
+                                                     MIN_P_OBJECT, refinement)
     out, command = _calibrate_output(args)
-    paths = write_object_report(args.category, calibration, check, data, out, command=command, threshold=MIN_P_OBJECT)
+    paths = write_object_report(args.category, calibration, check, data, out, command=command, threshold=MIN_P_OBJECT,
+                                installed=before)
     print(f"{args.category}: {100 * check['_all']['true_accept']:.0f}% of its objects accepted, "
           f"{100 * check['_all']['false_accept']:.0f}% of other things; wrote {paths['md']}")
     _install_calibration(args, paths["json"], object_calibration_path(args.category))

@@ -221,8 +221,11 @@ def measure(calibration: dict, X, is_object, source, threshold: float, refinemen
 
 
 def write_object_report(category: str, calibration: dict, check: dict, data: dict, out_dir, *, command: str,
-                        threshold: float) -> dict:
-    """``<category>_object.md`` and ``<category>_object.json`` in ``out_dir``; returns their paths."""
+                        threshold: float, installed: dict | None = None) -> dict:
+    """``<category>_object.md`` and ``<category>_object.json`` in ``out_dir``; returns their paths.
+
+    ``installed``: :func:`measure` of the model shipped before this run on the same check fits (compared beside the
+    new one in the per-refinement table), or ``None``."""
     out = Path(out_dir)
     prov = Provenance(command)
     paths = {"md": out / f"{category}_object.md", "json": out / f"{category}_object.json"}
@@ -230,13 +233,24 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
     rows = "\n".join(f"| {s} | {'yes' if s.split(' ')[0] == category else 'no'} | {r['frames']} | {r['p_mean']:.2f} | "
                      f"{100 * r['accepted']:.0f}% |" for s, r in check.items() if not s.startswith("_"))
     by_refinement = check.get("_refinement") or {}
+    before = (installed or {}).get("_refinement") or {}
+
+    def shares(v, keys=("true_accept", "false_accept")):
+        return [f"{100 * v[k]:.0f}%" if v[k] == v[k] else "-" for k in keys]
+
     refinement_table = "".join(
-        f"| {r} | {v['objects']} | {100 * v['true_accept']:.0f}% | {v['others']} | {100 * v['false_accept']:.0f}% |\n"
+        f"| {r} | {v['objects']} | {shares(v)[0]} | {v['others']} | {shares(v)[1]} |"
+        + (f" {' | '.join(shares(before[r]))} |" if r in before else (" - | - |" if before else "")) + "\n"
         for r, v in by_refinement.items())
     if refinement_table:
-        refinement_table = ("Per refinement (`ancsh predict --refine`), on the check frames:\n\n"
-                            f"| refinement | {category} fits | accepted | other fits | accepted |\n|---|---|---|---|---|\n"
-                            + refinement_table + "\n")
+        head = f"| refinement | {category} fits | accepted | other fits | accepted |"
+        rule = "|---|---|---|---|---|"
+        if before:
+            head += f" shipped before: {category} fits accepted | other fits accepted |"
+            rule += "---|---|"
+        refinement_table = ("Per refinement (`ancsh predict --refine`), on the check frames" + (
+            " (beside it the model shipped before this run, on the same fits; with the same seed it may have been "
+            "fitted on some of them)" if before else "") + ":\n\n" + head + "\n" + rule + "\n" + refinement_table + "\n")
     failed = ", ".join(f"{s} {n}" for s, n in sorted(data["failed"].items())) or "none"
     coef = ", ".join(f"{f} {c:+.2f}" for f, c in zip(calibration["features"], calibration["coef"]))
     write_text(paths["md"], (

@@ -56,6 +56,27 @@ def test_measure_splits_the_acceptance_per_refinement():
     assert "_refinement" not in measure(cal, X, y, ["laptop"] * 20 + ["clutter"] * 20, 0.5)
 
 
+def test_the_report_sets_the_shipped_model_beside_the_new_one_per_refinement(tmp_path):
+    from ancsh.studies.object_evidence import write_object_report
+
+    rng = np.random.default_rng(3)
+    d = len(OBJECT_FEATURES)
+    X = np.vstack([rng.normal(2.0, 0.3, (20, d)), rng.normal(-2.0, 0.3, (20, d))])
+    y = np.r_[np.ones(20, bool), np.zeros(20, bool)]
+    new = fit_object_calibrator(X, y)
+    old = dict(new, intercept=new["intercept"] - 100.0)  # rejects everything
+    refinement, source = ["none", "network"] * 20, ["laptop"] * 20 + ["clutter"] * 20
+    data = {"failed": {}, "source": source, "refinements": ["none", "network"]}
+    paths = write_object_report("laptop", new, measure(new, X, y, source, 0.5, refinement), data, tmp_path, command="c",
+                                threshold=0.5, installed=measure(old, X, y, source, 0.5, refinement))
+    text = paths["md"].read_text()
+    assert "shipped before: laptop fits accepted" in text
+    assert "| none | 10 | 100% | 10 | 0% | 0% | 0% |" in text and "| network | 10 | 100% | 10 | 0% | 0% | 0% |" in text
+    paths = write_object_report("laptop", new, measure(new, X, y, source, 0.5, refinement), data, tmp_path / "alone",
+                                command="c", threshold=0.5)
+    assert "shipped before" not in paths["md"].read_text()
+
+
 def test_every_shipped_refinement_is_measured_and_unknown_ones_are_refused():
     # every category ships a template library and a refinement network (ancsh/weights/<category>_refine.pt)
     assert available_refinements("laptop") == REFINEMENTS
@@ -75,6 +96,7 @@ def test_calibrate_object_writes_a_report_and_a_model_predict_can_read(tmp_path,
     assert "ancsh calibrate --category laptop --object --frames 8" in text and "| laptop | yes |" in text
     for refinement in REFINEMENTS:  # each refinement's fits measured apart
         assert f"\n| {refinement} | " in text
+    assert "shipped before: laptop fits accepted" in text  # the shipped model measured on the same check fits
     assert main(["calibrate", "--category", "laptop", "--object", "--frames", "5", "--out", str(tmp_path)]) == 2
     assert "--frames: expected at least 8 frames with --object" in capsys.readouterr().err
     assert "rendered scenes" not in text and "in a scene" not in text
