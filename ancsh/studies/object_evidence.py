@@ -26,7 +26,7 @@ category template, refined by the refinement network; each where the category ha
 all of them: ``ancsh predict --refine none|template|network|auto`` is judged by one model measured on fits of each
 kind. (Measured on the laptop: a model fitted on its refined default fits alone rejected an unrefined fit of a
 clean render that the model fitted on unrefined fits accepted.) Calibrations made before this pooling carry no
-``refinements`` entry: they were measured on the fits of the category's default refinement. Only fits that pass the
+``refinements`` entry: they were measured on the fits of the category's default refinement at the time. Only fits that pass the
 plausibility checks count (the others fail before ``p_object`` is asked). Half of the frames (alternating, a
 frame's fits together) fit the model, the other half measure it; ``--install`` writes
 ``ancsh/weights/<category>_object.json``, which :func:`ancsh.learned.inference.predict.predict_depth` uses.
