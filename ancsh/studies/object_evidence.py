@@ -43,7 +43,7 @@ from ..data.scenes import clutter_model
 from ..learned.inference.confidence import OBJECT_FEATURES, object_features, probability_good
 from .report import Provenance, write_text
 
-__all__ = ["REFINEMENTS", "available_refinements", "collect_object_evidence", "fit_object_calibrator", "measure",
+__all__ = ["REFINEMENTS", "auc", "available_refinements", "collect_object_evidence", "fit_object_calibrator", "measure",
            "write_object_report"]
 
 #: A scene's candidate segment is the object when its IoU with the object's visible pixels reaches this.
@@ -197,10 +197,19 @@ def fit_object_calibrator(X, is_object) -> dict:
             **standardised_logistic(X, y, balanced=True), "frames": int(len(y)), "object_rate": float(y.mean())}
 
 
+def auc(p_objects, p_others) -> float:
+    """The area under the ROC curve: the chance that an object's ``p_object`` exceeds another thing's (ties count
+    half), threshold-free; ``nan`` without both."""
+    a, b = np.asarray(p_objects, dtype=np.float64), np.asarray(p_others, dtype=np.float64)
+    if not a.size or not b.size:
+        return float("nan")
+    return float(np.mean((a[:, None] > b[None, :]) + 0.5 * (a[:, None] == b[None, :])))
+
+
 def measure(calibration: dict, X, is_object, source, threshold: float, refinement=None) -> dict:
     """Per source on the check frames: fits and the share accepted (``p_object >= threshold``); ``"_all"``: the
-    shares of objects and of other things accepted; with ``refinement`` (a refinement per row), ``"_refinement"``:
-    those two shares per refinement."""
+    shares of objects and of other things accepted and the :func:`auc`; with ``refinement`` (a refinement per row),
+    ``"_refinement"``: those per refinement."""
     p = np.array([probability_good(calibration, x) for x in np.asarray(X)])
     y = np.asarray(is_object, dtype=bool)
 
@@ -208,7 +217,7 @@ def measure(calibration: dict, X, is_object, source, threshold: float, refinemen
         obj, other = sel & y, sel & ~y
         return {"true_accept": float(np.mean(p[obj] >= threshold)) if obj.any() else float("nan"),
                 "false_accept": float(np.mean(p[other] >= threshold)) if other.any() else float("nan"),
-                "objects": int(obj.sum()), "others": int(other.sum())}
+                "auc": auc(p[obj], p[other]), "objects": int(obj.sum()), "others": int(other.sum())}
 
     out = {}
     for s in sorted(set(source)):
@@ -236,19 +245,20 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
     by_refinement = check.get("_refinement") or {}
     before = (installed or {}).get("_refinement") or {}
 
-    def shares(v, keys=("true_accept", "false_accept")):
-        return [f"{100 * v[k]:.0f}%" if v[k] == v[k] else "-" for k in keys]
+    def shares(v):
+        return [f"{100 * v[k]:.0f}%" if v[k] == v[k] else "-" for k in ("true_accept", "false_accept")] + [
+            f"{v['auc']:.3f}" if v.get("auc", float("nan")) == v.get("auc", float("nan")) else "-"]
 
     refinement_table = "".join(
-        f"| {r} | {v['objects']} | {shares(v)[0]} | {v['others']} | {shares(v)[1]} |"
-        + (f" {' | '.join(shares(before[r]))} |" if r in before else (" - | - |" if before else "")) + "\n"
+        f"| {r} | {v['objects']} | {shares(v)[0]} | {v['others']} | {shares(v)[1]} | {shares(v)[2]} |"
+        + (f" {' | '.join(shares(before[r]))} |" if r in before else (" - | - | - |" if before else "")) + "\n"
         for r, v in by_refinement.items())
     if refinement_table:
-        head = f"| refinement | {category} fits | accepted | other fits | accepted |"
-        rule = "|---|---|---|---|---|"
+        head = f"| refinement | {category} fits | accepted | other fits | accepted | AUC |"
+        rule = "|---|---|---|---|---|---|"
         if before:
-            head += f" shipped before: {category} fits accepted | other fits accepted |"
-            rule += "---|---|"
+            head += f" shipped before: {category} fits accepted | other fits accepted | AUC |"
+            rule += "---|---|---|"
         refinement_table = ("Per refinement (`ancsh predict --refine`), on the check frames" + (
             " (beside it the model shipped before this run, on the same fits; with the same seed it may have been "
             "fitted on some of them)" if before else "") + ":\n\n" + head + "\n" + rule + "\n" + refinement_table + "\n")
@@ -270,7 +280,11 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
         f"{calibration['frames']} fits (half of the frames, alternating), measured on the other half; `ancsh predict` "
         f"reports `not_this_category` below {threshold}.\n\n"
         f"On the check frames: {100 * check['_all']['true_accept']:.0f}% of the {category}'s fits accepted, "
-        f"{100 * check['_all']['false_accept']:.0f}% of the others'.\n\n" + refinement_table +
+        f"{100 * check['_all']['false_accept']:.0f}% of the others' (AUC {check['_all']['auc']:.3f}: the chance that "
+        "an object's p_object exceeds another thing's)" + (
+            f"; the model shipped before: {100 * installed['_all']['true_accept']:.0f}%, "
+            f"{100 * installed['_all']['false_accept']:.0f}%, AUC {installed['_all']['auc']:.3f}" if installed else "")
+        + ".\n\n" + refinement_table +
         "| source | object | check fits | mean p_object | accepted |\n|---|---|---|---|---|\n" + rows + "\n\n"
         f"Standardised coefficients: {coef}; intercept {calibration['intercept']:+.2f}.\n"))
     return paths

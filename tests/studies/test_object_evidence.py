@@ -71,10 +71,20 @@ def test_the_report_sets_the_shipped_model_beside_the_new_one_per_refinement(tmp
                                 threshold=0.5, installed=measure(old, X, y, source, 0.5, refinement))
     text = paths["md"].read_text()
     assert "shipped before: laptop fits accepted" in text
-    assert "| none | 10 | 100% | 10 | 0% | 0% | 0% |" in text and "| network | 10 | 100% | 10 | 0% | 0% | 0% |" in text
+    # the old model rejects everything: its acceptance is 0 %, its ranking (AUC) the same as the new one's
+    assert "| none | 10 | 100% | 10 | 0% | 1.000 | 0% | 0% | 1.000 |" in text
+    assert "| network | 10 | 100% | 10 | 0% | 1.000 | 0% | 0% | 1.000 |" in text
     paths = write_object_report("laptop", new, measure(new, X, y, source, 0.5, refinement), data, tmp_path / "alone",
                                 command="c", threshold=0.5)
     assert "shipped before" not in paths["md"].read_text()
+
+
+def test_auc_counts_the_pairs_ranked_right_and_ties_as_half():
+    from ancsh.studies.object_evidence import auc
+
+    assert auc([0.9, 0.8], [0.1, 0.2]) == 1.0 and auc([0.1], [0.9]) == 0.0
+    assert auc([0.5, 0.9], [0.5, 0.1]) == pytest.approx((0.5 + 1 + 1 + 1) / 4)
+    assert np.isnan(auc([], [0.3]))
 
 
 def test_every_shipped_refinement_is_measured_and_unknown_ones_are_refused():
