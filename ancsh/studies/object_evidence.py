@@ -200,10 +200,12 @@ def fit_object_calibrator(X, is_object) -> dict:
 def auc(p_objects, p_others) -> float:
     """The area under the ROC curve: the chance that an object's ``p_object`` exceeds another thing's (ties count
     half), threshold-free; ``nan`` without both."""
+    from sklearn.metrics import roc_auc_score
+
     a, b = np.asarray(p_objects, dtype=np.float64), np.asarray(p_others, dtype=np.float64)
     if not a.size or not b.size:
         return float("nan")
-    return float(np.mean((a[:, None] > b[None, :]) + 0.5 * (a[:, None] == b[None, :])))
+    return float(roc_auc_score(np.r_[np.ones(a.size), np.zeros(b.size)], np.r_[a, b]))
 
 
 def measure(calibration: dict, X, is_object, source, threshold: float, refinement=None) -> dict:
