@@ -247,14 +247,18 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
     by_refinement = check.get("_refinement") or {}
     before = (installed or {}).get("_refinement") or {}
 
-    def shares(v):
-        return [f"{100 * v[k]:.0f}%" if v[k] == v[k] else "-" for k in ("true_accept", "false_accept")] + [
-            f"{v['auc']:.3f}" if v.get("auc", float("nan")) == v.get("auc", float("nan")) else "-"]
+    def cells(v) -> tuple[str, str, str]:
+        """Objects accepted, other things accepted, AUC ("-" where not measured)."""
+        t, f, a = v["true_accept"], v["false_accept"], v["auc"]
+        return (f"{100 * t:.0f}%" if t == t else "-", f"{100 * f:.0f}%" if f == f else "-", f"{a:.3f}" if a == a else "-")
 
-    refinement_table = "".join(
-        f"| {r} | {v['objects']} | {shares(v)[0]} | {v['others']} | {shares(v)[1]} | {shares(v)[2]} |"
-        + (f" {' | '.join(shares(before[r]))} |" if r in before else (" - | - | - |" if before else "")) + "\n"
-        for r, v in by_refinement.items())
+    refinement_table = ""
+    for r, v in by_refinement.items():
+        accepted, others, area = cells(v)
+        refinement_table += f"| {r} | {v['objects']} | {accepted} | {v['others']} | {others} | {area} |"
+        if before:
+            refinement_table += f" {' | '.join(cells(before[r]))} |" if r in before else " - | - | - |"
+        refinement_table += "\n"
     if refinement_table:
         head = f"| refinement | {category} fits | accepted | other fits | accepted | AUC |"
         rule = "|---|---|---|---|---|---|"
