@@ -77,8 +77,7 @@ def _scene_candidates(depth, intrinsics, visible, category, provider, seed, refi
     for c in chosen:
         mask = iso.mask_of(c)
         iou = np.count_nonzero(mask & visible) / max(np.count_nonzero(mask | visible), 1)
-        for refine in refinements:
-            x = _features(depth, intrinsics, mask, category, provider, seed, refine) if mask.sum() >= 100 else None
+        for refine, x in _features(depth, intrinsics, mask, category, provider, seed, refinements):
             if x is None:
                 failed += 1
                 continue
@@ -86,16 +85,19 @@ def _scene_candidates(depth, intrinsics, visible, category, provider, seed, refi
     return out, failed
 
 
-def _features(depth, intrinsics, mask, category, provider, seed, refine="provider"):
-    """The object features of ``ancsh predict --mask --refine REFINE`` on one depth image, or ``None`` when the fit
-    fails its checks (``refine``: a ``LearnedProvider.refine`` option; ``"provider"``: the provider's)."""
-    from ..learned.inference.predict import fit_candidate, object_diagonal
+def _features(depth, intrinsics, mask, category, provider, seed, refinements) -> list:
+    """``[(refine, features), ...]``: the object features of ``ancsh predict --mask --refine REFINE`` on one depth
+    image for each ``LearnedProvider.refine`` option of ``refinements``, ``None`` where the fit fails its checks or
+    the mask has fewer than 100 pixels (the network pass and first-stage fit are shared by the options)."""
+    from ..learned.inference.predict import fit_candidate_refinements, object_diagonal
 
-    a = fit_candidate(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None, refine,
-                      object_gate=False)
-    if not a["result"].ok or a["comparison"] is None:
-        return None
-    return object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category, a["pts"])
+    if np.count_nonzero(mask) < 100:
+        return [(refine, None) for refine in refinements]
+    fits = fit_candidate_refinements(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None,
+                                     refinements, object_gate=False)
+    return [(refine, object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category,
+                                     a["pts"]) if a["result"].ok and a["comparison"] is not None else None)
+            for refine, a in zip(refinements, fits)]
 
 
 def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progress: bool = True, scenes: int = 0,
@@ -161,9 +163,7 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
             intr = frame.intrinsics
             depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, intr).depth
         depth = apply_noise(depth, noise, rng)
-        mask = depth > 0
-        for refine in refinements:
-            x = _features(depth, intr, mask, category, provider, i, refine) if mask.sum() >= 100 else None
+        for refine, x in _features(depth, intr, depth > 0, category, provider, i, refinements):
             if x is None:
                 failed[source] = failed.get(source, 0) + 1
             else:

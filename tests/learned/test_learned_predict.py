@@ -185,3 +185,38 @@ def test_refine_passes_reach_the_refinement_network(files, rendered):
                         str(files / "K.json"), "--category", "laptop", "--refine-passes", "1", "--out",
                         str(files / "x.json")], capture_output=True, text=True)
     assert r.returncode == 2 and "--refine-passes" in r.stderr and "Traceback" not in r.stderr
+
+
+def _poses(candidate) -> np.ndarray:
+    """(M, 4, 4) NPCS -> camera matrices of a candidate's fit."""
+    return np.stack([T.matrix() for T in candidate["result"].T_cam_npcs])
+
+
+def test_refinements_sharing_the_first_stage_give_each_refinements_own_fit(rendered):
+    """``fit_candidate_refinements`` runs the network and the first-stage fit once for several refinements: each
+    refinement's fit and evidence are those of its own ``fit_candidate`` (in another order, so that a refinement that
+    changed the shared first stage would show)."""
+    from ancsh.learned.inference.predict import fit_candidate, fit_candidate_refinements
+    from ancsh.learned.inference.provider import LearnedProvider
+
+    frame, depth = rendered
+    provider = LearnedProvider("laptop", seed=0)
+    options = ("template", "none", "network")
+    args = (depth, frame.intrinsics, depth > 0, "laptop", provider, "exact_reduced", 1024, 3, None)
+    shared = fit_candidate_refinements(*args, options, object_gate=False)
+    alone = {r: fit_candidate(*args, r, object_gate=False) for r in reversed(options)}
+    assert len(shared) == len(options)
+    for refine, a in zip(options, shared):
+        b = alone[refine]
+        assert a["result"].status == b["result"].status and a["result"].ok, refine
+        np.testing.assert_allclose(_poses(a), _poses(b), atol=1e-9, err_msg=refine)
+        np.testing.assert_allclose(a["result"].joint_states, b["result"].joint_states, atol=1e-9, err_msg=refine)
+        np.testing.assert_array_equal(a["labels"], b["labels"])
+        untimed = [[re.sub(r"[0-9.]+ ms", "ms", n) for n in c["notes"]] for c in (a, b)]
+        assert untimed[0] == untimed[1] and a["p_good"] == b["p_good"]
+        assert (a["comparison"] is None) == (b["comparison"] is None)
+    # the three refinements are not one fit three times
+    t = [_poses(a) for a in shared]
+    assert not np.allclose(t[0], t[1]) and not np.allclose(t[1], t[2])
+    with pytest.raises(ValueError, match="refinements"):
+        fit_candidate_refinements(*args, ())

@@ -35,7 +35,7 @@ from .provider import RefinedFit, apply_refinement
 from .refine_network import DEFAULT_PASSES
 
 __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MIN_P_OBJECT",
-           "DepthPrediction", "fit_candidate", "check_confidence", "check_plausibility",
+           "DepthPrediction", "fit_candidate", "fit_candidate_refinements", "check_confidence", "check_plausibility",
            "check_weights_category", "part_quality", "depth_to_points", "draw_prediction", "predict_depth",
            "read_depth", "read_intrinsics", "read_mask"]
 
@@ -442,37 +442,62 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     ``quality``, ``p_good`` / ``p_object`` (or ``None``), ``comparison`` (render-and-compare or ``None``), ``corr``,
     stage times ``t_bp`` / ``t_net`` / ``t_compare`` (seconds), ``notes`` and the joint structure.
     """
+    return fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
+                                     (refine,), why=why, object_gate=object_gate)[0]
+
+
+def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
+                              refinements, *, why=None, object_gate: bool = True) -> list[dict]:
+    """:func:`fit_candidate` once per option of ``refinements`` (a sequence of ``LearnedProvider.refine`` options),
+    sharing what does not depend on it: the points, the network pass and the first-stage fit run once.
+
+    Returns one :func:`fit_candidate` dict per option, in order; each is what :func:`fit_candidate` returns for it
+    (the seeds are the same), its ``t_bp`` / ``t_net`` the shared stages' times.
+    """
     from ...solvers import Observation, fit
     from ...solvers.types import FitResult, FitStatus
 
+    refinements = tuple(refinements)
+    if not refinements:
+        raise ValueError("refinements: expected at least one LearnedProvider.refine option, got none")
     t0 = time.perf_counter()
     if why is not None:
         pts, pixels, valid = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), 0
     else:
         pts, pixels, valid = depth_to_points(d, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points, rng=seed)
     t_bp = time.perf_counter() - t0
-    notes = []
     if valid < MIN_POINTS:
         K = len(provider.network.revolute)
         why = why or f"{valid} valid points"
         result = FitResult.failure(FitStatus.TOO_FEW_POINTS, f"check min_points: {why}, at least "
                                    f"{MIN_POINTS} are needed for a fit", formulation=formulation, solver="none",
                                    num_joints=K, num_points=len(pts))
-        return {"result": result, "pts": pts, "pixels": pixels, "valid": valid, "labels": np.zeros(len(pts), dtype=np.int64),
-                "quality": (), "p_good": None, "p_object": None, "comparison": None, "t_compare": 0.0, "t_net": 0.0,
-                "t_bp": t_bp, "notes": notes,
-                "types": tuple("revolute" if r else "prismatic" for r in provider.network.revolute),
-                "parents": provider.network.joint_parents, "children": provider.network.joint_children}
+        return [{"result": result, "pts": pts, "pixels": pixels, "valid": valid,
+                 "labels": np.zeros(len(pts), dtype=np.int64), "quality": (), "p_good": None, "p_object": None,
+                 "comparison": None, "t_compare": 0.0, "t_net": 0.0, "t_bp": t_bp, "notes": [],
+                 "types": tuple("revolute" if r else "prismatic" for r in provider.network.revolute),
+                 "parents": provider.network.joint_parents, "children": provider.network.joint_children}
+                for _ in refinements]
     obs = Observation(pts)
     t0 = time.perf_counter()
     corr, raw = infer(provider, obs)
     t_net = time.perf_counter() - t0
-    result = fit(obs, corr, formulation, rng=seed)
+    first = fit(obs, corr, formulation, rng=seed)
+    return [_finish_candidate(d, intrinsics, mask, category, provider, formulation, seed, refine, obs, corr, raw, first,
+                              object_gate, {"pts": pts, "pixels": pixels, "valid": valid, "t_net": t_net, "t_bp": t_bp})
+            for refine in refinements]
+
+
+def _finish_candidate(d, intrinsics, mask, category, provider, formulation, seed, refine, obs, corr, raw, result,
+                      object_gate, shared) -> dict:
+    """The refinement ``refine`` of a first-stage fit ``result`` and its checks and evidence:
+    :func:`fit_candidate_refinements`' per-option part (``shared``: its points and stage times)."""
+    pts = shared["pts"]
     refined = RefinedFit(result, corr, raw, None, None)
     if formulation != "per_part":
         refined = apply_refinement(provider, obs, corr, raw, result, refine=refine, rng=seed)
     result, corr, raw = refined.result, refined.correspondences, refined.prediction
-    notes += [refined.note] if refined.note else []
+    notes = [refined.note] if refined.note else []
     labels = np.asarray(corr.part_labels)
     quality = part_quality(result, pts, corr, raw)
     result = check_plausibility(result, labels, category, quality)
@@ -486,9 +511,9 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
         t_rc = time.perf_counter() - t0
     if object_gate:
         result = check_confidence(result, p_object)
-    return {"result": result, "pts": pts, "pixels": pixels, "valid": valid, "labels": labels, "quality": quality,
-            "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
-            "t_net": t_net, "t_bp": t_bp, "notes": notes, "corr": corr,
+    return {"result": result, "pts": pts, "pixels": shared["pixels"], "valid": shared["valid"], "labels": labels,
+            "quality": quality, "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
+            "t_net": shared["t_net"], "t_bp": shared["t_bp"], "notes": notes, "corr": corr,
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 
