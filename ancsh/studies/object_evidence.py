@@ -89,7 +89,8 @@ def _features(depth, intrinsics, mask, category, provider, seed, refinements) ->
     """``[(refine, features), ...]``: the object features of ``ancsh predict --mask --refine REFINE`` on one depth
     image for each ``LearnedProvider.refine`` option of ``refinements``, ``None`` where the fit fails its checks or
     the mask has fewer than 100 pixels (the network pass and first-stage fit are shared by the options)."""
-    from ..learned.inference.predict import fit_candidate_refinements, object_diagonal
+    from ..learned.inference.candidate import fit_candidate_refinements
+    from ..learned.inference.checks import object_diagonal
 
     if np.count_nonzero(mask) < 100:
         return [(refine, None) for refine in refinements]

@@ -196,7 +196,7 @@ def test_refinements_sharing_the_first_stage_give_each_refinements_own_fit(rende
     """``fit_candidate_refinements`` runs the network and the first-stage fit once for several refinements: each
     refinement's fit and evidence are those of its own ``fit_candidate`` (in another order, so that a refinement that
     changed the shared first stage would show)."""
-    from ancsh.learned.inference.predict import fit_candidate, fit_candidate_refinements
+    from ancsh.learned.inference.candidate import fit_candidate, fit_candidate_refinements
     from ancsh.learned.inference.provider import LearnedProvider
 
     frame, depth = rendered

@@ -136,7 +136,7 @@ def _reported(result, tracked, provider_name: str, category: str, provider):
     """The fit with the standard deviations a user is given: the tracker's frames (``tracked``, a
     :class:`~ancsh.tracking.tracker.TrackedFrame`) as it reports them (a learned provider's inflated,
     :meth:`~ancsh.tracking.tracker.CategoryTracker.step`); a learned per-frame fit (``tracked`` ``None``)
-    inflated as ``ancsh predict`` does (:func:`~ancsh.learned.inference.predict.inflate_uncertainty`); the oracle's
+    inflated as ``ancsh predict`` does (:func:`~ancsh.learned.inference.candidate.inflate_uncertainty`); the oracle's
     fits (raw in the tracker: it has no weights) as the tracker would a learned provider's, with the
     factors of provider ``oracle-realistic`` (``-tracked-<source>`` for warm tracked frames, where measured)."""
     import dataclasses

@@ -1,0 +1,264 @@
+"""One candidate segment of ``ancsh predict``: sample its pixels, run the network, fit, refine and judge the fit.
+
+:func:`depth_to_points` back-projects and samples the pixels of a mask; :func:`fit_candidate` runs the network
+(:func:`infer`), the fit, the refinement (``LearnedProvider.refine``'s option), the checks
+(:mod:`~ancsh.learned.inference.checks`), the measured uncertainty factors (:func:`inflate_uncertainty`) and the
+calibrated evidence (``p_good``, render-and-compare and ``p_object``) on one segment;
+:func:`fit_candidate_refinements` does so for several refinements on one network pass and first-stage fit (the
+``p_object`` calibration, :mod:`ancsh.studies.object_evidence`). :func:`ancsh.learned.inference.predict.predict_depth`
+calls it once with a mask, or per verified candidate without one.
+
+Frames: camera (OpenCV: x right, y down, z forward), metres.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ...data.render import Intrinsics
+from .checks import check_confidence, check_plausibility, object_diagonal, part_quality
+from .provider import RefinedFit, apply_refinement
+
+__all__ = ["MIN_POINTS", "depth_to_points", "fit_candidate", "fit_candidate_refinements", "infer", "inflate_uncertainty"]
+
+
+#: Fewer valid points than this: no fit is tried (status ``too_few_points``).
+MIN_POINTS = 100
+
+
+def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: float | None = None,
+                    num_points: int | None = 1024, rng=0) -> tuple[np.ndarray, np.ndarray, int]:
+    """Back-project the valid pixels and sample ``num_points`` of them.
+
+    Parameters
+    ----------
+    depth : (H, W) float64
+        Metres, 0 = no measurement.
+    intrinsics : Intrinsics
+        Must match the image size.
+    mask : (H, W) bool, optional
+    max_depth : float, optional
+        Pixels deeper than this (metres) are dropped.
+    num_points : int or None
+        Points to sample without replacement (all of them when fewer are valid); ``None`` = all.
+    rng : numpy.random.Generator or int
+
+    Returns
+    -------
+    points : (n, 3) float64
+        Camera frame, metres.
+    pixels : (n, 2) int64
+        ``(u, v)`` of each point.
+    valid : int
+        Number of valid pixels before sampling.
+
+    Raises
+    ------
+    ValueError
+        When no valid pixel remains.
+    """
+    from ...data.render import backproject, valid_depth_pixels
+    from ...geometry._checks import check_generator
+
+    d, sel = valid_depth_pixels(depth, intrinsics, mask)
+    if max_depth is not None:
+        if not (np.isfinite(max_depth) and max_depth > 0):
+            raise ValueError(f"max_depth: expected a positive number, got {max_depth}")
+        sel &= d <= max_depth
+    valid = int(np.count_nonzero(sel))
+    if valid == 0:
+        raise ValueError("depth: no valid pixel after masking (depth > 0"
+                         + (", inside the mask" if mask is not None else "")
+                         + (f", depth <= {max_depth} m" if max_depth is not None else "") + ")")
+    if num_points is not None:
+        if isinstance(num_points, bool) or int(num_points) != num_points or num_points < 1:
+            raise ValueError(f"num_points: expected a positive integer, got {num_points!r}")
+        if valid > num_points:
+            flat = np.flatnonzero(sel)
+            pick = check_generator(rng).choice(flat, size=int(num_points), replace=False)
+            sel = np.zeros_like(sel)
+            sel.ravel()[pick] = True
+    pts = backproject(d, intrinsics, mask=sel)  # row-major pixel order, as np.nonzero
+    v, u = np.nonzero(sel & (d > 0))
+    return pts, np.stack([u, v], axis=1).astype(np.int64), valid
+
+
+def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
+                  object_gate: bool = True) -> dict:
+    """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit: one candidate segment of
+    :func:`~ancsh.learned.inference.predict.predict_depth` (called once with a mask, or per verified candidate without
+    one).
+
+    ``d``: (H, W) depth (metres, 0 = none); ``mask``: (H, W) bool or ``None`` (every valid pixel); ``refine``:
+    ``LearnedProvider.refine``'s option; ``why``: when given, nothing is sampled and the candidate fails with
+    ``too_few_points`` naming it; ``object_gate=False`` measures the object evidence without letting ``p_object``
+    fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`). The other arguments are
+    :func:`~ancsh.learned.inference.predict.predict_depth`'s.
+
+    Returns a dict: ``result`` (FitResult), ``pts`` ((N, 3) camera frame, metres), ``pixels``, ``valid``, ``labels``,
+    ``quality``, ``p_good`` / ``p_object`` (or ``None``), ``comparison`` (render-and-compare or ``None``), ``corr``,
+    stage times ``t_bp`` / ``t_net`` / ``t_compare`` (seconds), ``notes`` and the joint structure.
+    """
+    return fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
+                                     (refine,), why=why, object_gate=object_gate)[0]
+
+
+def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
+                              refinements, *, why=None, object_gate: bool = True) -> list[dict]:
+    """:func:`fit_candidate` once per option of ``refinements`` (a sequence of ``LearnedProvider.refine`` options),
+    sharing what does not depend on it: the points, the network pass and the first-stage fit run once.
+
+    Returns one :func:`fit_candidate` dict per option, in order; each is what :func:`fit_candidate` returns for it
+    (the seeds are the same), its ``t_bp`` / ``t_net`` the shared stages' times.
+    """
+    from ...solvers import Observation, fit
+    from ...solvers.types import FitResult, FitStatus
+
+    refinements = tuple(refinements)
+    if not refinements:
+        raise ValueError("refinements: expected at least one LearnedProvider.refine option, got none")
+    t0 = time.perf_counter()
+    if why is not None:
+        pts, pixels, valid = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64), 0
+    else:
+        pts, pixels, valid = depth_to_points(d, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points, rng=seed)
+    t_bp = time.perf_counter() - t0
+    if valid < MIN_POINTS:
+        K = len(provider.network.revolute)
+        why = why or f"{valid} valid points"
+        result = FitResult.failure(FitStatus.TOO_FEW_POINTS, f"check min_points: {why}, at least "
+                                   f"{MIN_POINTS} are needed for a fit", formulation=formulation, solver="none",
+                                   num_joints=K, num_points=len(pts))
+        return [{"result": result, "pts": pts, "pixels": pixels, "valid": valid,
+                 "labels": np.zeros(len(pts), dtype=np.int64), "quality": (), "p_good": None, "p_object": None,
+                 "comparison": None, "t_compare": 0.0, "t_net": 0.0, "t_bp": t_bp, "notes": [],
+                 "types": tuple("revolute" if r else "prismatic" for r in provider.network.revolute),
+                 "parents": provider.network.joint_parents, "children": provider.network.joint_children}
+                for _ in refinements]
+    obs = Observation(pts)
+    t0 = time.perf_counter()
+    corr, raw = infer(provider, obs)
+    t_net = time.perf_counter() - t0
+    first = fit(obs, corr, formulation, rng=seed)
+    return [_finish_candidate(d, intrinsics, mask, category, provider, formulation, seed, refine, obs, corr, raw, first,
+                              object_gate, {"pts": pts, "pixels": pixels, "valid": valid, "t_net": t_net, "t_bp": t_bp})
+            for refine in refinements]
+
+
+def _finish_candidate(d, intrinsics, mask, category, provider, formulation, seed, refine, obs, corr, raw, result,
+                      object_gate, shared) -> dict:
+    """The refinement ``refine`` of a first-stage fit ``result`` and its checks and evidence:
+    :func:`fit_candidate_refinements`' per-option part (``shared``: its points and stage times)."""
+    pts = shared["pts"]
+    refined = RefinedFit(result, corr, raw, None, None)
+    if formulation != "per_part":
+        refined = apply_refinement(provider, obs, corr, raw, result, refine=refine, rng=seed)
+    result, corr, raw = refined.result, refined.correspondences, refined.prediction
+    notes = [refined.note] if refined.note else []
+    labels = np.asarray(corr.part_labels)
+    quality = part_quality(result, pts, corr, raw)
+    result = check_plausibility(result, labels, category, quality)
+    result = inflate_uncertainty(result, category, provider, template=refined.kind == "template",
+                                 network=refined.kind == "network")
+    p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
+    comparison, p_object, t_rc = None, None, 0.0
+    if result.ok and mask is not None:
+        t0 = time.perf_counter()
+        comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
+        t_rc = time.perf_counter() - t0
+    if object_gate:
+        result = check_confidence(result, p_object)
+    return {"result": result, "pts": pts, "pixels": shared["pixels"], "valid": shared["valid"], "labels": labels,
+            "quality": quality, "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
+            "t_net": shared["t_net"], "t_bp": shared["t_bp"], "notes": notes, "corr": corr,
+            "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
+
+
+def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
+    """Render-and-compare of the fit (:func:`ancsh.solvers.twin.compare_fit`) and the calibrated
+    P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
+    import json
+
+    from ...data.procedural import CATEGORY_INFO
+    from ...data.templates import load_template_library
+    from ...solvers.twin import compare_fit
+    from .confidence import OBJECT_FEATURES, object_calibration_path, object_features, probability_good
+
+    if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
+        return None, None
+    try:
+        comparison, _ = compare_fit(result, corr, load_template_library(category), depth, intrinsics, mask)
+    except ValueError:  # a fit without the joints or boxes a template needs
+        return None, None
+    if comparison is None:
+        return None, None
+    path = object_calibration_path(category)
+    if not path.is_file():
+        return comparison, None
+    calibration = json.loads(path.read_text())
+    if calibration.get("weights_sha256") != getattr(provider.network, "sha256", None):
+        return comparison, None
+    if calibration.get("features") != list(OBJECT_FEATURES):  # made with other features: recalibrate
+        return comparison, None
+    x = object_features(comparison, object_diagonal(result.boxes_cam), quality, category, points)
+    return comparison, probability_good(calibration, x)
+
+
+def inflate_uncertainty(result, category: str, provider, *, template: bool = False, network: bool = False,
+                        tracked: str | None = None):
+    """The fit with its standard deviations inflated by the factors measured for these weights of
+    ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights.
+    ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits.
+    ``template``: the fit was refined by the category template (an accepted
+    :meth:`LearnedProvider.refine`), whose covariance is the template ICP's: the factors measured for
+    those fits apply (provider ``"learned-template"`` of ``ancsh bench uncertainty``).
+    ``network``: the fit is the refinement network's (an accepted refinement): the factors measured for
+    those fits and that refiner apply (provider ``"learned-network"``).
+    ``tracked``: the source of a warm tracked frame (``"network"``, ``"carried"``, ``"template"``): the
+    factors measured on tracked frames of that source (provider ``"learned-tracked-<source>"`` of
+    ``ancsh bench tracking --calibration-sequences``) apply where measured, else the single-frame ones."""
+    import dataclasses
+
+    from ...solvers.uncertainty import first_measured_inflation, tracked_provider
+
+    if result.uncertainty is None:
+        return result
+    if network:
+        inflation = first_measured_inflation(("learned-network",), str(category),
+                                             weights_sha256=getattr(provider.refiner.network, "sha256", None))
+        return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
+    single = "learned-template" if template else "learned"
+    inflation = first_measured_inflation((tracked_provider("learned", tracked) if tracked else None, single), str(category),
+                                         weights_sha256=getattr(provider.network, "sha256", None))
+    return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
+
+
+def _p_good(category: str, quality, weights_sha256: str | None) -> float | None:
+    """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists and was
+    calibrated for these weights (``weights_sha256``); ``None`` otherwise."""
+    import json
+
+    from .confidence import calibration_path, fit_features, probability_good
+
+    path = calibration_path(category)
+    if not path.is_file():
+        return None
+    calibration = json.loads(path.read_text())
+    if calibration.get("weights_sha256") != weights_sha256:
+        return None  # calibrated on other weights (e.g. before a retraining): its probabilities would be another net's
+    return probability_good(calibration, fit_features(quality, category))
+
+
+def infer(provider, observation):
+    """``(correspondences, raw network prediction)`` of a provider for an observation.
+
+    Uses ``provider.infer`` where the provider has it (it returns both), else ``correspond`` and
+    the ``last_prediction`` it keeps (``None`` when it keeps none).
+    """
+    if hasattr(provider, "infer"):
+        inference = provider.infer(observation)
+        return inference.correspondences, inference.prediction
+    corr = provider.correspond(observation)
+    return corr, getattr(provider, "last_prediction", None)
