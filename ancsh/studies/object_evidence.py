@@ -87,13 +87,12 @@ def _scene_candidates(depth, intrinsics, visible, category, provider, seed, refi
 
 def _features(depth, intrinsics, mask, category, provider, seed, refinements) -> list:
     """``[(refine, features), ...]``: the object features of ``ancsh predict --mask --refine REFINE`` on one depth
-    image for each ``LearnedProvider.refine`` option of ``refinements``, ``None`` where the fit fails its checks or
-    the mask has fewer than 100 pixels (the network pass and first-stage fit are shared by the options)."""
+    image for each ``LearnedProvider.refine`` option of ``refinements``, ``None`` where the fit fails its checks
+    (among them fewer valid pixels than ``MIN_POINTS``; the network pass and first-stage fit are shared by the
+    options)."""
     from ..learned.inference.candidate import fit_candidate_refinements
     from ..learned.inference.checks import object_diagonal
 
-    if np.count_nonzero(mask) < 100:
-        return [(refine, None) for refine in refinements]
     fits = fit_candidate_refinements(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None,
                                      refinements, object_gate=False)
     return [(refine, object_features(a["comparison"], object_diagonal(a["result"].boxes_cam), a["quality"], category,
