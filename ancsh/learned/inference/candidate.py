@@ -14,6 +14,7 @@ Frames: camera (OpenCV: x right, y down, z forward), metres.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -141,20 +142,35 @@ def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulati
     t0 = time.perf_counter()
     corr, raw = infer(provider, obs)
     t_net = time.perf_counter() - t0
-    first = fit(obs, corr, formulation, rng=seed)
-    return [_finish_candidate(d, intrinsics, mask, category, provider, formulation, seed, refine, obs, corr, raw, first,
-                              object_gate, {"pts": pts, "pixels": pixels, "valid": valid, "t_net": t_net, "t_bp": t_bp})
+    first = _FirstStage(obs, pts, pixels, valid, corr, raw, fit(obs, corr, formulation, rng=seed), t_bp, t_net)
+    return [_finish_candidate(first, d, intrinsics, mask, category, provider, formulation, seed, refine, object_gate)
             for refine in refinements]
 
 
-def _finish_candidate(d, intrinsics, mask, category, provider, formulation, seed, refine, obs, corr, raw, result,
-                      object_gate, shared) -> dict:
-    """The refinement ``refine`` of a first-stage fit ``result`` and its checks and evidence:
-    :func:`fit_candidate_refinements`' per-option part (``shared``: its points and stage times)."""
-    pts = shared["pts"]
+@dataclass(frozen=True)
+class _FirstStage:
+    """What :func:`fit_candidate_refinements` shares between its refinements: the sampled points (camera frame,
+    metres) and their pixels, the network's output on them and the first-stage fit, and the two stages' times (s)."""
+
+    observation: object  # ancsh.solvers.Observation of pts
+    pts: np.ndarray  # (N, 3)
+    pixels: np.ndarray  # (N, 2) int64, (u, v)
+    valid: int  # valid pixels of the mask
+    corr: object  # Correspondences
+    raw: object  # the network's raw prediction
+    result: object  # FitResult of the first stage
+    t_bp: float
+    t_net: float
+
+
+def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provider, formulation, seed, refine,
+                      object_gate) -> dict:
+    """The refinement ``refine`` of the first-stage fit and its checks and evidence: :func:`fit_candidate_refinements`'
+    per-option part (``first`` is not changed: every option starts from it)."""
+    pts, corr, raw, result = first.pts, first.corr, first.raw, first.result
     refined = RefinedFit(result, corr, raw, None, None)
     if formulation != "per_part":
-        refined = apply_refinement(provider, obs, corr, raw, result, refine=refine, rng=seed)
+        refined = apply_refinement(provider, first.observation, corr, raw, result, refine=refine, rng=seed)
     result, corr, raw = refined.result, refined.correspondences, refined.prediction
     notes = [refined.note] if refined.note else []
     labels = np.asarray(corr.part_labels)
@@ -170,9 +186,9 @@ def _finish_candidate(d, intrinsics, mask, category, provider, formulation, seed
         t_rc = time.perf_counter() - t0
     if object_gate:
         result = check_confidence(result, p_object)
-    return {"result": result, "pts": pts, "pixels": shared["pixels"], "valid": shared["valid"], "labels": labels,
+    return {"result": result, "pts": pts, "pixels": first.pixels, "valid": first.valid, "labels": labels,
             "quality": quality, "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
-            "t_net": shared["t_net"], "t_bp": shared["t_bp"], "notes": notes, "corr": corr,
+            "t_net": first.t_net, "t_bp": first.t_bp, "notes": notes, "corr": corr,
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 
