@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
-    "NETWORK_METHOD", "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection", "TargetRow", "budget_projection", "refiner_minutes",
+    "NETWORK_METHOD", "REAL_RATIO_GOAL", "REFINED_METHOD", "TARGET_METHOD", "TRAINING_BUDGET_MIN", "BudgetProjection",
+    "TargetRow", "budget_projection", "refiner_minutes", "refiner_roots",
     "collect_targets", "limit_lines", "roll_gains", "target_lines",
 ]
 
@@ -46,7 +47,7 @@ UNSHIPPED_PATH = Path(__file__).resolve().parents[1] / "weights" / "unshipped_tr
 """Ledger of training runs whose networks were not shipped (they spent budget all the same)."""
 
 
-def refiner_minutes(rows: list[dict]) -> dict[str, float]:
+def refiner_minutes(rows: list[dict], roots: dict[str, float] | None = None) -> dict[str, float]:
     """Per category, the training minutes of the shipped refinement network's lineage beyond the first stage's:
     its own and those of the networks it was fine-tuned from (an earlier refiner), less the first stage's lineage.
 
@@ -55,10 +56,42 @@ def refiner_minutes(rows: list[dict]) -> dict[str, float]:
     rows : list of dict
         :func:`ancsh.learned.network.weights.weights_summary` rows (``kind``, ``refiner``, ``category``,
         ``train_min``, ``parent_min``).
+    roots : dict, optional
+        ``{category: minutes}`` of the first-stage lineage that the refiner's lineage holds, where it is not the
+        shipped first stage's whole lineage: a first stage fine-tuned again after its refiner was trained
+        (:func:`refiner_roots`). Without an entry the refiner is taken to descend from the shipped first stage.
     """
+    roots = roots or {}
     first = {r["category"]: r["train_min"] + r["parent_min"] for r in rows if r["kind"] == "ancsh" and not r.get("refiner")}
-    return {r["category"]: max(0.0, r["train_min"] + r["parent_min"] - first[r["category"]])
+    return {r["category"]: max(0.0, r["train_min"] + r["parent_min"] - roots.get(r["category"], first[r["category"]]))
             for r in rows if r["kind"] == "ancsh" and r.get("refiner") and r["category"] in first}
+
+
+def refiner_roots(path=None) -> dict[str, float]:
+    """The ledger's ``refiner_first_stage_min`` (:data:`UNSHIPPED_PATH`): per category whose first stage was fine-tuned
+    again after its refinement network was trained, the minutes of the (earlier) first-stage lineage that the
+    refiner's lineage holds; ``{}`` without the file or the entry (see :func:`refiner_minutes`).
+
+    Raises
+    ------
+    ValueError
+        For an entry that is not a number of minutes >= 0 (naming the file and the category).
+    """
+    path = UNSHIPPED_PATH if path is None else Path(path)
+    if not path.is_file():
+        return {}
+    roots = json.loads(path.read_text()).get("refiner_first_stage_min", {})
+    if not isinstance(roots, dict):
+        raise ValueError(f"{path}: refiner_first_stage_min: expected {{category: minutes}}")
+    out = {}
+    for category, minutes in roots.items():
+        try:
+            out[str(category)] = float(minutes)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{path}: refiner_first_stage_min.{category}: expected minutes ({exc})") from exc
+        if not out[str(category)] >= 0:
+            raise ValueError(f"{path}: refiner_first_stage_min.{category}: expected >= 0, got {minutes}")
+    return out
 
 
 def unshipped_minutes(path=None) -> dict[str, float]:

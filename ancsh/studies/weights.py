@@ -77,13 +77,13 @@ def weights_tables(rows: list[dict]) -> tuple[list[str], list[str], list[str]]:
 
 def target_tables(reports, rows: list[dict]) -> tuple[list[str], list[str]]:
     """The Table 1 targets and their limits (markdown lines) from the ``ancsh evaluate`` reports in ``reports``."""
-    from .targets import (budget_projection, collect_targets, limit_lines, refiner_minutes, roll_gains, target_lines,
-                          train_test_ratios, unshipped_minutes)
+    from .targets import (budget_projection, collect_targets, limit_lines, refiner_minutes, refiner_roots, roll_gains,
+                          target_lines, train_test_ratios, unshipped_minutes)
 
     reports = Path(reports)
     target_rows, missing = collect_targets(reports)
     ancsh_rows = {r["category"]: r for r in rows if r["kind"] == "ancsh" and not r.get("refiner")}
-    refiner_min = refiner_minutes(rows)
+    refiner_min = refiner_minutes(rows, refiner_roots())
     minutes = {c: (r["train_min"], r["parent_min"], refiner_min.get(c, 0.0)) for c, r in ancsh_rows.items()}
     targets = target_lines(target_rows, missing, minutes)
     gains = roll_gains(reports / "roll_equivariance.json")

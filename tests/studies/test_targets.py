@@ -210,3 +210,22 @@ def test_a_refiners_minutes_are_its_lineage_beyond_the_first_stage():
             dict(kind="ancsh", refiner=True, category="wm", train_min=68.0, parent_min=362.0),  # from an earlier refiner
             dict(kind="direct_voting", refiner=False, category="wm", train_min=15.0, parent_min=0.0)]
     assert refiner_minutes(rows) == pytest.approx({"oven": 130.0, "wm": 68.0 + 362.0 - 205.0})
+    # the wm first stage fine-tuned again (30 more minutes) after its refiner: the refiner's lineage holds the earlier 205
+    rows[2] = dict(rows[2], train_min=30.0, parent_min=205.0)
+    assert refiner_minutes(rows)["wm"] == pytest.approx(68.0 + 362.0 - 235.0)  # without the ledger entry: 30 lost
+    assert refiner_minutes(rows, {"wm": 205.0}) == pytest.approx({"oven": 130.0, "wm": 68.0 + 362.0 - 205.0})
+
+
+def test_refiner_roots_are_read_from_the_ledger(tmp_path):
+    from ancsh.studies.targets import refiner_roots
+
+    ledger = tmp_path / "unshipped.json"
+    assert refiner_roots(ledger) == {}
+    ledger.write_text(json.dumps({"runs": []}))
+    assert refiner_roots(ledger) == {}
+    ledger.write_text(json.dumps({"runs": [], "refiner_first_stage_min": {"wm": 204.5}}))
+    assert refiner_roots(ledger) == {"wm": 204.5}
+    for bad, match in (({"wm": "x"}, "refiner_first_stage_min.wm"), ({"wm": -1}, ">= 0"), ([1], "expected")):
+        ledger.write_text(json.dumps({"runs": [], "refiner_first_stage_min": bad}))
+        with pytest.raises(ValueError, match=match):
+            refiner_roots(ledger)
