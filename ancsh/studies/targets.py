@@ -70,7 +70,9 @@ def refiner_minutes(rows: list[dict], roots: dict[str, float] | None = None) -> 
 def refiner_roots(path=None) -> dict[str, float]:
     """The ledger's ``refiner_first_stage_min`` (:data:`UNSHIPPED_PATH`): per category whose first stage was fine-tuned
     again after its refinement network was trained, the minutes of the (earlier) first-stage lineage that the
-    refiner's lineage holds; ``{}`` without the file or the entry (see :func:`refiner_minutes`).
+    refiner's lineage holds; ``{}`` without the file or the entry (see :func:`refiner_minutes`). The entry holds while the
+    shipped refiner descends from that earlier first stage (a refiner fine-tuned again from it still does); drop it
+    when a refiner initialised from the current first stage is shipped.
 
     Raises
     ------
