@@ -79,21 +79,28 @@ def refiner_roots(path=None) -> dict[str, float]:
     ValueError
         For an entry that is not a number of minutes >= 0 (naming the file and the category).
     """
-    path = UNSHIPPED_PATH if path is None else Path(path)
-    if not path.is_file():
-        return {}
-    roots = json.loads(path.read_text()).get("refiner_first_stage_min", {})
+    path, ledger = _ledger(path)
+    roots = (ledger or {}).get("refiner_first_stage_min", {})
     if not isinstance(roots, dict):
         raise ValueError(f"{path}: refiner_first_stage_min: expected {{category: minutes}}")
-    out = {}
-    for category, minutes in roots.items():
-        try:
-            out[str(category)] = float(minutes)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{path}: refiner_first_stage_min.{category}: expected minutes ({exc})") from exc
-        if not out[str(category)] >= 0:
-            raise ValueError(f"{path}: refiner_first_stage_min.{category}: expected >= 0, got {minutes}")
-    return out
+    return {str(c): _ledger_minutes(path, f"refiner_first_stage_min.{c}", m) for c, m in roots.items()}
+
+
+def _ledger(path) -> tuple[Path, dict | None]:
+    """The ledger's path (:data:`UNSHIPPED_PATH` for ``None``) and its content (``None`` without the file)."""
+    path = UNSHIPPED_PATH if path is None else Path(path)
+    return path, (json.loads(path.read_text()) if path.is_file() else None)
+
+
+def _ledger_minutes(path: Path, where: str, value) -> float:
+    """``value`` as minutes >= 0, else a ``ValueError`` naming the ledger ``path`` and the entry ``where``."""
+    try:
+        minutes = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: {where}: expected minutes ({exc})") from exc
+    if not minutes >= 0:
+        raise ValueError(f"{path}: {where}: expected >= 0, got {minutes}")
+    return minutes
 
 
 def unshipped_minutes(path=None) -> dict[str, float]:
@@ -105,22 +112,18 @@ def unshipped_minutes(path=None) -> dict[str, float]:
     ValueError
         For a ledger that is not such a list (naming the file and the entry).
     """
-    path = UNSHIPPED_PATH if path is None else Path(path)
-    if not path.is_file():
+    path, ledger = _ledger(path)
+    if ledger is None:
         return {}
-    runs = json.loads(path.read_text()).get("runs")
+    runs = ledger.get("runs")
     if not isinstance(runs, list):
         raise ValueError(f"{path}: expected {{\"runs\": [...]}}")
     out: dict[str, float] = {}
     for i, r in enumerate(runs):
-        try:
-            minutes = float(r["minutes"])
-            category = str(r["category"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{path}: runs[{i}]: expected a category and minutes ({exc})") from exc
-        if not minutes >= 0:
-            raise ValueError(f"{path}: runs[{i}].minutes: expected >= 0, got {minutes}")
-        out[category] = out.get(category, 0.0) + minutes
+        if not isinstance(r, dict) or "category" not in r or "minutes" not in r:
+            raise ValueError(f"{path}: runs[{i}]: expected a category and minutes")
+        category = str(r["category"])
+        out[category] = out.get(category, 0.0) + _ledger_minutes(path, f"runs[{i}].minutes", r["minutes"])
     return out
 
 
