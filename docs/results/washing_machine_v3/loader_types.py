@@ -8,6 +8,7 @@ usage: python docs/results/washing_machine_v3/loader_types.py docs/results/washi
 """
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -29,7 +30,7 @@ def loader_types() -> dict[str, str]:
 def main(paths) -> None:
     kind = loader_types()
     for path in paths:
-        per_frame = json.load(open(path))["per_frame"]
+        per_frame = json.loads(Path(path).read_text())["per_frame"]
         types = np.array([kind[n] for n in per_frame["instance"]])
         print(path, {t: int((types == t).sum()) for t in TYPES}, "frames")
         for method in ("exact_reduced", "template", "network"):
