@@ -5,7 +5,8 @@
 EVAL_ROOT holds one folder ``lev_eval_<run>`` per run: the --out folder of
 ``ancsh evaluate --category laptop --frames 300 --formulations exact_reduced --weights runs/levers_gpu/<run>_best.pt
 --real builtin``. The tables are those of docs/results/capacity_gpu/report.py (whose functions this reuses), with
-the paired comparisons against the run without a lever, and a summary of the seed replicates.
+the paired comparisons against the run without a lever, and a summary of the seed replicates. A call's section is
+printed when all of its runs' folders are in EVAL_ROOT (the first two calls' networks are not kept).
 """
 
 import json
@@ -21,13 +22,16 @@ from report import curves, paired, table1  # noqa: E402  (docs/results/capacity_
 
 RUNS = ("base", "normals", "roll30", "pose01", "pose1", "all")  # the first call: 5 minutes each, seed 40
 REPLICATES = {"base": ("base_s41", "base_s42", "base_s43"), "pose1": ("pose1_s41", "pose1_s42", "pose1_s43")}  # 2.25 min
+# the third call: equal CPU time (the normals cost 1.27x per CPU step), 12000 steps of `base`, 9450 of `normals`
+LONG = {"base_long": ("base_long_s41", "base_long_s42", "base_long_s43"),
+        "normals_long": ("normals_long_s41", "normals_long_s42", "normals_long_s43")}
 
 
-def seed_summary(root: Path) -> list[str]:
-    """Per configuration of the replicates: each seed's mean part rotation and joint axis, their mean and spread."""
+def seed_summary(root: Path, replicates: dict) -> list[str]:
+    """Per configuration of ``replicates``: each seed's mean part rotation and joint axis, their mean and spread."""
     out = ["| configuration | seeds | mean part rotation (°) per seed | mean | std over seeds | joint axis (°) per seed | mean |",
            "|---" * 7 + "|"]
-    for config, runs in REPLICATES.items():
+    for config, runs in replicates.items():
         rot, axis = [], []
         for run in runs:
             m = json.loads((root / f"lev_eval_{run}" / "laptop.json").read_text())["summary"]["methods"]["exact_reduced"]
@@ -41,11 +45,19 @@ def seed_summary(root: Path) -> list[str]:
 if __name__ == "__main__":
     root = Path(sys.argv[1])
     reps = [r for runs in REPLICATES.values() for r in runs]
-    for title, runs, here, ref in (("levers, 5 minutes each", RUNS, HERE, "base"),
-                                   ("seed replicates, 2.25 minutes each", reps, HERE / "replicates", reps[0])):
+    longs = [r for runs in LONG.values() for r in runs]
+    for title, runs, here, ref, summary in (
+            ("levers, 5 minutes each", RUNS, HERE, "base", None),
+            ("seed replicates, 2.25 minutes each", reps, HERE / "replicates", reps[0], REPLICATES),
+            ("seed replicates at equal CPU time (12000 / 9450 steps)", longs, HERE / "long", longs[0], LONG)):
         dirs = [root / f"lev_eval_{r}" for r in runs]
+        missing = [d.name for d in dirs if not d.is_dir()]
+        if missing:  # each call's networks are evaluated on their own; a section prints once all of its folders exist
+            print(f"({title}: left out, no evaluation folder {', '.join(missing)} in {root})", file=sys.stderr)
+            continue
         print(f"### {title}\n")
         print("\n".join(curves(runs, here)), end="\n\n")
         print("\n".join(table1(dirs)), end="\n\n")
         print("\n".join(paired(dirs, reference=ref)), end="\n\n")
-    print("\n".join(seed_summary(root)))
+        if summary:
+            print("\n".join(seed_summary(root, summary)), end="\n\n")
