@@ -45,7 +45,8 @@ def _pair(values, fmt):
     return ", ".join(format(v, fmt) for v in values)
 
 
-def table1(dirs) -> list[str]:
+def table1(dirs, method="exact_reduced") -> list[str]:
+    """Table 1 rows of each evaluation folder's ``method`` (``exact_reduced``, or a refinement: ``network``)."""
     out = ["| network | step | procedural: rotation (°) mean | median | translation | joint axis (°) | state (°) "
            "| real split: rotation (°) mean | joint axis (°) | state (°) |", "|---" * 10 + "|"]
     for d in dirs:
@@ -53,17 +54,18 @@ def table1(dirs) -> list[str]:
         s = rep["settings"]
         name = Path(s["weights"]).stem.replace("_best", "")
         name = "shipped" if name == "laptop" else name
-        m = rep["summary"]["methods"]["exact_reduced"]
-        r = rep["real"]["summary"]["methods"]["exact_reduced"]
+        m = rep["summary"]["methods"][method]
+        r = rep["real"]["summary"]["methods"][method]
         out.append(f"| {name} | {s['weights_step']} | {_pair(m['rot_deg']['mean'], '.2f')} | {_pair(m['rot_deg']['median'], '.2f')} "
                    f"| {_pair(m['trans']['mean'], '.3f')} | {m['axis_deg']['mean'][0]:.2f} | {m['state_err']['mean'][0]:.2f} "
                    f"| {_pair(r['rot_deg']['mean'], '.2f')} | {r['axis_deg']['mean'][0]:.2f} | {r['state_err']['mean'][0]:.2f} |")
     return out
 
 
-def paired(dirs, reference="w05", seed=0, draws=2000) -> list[str]:
+def paired(dirs, reference="w05", seed=0, draws=2000, method="exact_reduced") -> list[str]:
     """Each network against ``reference`` on the same frames: mean part rotation, share of frames lower, and a 95 %
-    interval of the mean difference by resampling the test instances (the errors are per-instance biases)."""
+    interval of the mean difference by resampling the test instances (the errors are per-instance biases); the fits
+    of ``method`` (``exact_reduced``, or a refinement: ``network``)."""
     import numpy as np
 
     reps = {}
@@ -79,7 +81,7 @@ def paired(dirs, reference="w05", seed=0, draws=2000) -> list[str]:
     out = [f"| network | mean part rotation (°) | minus {reference} | 95 % interval (instances resampled) "
            f"| frames lower than {reference} |", "|---" * 5 + "|"]
     def frame_rotation(rep):  # mean over parts per frame; NaN where the fit failed (no errors recorded)
-        return np.array([np.nan if e is None else np.mean(e) for e in rep["per_frame"]["exact_reduced"]["rot_deg"]])
+        return np.array([np.nan if e is None else np.mean(e) for e in rep["per_frame"][method]["rot_deg"]])
 
     r0 = frame_rotation(ref)
     for name, rep in reps.items():

@@ -27,14 +27,15 @@ LONG = {"base_long": ("base_long_s41", "base_long_s42", "base_long_s43"),
         "normals_long": ("normals_long_s41", "normals_long_s42", "normals_long_s43")}
 
 
-def seed_summary(root: Path, replicates: dict) -> list[str]:
-    """Per configuration of ``replicates``: each seed's mean part rotation and joint axis, their mean and spread."""
+def seed_summary(root: Path, replicates: dict, prefix="lev_eval", method="exact_reduced") -> list[str]:
+    """Per configuration of ``replicates``: each seed's mean part rotation and joint axis, their mean and spread
+    (the fits of ``method`` in the folders ``<prefix>_<run>``)."""
     out = ["| configuration | seeds | mean part rotation (°) per seed | mean | std over seeds | joint axis (°) per seed | mean |",
            "|---" * 7 + "|"]
     for config, runs in replicates.items():
         rot, axis = [], []
         for run in runs:
-            m = json.loads((root / f"lev_eval_{run}" / "laptop.json").read_text())["summary"]["methods"]["exact_reduced"]
+            m = json.loads((root / f"{prefix}_{run}" / "laptop.json").read_text())["summary"]["methods"][method]
             rot.append(float(np.mean(m["rot_deg"]["mean"])))
             axis.append(float(m["axis_deg"]["mean"][0]))
         out.append(f"| {config} | {len(runs)} | {', '.join(f'{v:.2f}' for v in rot)} | {np.mean(rot):.2f} | {np.std(rot, ddof=1):.2f} "
@@ -61,3 +62,11 @@ if __name__ == "__main__":
         print("\n".join(paired(dirs, reference=ref)), end="\n\n")
         if summary:
             print("\n".join(seed_summary(root, summary)), end="\n\n")
+    # call 3's networks with the shipped refiner (`ancsh evaluate ... --refine network --weights <run>_best.pt --out
+    # EVAL_ROOT/ref_eval_<run>`), beside the shipped first stage (`--refine network --out EVAL_ROOT/lev_eval_shipped`)
+    dirs = [root / "lev_eval_shipped"] + [root / f"ref_eval_{r}" for r in longs]
+    if all(d.is_dir() for d in dirs):
+        print("### call 3's networks and the shipped first stage, each followed by the shipped refiner\n")
+        print("\n".join(table1(dirs, method="network")), end="\n\n")
+        print("\n".join(paired(dirs, reference="shipped", method="network")), end="\n\n")
+        print("\n".join(seed_summary(root, LONG, prefix="ref_eval", method="network")))
