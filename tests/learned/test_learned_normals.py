@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from ancsh.learned.network.config import TrainConfig
 from ancsh.learned.network.models import build_network
-from ancsh.learned.network.pointnet2 import PointNet2Backbone, estimate_normals
+from ancsh.learned.network.pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, normal_neighbours
 
 
 def _sphere_patch(rng, n, centre, radius):
@@ -44,6 +44,62 @@ def test_normals_turn_with_the_cloud_and_ignore_the_point_order():
         estimate_normals(x[..., :2])
     with pytest.raises(ValueError, match="k"):
         estimate_normals(x, k=2)
+
+
+def test_cached_nearest_points_give_the_normals_of_the_cloud_rotated_moved_or_scaled():
+    rng = np.random.default_rng(3)
+    pts, _ = _sphere_patch(rng, 400, np.array([0.05, 0.1, 1.8]), 0.35)
+    idx = normal_neighbours(torch.from_numpy(pts[None]))
+    assert idx.shape == (1, 400, 16) and (idx[0, :, 0] == torch.arange(400)).all()  # each point is its own nearest
+    R = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix()
+    centroid = pts.mean(axis=0)
+    moved = {  # a camera-rotation augmentation; a refiner's canonicalisation (about the centroid, scaled, shifted)
+        "about the camera": pts @ R.T,
+        "canonicalised": 2.5 * (pts - centroid) @ R.T + np.array([0.0, 0.0, 0.3]),
+    }
+    for name, q in moved.items():
+        x = torch.from_numpy(q[None])
+        np.testing.assert_allclose(estimate_normals(x, neighbours=idx).numpy(), estimate_normals(x).numpy(), atol=1e-7,
+                                   err_msg=name)
+    with pytest.raises(ValueError, match="neighbours"):
+        estimate_normals(torch.from_numpy(pts[None]), neighbours=idx[:, :100])
+    with pytest.raises(ValueError, match="neighbours"):
+        estimate_normals(torch.from_numpy(pts[None]), neighbours=idx[..., :2])
+
+
+def test_a_normals_network_takes_its_nearest_points_from_the_neighbourhoods():
+    cfg = TrainConfig(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8), input_normals=True)
+    torch.manual_seed(0)
+    net = build_network("ancsh", 2, 1, **cfg.network_kwargs()).eval()
+    plain = build_network("ancsh", 2, 1, **TrainConfig(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8)).network_kwargs())
+    rng = np.random.default_rng(4)
+    x = torch.from_numpy(np.stack([_sphere_patch(rng, 64, np.array([0.0, 0.0, 1.2]), 0.25)[0] for _ in range(2)]).astype(np.float32))
+    nb = net.neighbourhoods(x)
+    torch.testing.assert_close(nb.normal_idx, normal_neighbours(x))
+    # through the per-frame cache's numpy round trip, as a training step takes them
+    cached = Neighbourhoods.from_numpy(nb.numpy(), [1])
+    torch.testing.assert_close(cached.normal_idx, nb.normal_idx[1:])
+    torch.testing.assert_close(net(x[1:], cached)["npcs"], net(x[1:])["npcs"])
+    # a network without normals has none to cache, and a cache without them still serves a normals network
+    assert plain.neighbourhoods(x).normal_idx is None and "normal_idx" not in plain.neighbourhoods(x).numpy()
+    without = Neighbourhoods.from_numpy({k: v for k, v in nb.numpy().items() if k != "normal_idx"})
+    assert without.normal_idx is None
+    torch.testing.assert_close(net(x, without)["npcs"], net(x)["npcs"])
+    torch.testing.assert_close(nb.map(lambda v: v[:1]).normal_idx, nb.normal_idx[:1])
+
+
+def test_the_neighbourhood_cache_of_a_network_without_normals_is_not_taken_for_one_with_them(tmp_path):
+    from ancsh.learned.training.train import neighbourhood_cache
+
+    kw = dict(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8))
+    plain = build_network("ancsh", 2, 1, **TrainConfig(**kw).network_kwargs())
+    net = build_network("ancsh", 2, 1, **TrainConfig(**kw, input_normals=True).network_kwargs())
+    pts = np.random.default_rng(5).normal(size=(3, 64, 3)).astype(np.float32) + np.array([0, 0, 2], np.float32)
+    path = tmp_path / "neighbourhoods.npz"
+    assert "normal_idx" not in neighbourhood_cache(plain, pts, path=path)
+    cache = neighbourhood_cache(net, pts, path=path)  # recomputed (another key), with the nearest points
+    np.testing.assert_array_equal(cache["normal_idx"], normal_neighbours(torch.from_numpy(pts)).numpy())
+    np.testing.assert_array_equal(neighbourhood_cache(net, pts, path=path)["normal_idx"], cache["normal_idx"])
 
 
 def test_backbone_takes_the_features_in_both_layouts_and_refuses_missing_ones():
@@ -102,6 +158,7 @@ def test_a_normals_network_trains_saves_and_predicts(tmp_path, tiny_arrays, tiny
 
     cfg = dataclasses.replace(tiny_config, input_normals=True, max_steps=3, checkpoint_every=3, augment_roll_deg=20.0)
     tr = Trainer(cfg, tiny_arrays, tiny_arrays, out_dir=tmp_path / "run", progress=False)
+    assert tr.neighbourhoods["normal_idx"].shape == (len(tiny_arrays.points), cfg.num_points, 16)  # cached per frame
     tr.fit(3)
     ck = tr.save_checkpoint(tmp_path / "run" / "last.pt")
     w = export_weights(ck, tmp_path / "laptop_normals.pt")

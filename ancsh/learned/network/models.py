@@ -25,10 +25,12 @@ The paper uses two PointNet++ backbones (segmentation + NPCS; NAOCS + joints);
 
 from __future__ import annotations
 
+import dataclasses
+
 import torch
 from torch import nn
 
-from .pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, shared_mlp
+from .pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, normal_neighbours, shared_mlp
 
 __all__ = ["AncshNet", "DirectVotingNet", "build_network", "normalize_cloud", "denormalize_joint_votes"]
 
@@ -93,10 +95,20 @@ def _per_point(backbone, xyz: torch.Tensor, neighbourhoods, features=None) -> tu
     return backbone(xyz, neighbourhoods, features), False
 
 
-def _input_features(points: torch.Tensor, normals: bool) -> torch.Tensor | None:
+def _input_features(points: torch.Tensor, normals: bool, neighbourhoods: Neighbourhoods | None) -> torch.Tensor | None:
     """The backbone's per-point input features of camera-frame ``points``: their surface normals
-    (:func:`~ancsh.learned.network.pointnet2.estimate_normals`, facing the camera) or none."""
-    return estimate_normals(points) if normals else None
+    (:func:`~ancsh.learned.network.pointnet2.estimate_normals`, facing the camera; with the cached nearest
+    points of ``neighbourhoods.normal_idx`` where given) or none."""
+    if not normals:
+        return None
+    return estimate_normals(points, neighbours=None if neighbourhoods is None else neighbourhoods.normal_idx)
+
+
+def _neighbourhoods(backbone: PointNet2Backbone, points: torch.Tensor, normals: bool) -> Neighbourhoods:
+    """A network's :class:`Neighbourhoods` of camera-frame ``points``: the backbone's of the normalised cloud,
+    and with input ``normals`` the points' :func:`~ancsh.learned.network.pointnet2.normal_neighbours`."""
+    nb = backbone.neighbourhoods(normalize_cloud(points)[0])
+    return dataclasses.replace(nb, normal_idx=normal_neighbours(points)) if normals else nb
 
 
 def _apply(head: _Head, features: torch.Tensor, last: bool) -> torch.Tensor:
@@ -147,9 +159,10 @@ class AncshNet(nn.Module):
         """Sampling, grouping and interpolation indices of camera-frame points ``(B, N, 3)`` (no gradient).
 
         They depend only on the points, so a training loop can compute them once per frame and
-        pass them to :meth:`forward` (both backbones share them).
+        pass them to :meth:`forward` (both backbones share them). With input normals they hold each
+        point's nearest points too (``normal_idx``), which a rotation of the points leaves unchanged.
         """
-        return self.backbone.neighbourhoods(normalize_cloud(points)[0])
+        return _neighbourhoods(self.backbone, points, self.normals)
 
     def forward(self, points: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> dict[str, torch.Tensor]:
         """Predict every head for camera-frame points ``(B, N, 3)``; see the module table.
@@ -157,7 +170,7 @@ class AncshNet(nn.Module):
         ``neighbourhoods``: :meth:`neighbourhoods` of the same points (computed when omitted).
         """
         xyz, _, _ = normalize_cloud(points)
-        features = _input_features(points, self.normals)
+        features = _input_features(points, self.normals, neighbourhoods)
         f1, last = _per_point(self.backbone, xyz, neighbourhoods, features)
         f2 = f1 if self.backbone2 is None else _per_point(self.backbone2, xyz, neighbourhoods, features)[0]
         B, N = points.shape[:2]
@@ -199,7 +212,7 @@ class DirectVotingNet(nn.Module):
 
     def neighbourhoods(self, points: torch.Tensor) -> Neighbourhoods:
         """As :meth:`AncshNet.neighbourhoods`."""
-        return self.backbone.neighbourhoods(normalize_cloud(points)[0])
+        return _neighbourhoods(self.backbone, points, self.normals)
 
     def forward(self, points: torch.Tensor, neighbourhoods: Neighbourhoods | None = None) -> dict[str, torch.Tensor]:
         """``(B, N, 3)`` camera points -> ``seg_logits``, ``assoc_logits``, ``joint`` (distance in metres),
@@ -207,7 +220,7 @@ class DirectVotingNet(nn.Module):
 
         ``neighbourhoods`` as in :meth:`AncshNet.forward`."""
         xyz, _, scale = normalize_cloud(points)
-        f, last = _per_point(self.backbone, xyz, neighbourhoods, _input_features(points, self.normals))
+        f, last = _per_point(self.backbone, xyz, neighbourhoods, _input_features(points, self.normals, neighbourhoods))
         joint = _apply(self.joint_head, f, last)
         return {
             "seg_logits": _apply(self.seg_head, f, last),

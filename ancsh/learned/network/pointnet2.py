@@ -335,6 +335,9 @@ class Neighbourhoods:
         Interpolation of the second level onto the first (``k2 = min(3, S2)``, weights sum to 1).
     interp1_idx, interp1_w : (B, N, k1) int64 / float
         Interpolation of the first level onto the input points.
+    normal_idx : (B, N, k) int64, optional
+        :func:`normal_neighbours` of the input points, for a network with input normals (``None``
+        otherwise, or when its normals' neighbours are to be searched in the pass).
     """
 
     centres1: torch.Tensor
@@ -345,20 +348,29 @@ class Neighbourhoods:
     interp2_w: torch.Tensor
     interp1_idx: torch.Tensor
     interp1_w: torch.Tensor
+    normal_idx: torch.Tensor | None = None
 
     def numpy(self) -> dict[str, np.ndarray]:
-        """Compact numpy copies (indices int32, weights float32) keyed by field name."""
+        """Compact numpy copies (indices int32, weights float32) keyed by field name; fields that are ``None`` left out."""
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
-            out[f.name] = v.cpu().numpy().astype(np.float32 if v.is_floating_point() else np.int32)
+            if v is not None:
+                out[f.name] = v.cpu().numpy().astype(np.float32 if v.is_floating_point() else np.int32)
         return out
+
+    def map(self, fn) -> "Neighbourhoods":
+        """A copy with ``fn`` applied to every tensor (fields that are ``None`` stay ``None``), e.g. a slice of frames."""
+        return type(self)(**{f.name: None if getattr(self, f.name) is None else fn(getattr(self, f.name)) for f in fields(self)})
 
     @classmethod
     def from_numpy(cls, arrays: dict, index=None) -> "Neighbourhoods":
-        """Tensors (int64 indices, float32 weights) from :meth:`numpy` output, optionally of frames ``index``."""
+        """Tensors (int64 indices, float32 weights) from :meth:`numpy` output, optionally of frames ``index``
+        (optional fields absent from ``arrays`` are ``None``)."""
         kw = {}
         for f in fields(cls):
+            if f.name not in arrays and f.default is None:
+                continue
             a = arrays[f.name] if index is None else arrays[f.name][index]
             t = torch.from_numpy(np.ascontiguousarray(a))
             kw[f.name] = t.float() if t.is_floating_point() else t.long()
@@ -383,8 +395,34 @@ NORMAL_NEIGHBOURS = 16
 """Nearest points (the point itself included) whose covariance gives a point's normal (:func:`estimate_normals`)."""
 
 
+def _check_k(k) -> int:
+    if isinstance(k, bool) or not isinstance(k, int) or k < 3:
+        raise ValueError(f"k: expected an integer >= 3, got {k!r}")
+    return k
+
+
 @torch.no_grad()
-def estimate_normals(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS) -> torch.Tensor:
+def normal_neighbours(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS) -> torch.Tensor:
+    """Indices ``(B, N, min(k, N))`` of each point's nearest points (itself included), for :func:`estimate_normals`.
+
+    The same for the points rotated, translated or uniformly scaled, so a training loop can take them
+    from a per-frame cache (:attr:`Neighbourhoods.normal_idx`) whatever rotation a step applies
+    (camera-rotation augmentation, a refinement network's canonicalisation). No gradient.
+
+    Parameters
+    ----------
+    points : (B, N, 3) tensor
+        Points (any unit).
+    k : int
+        Neighbours, ``3 <= k``.
+    """
+    _check_xyz(points, "points")
+    k = min(_check_k(k), points.shape[1])
+    return torch.cdist(points, points).topk(k, dim=-1, largest=False).indices
+
+
+@torch.no_grad()
+def estimate_normals(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS, neighbours: torch.Tensor | None = None) -> torch.Tensor:
     """Unit surface normals of a cloud by principal components of each point's ``k`` nearest points.
 
     The normal is the eigenvector of the smallest eigenvalue of the neighbours' covariance, signed to
@@ -398,17 +436,23 @@ def estimate_normals(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS) -> torch.
         Points (any unit); the sign convention assumes the viewpoint at the origin.
     k : int
         Neighbours, ``3 <= k``; ``min(k, N)`` are used.
+    neighbours : (B, N, k') int64 tensor, optional
+        :func:`normal_neighbours` of these points (or of the same points rotated, translated or scaled),
+        e.g. from a per-frame cache: skips the nearest-neighbour search, the costly part; ``k`` is then ``k'``.
 
     Returns
     -------
     (B, N, 3) tensor
         Unit normals, same dtype and device.
     """
-    _check_xyz(points, "points")
-    if isinstance(k, bool) or not isinstance(k, int) or k < 3:
-        raise ValueError(f"k: expected an integer >= 3, got {k!r}")
-    k = min(k, points.shape[1])
-    idx = torch.cdist(points, points).topk(k, dim=-1, largest=False).indices  # (B, N, k)
+    if neighbours is None:
+        idx = normal_neighbours(points, k)
+    else:
+        _check_xyz(points, "points")
+        if neighbours.dim() != 3 or neighbours.shape[:2] != points.shape[:2] or neighbours.shape[2] < 3:
+            raise ValueError(f"neighbours: expected shape ({points.shape[0]}, {points.shape[1]}, >= 3) for points of shape "
+                             f"{tuple(points.shape)}, got {tuple(neighbours.shape)}")
+        idx = neighbours
     nb = gather_points(points, idx)
     centred = nb - nb.mean(dim=2, keepdim=True)
     cov = centred.transpose(-1, -2) @ centred  # (B, N, 3, 3)

@@ -162,7 +162,8 @@ def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path
     """Per-frame :class:`~ancsh.learned.network.pointnet2.Neighbourhoods` of ``model`` for ``(F, N, 3)`` frames.
 
     Everything of a forward pass that depends only on a frame's points (farthest-point centres,
-    ball-query neighbourhoods, interpolation indices and weights), computed once, ``batch_size``
+    ball-query neighbourhoods, interpolation indices and weights; with input normals each point's
+    nearest points, which a step's rotation of the frame leaves unchanged), computed once, ``batch_size``
     frames at a time on the device of ``model``'s parameters, as compact numpy arrays with a leading
     frame axis (indices int32, weights float32); :meth:`Neighbourhoods.from_numpy` turns rows of it
     into a batch.
@@ -184,6 +185,10 @@ def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path
     bb = model.backbone
     key = hashlib.sha256(np.ascontiguousarray(points, dtype=np.float32).tobytes())
     key.update(repr((bb.sa1.npoint, bb.sa1.radius, bb.sa1.nsample, bb.sa2.npoint, bb.sa2.radius, bb.sa2.nsample)).encode())
+    if getattr(model, "normals", False):  # the cache holds the normals' nearest points too (normal_idx)
+        from ..network.pointnet2 import NORMAL_NEIGHBOURS
+
+        key.update(f"normal_idx {NORMAL_NEIGHBOURS}".encode())
     key = key.hexdigest()
     if path is not None and Path(path).is_file():
         with np.load(path) as z:

@@ -298,7 +298,7 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
     ref_batch = next((v.batch for v in variants if v.name == "today"), variants[0].batch)
     with torch.no_grad():  # the first step's loss in float64: what the float32 first losses round
         net64, sl = copy.deepcopy(base).double(), slice(0, ref_batch)
-        nb64 = Neighbourhoods(**{k: v[sl].double() if v.is_floating_point() else v[sl] for k, v in vars(cache).items()})
+        nb64 = cache.map(lambda v: v[sl].double() if v.is_floating_point() else v[sl])
         t64 = targets[sl]
         t64 = type(t64)(**{k: v.double() if v.is_floating_point() else v for k, v in vars(t64).items()})
         loss64 = ancsh_loss(net64(x[sl].double(), nb64), t64)[0].item()
@@ -316,7 +316,7 @@ def training_cost(variants=tuple(STEP_VARIANTS), *, width: float = 0.5, num_poin
         idx = slice(0, v.batch)
         nb = None
         if v.cached:
-            nb = Neighbourhoods(**{k: getattr(cache, k)[idx] for k in asdict(cache)})
+            nb = cache.map(lambda v: v[idx])
         t_wall, t_cpu = time.perf_counter(), time.process_time()
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=v.bf16):
             loss, _ = ancsh_loss(net(x[idx], nb), targets[idx])
