@@ -41,6 +41,15 @@ def curves(runs=tuple(RUNS), here=HERE) -> list[str]:
     return out
 
 
+def network_name(weights: str) -> str:
+    """A table's name of an evaluated weights file: ``shipped`` for the shipped ``ancsh/weights/laptop.pt``, else the
+    file's stem without ``_best``, or its folder's name where the stem is only the category's (an exported candidate)."""
+    path = Path(weights)
+    if path.stem == "laptop":
+        return "shipped" if path.parent.name == "weights" and path.parent.parent.name == "ancsh" else path.parent.name
+    return path.stem.replace("_best", "")
+
+
 def _pair(values, fmt):
     return ", ".join(format(v, fmt) for v in values)
 
@@ -52,8 +61,7 @@ def table1(dirs, method="exact_reduced") -> list[str]:
     for d in dirs:
         rep = json.loads((Path(d) / "laptop.json").read_text())
         s = rep["settings"]
-        name = Path(s["weights"]).stem.replace("_best", "")
-        name = "shipped" if name == "laptop" else name
+        name = network_name(s["weights"])
         m = rep["summary"]["methods"][method]
         r = rep["real"]["summary"]["methods"][method]
         out.append(f"| {name} | {s['weights_step']} | {_pair(m['rot_deg']['mean'], '.2f')} | {_pair(m['rot_deg']['median'], '.2f')} "
@@ -71,8 +79,7 @@ def paired(dirs, reference="w05", seed=0, draws=2000, method="exact_reduced") ->
     reps = {}
     for d in dirs:
         rep = json.loads((Path(d) / "laptop.json").read_text())
-        name = Path(rep["settings"]["weights"]).stem.replace("_best", "")
-        reps["shipped" if name == "laptop" else name] = rep
+        reps[network_name(rep["settings"]["weights"])] = rep
     ref = reps[reference]
     inst = np.array(ref["per_frame"]["instance"])
     names = np.unique(inst)

@@ -69,4 +69,12 @@ if __name__ == "__main__":
         print("### call 3's networks and the shipped first stage, each followed by the shipped refiner\n")
         print("\n".join(table1(dirs, method="network")), end="\n\n")
         print("\n".join(paired(dirs, reference="shipped", method="network")), end="\n\n")
-        print("\n".join(seed_summary(root, LONG, prefix="ref_eval", method="network")))
+        print("\n".join(seed_summary(root, LONG, prefix="ref_eval", method="network")), end="\n\n")
+    # the normals laptop fine-tuned on the CPU (`--weights docs/results/levers_gpu/laptop_normals_candidate/laptop.pt
+    # --refine network --out EVAL_ROOT/ref_eval_laptop_normals_candidate`) against the shipped first stage
+    dirs = [root / "lev_eval_shipped", root / "ref_eval_laptop_normals_candidate"]
+    if all(d.is_dir() for d in dirs):
+        print("### the normals laptop candidate against the shipped first stage, both with the shipped refiner\n")
+        for method in ("exact_reduced", "network"):
+            print("\n".join(table1(dirs, method=method)), end="\n\n")
+            print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
