@@ -43,6 +43,15 @@ def seed_summary(root: Path, replicates: dict, prefix="lev_eval", method="exact_
     return out
 
 
+def present(title: str, dirs) -> bool:
+    """Whether every evaluation folder of a section exists; else a line on stderr naming the missing ones (each call's
+    networks are evaluated on their own, so a section prints once all of its folders exist)."""
+    missing = [d.name for d in dirs if not d.is_dir()]
+    if missing:
+        print(f"({title}: left out, no evaluation folder {', '.join(missing)} in {dirs[0].parent})", file=sys.stderr)
+    return not missing
+
+
 if __name__ == "__main__":
     root = Path(sys.argv[1])
     reps = [r for runs in REPLICATES.values() for r in runs]
@@ -52,9 +61,7 @@ if __name__ == "__main__":
             ("seed replicates, 2.25 minutes each", reps, HERE / "replicates", reps[0], REPLICATES),
             ("seed replicates at equal CPU time (12000 / 9450 steps)", longs, HERE / "long", longs[0], LONG)):
         dirs = [root / f"lev_eval_{r}" for r in runs]
-        missing = [d.name for d in dirs if not d.is_dir()]
-        if missing:  # each call's networks are evaluated on their own; a section prints once all of its folders exist
-            print(f"({title}: left out, no evaluation folder {', '.join(missing)} in {root})", file=sys.stderr)
+        if not present(title, dirs):
             continue
         print(f"### {title}\n")
         print("\n".join(curves(runs, here)), end="\n\n")
@@ -64,17 +71,19 @@ if __name__ == "__main__":
             print("\n".join(seed_summary(root, summary)), end="\n\n")
     # call 3's networks with the shipped refiner (`ancsh evaluate ... --refine network --weights <run>_best.pt --out
     # EVAL_ROOT/ref_eval_<run>`), beside the shipped first stage (`--refine network --out EVAL_ROOT/lev_eval_shipped`)
+    title = "call 3's networks and the shipped first stage, each followed by the shipped refiner"
     dirs = [root / "lev_eval_shipped"] + [root / f"ref_eval_{r}" for r in longs]
-    if all(d.is_dir() for d in dirs):
-        print("### call 3's networks and the shipped first stage, each followed by the shipped refiner\n")
+    if present(title, dirs):
+        print(f"### {title}\n")
         print("\n".join(table1(dirs, method="network")), end="\n\n")
         print("\n".join(paired(dirs, reference="shipped", method="network")), end="\n\n")
         print("\n".join(seed_summary(root, LONG, prefix="ref_eval", method="network")), end="\n\n")
     # the normals laptop fine-tuned on the CPU (`--weights docs/results/levers_gpu/laptop_normals_candidate/laptop.pt
     # --refine network --out EVAL_ROOT/ref_eval_laptop_normals_candidate`) against the shipped first stage
+    title = "the normals laptop candidate against the shipped first stage, both with the shipped refiner"
     dirs = [root / "lev_eval_shipped", root / "ref_eval_laptop_normals_candidate"]
-    if all(d.is_dir() for d in dirs):
-        print("### the normals laptop candidate against the shipped first stage, both with the shipped refiner\n")
+    if present(title, dirs):
+        print(f"### {title}\n")
         for method in ("exact_reduced", "network"):
             print("\n".join(table1(dirs, method=method)), end="\n\n")
             print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
