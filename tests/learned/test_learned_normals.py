@@ -169,3 +169,35 @@ def test_a_normals_network_trains_saves_and_predicts(tmp_path, tiny_arrays, tiny
     torch.testing.assert_close(loaded.model.eval()(x)["npcs"], tr.model(x)["npcs"])
     corr = LearnedProvider(loaded, seed=0).correspond(Observation(tiny_arrays.points[0].astype(np.float64)))
     assert np.isfinite(corr.npcs).all()
+
+
+@pytest.mark.parametrize("kind,backbones", [("ancsh", 1), ("ancsh", 2), ("direct_voting", 1)])
+def test_a_network_given_normals_predicts_what_it_predicted_without_them_and_trains_them(kind, backbones):
+    from ancsh.learned.network.models import load_adding_normals
+
+    torch.manual_seed(0)
+    kw = dict(width=0.125, npoints=(32, 8), radii=(0.3, 0.6), nsamples=(8, 8), backbones=backbones)
+    plain = build_network(kind, 2, 1, **kw).eval()
+    with torch.no_grad():  # a trained-looking network: nothing at its initial values
+        for p in plain.parameters():
+            p.add_(0.1 * torch.randn_like(p))
+    grown = build_network(kind, 2, 1, normals=True, **kw)
+    load_adding_normals(grown, plain.state_dict())
+    grown.eval()
+    rng = np.random.default_rng(4)
+    pts, _ = _sphere_patch(rng, 128, np.array([0.0, 0.1, 1.6]), 0.3)
+    x = torch.from_numpy(pts[None]).float()
+    out_plain, out_grown = plain(x), grown(x)
+    assert out_plain.keys() == out_grown.keys()
+    for key in out_plain:
+        torch.testing.assert_close(out_grown[key], out_plain[key], rtol=1e-5, atol=1e-6)
+    # the normals' weights start at zero and learn: they get gradients from the first step
+    w = grown.backbone.sa1.mlp[0].weight
+    assert torch.count_nonzero(w[:, 3:6]) == 0
+    grown.train()
+    sum(v.float().square().sum() for v in grown(x).values()).backward()
+    assert torch.count_nonzero(w.grad[:, 3:6]) > 0
+    with pytest.raises(ValueError, match="model"):
+        load_adding_normals(plain, plain.state_dict())
+    with pytest.raises(ValueError, match="state"):
+        load_adding_normals(build_network(kind, 2, 1, normals=True, **kw), grown.state_dict())

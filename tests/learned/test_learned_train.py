@@ -124,6 +124,13 @@ def test_init_weights_starts_from_a_trained_network_and_refuses_another_structur
     with pytest.raises(ValueError, match="init_weights.*network"):
         Trainer(dataclasses.replace(cfg, width=0.25, init_weights=str(tmp_path / "a" / "last.pt")), tiny_arrays,
                 progress=False)
+    # a network without input normals starts one with them: its weights, the normals' at zero
+    grown = Trainer(dataclasses.replace(cfg, input_normals=True, init_weights=str(tmp_path / "a" / "last.pt")), tiny_arrays,
+                    progress=False).model.state_dict()
+    w_plain, w_grown = trained.model.state_dict()["backbone.sa1.mlp.0.weight"], grown["backbone.sa1.mlp.0.weight"]
+    assert torch.count_nonzero(w_grown[:, 3:6]) == 0
+    torch.testing.assert_close(torch.cat([w_grown[:, :3], w_grown[:, 6:]], dim=1), w_plain)
+    torch.testing.assert_close(grown["backbone.sa2.mlp.0.weight"], trained.model.state_dict()["backbone.sa2.mlp.0.weight"])
 
 
 def test_fine_tuned_weights_keep_their_parent_and_its_training_time(tmp_path, tiny_arrays, tiny_config):

@@ -77,8 +77,8 @@ class TrainConfig:
     init_weights : str
         Start from these weights instead of a random initialisation: ``""`` (none, the default),
         ``"builtin"`` (the shipped weights of ``category`` and ``kind``) or a weights file / checkpoint
-        path. The network's structure must match this configuration's; the optimiser and the step
-        start afresh.
+        path. The network's structure must match this configuration's (or be the same without input
+        normals, see ``input_normals``); the optimiser and the step start afresh.
     pose_val_every : int
         Steps between pose validations (0 = none): validation frames through the full pipeline
         (learned provider, then ``fit`` ``exact_reduced``); with them, ``best.pt`` is the checkpoint
@@ -116,7 +116,10 @@ class TrainConfig:
         estimated inside the network from the cloud it is given (the ``k`` nearest points' principal
         components, :func:`~ancsh.learned.network.pointnet2.estimate_normals`, signed to face the
         camera), so training frames, augmented or refinement inputs and predictions get them alike.
-        Changes the network's structure (the first layer's inputs).
+        Changes the network's structure (the first layer's inputs). ``init_weights`` may name a network
+        without them: it is loaded with the normals' weights at zero
+        (:func:`~ancsh.learned.network.models.load_adding_normals`), so fine-tuning starts from exactly
+        its predictions.
     refine_perturb_deg : float
         ``0`` (the default): a first-stage network, on camera-frame input. ``> 0``: a **refinement
         network** (the second stage of CAPTRA / DeepIM): every training and validation frame is rotated

@@ -32,7 +32,7 @@ from torch import nn
 
 from .pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, normal_neighbours, shared_mlp
 
-__all__ = ["AncshNet", "DirectVotingNet", "build_network", "normalize_cloud", "denormalize_joint_votes"]
+__all__ = ["AncshNet", "DirectVotingNet", "build_network", "load_adding_normals", "normalize_cloud", "denormalize_joint_votes"]
 
 
 def normalize_cloud(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -236,3 +236,33 @@ def build_network(kind: str, num_parts: int, num_joints: int, **backbone) -> nn.
     if kind not in classes:
         raise ValueError(f"kind: expected one of {sorted(classes)}, got {kind!r}")
     return classes[kind](num_parts, num_joints, **backbone)
+
+
+def load_adding_normals(model: nn.Module, state: dict) -> None:
+    """Load into ``model`` (a network with input normals) the parameters ``state`` of the same network
+    without them: the weights on the normals start at zero, so ``model`` then predicts exactly what the
+    source network predicts, and fine-tuning starts from there (:meth:`PointNet2Backbone.state_with_input_features`).
+
+    Parameters
+    ----------
+    model : AncshNet or DirectVotingNet
+        Built with ``normals=True``; changed in place.
+    state : dict
+        ``state_dict()`` of the same kind of network, same widths and heads, built with ``normals=False``.
+    """
+    if not getattr(model, "normals", False):
+        raise ValueError("model: expected a network with input normals (normals=True)")
+    backbones = {name: m for name, m in model.named_children() if isinstance(m, PointNet2Backbone)}
+    own = model.state_dict()
+    if set(state) != set(own):
+        raise ValueError(f"state: the source network has other parameters ({sorted(set(state) ^ set(own))[:4]} ...)")
+    merged = {}
+    for prefix, backbone in backbones.items():
+        part = {k[len(prefix) + 1:]: v for k, v in state.items() if k.startswith(prefix + ".")}
+        merged.update({f"{prefix}.{k}": v for k, v in backbone.state_with_input_features(part).items()})
+    for name, value in state.items():
+        if name not in merged:
+            if value.shape != own[name].shape:
+                raise ValueError(f"state: {name} has shape {tuple(value.shape)}, expected {tuple(own[name].shape)}")
+            merged[name] = value
+    model.load_state_dict(merged)

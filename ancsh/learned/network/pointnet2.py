@@ -600,6 +600,42 @@ class PointNet2Backbone(nn.Module):
         self.out_channels = c(128)
         self.channels_last = True
 
+    #: The parameters that read the input features: the first set abstraction (grouped as
+    #: ``[relative xyz, features]``) and the last feature propagation (skip ``[xyz, features]``, then
+    #: the upsampled features); in both the features' columns follow the first three.
+    _FEATURE_INPUTS = ("sa1.mlp.0.weight", "fp1.mlp.0.weight")
+
+    def state_with_input_features(self, state: dict) -> dict:
+        """This backbone's parameters from ``state``, those of the same backbone without input features
+        (``in_features = 0``), the weights on the features set to zero.
+
+        The result computes the same per-point features as ``state`` whatever the input features are,
+        so a trained network can be given new input channels (e.g. surface normals) and fine-tuned
+        from the function it had; the new weights get gradients from the first step.
+
+        Parameters
+        ----------
+        state : dict
+            A ``state_dict()`` of a :class:`PointNet2Backbone` of the same widths with ``in_features = 0``.
+        """
+        own = self.state_dict()
+        if set(state) != set(own):
+            raise ValueError(f"state: expected the parameters {sorted(own)}, got {sorted(state)}")
+        out = {}
+        for name, target in own.items():
+            source = state[name]
+            if name in self._FEATURE_INPUTS:
+                expected = (target.shape[0], target.shape[1] - self.in_features, *target.shape[2:])
+                if tuple(source.shape) != expected:
+                    raise ValueError(f"state: {name} has shape {tuple(source.shape)}, expected {expected} "
+                                     f"(the same backbone without input features)")
+                zeros = source.new_zeros((source.shape[0], self.in_features, *source.shape[2:]))
+                source = torch.cat([source[:, :3], zeros, source[:, 3:]], dim=1)
+            elif source.shape != target.shape:
+                raise ValueError(f"state: {name} has shape {tuple(source.shape)}, expected {tuple(target.shape)}")
+            out[name] = source.clone()
+        return out
+
     @torch.no_grad()
     def neighbourhoods(self, xyz: torch.Tensor) -> Neighbourhoods:
         """Everything of a pass over ``(B, N, 3)`` points that depends only on the points."""

@@ -443,18 +443,25 @@ class Trainer:
 
     def _initialise_from(self, source: str, train: TrainingArrays) -> None:
         """Copy the parameters of ``source`` (``config.init_weights``) into the new model, refusing another structure."""
+        from ..network.models import load_adding_normals
         from ..network.weights import load_network, parent_record
 
         c = self.config
         loaded = load_network(c.category if source == "builtin" else source, kind=c.kind)
-        if loaded.kind != c.kind or loaded.config.network_kwargs() != c.network_kwargs():
+        # a network without input normals may start one with them (the normals' weights at zero)
+        adding_normals = c.input_normals and not loaded.config.input_normals
+        wanted = {**c.network_kwargs(), "normals": False} if adding_normals else c.network_kwargs()
+        if loaded.kind != c.kind or loaded.config.network_kwargs() != wanted:
             raise ValueError(f"init_weights: {loaded.source} is a {loaded.kind} network with {loaded.config.network_kwargs()}, "
                              f"not the configured {c.kind} network with {c.network_kwargs()}")
         if loaded.num_parts != train.num_parts or not np.array_equal(loaded.revolute, train.revolute):
             raise ValueError(f"init_weights: {loaded.source} has {loaded.num_parts} parts and joints "
                              f"{['revolute' if r else 'prismatic' for r in loaded.revolute]}; the training frames have "
                              f"{train.num_parts} parts and {['revolute' if r else 'prismatic' for r in train.revolute]}")
-        self.model.load_state_dict(loaded.model.state_dict())
+        if adding_normals:
+            load_adding_normals(self.model, loaded.model.state_dict())
+        else:
+            self.model.load_state_dict(loaded.model.state_dict())
         self.init_sha256 = loaded.sha256
         self.init_record = parent_record(loaded)
 
