@@ -72,7 +72,8 @@ def refiner_roots(path=None) -> dict[str, float]:
     again after its refinement network was trained, the minutes of the (earlier) first-stage lineage that the
     refiner's lineage holds; ``{}`` without the file or the entry (see :func:`refiner_minutes`). The entry holds while the
     shipped refiner descends from that earlier first stage (a refiner fine-tuned again from it still does); drop it
-    when a refiner initialised from the current first stage is shipped.
+    when a refiner initialised from the current first stage is shipped. A first stage replaced by one of another
+    lineage shares nothing with the refiner's: its entry is 0 (the refiner's whole lineage counts).
 
     Raises
     ------

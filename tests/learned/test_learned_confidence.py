@@ -65,7 +65,7 @@ def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
     path.write_text(json.dumps(cal))
     monkeypatch.setattr(confidence, "calibration_path", lambda category: path)
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
-    frame = gen.frame(1)
+    frame = gen.frame(2)  # an open laptop, found without a mask
     _, renderer = gen.instance(frame.instance_index)
     depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth
     data = predict_depth(depth, frame.intrinsics, "laptop").to_json()

@@ -565,3 +565,24 @@ def test_refined_learned_providers_calibrate_the_refined_fits_only():
         assert all(np.all(np.isfinite(r.covariance)) for r in records["rotation"] + records["joint_state"]), p
     net = measured["records"]["laptop"]["learned-network"]["test"]["rotation"]
     assert not np.allclose([r.error for r in net[:2]], [r.error for r in first["rotation"][:2]])  # the refiner's fits
+
+
+def test_installing_some_categories_keeps_the_others_and_names_each_entrys_command(tmp_path):
+    """A run over some of a provider's categories re-measures those entries (each keeping its command) and leaves
+    the others, and the provider's command (the run that measured all of them), as they were."""
+    from ancsh.solvers.inflation import load_inflation_table
+    from ancsh.studies.uncertainty_calibration import CalibrationConfig, install
+
+    path = tmp_path / "inflation.json"
+    config = CalibrationConfig(categories=("laptop", "drawer"))
+    full = {"factors": {"oracle-realistic": {"laptop": {"rotation": 2.0}, "drawer": {"rotation": 3.0}}}}
+    install(full, config, "ancsh bench uncertainty (all)", path=path)
+    install({"factors": {"oracle-realistic": {"laptop": {"rotation": 5.0}}}}, config, "ancsh bench uncertainty (laptop)",
+            path=path)
+    table = load_inflation_table(path)
+    entries = table["providers"]["oracle-realistic"]
+    assert entries["laptop"] == {"rotation": 5.0, "command": "ancsh bench uncertainty (laptop)"}
+    assert entries["drawer"] == {"rotation": 3.0, "command": "ancsh bench uncertainty (all)"}
+    assert table["commands"]["oracle-realistic"] == "ancsh bench uncertainty (all)"
+    install(full, config, "ancsh bench uncertainty (all, again)", path=path)
+    assert load_inflation_table(path)["commands"]["oracle-realistic"] == "ancsh bench uncertainty (all, again)"

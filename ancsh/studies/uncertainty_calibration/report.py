@@ -237,14 +237,20 @@ def install(summary: dict, config: CalibrationConfig, command: str, path=None) -
 
             kind = "refine" if p == "learned-network" else "ancsh"
             per_cat = {c: {**f, "weights_sha256": file_sha256(weights_path(c, kind))} for c, f in per_cat.items()}
-        table["providers"].setdefault(p, {}).update(per_cat)
-        table.setdefault("commands", {})[p] = command  # what measured each provider's maps (the last run per provider)
+        # each entry keeps the command that measured it: a run on some categories leaves the others' entries as they were
+        entries = table["providers"].setdefault(p, {})
+        covers_all = set(entries) <= set(per_cat)
+        entries.update({c: {**f, "command": command} for c, f in per_cat.items()})
+        commands = table.setdefault("commands", {})
+        if covers_all or p not in commands:
+            commands[p] = command  # the run that measured all of a provider's maps
     table["formulation"] = config.formulation
     table["command"] = command
     table["date"] = datetime.date.today().isoformat()
     table["meaning"] = ("maps of the raw Jacobian standard deviations of ancsh.solvers.uncertainty (SigmaMap: a number is "
                         "a single factor; a list holds one map per part or joint), per provider, category and quantity, "
                         "measured on calibration frames by ancsh bench uncertainty (providers *-tracked-<source>: warm tracked "
-                        "frames, by ancsh bench tracking --calibration-sequences)")
+                        "frames, by ancsh bench tracking --calibration-sequences); an entry's command (where recorded) "
+                        "measured it, commands[provider] the last run that measured all of the provider's maps")
     write_text(path, json.dumps(table, indent=1, sort_keys=True) + "\n")
     return path
