@@ -21,7 +21,7 @@ from ancsh.learned.network.weights import export_weights
 def rendered():
     """A noise-free depth image of a held-out, open laptop (test split, display at 83 deg) and its frame."""
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
-    frame = gen.frame(2)  # nearly closed laptops (frame 1: 10 deg) are often not found without a mask
+    frame = gen.frame(2)  # frame 1, a nearly closed laptop (10 deg), is fitted 52 deg off and rejected (p_object)
     _, renderer = gen.instance(frame.instance_index)
     view = renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics)
     return frame, view.depth

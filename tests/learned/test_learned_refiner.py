@@ -113,7 +113,7 @@ def test_refiner_choice_is_checked(tmp_path, make_refiner):
 def _laptop_frame():
     from ancsh.data.generate import FrameGenerator, GenerationConfig
 
-    return FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0)).frame(1)
+    return FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0)).frame(2)  # an open laptop (83 deg)
 
 
 def test_network_refinement_commutes_with_a_camera_rotation(tmp_path, make_refiner):

@@ -110,7 +110,7 @@ def test_predict_writes_the_urdf_and_refuses_to_overwrite(tmp_path, capsys):
     from ancsh.data.generate import FrameGenerator, GenerationConfig
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
-    fr = gen.frame(2)  # an open laptop (83 deg); nearly closed ones are often not found without a mask
+    fr = gen.frame(2)  # an open laptop (83 deg); frame 1 (10 deg) is fitted 52 deg off and rejected (p_object)
     _, renderer = gen.instance(fr.instance_index)
     np.save(tmp_path / "d.npy", renderer.render(fr.joint_states_abs, fr.T_cam_base, fr.intrinsics).depth)
     (tmp_path / "K.json").write_text(json.dumps(fr.intrinsics.to_json()))

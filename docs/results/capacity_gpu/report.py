@@ -3,7 +3,8 @@
     python docs/results/capacity_gpu/report.py EVAL_DIR [EVAL_DIR ...] > tables.md
 
 Each EVAL_DIR is the --out folder of one `ancsh evaluate --category laptop ... --real builtin` (its
-laptop.json); the label of a row is the weights file's stem (``shipped`` for the shipped network).
+laptop.json; the tables serve any category's folders); the label of a row is the weights file's stem (``shipped``
+for the shipped network).
 """
 
 import csv
@@ -41,13 +42,27 @@ def curves(runs=tuple(RUNS), here=HERE) -> list[str]:
     return out
 
 
-def network_name(weights: str) -> str:
-    """A table's name of an evaluated weights file: ``shipped`` for the shipped ``ancsh/weights/laptop.pt``, else the
-    file's stem without ``_best``, or its folder's name where the stem is only the category's (an exported candidate)."""
+def network_name(weights: str, category: str = "laptop") -> str:
+    """A table's name of an evaluated weights file: ``shipped`` for the shipped ``ancsh/weights/<category>.pt``, else
+    the file's stem without ``_best``, or its folder's name where the stem is only the category's (an exported
+    candidate)."""
     path = Path(weights)
-    if path.stem == "laptop":
+    if path.stem == category:
         return "shipped" if path.parent.name == "weights" and path.parent.parent.name == "ancsh" else path.parent.name
     return path.stem.replace("_best", "")
+
+
+def load_report(folder) -> dict:
+    """The ``ancsh evaluate`` report of an evaluation folder (its one ``<category>.json``)."""
+    found = sorted(Path(folder).glob("*.json"))
+    if len(found) != 1:
+        raise ValueError(f"{folder}: expected one <category>.json of ancsh evaluate, found {[f.name for f in found]}")
+    return json.loads(found[0].read_text())
+
+
+def report_name(rep: dict) -> str:
+    """:func:`network_name` of a report's weights."""
+    return network_name(rep["settings"]["weights"], rep["settings"]["category"])
 
 
 def _pair(values, fmt):
@@ -59,9 +74,9 @@ def table1(dirs, method="exact_reduced") -> list[str]:
     out = ["| network | step | procedural: rotation (°) mean | median | translation | joint axis (°) | state (°) "
            "| real split: rotation (°) mean | joint axis (°) | state (°) |", "|---" * 10 + "|"]
     for d in dirs:
-        rep = json.loads((Path(d) / "laptop.json").read_text())
+        rep = load_report(d)
         s = rep["settings"]
-        name = network_name(s["weights"])
+        name = report_name(rep)
         m = rep["summary"]["methods"][method]
         r = rep["real"]["summary"]["methods"][method]
         out.append(f"| {name} | {s['weights_step']} | {_pair(m['rot_deg']['mean'], '.2f')} | {_pair(m['rot_deg']['median'], '.2f')} "
@@ -78,8 +93,8 @@ def paired(dirs, reference="w05", seed=0, draws=2000, method="exact_reduced") ->
 
     reps = {}
     for d in dirs:
-        rep = json.loads((Path(d) / "laptop.json").read_text())
-        reps[network_name(rep["settings"]["weights"])] = rep
+        rep = load_report(d)
+        reps[report_name(rep)] = rep
     ref = reps[reference]
     inst = np.array(ref["per_frame"]["instance"])
     names = np.unique(inst)

@@ -87,3 +87,13 @@ if __name__ == "__main__":
         for method in ("exact_reduced", "network"):
             print("\n".join(table1(dirs, method=method)), end="\n\n")
             print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
+    # normals added to the shipped oven (`init_weights` builtin, their weights at zero) against the same fine-tune
+    # without them, 50 minutes each (`ancsh export` of each run, then `ancsh evaluate --category oven --frames 300
+    # --formulations exact_reduced --refine network --real builtin [--weights <export>] --out EVAL_ROOT/oven_<name>`)
+    title = "normals added to the shipped oven against the same fine-tune without them"
+    dirs = [root / "oven_shipped", root / "oven_grown", root / "oven_plain"]
+    if present(title, dirs):
+        print(f"### {title}\n")
+        for method in ("exact_reduced", "network"):
+            print("\n".join(table1(dirs, method=method)), end="\n\n")
+            print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
