@@ -666,17 +666,19 @@ def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
 @pytest.mark.skipif(not (shared_data_dir() / "partnet_mobility").is_dir(),
                     reason="the scenario's template is a shared PartNet-Mobility laptop (shared data not available)")
 def test_network_frames_correct_the_carried_templates_joint_state():
-    """Scenario: the benchmark's eighth learned laptop sequence (seed 0), where the carried template (a real
+    """Scenario: the benchmark's sixth learned laptop sequence (seed 0), where the carried template (a real
     laptop of the library, from the shared data) settles a few degrees off the object's joint state (the
     template's lid is not the object's). With
     ``template_states`` the network frames' joint states pull the template frames' toward theirs: frames 10-20
-    within 1.5 degrees of the truth on average (about 1); without, the template's offset stays (above 2.3, about 2.8).
-    (Not the ninth sequence: its frame-0 refinement is accepted or rejected by the part tolerance depending on
-    float-level differences of the cold fit -- CPU kernels, 1e-7 m of point noise -- so it was not reproducible.)"""
+    within 1.5 degrees of the truth on average (about 1.0); without, the template's offset stays (above 2.3, about 3.2).
+    (With the laptop network shipped on 2026-12-05; the first ten sequences: 1.2 against 2.2 degrees on average over
+    the eight whose template was accepted. The eighth, this test's sequence before, now carries the network's fit
+    instead; the ninth's frame-0 refinement is accepted or rejected by the part tolerance depending on float-level
+    differences of the cold fit -- CPU kernels, 1e-7 m of point noise -- so it was not reproducible.)"""
     from ancsh.learned.inference.provider import LearnedProvider
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0, sequence=SequenceMotion(length=40)))
-    frames = [gen.frame(7 * 40 + t) for t in range(21)]
+    frames = [gen.frame(5 * 40 + t) for t in range(21)]
     provider = LearnedProvider("laptop", num_threads=1)
     late = {}
     for states in (True, False):
