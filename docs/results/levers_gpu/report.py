@@ -52,6 +52,17 @@ def present(title: str, dirs) -> bool:
     return not missing
 
 
+def against_shipped(title: str, dirs) -> None:
+    """A section of first stages beside the shipped one (``dirs[0]``), each fitted alone and followed by the shipped
+    refiner (evaluated with ``--refine network``): per fit, the Table 1 rows and the paired comparison."""
+    if not present(title, dirs):
+        return
+    print(f"### {title}\n")
+    for method in ("exact_reduced", "network"):
+        print("\n".join(table1(dirs, method=method)), end="\n\n")
+        print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
+
+
 if __name__ == "__main__":
     root = Path(sys.argv[1])
     reps = [r for runs in REPLICATES.values() for r in runs]
@@ -80,20 +91,10 @@ if __name__ == "__main__":
         print("\n".join(seed_summary(root, LONG, prefix="ref_eval", method="network")), end="\n\n")
     # the normals laptop fine-tuned on the CPU (`--weights docs/results/levers_gpu/laptop_normals_candidate/laptop.pt
     # --refine network --out EVAL_ROOT/ref_eval_laptop_normals_candidate`) against the shipped first stage
-    title = "the normals laptop candidate against the shipped first stage, both with the shipped refiner"
-    dirs = [root / "lev_eval_shipped", root / "ref_eval_laptop_normals_candidate"]
-    if present(title, dirs):
-        print(f"### {title}\n")
-        for method in ("exact_reduced", "network"):
-            print("\n".join(table1(dirs, method=method)), end="\n\n")
-            print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
+    against_shipped("the normals laptop candidate against the shipped first stage, both with the shipped refiner",
+                    [root / "lev_eval_shipped", root / "ref_eval_laptop_normals_candidate"])
     # normals added to the shipped oven (`init_weights` builtin, their weights at zero) against the same fine-tune
     # without them, 50 minutes each (`ancsh export` of each run, then `ancsh evaluate --category oven --frames 300
     # --formulations exact_reduced --refine network --real builtin [--weights <export>] --out EVAL_ROOT/oven_<name>`)
-    title = "normals added to the shipped oven against the same fine-tune without them"
-    dirs = [root / "oven_shipped", root / "oven_grown", root / "oven_plain"]
-    if present(title, dirs):
-        print(f"### {title}\n")
-        for method in ("exact_reduced", "network"):
-            print("\n".join(table1(dirs, method=method)), end="\n\n")
-            print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
+    against_shipped("normals added to the shipped oven against the same fine-tune without them",
+                    [root / "oven_shipped", root / "oven_grown", root / "oven_plain"])
