@@ -67,6 +67,35 @@ def test_cached_nearest_points_give_the_normals_of_the_cloud_rotated_moved_or_sc
         estimate_normals(torch.from_numpy(pts[None]), neighbours=idx[..., :2])
 
 
+def test_the_k_d_tree_search_finds_the_exact_nearest_points():
+    """On a CPU the nearest points come from a k-d tree: the exact ones (float64 distances), nearest first, in
+    float32 and float64, batched; a cloud with repeated points (a frame with fewer points than the network takes is
+    sampled with repeats) gets the same normals as its points once. The brute-force search on other devices
+    (``cdist``, whose float32 matrix-product distances can swap near-ties) picks nearly every set alike."""
+    rng = np.random.default_rng(6)
+    clouds = np.stack([_sphere_patch(rng, 300, np.array([0.0, 0.1, 1.5]), 0.3)[0] for _ in range(3)])
+    clouds[2, 150:] = clouds[2, :150]  # every point twice
+    d_exact = np.linalg.norm(clouds[:, :, None] - clouds[:, None], axis=-1)
+    nearest = np.sort(d_exact, axis=-1)[..., :16]
+    for dtype in (torch.float32, torch.float64):
+        x = torch.from_numpy(clouds).to(dtype)
+        tree = normal_neighbours(x)
+        assert tree.shape == (3, 300, 16) and tree.dtype == torch.int64
+        np.testing.assert_allclose(np.take_along_axis(d_exact, tree.numpy(), axis=-1), nearest, rtol=0, atol=1e-6)
+        brute = torch.cdist(x, x).topk(16, dim=-1, largest=False).indices
+        same = np.mean([set(a) == set(b) for a, b in zip(tree[:2].reshape(-1, 16).tolist(), brute[:2].reshape(-1, 16).tolist())])
+        assert same > 0.9, same
+    x = torch.from_numpy(clouds)
+    twice = estimate_normals(x[2:], k=16)[0].numpy()
+    once = estimate_normals(x[2:, :150], k=8)[0].numpy()  # each of its 8 nearest points counted twice above
+    np.testing.assert_allclose(twice[:150], once, atol=1e-9)
+    np.testing.assert_allclose(twice[150:], once, atol=1e-9)
+    # a cloud with a non-finite point is searched by brute force (what that search makes of it, as before)
+    bad = x[:1].clone()
+    bad[0, 5] = float("nan")
+    assert normal_neighbours(bad).shape == (1, 300, 16)
+
+
 def test_a_normals_network_takes_its_nearest_points_from_the_neighbourhoods():
     cfg = TrainConfig(num_points=64, width=0.125, npoints=(32, 8), nsamples=(8, 8), input_normals=True)
     torch.manual_seed(0)

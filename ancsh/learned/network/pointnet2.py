@@ -418,7 +418,21 @@ def normal_neighbours(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS) -> torch
     """
     _check_xyz(points, "points")
     k = min(_check_k(k), points.shape[1])
+    if points.device.type == "cpu" and bool(torch.isfinite(points).all()):
+        return _kdtree_neighbours(points, k)
     return torch.cdist(points, points).topk(k, dim=-1, largest=False).indices
+
+
+def _kdtree_neighbours(points: torch.Tensor, k: int) -> torch.Tensor:
+    """:func:`normal_neighbours` on a CPU by a k-d tree per cloud: the same nearest points as the brute-force
+    search (about half its time for 1024 points, which a prediction pays on every frame), nearest first."""
+    from scipy.spatial import cKDTree
+
+    clouds = points.detach().numpy()
+    idx = np.empty((*clouds.shape[:2], k), dtype=np.int64)
+    for b, cloud in enumerate(clouds):
+        idx[b] = cKDTree(cloud).query(cloud, k=k)[1]
+    return torch.from_numpy(idx)
 
 
 @torch.no_grad()
