@@ -428,7 +428,7 @@ def _kdtree_neighbours(points: torch.Tensor, k: int) -> torch.Tensor:
     search (about half its time for 1024 points, which a prediction pays on every frame), nearest first."""
     from scipy.spatial import cKDTree
 
-    clouds = points.detach().numpy()
+    clouds = points.detach().numpy().astype(np.float64)  # the tree's own type: no conversion per query
     idx = np.empty((*clouds.shape[:2], k), dtype=np.int64)
     for b, cloud in enumerate(clouds):
         idx[b] = cKDTree(cloud).query(cloud, k=k)[1]
