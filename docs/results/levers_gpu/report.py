@@ -98,3 +98,8 @@ if __name__ == "__main__":
     # --formulations exact_reduced --refine network --real builtin [--weights <export>] --out EVAL_ROOT/oven_<name>`)
     against_shipped("normals added to the shipped oven against the same fine-tune without them",
                     [root / "oven_shipped", root / "oven_grown", root / "oven_plain"])
+    # the oven's normals first stage: from scratch (65 min, `oven_normals_scratch_config.json`) and that network after
+    # 75 minutes of pose-aware fine-tune (`oven_normals_ft/config.json`), each exported by `ancsh export` and evaluated
+    # as above (`--out EVAL_ROOT/oven_normals`, `EVAL_ROOT/oven_normals_ft`)
+    against_shipped("the oven's normals first stage from scratch and after its pose-aware fine-tune",
+                    [root / "oven_shipped", root / "oven_normals", root / "oven_normals_ft"])
