@@ -23,12 +23,18 @@ import numpy as np
 
 from .report import Provenance, write_json, write_text
 
-__all__ = ["MODES", "measure_scenes", "write_scenes_report"]
+__all__ = ["MODES", "WRONG_MASK_IOU", "WRONG_ROTATION_DEG", "load_scenes_records", "measure_scenes", "wrong_success",
+           "write_scenes_report"]
 
 #: The runs per scene (module docstring).
 MODES = ("mask", "auto", "empty")
 #: A scene whose clutter leaves fewer of the object's pixels visible is left out (and counted).
 MIN_VISIBLE_PIXELS = 300
+#: An ``auto`` success is counted wrong (:func:`wrong_success`) when its isolated mask overlaps the object's visible
+#: pixels by less than this IoU (something else, or a fragment, was fitted) ...
+WRONG_MASK_IOU = 0.5
+#: ... or when its mean part rotation is further off than this (degrees): a success status a user should not trust.
+WRONG_ROTATION_DEG = 20.0
 
 
 def _record(pred, scene, category, index, mode, seconds) -> dict:
@@ -48,6 +54,16 @@ def _record(pred, scene, category, index, mode, seconds) -> dict:
         errs = [j.state_err for j in ev.joints if np.isfinite(j.state_err)]
         rec["state_err"] = float(np.mean(errs)) if errs else None
     return rec
+
+
+def wrong_success(record: dict) -> bool:
+    """Whether a run reported ``success`` on the wrong thing or far off: an ``auto`` run whose isolated mask has an
+    IoU below :data:`WRONG_MASK_IOU` with the object's visible pixels, or any run of a scene with the object whose mean
+    part rotation is more than :data:`WRONG_ROTATION_DEG` off. ``False`` for a run that did not succeed."""
+    if not record["ok"] or record["mode"] == "empty":
+        return False
+    iou, rot = record.get("mask_iou"), record.get("rot_deg")
+    return (record["mode"] == "auto" and iou is not None and iou < WRONG_MASK_IOU) or (rot is not None and rot > WRONG_ROTATION_DEG)
 
 
 def _found_on(mask, scene) -> str:
@@ -118,16 +134,43 @@ def _median(values, spec=".1f"):
     return format(float(np.median(v)), spec) if v else "-"
 
 
-def write_scenes_report(results: dict, path, *, command: str) -> Path:
-    """Markdown at ``path`` and the records as JSON beside it."""
+def load_scenes_records(path) -> tuple[dict, Provenance]:
+    """The results and provenance of a report's JSON (:func:`write_scenes_report`), to write the report again from
+    its records (``ancsh bench scenes --records``) without fitting the scenes again.
+
+    Raises
+    ------
+    ValueError
+        When ``path`` is missing or not such a file (naming it).
+    """
+    import json
+
+    try:
+        data = json.loads(Path(path).read_text())
+        results = {"records": data["records"], "hidden": data.get("hidden") or [], "settings": data["settings"]}
+        prov = Provenance(data["command"], date=data["date"], machine=data["machine"])
+    except (OSError, KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"--records: {path} is not the JSON of an `ancsh bench scenes` report ({exc})") from exc
+    return results, prov
+
+
+def write_scenes_report(results: dict, path, *, command: str, provenance: Provenance | None = None,
+                        rewritten_by: str | None = None) -> Path:
+    """Markdown at ``path`` and the records as JSON beside it.
+
+    ``provenance``: the measuring run's (:func:`load_scenes_records`) when the report is written again from its
+    records by the command ``rewritten_by``; default: this run's, for ``command``.
+    """
     path = Path(path)
-    prov = Provenance(command)
+    prov = provenance or Provenance(command)
+    command = prov.command
     recs = results["records"]
     n = results["settings"]["frames"]
     lines = [
         "# Rendered scenes: `ancsh predict` without a mask", "",
         f"Command: `{command}`  ",
         f"Date: {prov.date}; machine: {prov.machine_text}  ",
+        *([f"Report written again from the records by `{rewritten_by}`  "] if rewritten_by else []),
         "Study: `ancsh.studies.scenes` (scenes: `ancsh.data.scenes.render_scene`)", "",
         f"{n} test frames per category, each in a scene: on a floor or (one in three) the lowest tread of a staircase, a "
         "wall or a curtain behind, up to two pieces of clutter beside; the dataset's sensor noise. `mask`: predicted "
@@ -135,16 +178,19 @@ def write_scenes_report(results: dict, path, *, command: str) -> Path:
         "runs `ancsh predict`); `empty`: the same scene without the object, where `success` is a false report. "
         "Rotation: the mean over the parts; state: the mean joint-state error (degrees; object units for prismatic "
         "joints); medians over the frames that succeeded. Mask IoU: the isolated pixels against the object's visible "
-        "ones (median over every `auto` run). Time: median per run (ms).", "",
-        "| category | mask: success | auto: success | auto: mask IoU | rotation (°): mask / auto | state: mask / auto "
-        "| empty: false success | time (ms): mask / auto |",
+        "ones (median over every `auto` run). Time: median per run (ms). *Wrong*: a `success` on the wrong thing or far "
+        f"off (an `auto` mask IoU below {WRONG_MASK_IOU:g}, or a mean part rotation over {WRONG_ROTATION_DEG:g}°); what a user "
+        "should not have been told: with `no_object` they look again, with a wrong success they act on it.", "",
+        "| category | mask: success (wrong) | auto: success (wrong) | auto: mask IoU | rotation (°): mask / auto "
+        "| state: mask / auto | empty: false success | time (ms): mask / auto |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for c in results["settings"]["categories"]:
         by = {m: [r for r in recs if r["category"] == c and r["mode"] == m] for m in MODES}
         ok = {m: [r for r in by[m] if r["ok"]] for m in MODES}
         lines.append(
-            f"| {c} | {len(ok['mask'])}/{len(by['mask'])} | {len(ok['auto'])}/{len(by['auto'])} "
+            f"| {c} | {len(ok['mask'])}/{len(by['mask'])} ({sum(map(wrong_success, ok['mask']))}) "
+            f"| {len(ok['auto'])}/{len(by['auto'])} ({sum(map(wrong_success, ok['auto']))}) "
             f"| {_median([r['mask_iou'] for r in by['auto']], '.2f')} "
             f"| {_median([r['rot_deg'] for r in ok['mask']])} / {_median([r['rot_deg'] for r in ok['auto']])} "
             f"| {_median([r['state_err'] for r in ok['mask']], '.3g')} / {_median([r['state_err'] for r in ok['auto']], '.3g')} "
@@ -156,10 +202,13 @@ def write_scenes_report(results: dict, path, *, command: str) -> Path:
     if hidden:
         lines += ["", f"Left out: {len(hidden)} scene(s) whose clutter hides the object (fewer than {MIN_VISIBLE_PIXELS} "
                   "of its pixels visible): " + ", ".join(f"{h['category']} {h['frame']}" for h in hidden) + "."]
+    auto = [r for r in recs if r["mode"] == "auto"]
     lines += ["", "By support (`auto`, every category): "
-              f"floor {sum(r['ok'] for r in floor)}/{len(floor)} success, mask IoU {_median([r['mask_iou'] for r in floor], '.2f')}; "
-              f"stairs {sum(r['ok'] for r in stairs)}/{len(stairs)} success, mask IoU "
-              f"{_median([r['mask_iou'] for r in stairs], '.2f')}.", ""]
+              f"floor {sum(r['ok'] for r in floor)}/{len(floor)} success ({sum(map(wrong_success, floor))} wrong), mask IoU "
+              f"{_median([r['mask_iou'] for r in floor], '.2f')}; "
+              f"stairs {sum(r['ok'] for r in stairs)}/{len(stairs)} success ({sum(map(wrong_success, stairs))} wrong), mask IoU "
+              f"{_median([r['mask_iou'] for r in stairs], '.2f')}. Right successes without a mask, every category: "
+              f"{sum(r['ok'] and not wrong_success(r) for r in auto)}/{len(auto)}.", ""]
     false = [r for r in recs if r["mode"] == "empty" and r["ok"] and r.get("found")]
     if false:
         import collections

@@ -20,3 +20,35 @@ def test_the_benchmark_runs_every_mode_on_each_scene_and_writes_its_command(tmp_
     assert "| laptop |" in out.read_text()
     assert main(["bench", "scenes", "--categories", "chair", "--frames", "1", "--out", str(out)]) == 2
     assert "--categories: no shipped weights for ['chair']" in capsys.readouterr().err
+
+
+def test_the_report_counts_wrong_successes_and_is_written_again_from_its_records(tmp_path, capsys):
+    from ancsh.studies.scenes import WRONG_MASK_IOU, WRONG_ROTATION_DEG, wrong_success
+
+    base = {"ok": True, "mode": "auto", "mask_iou": 0.9, "rot_deg": 3.0}
+    assert not wrong_success(base)
+    assert wrong_success(base | {"mask_iou": WRONG_MASK_IOU - 0.01})  # something else isolated
+    assert wrong_success(base | {"rot_deg": WRONG_ROTATION_DEG + 1})  # far off
+    assert not wrong_success(base | {"ok": False, "rot_deg": None, "mask_iou": 0.0})  # no success, nothing wrong
+    assert wrong_success(base | {"mode": "mask", "mask_iou": None, "rot_deg": 45.0})
+    assert not wrong_success(base | {"mode": "mask", "mask_iou": None})
+    # a measured report's records, one auto success made wrong by hand: the report written again counts it and keeps
+    # the measuring run's command, date and machine
+    out = tmp_path / "measured.md"
+    assert main(["bench", "scenes", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.with_suffix(".json").read_text())
+    auto = next(r for r in data["records"] if r["mode"] == "auto")
+    auto.update(ok=True, status="success", mask_iou=0.1, rot_deg=5.0)
+    records = tmp_path / "records.json"
+    records.write_text(json.dumps(data))
+    again = tmp_path / "again.md"
+    assert main(["bench", "scenes", "--records", str(records), "--out", str(again)]) == 0
+    text = again.read_text()
+    assert "| laptop | 1/1 (0) | 1/1 (1) |" in text
+    assert f"Command: `{data['command']}`" in text and f"Date: {data['date']};" in text
+    assert f"written again from the records by `ancsh bench scenes --records {records} --out {again}`" in text
+    assert json.loads(again.with_suffix(".json").read_text())["records"] == data["records"]
+    assert main(["bench", "scenes", "--records", str(records), "--frames", "3", "--out", str(again)]) == 2
+    assert "--records: the records hold their own categories" in capsys.readouterr().err
+    assert main(["bench", "scenes", "--records", str(tmp_path / "none.json"), "--out", str(again)]) == 2
+    assert "is not the JSON of an `ancsh bench scenes` report" in capsys.readouterr().err

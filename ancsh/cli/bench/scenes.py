@@ -19,6 +19,8 @@ def register(sub) -> None:
     p.add_argument("--seed", type=non_negative_int, default=0, help="seed of the test frames and scenes (default 0)")
     p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/scenes-<time>/scenes.md)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/scenes.md (when --out is not given)")
+    p.add_argument("--records", type=Path, metavar="JSON", help="write the report again from a report's records (its "
+                   "scenes.json; the measuring run's command, date and machine kept) instead of fitting the scenes")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -32,9 +34,21 @@ def run(args: argparse.Namespace) -> int:
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="scenes.md", command="scenes")
-    results = measure_scenes(categories, frames=args.frames, seed=args.seed,
-                             progress=None if args.quiet else (lambda line: print(line, flush=True)))
-    write_scenes_report(results, path, command=command)
+    if args.records is not None:
+        from ...studies.scenes import load_scenes_records
+
+        if args.categories is not None or args.frames != 20 or args.seed != 0:
+            raise ValueError("--records: the records hold their own categories, frames and seed; leave out "
+                             "--categories, --frames and --seed")
+
+        results, provenance = load_scenes_records(args.records)
+        rewritten = "ancsh " + " ".join(shlex.quote(a) for a in ["bench", "scenes", "--records", str(args.records),
+                                                                   *output_flags(args.out, update_docs=args.update_docs)])
+        write_scenes_report(results, path, command=command, provenance=provenance, rewritten_by=rewritten)
+    else:
+        results = measure_scenes(categories, frames=args.frames, seed=args.seed,
+                                 progress=None if args.quiet else (lambda line: print(line, flush=True)))
+        write_scenes_report(results, path, command=command)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
     return 0
