@@ -20,7 +20,8 @@ as a second candidate -- and ranks the segments as candidates:
 The result is a pixel mask of the first candidate plus every candidate (:class:`Isolation`:
 ``labels`` and the ranked ``order``), so that a caller who can judge a candidate (the category's
 network and fit, :func:`ancsh.learned.inference.predict.predict_depth`) may verify several and
-choose. A mask given by the user always wins over this (``ancsh predict --mask``).
+choose, and, when it rejects every one, join two that touch into one more candidate (:func:`merged_candidate`: an
+object that plane removal cut in two). A mask given by the user always wins over this (``ancsh predict --mask``).
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ import numpy as np
 
 from .render import Intrinsics, valid_depth_pixels
 
-__all__ = ["ObjectHint", "Cluster", "Isolation", "behind_surroundings", "isolate_object", "out_of_view", "parse_hint"]
+__all__ = ["ObjectHint", "Cluster", "Isolation", "behind_surroundings", "isolate_object", "merged_candidate", "out_of_view",
+           "parse_hint"]
 
 # the opening that parts a support plane from a face touching it (radius 2 grid pixels)
 _DISK = np.array([[0, 1, 1, 1, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 1, 1, 1, 0]], dtype=bool)
@@ -94,6 +96,11 @@ OUT_OF_VIEW_SHARE = 0.1
 OUT_OF_VIEW_PIXELS = 3
 #: Segments smaller than this many grid pixels are noise.
 MIN_SEGMENT_GRID_PIXELS = 20
+#: Two candidates that touch in the image (within MERGE_REACH grid pixels) and share less than MERGE_OVERLAP of the
+#: smaller one's grid pixels make one more candidate, their union (:func:`merged_candidate`): an object that plane
+#: removal or a depth jump cut in two (a nearly closed laptop on the floor, its slab a few centimetres above it).
+MERGE_REACH = 2
+MERGE_OVERLAP = 0.5
 
 
 @dataclass(frozen=True)
@@ -397,6 +404,66 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     order, reason, hinted = _rank(clusters, segments, gi, gj, intrinsics, hint, lo, hi)
     return Isolation(upsample(segments[order[0]]), labels, tuple(clusters), order[0], planes, reason, order=tuple(order),
                      stride=s, hinted=tuple(hinted), segments=tuple(segments), _upsample=upsample)
+
+
+def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: Intrinsics,
+                     category: str) -> tuple[Isolation, int] | None:
+    """Candidates ``a`` and ``b`` of ``isolation`` as one more candidate, their union, for a caller whose verification
+    rejected both (:func:`ancsh.learned.inference.predict.predict_depth`): an object cut in two by plane removal or a
+    depth jump is fitted whole. ``(isolation with the union appended to its candidates, its index)``, or ``None``
+    when the two do not touch in the image (within :data:`MERGE_REACH` grid pixels), overlap by
+    :data:`MERGE_OVERLAP` or more of the smaller one (one holds the other: a candidate with its attached pieces),
+    make a candidate there already (an IoU of :data:`SAME_SEGMENT_IOU`), or make one whose size does not fit
+    ``category``.
+
+    Parameters
+    ----------
+    isolation : Isolation
+        From :func:`isolate_object` of ``depth``.
+    a, b : int
+        Candidate indices.
+    depth : (H, W) float64
+        The isolated image (metres).
+    intrinsics : Intrinsics
+    category : str
+        As for :func:`isolate_object` (its ``diagonal_range``).
+    """
+    from scipy.ndimage import binary_dilation
+
+    from .procedural import CATEGORY_INFO
+
+    for name, c in (("a", a), ("b", b)):
+        if isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c < len(isolation.segments):
+            raise ValueError(f"{name}: expected a candidate index in [0, {len(isolation.segments)}), got {c!r}")
+    ga, gb = isolation.segments[a], isolation.segments[b]
+    shared = np.count_nonzero(ga & gb)
+    if a == b or shared >= MERGE_OVERLAP * min(np.count_nonzero(ga), np.count_nonzero(gb)):
+        return None
+    if not np.any(binary_dilation(ga, iterations=MERGE_REACH) & gb):
+        return None
+    union = ga | gb
+    n_union = np.count_nonzero(union)
+    if any(np.count_nonzero(union & o) >= SAME_SEGMENT_IOU * np.count_nonzero(union | o) for o in isolation.segments):
+        return None
+    mask = isolation.mask_of(a) | isolation.mask_of(b)
+    vs, us = np.nonzero(mask)
+    if len(vs) < 10:
+        return None
+    d = np.asarray(depth, dtype=np.float64)[vs, us]
+    pts = np.stack([(us - intrinsics.cx) / intrinsics.fx * d, (vs - intrinsics.cy) / intrinsics.fy * d, d], axis=-1)
+    info = CATEGORY_INFO.get(category)
+    lo, hi = info.diagonal_range if info is not None else (0.1, 2.0)
+    diag = _extent(pts, diagonal=True)
+    if not lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR:
+        return None
+    s = isolation.stride
+    ca, cb = isolation.clusters[a], isolation.clusters[b]
+    cluster = Cluster(int(n_union) * s * s, diag, (float(us.mean()), float(vs.mean())), True, level=max(ca.level, cb.level))
+    from dataclasses import replace
+
+    new = len(isolation.clusters)
+    return replace(isolation, clusters=isolation.clusters + (cluster,), segments=isolation.segments + (union,),
+                   order=isolation.order + (new,)), new
 
 
 def _with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, g: np.ndarray, gap: float) -> np.ndarray:

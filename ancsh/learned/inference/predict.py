@@ -41,7 +41,8 @@ from .candidate import (  # noqa: F401 - re-exported
 from .picture import draw_prediction  # noqa: F401 - re-exported
 from .refine_network import DEFAULT_PASSES
 
-__all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MIN_P_OBJECT",
+__all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MAX_MERGED",
+           "MIN_P_OBJECT",
            "DepthPrediction", "fit_candidate", "fit_candidate_refinements", "check_confidence", "check_plausibility",
            "check_weights_category", "part_quality", "depth_to_points", "draw_prediction", "predict_depth",
            "read_depth", "read_intrinsics", "read_mask"]
@@ -49,6 +50,9 @@ __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RES
 
 #: Isolation without a hint fits at most this many candidate segments and keeps the best supported.
 MAX_VERIFIED = 5
+#: When none of them passes, at most this many unions of two that touch (:func:`ancsh.data.isolate.merged_candidate`:
+#: an object cut in two by plane removal) are fitted too.
+MAX_MERGED = 2
 #: ``to_urdf`` with the observed depth: the template is the best of this many nearest by render-and-compare
 #: (``docs/results/twin.md``: against the nearest alone; 20 instead of 5 lowered the oracle cabinets' median residual
 #: by 1-5 mm for 0.2-0.3 s more per export).
@@ -395,10 +399,14 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     :data:`MAX_VERIFIED` candidates whose size fits the category (or the first, when none does) are
     fitted. A segment that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or
     a curtain seen around nearer things) is no object (``not_this_category``); without a hint, one that runs out of
-    the image (:func:`ancsh.data.isolate.out_of_view`: a sliver of wall or floor at the edge) is ``out_of_view``. The best-supported fit that passes
-    every check wins; when none passes, the best-supported one comes back with status ``no_object``.
+    the image (:func:`ancsh.data.isolate.out_of_view`: a sliver of wall or floor at the edge) is ``out_of_view``. When
+    none passes, up to :data:`MAX_MERGED` unions of two fitted candidates that touch in the image
+    (:func:`ancsh.data.isolate.merged_candidate`: an object that plane removal cut in two) are fitted and judged
+    alike. The best-supported fit that passes every check wins; when none passes, the best-supported one comes back
+    with status ``no_object``.
     """
     import dataclasses
+    import itertools
 
     from ...solvers.types import FitStatus
 
@@ -406,10 +414,11 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         chosen = list(isolation.hinted[:MAX_VERIFIED]) or isolation.order[:1]
     else:
         chosen = [c for c in isolation.order if isolation.clusters[c].fits_category][:MAX_VERIFIED] or isolation.order[:1]
-    from ...data.isolate import behind_surroundings, out_of_view
+    from ...data.isolate import behind_surroundings, merged_candidate, out_of_view
 
     attempts, verified = {}, []
-    for c in chosen:
+
+    def judge(c):
         mask = isolation.mask_of(c)
         a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
         if a["result"].ok:
@@ -428,11 +437,28 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         verified.append({"segment": int(c), "status": a["result"].status.value, "p_good": a["p_good"],
                          "p_object": a["p_object"], "score": _score(a), "diagonal_m": isolation.clusters[c].diagonal,
                          "render_compare": None if a["comparison"] is None else a["comparison"].to_dict()})
+
+    for c in chosen:
+        judge(c)
+    if not any(a["result"].ok for a in attempts.values()):
+        merged = 0
+        for i, j in itertools.combinations(list(attempts), 2):
+            if merged == MAX_MERGED:
+                break
+            union = merged_candidate(isolation, i, j, d, intrinsics, category)
+            if union is not None:
+                isolation, c = union
+                judge(c)
+                verified[-1]["merged"] = [int(i), int(j)]
+                merged += 1
     best = max(attempts, key=lambda c: _score(attempts[c]))
     a = attempts[best]
     if a["result"].ok:
         why = (f"{isolation.reason}; of {len(attempts)} candidate(s) fitted, segment {best} is the best supported"
                if len(attempts) > 1 else isolation.reason)
+        joined = next((v["merged"] for v in verified if v["segment"] == best and "merged" in v), None)
+        if joined is not None:
+            why += f" (segments {joined[0]} and {joined[1]} joined: none of the candidates passed alone)"
         return a, isolation.with_choice(best, why, verified)
     failures = "; ".join(f"segment {v['segment']} ({v['diagonal_m']:.2f} m): {v['status']}" for v in verified)
     a = dict(a)
