@@ -1,4 +1,6 @@
 """Find the object in a depth image without a mask: remove supporting planes, segment, rank candidates.
+Long: one pipeline over the organised grid (planes, segments, ranking) and the checks and joins a verifier applies
+to its candidates, all reading the same size constants and grid.
 
 :func:`isolate_object` works on the organised image, subsampled to about
 :data:`TARGET_GRID_PIXELS` pixels (a 1280x720 frame every 6th pixel): it removes planes wider than

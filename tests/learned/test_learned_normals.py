@@ -8,7 +8,8 @@ from scipy.spatial.transform import Rotation
 
 from ancsh.learned.network.config import TrainConfig
 from ancsh.learned.network.models import build_network
-from ancsh.learned.network.pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, normal_neighbours
+from ancsh.learned.network.normals import estimate_normals, normal_neighbours
+from ancsh.learned.network.pointnet2 import Neighbourhoods, PointNet2Backbone
 
 
 def _sphere_patch(rng, n, centre, radius):

@@ -114,7 +114,7 @@ class TrainConfig:
         Feed the network each input point's surface normal beside its coordinates (``False``, the
         default: coordinates only; issue 32's "normals as extra input channels"). The normals are
         estimated inside the network from the cloud it is given (the ``k`` nearest points' principal
-        components, :func:`~ancsh.learned.network.pointnet2.estimate_normals`, signed to face the
+        components, :func:`~ancsh.learned.network.normals.estimate_normals`, signed to face the
         camera), so training frames, augmented or refinement inputs and predictions get them alike.
         Changes the network's structure (the first layer's inputs). ``init_weights`` may name a network
         without them: it is loaded with the normals' weights at zero

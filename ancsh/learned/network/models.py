@@ -30,7 +30,8 @@ import dataclasses
 import torch
 from torch import nn
 
-from .pointnet2 import Neighbourhoods, PointNet2Backbone, estimate_normals, normal_neighbours, shared_mlp
+from .normals import estimate_normals, normal_neighbours
+from .pointnet2 import Neighbourhoods, PointNet2Backbone, shared_mlp
 
 __all__ = ["AncshNet", "DirectVotingNet", "build_network", "load_adding_normals", "normalize_cloud", "denormalize_joint_votes"]
 
@@ -97,7 +98,7 @@ def _per_point(backbone, xyz: torch.Tensor, neighbourhoods, features=None) -> tu
 
 def _input_features(points: torch.Tensor, normals: bool, neighbourhoods: Neighbourhoods | None) -> torch.Tensor | None:
     """The backbone's per-point input features of camera-frame ``points``: their surface normals
-    (:func:`~ancsh.learned.network.pointnet2.estimate_normals`, facing the camera; with the cached nearest
+    (:func:`~ancsh.learned.network.normals.estimate_normals`, facing the camera; with the cached nearest
     points of ``neighbourhoods.normal_idx`` where given) or none."""
     if not normals:
         return None
@@ -106,7 +107,7 @@ def _input_features(points: torch.Tensor, normals: bool, neighbourhoods: Neighbo
 
 def _neighbourhoods(backbone: PointNet2Backbone, points: torch.Tensor, normals: bool) -> Neighbourhoods:
     """A network's :class:`Neighbourhoods` of camera-frame ``points``: the backbone's of the normalised cloud,
-    and with input ``normals`` the points' :func:`~ancsh.learned.network.pointnet2.normal_neighbours`."""
+    and with input ``normals`` the points' :func:`~ancsh.learned.network.normals.normal_neighbours`."""
     nb = backbone.neighbourhoods(normalize_cloud(points)[0])
     return dataclasses.replace(nb, normal_idx=normal_neighbours(points)) if normals else nb
 
@@ -131,7 +132,7 @@ class AncshNet(nn.Module):
         1 (shared) or 2 (the paper's layout).
     normals : bool
         Give the backbone each point's surface normal (estimated from the input cloud, facing the
-        camera: :func:`~ancsh.learned.network.pointnet2.estimate_normals`) beside its coordinates.
+        camera: :func:`~ancsh.learned.network.normals.estimate_normals`) beside its coordinates.
     """
 
     kind = "ancsh"

@@ -186,7 +186,7 @@ def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path
     key = hashlib.sha256(np.ascontiguousarray(points, dtype=np.float32).tobytes())
     key.update(repr((bb.sa1.npoint, bb.sa1.radius, bb.sa1.nsample, bb.sa2.npoint, bb.sa2.radius, bb.sa2.nsample)).encode())
     if getattr(model, "normals", False):  # the cache holds the normals' nearest points too (normal_idx)
-        from ..network.pointnet2 import NORMAL_NEIGHBOURS
+        from ..network.normals import NORMAL_NEIGHBOURS
 
         key.update(f"normal_idx {NORMAL_NEIGHBOURS}".encode())
     key = key.hexdigest()
