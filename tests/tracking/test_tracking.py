@@ -666,30 +666,33 @@ def test_carried_template_follows_a_lid_opening_past_the_templates_own_limit():
 @pytest.mark.skipif(not (shared_data_dir() / "partnet_mobility").is_dir(),
                     reason="the scenario's template is a shared PartNet-Mobility laptop (shared data not available)")
 def test_network_frames_correct_the_carried_templates_joint_state():
-    """Scenario: the benchmark's sixth learned laptop sequence (seed 0), where the carried template (a real
-    laptop of the library, from the shared data) settles a few degrees off the object's joint state (the
-    template's lid is not the object's). With
-    ``template_states`` the network frames' joint states pull the template frames' toward theirs: frames 10-20
-    within 1.5 degrees of the truth on average (about 1.0); without, the template's offset stays (above 2.3, about 3.2).
-    (With the laptop network shipped on 2026-12-05; the first ten sequences: 1.2 against 2.2 degrees on average over
-    the eight whose template was accepted. The eighth, this test's sequence before, now carries the network's fit
-    instead; the ninth's frame-0 refinement is accepted or rejected by the part tolerance depending on float-level
-    differences of the cold fit -- CPU kernels, 1e-7 m of point noise -- so it was not reproducible.)"""
+    """Scenario: the benchmark's sixth and ninth learned laptop sequences (seed 0), where the carried template (a real
+    laptop of the library, from the shared data) settles off the object's joint state (the template's lid is not the
+    object's). With ``template_states`` the network frames' joint states pull the template frames' toward theirs:
+    on frames 10-20 each sequence's mean joint-state error falls (0.22 against 1.63 and 2.59 against 5.22 degrees),
+    the two sequences' together to under 0.6 of it. (Measured with the laptop network shipped on 2026-12-05 and its
+    normals' nearest points from the exact k-d tree search; over the first ten sequences 1.2 against 1.9 degrees on
+    average, over the eight that carry a template. How far one sequence's template settles off moves with
+    float-level differences of the network's input -- the earlier brute-force search gave the sixth 1.0 against 3.2
+    -- so the test asks for the effect, not for one sequence's size of it.)"""
     from ancsh.learned.inference.provider import LearnedProvider
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0, sequence=SequenceMotion(length=40)))
-    frames = [gen.frame(5 * 40 + t) for t in range(21)]
     provider = LearnedProvider("laptop", num_threads=1)
-    late = {}
-    for states in (True, False):
-        tracker = CategoryTracker(provider, TrackerConfig(network_every=3, template_states=states), category="laptop", rng=0)
-        errors = []
-        for fr in frames:
-            out = tracker.step(Observation(fr.points))
-            assert out.ok and out.source in ("network", "template")
-            errors.append(abs(np.degrees(out.joint_states[0] - fr.gt.joint_states[0])))
-        late[states] = float(np.mean(errors[10:]))
-    assert late[True] < 1.5 < 2.3 < late[False], late
+    late = {True: [], False: []}
+    for seq in (5, 8):
+        frames = [gen.frame(seq * 40 + t) for t in range(21)]
+        for states in (True, False):
+            tracker = CategoryTracker(provider, TrackerConfig(network_every=3, template_states=states), category="laptop",
+                                      rng=0)
+            errors = []
+            for fr in frames:
+                out = tracker.step(Observation(fr.points))
+                assert out.ok and out.source in ("network", "template")
+                errors.append(abs(np.degrees(out.joint_states[0] - fr.gt.joint_states[0])))
+            late[states].append(float(np.mean(errors[10:])))
+    assert all(a < b for a, b in zip(late[True], late[False])), late
+    assert np.mean(late[True]) < 0.6 * np.mean(late[False]), late
     with pytest.raises(ValueError, match="template_states"):
         TrackerConfig(template_states=1)
 
