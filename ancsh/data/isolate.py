@@ -28,7 +28,7 @@ object that plane removal cut in two). A mask given by the user always wins over
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -213,8 +213,6 @@ class Isolation:
 
     def with_choice(self, chosen, reason: str, verified=()) -> "Isolation":
         """This isolation with segment ``chosen`` (or ``None``: none is the object) chosen by a caller's verification."""
-        from dataclasses import replace
-
         mask = self.mask_of(chosen) if chosen is not None else np.zeros_like(self.mask)
         return replace(self, mask=mask, chosen=chosen, reason=reason, verified=tuple(verified))
 
@@ -461,8 +459,6 @@ def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: In
     s = isolation.stride
     ca, cb = isolation.clusters[a], isolation.clusters[b]
     cluster = Cluster(int(n_union) * s * s, diag, (float(us.mean()), float(vs.mean())), True, level=max(ca.level, cb.level))
-    from dataclasses import replace
-
     new = len(isolation.clusters)
     return replace(isolation, clusters=isolation.clusters + (cluster,), segments=isolation.segments + (union,),
                    order=isolation.order + (new,)), new

@@ -103,3 +103,7 @@ if __name__ == "__main__":
     # as above (`--out EVAL_ROOT/oven_normals`, `EVAL_ROOT/oven_normals_ft`)
     against_shipped("the oven's normals first stage from scratch and after its pose-aware fine-tune",
                     [root / "oven_shipped", root / "oven_normals", root / "oven_normals_ft"])
+    # the same for the drawer (2026-12-06): from scratch (`drawer_normals/config.json`, 9450 steps) and fine-tuned
+    # (`drawer_normals/ft_config.json`), evaluated as above (`--category drawer ... --out EVAL_ROOT/drawer_<name>`)
+    against_shipped("the drawer's normals first stage from scratch and after its pose-aware fine-tune",
+                    [root / "drawer_shipped", root / "drawer_normals", root / "drawer_normals_ft"])
