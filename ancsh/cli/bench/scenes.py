@@ -40,7 +40,6 @@ def run(args: argparse.Namespace) -> int:
         if args.categories is not None or args.frames != 20 or args.seed != 0:
             raise ValueError("--records: the records hold their own categories, frames and seed; leave out "
                              "--categories, --frames and --seed")
-
         results, provenance = load_scenes_records(args.records)
         rewritten = "ancsh " + " ".join(shlex.quote(a) for a in ["bench", "scenes", "--records", str(args.records),
                                                                    *output_flags(args.out, update_docs=args.update_docs)])

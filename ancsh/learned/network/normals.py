@@ -31,9 +31,9 @@ def _check_k(k) -> int:
 def normal_neighbours(points: torch.Tensor, k: int = NORMAL_NEIGHBOURS) -> torch.Tensor:
     """Indices ``(B, N, min(k, N))`` of each point's nearest points (itself included), for :func:`estimate_normals`.
 
-    The same for the points rotated, translated or uniformly scaled, so a training loop can take them
-    from a per-frame cache (:attr:`Neighbourhoods.normal_idx`) whatever rotation a step applies
-    (camera-rotation augmentation, a refinement network's canonicalisation). No gradient.
+    The same for the points rotated, translated or uniformly scaled, so a training loop can take them from a
+    per-frame cache (:attr:`~ancsh.learned.network.pointnet2.Neighbourhoods.normal_idx`) whatever rotation a step
+    applies (camera-rotation augmentation, a refinement network's canonicalisation). No gradient.
 
     Parameters
     ----------
