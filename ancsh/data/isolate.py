@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .render import Intrinsics, valid_depth_pixels
+from .render import Intrinsics, backproject, valid_depth_pixels
 
 __all__ = ["ObjectHint", "Cluster", "Isolation", "behind_surroundings", "isolate_object", "merged_candidate", "out_of_view",
            "parse_hint"]
@@ -255,11 +255,9 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     from scipy.ndimage import binary_dilation, binary_opening
 
     from ..geometry._checks import check_generator
-    from .procedural import CATEGORY_INFO
 
     rng = check_generator(rng)
-    info = CATEGORY_INFO.get(category)
-    lo, hi = info.diagonal_range if info is not None else (0.1, 2.0)
+    lo, hi = _size_range(category)
     d, valid = valid_depth_pixels(depth, intrinsics)
     if max_depth is not None:
         valid &= d <= max_depth
@@ -381,15 +379,13 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
             for sel in (base, _with_attached(seg, c, sizes, g, ATTACH_SHARE * typical)):
                 n = int(np.count_nonzero(sel)) * s * s
                 # the same segment as at an earlier depth (a plane removed elsewhere), or as the segment without
-                # what is attached to it: a like count, then the IoU
-                if any(min(n, other.pixels) >= SAME_SEGMENT_IOU * max(n, other.pixels)
-                       and np.count_nonzero(sel & o) >= SAME_SEGMENT_IOU * np.count_nonzero(sel | o)
-                       for o, other in zip(segments, clusters)):
+                # what is attached to it
+                if any(_same_segment(sel, o) for o in segments):
                     continue
                 diag = _extent(P[sel], diagonal=True)
                 segments.append(sel)
                 clusters.append(Cluster(n, diag, (float(uu[sel].mean()), float(vv[sel].mean())),
-                                        bool(lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR),
+                                        _fits(diag, lo, hi),
                                         level=level + 1 if supports else 0))
     # labels for pictures: every candidate, the deeper ones (smaller pieces) over the shallower
     final = np.full(gv.shape, -1, dtype=np.int64)
@@ -430,8 +426,6 @@ def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: In
     """
     from scipy.ndimage import binary_dilation
 
-    from .procedural import CATEGORY_INFO
-
     for name, c in (("a", a), ("b", b)):
         if isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c < len(isolation.segments):
             raise ValueError(f"{name}: expected a candidate index in [0, {len(isolation.segments)}), got {c!r}")
@@ -442,26 +436,41 @@ def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: In
     if not np.any(binary_dilation(ga, iterations=MERGE_REACH) & gb):
         return None
     union = ga | gb
-    n_union = np.count_nonzero(union)
-    if any(np.count_nonzero(union & o) >= SAME_SEGMENT_IOU * np.count_nonzero(union | o) for o in isolation.segments):
+    if any(_same_segment(union, o) for o in isolation.segments):
         return None
     mask = isolation.mask_of(a) | isolation.mask_of(b)
     vs, us = np.nonzero(mask)
     if len(vs) < 10:
         return None
-    d = np.asarray(depth, dtype=np.float64)[vs, us]
-    pts = np.stack([(us - intrinsics.cx) / intrinsics.fx * d, (vs - intrinsics.cy) / intrinsics.fy * d, d], axis=-1)
-    info = CATEGORY_INFO.get(category)
-    lo, hi = info.diagonal_range if info is not None else (0.1, 2.0)
-    diag = _extent(pts, diagonal=True)
-    if not lo / SIZE_FACTOR <= diag <= hi * SIZE_FACTOR:
+    diag = _extent(backproject(depth, intrinsics, mask), diagonal=True)
+    if not _fits(diag, *_size_range(category)):
         return None
     s = isolation.stride
     ca, cb = isolation.clusters[a], isolation.clusters[b]
-    cluster = Cluster(int(n_union) * s * s, diag, (float(us.mean()), float(vs.mean())), True, level=max(ca.level, cb.level))
+    cluster = Cluster(int(np.count_nonzero(union)) * s * s, diag, (float(us.mean()), float(vs.mean())), True, level=max(ca.level, cb.level))
     new = len(isolation.clusters)
     return replace(isolation, clusters=isolation.clusters + (cluster,), segments=isolation.segments + (union,),
                    order=isolation.order + (new,)), new
+
+
+def _size_range(category: str) -> tuple[float, float]:
+    """``(lo, hi)`` metres: the procedural category's ``diagonal_range``, 0.1..2 m for other names."""
+    from .procedural import CATEGORY_INFO
+
+    info = CATEGORY_INFO.get(category)
+    return info.diagonal_range if info is not None else (0.1, 2.0)
+
+
+def _fits(diagonal: float, lo: float, hi: float) -> bool:
+    """Whether a candidate ``diagonal`` metres across fits the size range ``lo..hi`` (within :data:`SIZE_FACTOR`)."""
+    return bool(lo / SIZE_FACTOR <= diagonal <= hi * SIZE_FACTOR)
+
+
+def _same_segment(x: np.ndarray, y: np.ndarray) -> bool:
+    """Whether two grid masks are one candidate: a like count (the cheap test), then an IoU of :data:`SAME_SEGMENT_IOU`."""
+    nx, ny = np.count_nonzero(x), np.count_nonzero(y)
+    return bool(min(nx, ny) >= SAME_SEGMENT_IOU * max(nx, ny)
+                and np.count_nonzero(x & y) >= SAME_SEGMENT_IOU * np.count_nonzero(x | y))
 
 
 def _with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, g: np.ndarray, gap: float) -> np.ndarray:

@@ -418,7 +418,8 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
 
     attempts, verified = {}, []
 
-    def judge(c):
+    def judge(isolation, c):
+        """Fit candidate ``c`` of ``isolation`` and check it; its attempt and evidence go to ``attempts`` / ``verified``."""
         mask = isolation.mask_of(c)
         a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
         if a["result"].ok:
@@ -439,7 +440,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
                          "render_compare": None if a["comparison"] is None else a["comparison"].to_dict()})
 
     for c in chosen:
-        judge(c)
+        judge(isolation, c)
     if not any(a["result"].ok for a in attempts.values()):
         merged = 0
         for i, j in itertools.combinations(list(attempts), 2):
@@ -448,7 +449,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
             union = merged_candidate(isolation, i, j, d, intrinsics, category)
             if union is not None:
                 isolation, c = union
-                judge(c)
+                judge(isolation, c)
                 verified[-1]["merged"] = [int(i), int(j)]
                 merged += 1
     best = max(attempts, key=lambda c: _score(attempts[c]))
