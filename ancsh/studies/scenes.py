@@ -154,22 +154,19 @@ def load_scenes_records(path) -> tuple[dict, Provenance]:
     return results, prov
 
 
-def write_scenes_report(results: dict, path, *, command: str, provenance: Provenance | None = None,
-                        rewritten_by: str | None = None) -> Path:
+def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritten_by: str | None = None) -> Path:
     """Markdown at ``path`` and the records as JSON beside it.
 
-    ``provenance``: the measuring run's (:func:`load_scenes_records`) when the report is written again from its
-    records by the command ``rewritten_by``; default: this run's, for ``command``.
+    ``provenance``: the measuring run's -- this run's (``Provenance(command)``), or, when the report is written again
+    from its records (:func:`load_scenes_records`) by the command ``rewritten_by``, the one stored with them.
     """
     path = Path(path)
-    prov = provenance or Provenance(command)
-    command = prov.command
     recs = results["records"]
     n = results["settings"]["frames"]
     lines = [
         "# Rendered scenes: `ancsh predict` without a mask", "",
-        f"Command: `{command}`  ",
-        f"Date: {prov.date}; machine: {prov.machine_text}  ",
+        f"Command: `{provenance.command}`  ",
+        f"Date: {provenance.date}; machine: {provenance.machine_text}  ",
         *([f"Report written again from the records by `{rewritten_by}`  "] if rewritten_by else []),
         "Study: `ancsh.studies.scenes` (scenes: `ancsh.data.scenes.render_scene`)", "",
         f"{n} test frames per category, each in a scene: on a floor or (one in three) the lowest tread of a staircase, a "
@@ -219,7 +216,7 @@ def write_scenes_report(results: dict, path, *, command: str, provenance: Proven
                   "`surroundings`: the walls, floor or stairs): "
                   + ", ".join(f"{k} {n}" for k, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))) + ".", ""]
     write_text(path, "\n".join(lines))
-    write_json(path.with_suffix(".json"), {"command": command, "date": prov.date, "machine": prov.machine,
+    write_json(path.with_suffix(".json"), {"command": provenance.command, "date": provenance.date, "machine": provenance.machine,
                                            "settings": results["settings"], "records": recs, "hidden": hidden},
                indent=1)
     return path

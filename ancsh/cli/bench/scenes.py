@@ -27,6 +27,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ...outputs import report_path
+    from ...studies.report import Provenance
     from ...studies.scenes import measure_scenes, write_scenes_report
 
     categories = shipped_categories_option(args.categories)
@@ -43,11 +44,11 @@ def run(args: argparse.Namespace) -> int:
         results, provenance = load_scenes_records(args.records)
         rewritten = "ancsh " + " ".join(shlex.quote(a) for a in ["bench", "scenes", "--records", str(args.records),
                                                                    *output_flags(args.out, update_docs=args.update_docs)])
-        write_scenes_report(results, path, command=command, provenance=provenance, rewritten_by=rewritten)
+        write_scenes_report(results, path, provenance, rewritten_by=rewritten)
     else:
         results = measure_scenes(categories, frames=args.frames, seed=args.seed,
                                  progress=None if args.quiet else (lambda line: print(line, flush=True)))
-        write_scenes_report(results, path, command=command)
+        write_scenes_report(results, path, Provenance(command))
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
     return 0
