@@ -107,3 +107,7 @@ if __name__ == "__main__":
     # (`drawer_normals/ft_config.json`), evaluated as above (`--category drawer ... --out EVAL_ROOT/drawer_<name>`)
     against_shipped("the drawer's normals first stage from scratch and after its pose-aware fine-tune",
                     [root / "drawer_shipped", root / "drawer_normals", root / "drawer_normals_ft"])
+    # the same for the washing machine (2026-12-06): from scratch (`wm_normals/config.json`, 9450 steps) and fine-tuned
+    # (`wm_normals/ft_config.json`), evaluated as above (`--category washing_machine ... --out EVAL_ROOT/wm_<name>`)
+    against_shipped("the washing machine's normals first stage from scratch and after its pose-aware fine-tune",
+                    [root / "wm_shipped", root / "wm_normals", root / "wm_normals_ft"])
