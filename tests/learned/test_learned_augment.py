@@ -45,19 +45,39 @@ def test_rotated_batch_keeps_canonical_targets_and_rotates_camera_joint_vectors(
     points, targets = points.double(), dataclasses.replace(targets, joint_cam=targets.joint_cam.double())
     R = camera_rotations(points.mean(dim=1).numpy(), np.radians(30.0), np.radians(20.0), range(len(points)))
     rotated, t2 = rotate_batch(points, targets, R)
-    # a rigid motion about the centroid: distances and centroids kept, the points turned by R
+    # a rotation about the camera centre: distances kept, the points (and their centroid) turned by R
+    Rt = torch.from_numpy(R)
     torch.testing.assert_close(torch.cdist(rotated, rotated), torch.cdist(points, points))
-    torch.testing.assert_close(rotated.mean(dim=1), points.mean(dim=1))
+    torch.testing.assert_close(rotated, torch.einsum("bij,bnj->bni", Rt, points))
     for name in ("labels", "npcs", "scale", "translation", "association", "joint", "joint_mask"):
         assert getattr(t2, name) is getattr(targets, name), name  # canonical-frame targets are untouched
     # camera-frame joint vectors: point + distance * direction is the foot on the axis before and after
     foot = points + targets.joint_cam[..., 6:] * targets.joint_cam[..., 3:6]
     foot2 = rotated + t2.joint_cam[..., 6:] * t2.joint_cam[..., 3:6]
-    Rt = torch.from_numpy(R)
-    centroid = points.mean(dim=1, keepdim=True)
-    torch.testing.assert_close(foot2, torch.einsum("bij,bnj->bni", Rt, foot - centroid) + centroid)
+    torch.testing.assert_close(foot2, torch.einsum("bij,bnj->bni", Rt, foot))
     torch.testing.assert_close(t2.joint_cam[..., :3], torch.einsum("bij,bnj->bni", Rt, targets.joint_cam[..., :3]))
     torch.testing.assert_close(t2.joint_cam[..., 6:], targets.joint_cam[..., 6:])
+
+
+def test_input_normals_turn_with_the_frames_a_refiner_is_trained_on(tiny_arrays):
+    """A refinement network's training frames are turned far from the camera's view (into a perturbed NAOCS
+    orientation); the normals it is given, signed to face the camera, must be the observed surface's normals turned
+    with the points -- as the provider's rotation of its input at test time gives them -- not re-signed towards a
+    viewpoint the points were never seen from."""
+    from ancsh.learned.network.normals import estimate_normals
+    from ancsh.learned.training.train import refine_rotations
+
+    points, targets = tiny_arrays.batch(np.arange(len(tiny_arrays)))
+    points = points.double()
+    R = refine_rotations(tiny_arrays.naocs_rotations(np.arange(len(tiny_arrays))), np.radians(15.0),
+                         [[3, i] for i in range(len(points))])
+    assert np.degrees(Rotation.from_matrix(R).magnitude()).max() > 60.0  # far from the camera's view
+    rotated, _ = rotate_batch(points, targets, R)
+    Rt = torch.from_numpy(R)
+    turned = torch.einsum("bij,bnj->bni", Rt, estimate_normals(points))
+    torch.testing.assert_close(estimate_normals(rotated), turned, atol=1e-6, rtol=0)
+    # the provider rotates its input about the camera too: the same points, so the same normals
+    torch.testing.assert_close(rotated, points @ Rt.transpose(1, 2))
 
 
 def test_neighbourhoods_of_rotated_frames_equal_the_cached_ones(tiny_arrays, tiny_config):

@@ -140,17 +140,21 @@ VAL_STREAM = 2**32 - 1
 
 
 def rotate_batch(points, targets, rotations):
-    """Rotate a training batch's points about their centroids by ``rotations`` ``(B, 3, 3)``.
+    """Rotate a training batch's points about the camera centre (the origin) by ``rotations`` ``(B, 3, 3)``.
 
-    The NPCS / NAOCS targets stay as they are (canonical frames); the camera-frame joint vectors
+    About the camera, as the provider rotates a refinement network's input
+    (:meth:`~ancsh.learned.inference.provider.LearnedProvider.predict`) and as a camera rotation
+    moves the points: the viewpoint stays at the origin, so input normals signed to face it
+    (:func:`~ancsh.learned.network.normals.estimate_normals`) turn with the points. (The network
+    centres and scales its input, so without normals the centre of rotation does not matter.) The
+    NPCS / NAOCS targets stay as they are (canonical frames); the camera-frame joint vectors
     (``targets.joint_cam``: axis and unit direction to the axis, the distance unchanged) rotate with
     the points. Returns ``(points, targets)`` as new tensors.
     """
     import dataclasses
 
     R = torch.as_tensor(rotations, dtype=points.dtype, device=points.device)
-    centroid = points.mean(dim=1, keepdim=True)
-    rotated = torch.einsum("bij,bnj->bni", R, points - centroid) + centroid
+    rotated = torch.einsum("bij,bnj->bni", R, points)
     jc = targets.joint_cam
     Rj = R.to(jc.dtype)
     joint_cam = torch.cat([torch.einsum("bij,bnj->bni", Rj, jc[..., 0:3]), torch.einsum("bij,bnj->bni", Rj, jc[..., 3:6]),
