@@ -142,14 +142,12 @@ VAL_STREAM = 2**32 - 1
 def rotate_batch(points, targets, rotations):
     """Rotate a training batch's points about the camera centre (the origin) by ``rotations`` ``(B, 3, 3)``.
 
-    About the camera, as the provider rotates a refinement network's input
-    (:meth:`~ancsh.learned.inference.provider.LearnedProvider.predict`) and as a camera rotation
-    moves the points: the viewpoint stays at the origin, so input normals signed to face it
-    (:func:`~ancsh.learned.network.normals.estimate_normals`) turn with the points. (The network
-    centres and scales its input, so without normals the centre of rotation does not matter.) The
-    NPCS / NAOCS targets stay as they are (canonical frames); the camera-frame joint vectors
-    (``targets.joint_cam``: axis and unit direction to the axis, the distance unchanged) rotate with
-    the points. Returns ``(points, targets)`` as new tensors.
+    As the provider turns a refinement network's input (``LearnedProvider.predict``): the viewpoint
+    stays at the origin, so input normals signed to face it (``estimate_normals``) turn with the
+    points (without normals the centre does not matter: the network centres its input). NPCS / NAOCS
+    targets stay (canonical frames); the camera-frame joint vectors (``targets.joint_cam``: axis and
+    unit direction to the axis, the distance unchanged) rotate with the points. Returns ``(points,
+    targets)`` as new tensors.
     """
     import dataclasses
 
