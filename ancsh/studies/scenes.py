@@ -216,7 +216,7 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
                   "`surroundings`: the walls, floor or stairs): "
                   + ", ".join(f"{k} {n}" for k, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))) + ".", ""]
     write_text(path, "\n".join(lines))
-    write_json(path.with_suffix(".json"), {"command": provenance.command, "date": provenance.date, "machine": provenance.machine,
-                                           "settings": results["settings"], "records": recs, "hidden": hidden},
-               indent=1)
+    write_json(path.with_suffix(".json"), {"command": provenance.command, "date": provenance.date,
+                                           "machine": provenance.machine, "settings": results["settings"],
+                                           "records": recs, "hidden": hidden}, indent=1)
     return path

@@ -8,7 +8,8 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from ancsh.learned.network.config import TrainConfig
-from ancsh.learned.training.train import Trainer, camera_rotations, rotate_batch
+from ancsh.learned.network.normals import estimate_normals
+from ancsh.learned.training.train import Trainer, camera_rotations, refine_rotations, rotate_batch
 
 
 def _centroids(rng, n):
@@ -64,9 +65,6 @@ def test_input_normals_turn_with_the_frames_a_refiner_is_trained_on(tiny_arrays)
     orientation); the normals it is given, signed to face the camera, must be the observed surface's normals turned
     with the points -- as the provider's rotation of its input at test time gives them -- not re-signed towards a
     viewpoint the points were never seen from."""
-    from ancsh.learned.network.normals import estimate_normals
-    from ancsh.learned.training.train import refine_rotations
-
     points, targets = tiny_arrays.batch(np.arange(len(tiny_arrays)))
     points = points.double()
     R = refine_rotations(tiny_arrays.naocs_rotations(np.arange(len(tiny_arrays))), np.radians(15.0),
