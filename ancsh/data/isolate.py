@@ -447,7 +447,8 @@ def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: In
         return None
     s = isolation.stride
     ca, cb = isolation.clusters[a], isolation.clusters[b]
-    cluster = Cluster(int(np.count_nonzero(union)) * s * s, diag, (float(us.mean()), float(vs.mean())), True, level=max(ca.level, cb.level))
+    cluster = Cluster(int(np.count_nonzero(union)) * s * s, diag, (float(us.mean()), float(vs.mean())), True,
+                      level=max(ca.level, cb.level))
     new = len(isolation.clusters)
     return replace(isolation, clusters=isolation.clusters + (cluster,), segments=isolation.segments + (union,),
                    order=isolation.order + (new,)), new
@@ -467,7 +468,8 @@ def _fits(diagonal: float, lo: float, hi: float) -> bool:
 
 
 def _same_segment(x: np.ndarray, y: np.ndarray) -> bool:
-    """Whether two grid masks are one candidate: a like count (the cheap test), then an IoU of :data:`SAME_SEGMENT_IOU`."""
+    """Whether two grid masks are one candidate: a like count (the cheap test), then an IoU of
+    :data:`SAME_SEGMENT_IOU`."""
     nx, ny = np.count_nonzero(x), np.count_nonzero(y)
     return bool(min(nx, ny) >= SAME_SEGMENT_IOU * max(nx, ny)
                 and np.count_nonzero(x & y) >= SAME_SEGMENT_IOU * np.count_nonzero(x | y))

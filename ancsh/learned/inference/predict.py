@@ -419,7 +419,8 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     attempts, verified = {}, []
 
     def judge(isolation, c):
-        """Fit candidate ``c`` of ``isolation`` and check it; its attempt and evidence go to ``attempts`` / ``verified``."""
+        """Fit candidate ``c`` of ``isolation`` and check it; its attempt and evidence go to ``attempts`` /
+        ``verified``."""
         mask = isolation.mask_of(c)
         a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
         if a["result"].ok:
