@@ -189,24 +189,26 @@ def run_export(args: argparse.Namespace) -> int:
               f"{int(r['pose_failures'])}{mark}")
     from ..learned.network.weights import read_torch_file
 
-    if "model" not in read_torch_file(chosen["checkpoint"], argument="--checkpoints"):
-        print(f"the best candidate, {chosen['checkpoint']}, is a weights file, not a training checkpoint: "
-              f"nothing exported (keep it)")
-        return 0
-    metrics = {}
-    if args.test_data is not None:
-        metrics = evaluate_checkpoint(chosen["checkpoint"], args.test_data, config)
     command = ["export", "--run", args.run, "--data", args.data, "--out", args.out]
     command += (["--checkpoints", *args.checkpoints] if args.checkpoints else [])
     command += (["--frames", args.frames] if args.frames is not None else [])
     command += (["--test-data", args.test_data] if args.test_data is not None else [])
-    metrics["selection"] = {"chosen": chosen["checkpoint"], "candidates": rows,
-                            "command": "ancsh " + shlex.join(str(a) for a in command)}
+    selection = {"chosen": chosen["checkpoint"], "candidates": rows,
+                 "command": "ancsh " + shlex.join(str(a) for a in command)}
+    # the scores are written whichever candidate won: a run that lost to a weights file is a measurement too
+    (args.run / "selection.json").write_text(json.dumps(selection, indent=2) + "\n")
+    if "model" not in read_torch_file(chosen["checkpoint"], argument="--checkpoints"):
+        print(f"the best candidate, {chosen['checkpoint']}, is a weights file, not a training checkpoint: "
+              f"nothing exported (keep it; the scores are in {args.run / 'selection.json'})")
+        return 0
+    metrics = {}
+    if args.test_data is not None:
+        metrics = evaluate_checkpoint(chosen["checkpoint"], args.test_data, config)
+    metrics["selection"] = selection
     path = export_weights(chosen["checkpoint"], args.out, metrics=metrics)
     copy_training_log(args.run, path, metrics)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.1f} MB), step {chosen['step']}, pose score "
           f"{chosen['pose_score']:.3f} on {chosen['frames']} validation frames")
-    (args.run / "selection.json").write_text(json.dumps(metrics["selection"], indent=2) + "\n")
     return 0
 
 

@@ -105,11 +105,15 @@ def test_export_confirms_the_checkpoints_on_all_validation_frames(tmp_path, lapt
     assert shipped.step == chosen["step"]
     assert shipped.metrics["selection"]["chosen"] == chosen["checkpoint"] and "seg_acc" in shipped.metrics
     assert json.loads((run / "selection.json").read_text())["chosen"] == chosen["checkpoint"]
-    # a weights file among the candidates is scored like a checkpoint; when it wins nothing is written
+    # a weights file among the candidates is scored like a checkpoint; when it wins no weights are written, but the
+    # run's selection.json records its scores
     again = tmp_path / "again.pt"
     assert main(["export", "--run", str(run), "--data", str(laptop_shards), "--out", str(again),
                  "--checkpoints", str(weights)]) == 0
     assert "nothing exported" in capsys.readouterr().out and not again.exists()
+    lost = json.loads((run / "selection.json").read_text())
+    assert lost["chosen"] == str(weights) and [r["checkpoint"] for r in lost["candidates"]] == [str(weights)]
+    assert "--checkpoints" in lost["command"]
     assert main(["export", "--run", str(tmp_path / "missing"), "--data", str(laptop_shards), "--out", str(weights)]) == 2
     assert "--run" in capsys.readouterr().err
 

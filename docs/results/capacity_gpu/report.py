@@ -61,8 +61,14 @@ def load_report(folder) -> dict:
 
 
 def report_name(rep: dict) -> str:
-    """:func:`network_name` of a report's weights."""
-    return network_name(rep["settings"]["weights"], rep["settings"]["category"])
+    """:func:`network_name` of a report's weights; ``+ <refiner>`` where it ran a refiner other than the shipped one
+    (its file's stem without ``_best``, or its folder's name for a run's ``best.pt`` / ``last.pt``)."""
+    s = rep["settings"]
+    name = network_name(s["weights"], s["category"])
+    refiner = Path(s.get("refiner") or f"ancsh/weights/{s['category']}_refine.pt")
+    if refiner.parent.name == "weights" and refiner.parent.parent.name == "ancsh":
+        return name
+    return f"{name} + {refiner.parent.name if refiner.stem in ('best', 'last') else refiner.stem.replace('_best', '')}"
 
 
 def _pair(values, fmt):

@@ -52,13 +52,14 @@ def present(title: str, dirs) -> bool:
     return not missing
 
 
-def against_shipped(title: str, dirs) -> None:
+def against_shipped(title: str, dirs, methods=("exact_reduced", "network")) -> None:
     """A section of first stages beside the shipped one (``dirs[0]``), each fitted alone and followed by the shipped
-    refiner (evaluated with ``--refine network``): per fit, the Table 1 rows and the paired comparison."""
+    refiner (evaluated with ``--refine network``): per fit in ``methods``, the Table 1 rows and the paired comparison
+    (``methods=("network",)`` for refiners behind one first stage)."""
     if not present(title, dirs):
         return
     print(f"### {title}\n")
-    for method in ("exact_reduced", "network"):
+    for method in methods:
         print("\n".join(table1(dirs, method=method)), end="\n\n")
         print("\n".join(paired(dirs, reference="shipped", method=method)), end="\n\n")
 
@@ -111,3 +112,8 @@ if __name__ == "__main__":
     # (`wm_normals/ft_config.json`), evaluated as above (`--category washing_machine ... --out EVAL_ROOT/wm_<name>`)
     against_shipped("the washing machine's normals first stage from scratch and after its pose-aware fine-tune",
                     [root / "wm_shipped", root / "wm_normals", root / "wm_normals_ft"])
+    # the drawer's normals refiner (2026-12-06: `drawer_refine_normals/config.json`, 15000 steps, 62 min) against the
+    # shipped drawer refiner, both behind the shipped (normals) first stage: `ancsh evaluate --category drawer --frames
+    # 300 --formulations exact_reduced --refine network --real builtin [--refiner <best.pt>] --out EVAL_ROOT/drref_<name>`
+    against_shipped("the drawer's normals refiner against the shipped drawer refiner",
+                    [root / "drref_shipped", root / "drref_normals"], methods=("network",))
