@@ -61,14 +61,16 @@ def load_report(folder) -> dict:
 
 
 def report_name(rep: dict) -> str:
-    """:func:`network_name` of a report's weights; ``+ <refiner>`` where it ran a refiner other than the shipped one
-    (its file's stem without ``_best``, or its folder's name for a run's ``best.pt`` / ``last.pt``)."""
+    """:func:`network_name` of a report's weights; ``+ <refiner>`` where it ran a refiner other than the file shipped
+    when it was measured (its file's stem without ``_best``, or its folder's name for a run's ``best.pt`` /
+    ``last.pt`` or an exported ``<category>_refine.pt``)."""
     s = rep["settings"]
     name = network_name(s["weights"], s["category"])
     refiner = Path(s.get("refiner") or f"ancsh/weights/{s['category']}_refine.pt")
     if refiner.parent.name == "weights" and refiner.parent.parent.name == "ancsh":
         return name
-    return f"{name} + {refiner.parent.name if refiner.stem in ('best', 'last') else refiner.stem.replace('_best', '')}"
+    by_folder = refiner.stem in ("best", "last", f"{s['category']}_refine")
+    return f"{name} + {refiner.parent.name if by_folder else refiner.stem.replace('_best', '')}"
 
 
 def _pair(values, fmt):

@@ -112,8 +112,13 @@ if __name__ == "__main__":
     # (`wm_normals/ft_config.json`), evaluated as above (`--category washing_machine ... --out EVAL_ROOT/wm_<name>`)
     against_shipped("the washing machine's normals first stage from scratch and after its pose-aware fine-tune",
                     [root / "wm_shipped", root / "wm_normals", root / "wm_normals_ft"])
-    # the drawer's normals refiner (2026-12-06: `drawer_refine_normals/config.json`, 15000 steps, 62 min) against the
-    # shipped drawer refiner, both behind the shipped (normals) first stage: `ancsh evaluate --category drawer --frames
-    # 300 --formulations exact_reduced --refine network --real builtin [--refiner <best.pt>] --out EVAL_ROOT/drref_<name>`
+    # the drawer's normals refiner (2026-12-06: `drawer_normals_refiner/config.json`, 15000 steps, 62 min) against
+    # the shipped drawer refiner, both behind the shipped (normals) first stage: `ancsh evaluate --category drawer
+    # --frames 300 --formulations exact_reduced --refine network --real builtin [--refiner <best.pt>]
+    # --out EVAL_ROOT/drref_<name>`
     against_shipped("the drawer's normals refiner against the shipped drawer refiner",
                     [root / "drref_shipped", root / "drref_normals"], methods=("network",))
+    # the same for the laptop (2026-12-06: `laptop_normals_refiner/config.json`, 15000 steps), behind its shipped
+    # normals first stage: `ancsh evaluate --category laptop ... [--refiner <export>] --out EVAL_ROOT/ltref_<name>`
+    against_shipped("the laptop's normals refiner against the shipped laptop refiner",
+                    [root / "ltref_shipped", root / "ltref_normals"], methods=("network",))
