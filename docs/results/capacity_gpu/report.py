@@ -42,13 +42,18 @@ def curves(runs=tuple(RUNS), here=HERE) -> list[str]:
     return out
 
 
+def _shipped_file(path: Path) -> bool:
+    """Whether ``path`` lies in the package's weights folder (``ancsh/weights/``)."""
+    return path.parent.name == "weights" and path.parent.parent.name == "ancsh"
+
+
 def network_name(weights: str, category: str = "laptop") -> str:
     """A table's name of an evaluated weights file: ``shipped`` for the shipped ``ancsh/weights/<category>.pt``, else
     the file's stem without ``_best``, or its folder's name where the stem is only the category's (an exported
     candidate)."""
     path = Path(weights)
     if path.stem == category:
-        return "shipped" if path.parent.name == "weights" and path.parent.parent.name == "ancsh" else path.parent.name
+        return "shipped" if _shipped_file(path) else path.parent.name
     return path.stem.replace("_best", "")
 
 
@@ -67,7 +72,7 @@ def report_name(rep: dict) -> str:
     s = rep["settings"]
     name = network_name(s["weights"], s["category"])
     refiner = Path(s.get("refiner") or f"ancsh/weights/{s['category']}_refine.pt")
-    if refiner.parent.name == "weights" and refiner.parent.parent.name == "ancsh":
+    if _shipped_file(refiner):
         return name
     by_folder = refiner.stem in ("best", "last", f"{s['category']}_refine")
     return f"{name} + {refiner.parent.name if by_folder else refiner.stem.replace('_best', '')}"
