@@ -301,3 +301,41 @@ def test_a_residual_far_above_validation_fails_the_fit(table_scene, provider):
     checked = check_plausibility(pred.result, pred.part_labels, "laptop", bad)
     assert checked.status.value == "large_residual" and "display" in checked.message
     assert check_plausibility(dataclasses.replace(pred.result), pred.part_labels, "laptop", pred.part_quality).ok
+
+
+# --- nearly closed hinges ----------------------------------------------------------------------
+def test_a_nearly_closed_laptop_gets_the_hinge_note_and_an_open_one_does_not(table_scene, provider):
+    from ancsh.learned.inference.predict import NEAR_CLOSED_DEG
+
+    laptop = load_instance("laptop", "test", 0)
+    q = np.array([np.radians(6.0)])
+    view = ModelRenderer(laptop).render(q, look_at([0.1, 0.55, 0.75], [0.0, 0.05, 0.0], [0, 1, 0]),
+                                        Intrinsics.kinect(320, 240))
+    pred = predict_depth(view.depth, view.intrinsics, "laptop", provider=provider, mask=view.depth > 0)
+    opening = np.degrees(pred.to_json()["joints"][0]["state_abs"])
+    assert pred.result.ok and opening <= NEAR_CLOSED_DEG
+    assert sum("from closed" in n for n in pred.notes) == 1
+    assert any(n.startswith(f"display_hinge fitted {opening:.1f} deg from closed") for n in pred.notes)
+    depth, intr, _, _ = table_scene  # 110 deg open
+    assert not any("from closed" in n for n in predict_depth(depth, intr, "laptop", provider=provider).notes)
+
+
+def test_the_hinge_note_follows_the_convention_closed_state_and_joint_type(table_scene, provider):
+    import dataclasses
+
+    from ancsh.learned.inference.checks import NEAR_CLOSED_DEG, near_closed_notes
+
+    depth, intr, _, _ = table_scene
+    result = predict_depth(depth, intr, "laptop", provider=provider).result
+    rest = np.pi / 2  # the laptop's rest state: display at right angles to the base
+
+    def notes(category, opening_deg, K=1):
+        states = np.full(K, np.radians(opening_deg) - (rest if category == "laptop" else 0.0))
+        return near_closed_notes(category, dataclasses.replace(result, joint_states=states), [f"j{k}" for k in range(K)])
+
+    assert len(notes("laptop", NEAR_CLOSED_DEG - 0.1)) == 1 and notes("laptop", NEAR_CLOSED_DEG + 0.1) == []
+    assert len(notes("laptop", -3.0)) == 1  # folded past closed: the distance from closed counts
+    assert len(notes("oven", 2.0)) == 1 and len(notes("box", 2.0)) == 1
+    assert notes("eyeglasses", 0.0, K=2) == []  # state 0 is perpendicular, not closed
+    assert notes("drawer", 0.0, K=3) == []  # prismatic
+    assert notes("laptop", 2.0, K=2) == [] and notes("no_such_category", 2.0) == []  # joints do not match

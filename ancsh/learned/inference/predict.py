@@ -24,9 +24,11 @@ from .checks import (  # noqa: F401 - re-exported
     MAX_RELATIVE_RESIDUAL,
     MIN_INLIER_RATIO,
     MIN_P_OBJECT,
+    NEAR_CLOSED_DEG,
     SIZE_TOLERANCE,
     check_confidence,
     check_plausibility,
+    near_closed_notes,
     object_diagonal,
     part_quality,
 )
@@ -42,7 +44,7 @@ from .picture import draw_prediction  # noqa: F401 - re-exported
 from .refine_network import DEFAULT_PASSES
 
 __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MAX_MERGED",
-           "MIN_P_OBJECT",
+           "MIN_P_OBJECT", "NEAR_CLOSED_DEG",
            "DepthPrediction", "fit_candidate", "fit_candidate_refinements", "check_confidence", "check_plausibility",
            "check_weights_category", "part_quality", "depth_to_points", "draw_prediction", "predict_depth",
            "read_depth", "read_intrinsics", "read_mask"]
@@ -355,6 +357,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         notes.append(f"{best['valid']} valid pixels, fewer than the {num_points} points asked for: all of them are used "
                      f"(the network pads its input to {provider.network.config.num_points} points with repeats)")
     result = best["result"]
+    if result.ok:
+        notes += near_closed_notes(str(category), result, joint_names)
     t_net = best["t_net"]
     pts, pixels, valid, labels, quality, p_good = (best[k] for k in ("pts", "pixels", "valid", "labels", "quality", "p_good"))
     types, parents, children = best["types"], best["parents"], best["children"]

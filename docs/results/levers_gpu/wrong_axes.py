@@ -1,6 +1,8 @@
 """The frames whose refined joint axis is the wrong one (> 45 deg off) in the committed Table 1 reports: their
 instance, true axis (NAOCS) and true opening angle (the absolute joint state, 0 = closed), and the share of the
-report's frames opened no further.
+report's frames opened no further; then, per category and stage, how many frames opened at most
+``NEAR_CLOSED_DEG`` (the threshold of ``ancsh predict``'s nearly-closed note) and how many opened further had their
+axis that far off.
 
     .venv/bin/python docs/results/levers_gpu/wrong_axes.py [CATEGORY ...]   # default: oven washing_machine laptop
 
@@ -15,16 +17,23 @@ from pathlib import Path
 import numpy as np
 
 from ancsh.data.generate import FrameGenerator, GenerationConfig
+from ancsh.learned.inference.predict import NEAR_CLOSED_DEG
 
 RESULTS = Path(__file__).resolve().parents[1]
 
 
-def wrong_axes(category: str, method: str = "network", threshold_deg: float = 45.0) -> list[str]:
+def report_frames(category: str) -> tuple[dict, list]:
+    """The committed report's per-frame records and its test frames, regenerated."""
     report = json.loads((RESULTS / f"{category}.json").read_text())
     per_frame, seed = report["per_frame"], report["settings"]["seed"]
     gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=int(seed)))
     frames = [gen.frame(i) for i in range(len(per_frame["instance"]))]
     assert [f.instance for f in frames] == list(per_frame["instance"]), "not the report's frames"
+    return per_frame, frames
+
+
+def wrong_axes(category: str, method: str = "network", threshold_deg: float = 45.0, loaded=None) -> list[str]:
+    per_frame, frames = loaded or report_frames(category)
     states = np.array([np.rad2deg(f.joint_states_abs[0]) for f in frames])  # 0 = closed for all three
     out = []
     for i, axis in enumerate(per_frame[method]["axis_deg"]):
@@ -36,8 +45,26 @@ def wrong_axes(category: str, method: str = "network", threshold_deg: float = 45
     return out
 
 
+def near_closed(category: str, threshold_deg: float = 45.0, loaded=None) -> list[str]:
+    """Rows: per stage, wrong-axis frames among those opened <= NEAR_CLOSED_DEG and among the others."""
+    per_frame, frames = loaded or report_frames(category)
+    near = np.array([abs(np.rad2deg(f.joint_states_abs[0])) <= NEAR_CLOSED_DEG for f in frames])
+    out = []
+    for method, stage in (("exact_reduced", "first stage"), ("network", "refined")):
+        axis = np.array([np.nan if a is None else a[0] for a in per_frame[method]["axis_deg"]])
+        wrong = axis > threshold_deg
+        out.append(f"| {category} | {stage} | {np.sum(wrong & near)} of {np.sum(near)} | {np.sum(wrong & ~near)} of "
+                   f"{np.sum(~near)} |")
+    return out
+
+
 if __name__ == "__main__":
+    categories = sys.argv[1:] or ("oven", "washing_machine", "laptop")
+    loaded = {c: report_frames(c) for c in categories}
     print("| category | frame | instance | refined axis error (°) | true axis (NAOCS) | true opening (°) "
           "| report frames at or below this state |\n" + "|---" * 7 + "|")
-    for category in sys.argv[1:] or ("oven", "washing_machine", "laptop"):
-        print("\n".join(wrong_axes(category)))
+    for category in categories:
+        print("\n".join(wrong_axes(category, loaded=loaded[category])))
+    print(f"\n| category | stage | axis > 45° off: opened <= {NEAR_CLOSED_DEG:g}° | opened further |\n" + "|---" * 4 + "|")
+    for category in categories:
+        print("\n".join(near_closed(category, loaded=loaded[category])))
