@@ -122,3 +122,11 @@ if __name__ == "__main__":
     # normals first stage: `ancsh evaluate --category laptop ... [--refiner <export>] --out EVAL_ROOT/ltref_<name>`
     against_shipped("the laptop's normals refiner against the shipped laptop refiner",
                     [root / "ltref_shipped", root / "ltref_normals"], methods=("network",))
+    # the oven's and the washing machine's (2026-12-06: `oven_normals_refiner/config.json`,
+    # `washing_machine_normals_refiner/config.json`, 15000 steps each from their shipped first stages without normals),
+    # evaluated as the first stages above with `--refiner <export>` (`--out EVAL_ROOT/ovref_normals`,
+    # `EVAL_ROOT/wmref_normals`) beside the shipped pipelines' evaluations of that section (`oven_shipped`, `wm_shipped`)
+    against_shipped("the oven's normals refiner against the shipped oven refiner",
+                    [root / "oven_shipped", root / "ovref_normals"], methods=("network",))
+    against_shipped("the washing machine's normals refiner against the shipped washing machine refiner",
+                    [root / "wm_shipped", root / "wmref_normals"], methods=("network",))
