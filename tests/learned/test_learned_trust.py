@@ -323,11 +323,13 @@ def test_a_nearly_closed_laptop_gets_the_hinge_note_and_an_open_one_does_not(tab
 def test_the_hinge_note_follows_the_convention_closed_state_and_joint_type(table_scene, provider):
     import dataclasses
 
+    from ancsh.data.conventions import convention
     from ancsh.learned.inference.checks import NEAR_CLOSED_DEG, near_closed_notes
 
     depth, intr, _, _ = table_scene
     result = predict_depth(depth, intr, "laptop", provider=provider).result
-    rest = np.pi / 2  # the laptop's rest state: display at right angles to the base
+    rest = convention("laptop").joints[0].rest  # display at right angles to the base: states are relative to it
+    assert rest > np.radians(45)
 
     def notes(category, opening_deg, K=1):
         states = np.full(K, np.radians(opening_deg) - (rest if category == "laptop" else 0.0))

@@ -174,5 +174,5 @@ def near_closed_notes(category: str, result, joint_names) -> list[str]:
                 and opening <= NEAR_CLOSED_DEG:
             notes.append(f"{name} fitted {opening:.1f} deg from closed: a nearly closed hinge shows only through small "
                          "cues, so its axis may be another hinge of the category (every axis > 45 deg off in the "
-                         "Table 1 reports was opened <= 13.5 deg; docs/results/learned_levers.md)")
+                         "Table 1 reports was such a frame; docs/results/learned_levers.md)")
     return notes
