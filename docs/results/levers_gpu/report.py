@@ -112,21 +112,15 @@ if __name__ == "__main__":
     # (`wm_normals/ft_config.json`), evaluated as above (`--category washing_machine ... --out EVAL_ROOT/wm_<name>`)
     against_shipped("the washing machine's normals first stage from scratch and after its pose-aware fine-tune",
                     [root / "wm_shipped", root / "wm_normals", root / "wm_normals_ft"])
-    # the drawer's normals refiner (2026-12-06: `drawer_normals_refiner/config.json`, 15000 steps, 62 min) against
-    # the shipped drawer refiner, both behind the shipped (normals) first stage: `ancsh evaluate --category drawer
-    # --frames 300 --formulations exact_reduced --refine network --real builtin [--refiner <best.pt>]
-    # --out EVAL_ROOT/drref_<name>`
-    against_shipped("the drawer's normals refiner against the shipped drawer refiner",
-                    [root / "drref_shipped", root / "drref_normals"], methods=("network",))
-    # the same for the laptop (2026-12-06: `laptop_normals_refiner/config.json`, 15000 steps), behind its shipped
-    # normals first stage: `ancsh evaluate --category laptop ... [--refiner <export>] --out EVAL_ROOT/ltref_<name>`
-    against_shipped("the laptop's normals refiner against the shipped laptop refiner",
-                    [root / "ltref_shipped", root / "ltref_normals"], methods=("network",))
-    # the oven's and the washing machine's (2026-12-06: `oven_normals_refiner/config.json`,
-    # `washing_machine_normals_refiner/config.json`, 15000 steps each from their shipped first stages without normals),
-    # evaluated as the first stages above with `--refiner <export>` (`--out EVAL_ROOT/ovref_normals`,
-    # `EVAL_ROOT/wmref_normals`) beside the shipped pipelines' evaluations of that section (`oven_shipped`, `wm_shipped`)
-    against_shipped("the oven's normals refiner against the shipped oven refiner",
-                    [root / "oven_shipped", root / "ovref_normals"], methods=("network",))
-    against_shipped("the washing machine's normals refiner against the shipped washing machine refiner",
-                    [root / "wm_shipped", root / "wmref_normals"], methods=("network",))
+    # the normals refiners (2026-12-06: `<category>_normals_refiner/config.json`, 15000 steps each; the drawer's and
+    # the laptop's from their shipped normals first stages, the oven's and the washing machine's from theirs without
+    # normals) against the shipped refiners, both behind the shipped first stage: `ancsh evaluate --category
+    # <category> --frames 300 --formulations exact_reduced --refine network --real builtin [--refiner <export, or
+    # best.pt where the export chose the shipped file>] --out EVAL_ROOT/<prefix>_<name>`; the oven's and the washing
+    # machine's shipped rows are the evaluations of the first-stage sections above
+    for category, shipped, normals in (("drawer", "drref_shipped", "drref_normals"),
+                                       ("laptop", "ltref_shipped", "ltref_normals"),
+                                       ("oven", "oven_shipped", "ovref_normals"),
+                                       ("washing machine", "wm_shipped", "wmref_normals")):
+        against_shipped(f"the {category}'s normals refiner against the shipped {category} refiner",
+                        [root / shipped, root / normals], methods=("network",))
