@@ -495,14 +495,13 @@ def _without_occluders(isolation, attempt, depth):
 
 
 def _rest_states(category: str, K: int) -> tuple[tuple, str]:
-    """Rest joint states of a procedural category (NaN otherwise) and their description."""
-    from ...data.procedural import CATEGORY_INFO, load_instance
+    """Rest joint states of a category with a convention (NaN otherwise) and their description."""
+    from ...data.conventions import CONVENTIONS
 
-    info = CATEGORY_INFO.get(category)
-    if info is None or info.num_joints != K:
+    conv = CONVENTIONS.get(category)
+    if conv is None or len(conv.joints) != K:
         return tuple([float("nan")] * K), "unknown category: rest states unknown"
-    model = load_instance(category, "test", 0)
-    return tuple(float(q) for q in model.rest_states), info.rest_description
+    return tuple(float(q) for q in conv.rest_states), conv.rest_description
 
 
 def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
