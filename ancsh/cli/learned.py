@@ -42,6 +42,9 @@ def register(sub) -> None:
     p.add_argument("--pixel", metavar="U,V", help="isolation hint: a pixel on the object")
     p.add_argument("--box", metavar="U0,V0,U1,V1", help="isolation hint: a box around the object (pixels)")
     p.add_argument("--no-isolate", action="store_true", help="without --mask, use every valid pixel (no isolation)")
+    p.add_argument("--max-objects", type=positive_int, metavar="N",
+                   help="without --mask, --pixel or --box: report at most N objects of the category (default: every "
+                   "one that passes the verification)")
     p.add_argument("--max-depth", type=float, help="drop pixels deeper than this (metres)")
     p.add_argument("--depth-scale", type=float, default=0.001, help="metres per PNG unit (default 0.001 = millimetres)")
     p.add_argument("--points", type=int, default=1024, help="points sampled from the valid pixels (default 1024)")
@@ -55,6 +58,8 @@ def register(sub) -> None:
                    "(ancsh/data/templates/refine_defaults.json, `ancsh bench refine-defaults`)")
     _add_refiner_arguments(p)
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling / RANSAC seed (default 0)")
+    p.add_argument("--hypotheses", type=positive_int, default=None, metavar="H",
+                   help="independent tries per candidate whose consensus is the answer (default 3; 1: one seed's try)")
     p.add_argument("--out", type=Path, help="write the result JSON here")
     p.add_argument("--png", type=Path, help="write a picture here (boxes and axes on the depth image and the points)")
     p.add_argument("--rgb", type=Path, help="colour image registered to the depth: the picture draws over it")
@@ -181,6 +186,11 @@ def _passes(args: argparse.Namespace) -> dict:
     return {} if args.refine_passes is None else {"refine_passes": args.refine_passes}
 
 
+def _hypotheses(args: argparse.Namespace) -> dict:
+    """``predict_depth``'s ``hypotheses`` of ``--hypotheses`` (its default when not given)."""
+    return {} if args.hypotheses is None else {"hypotheses": args.hypotheses}
+
+
 def _device(args: argparse.Namespace):
     """The torch device of ``--device`` (a clear error naming the option when CUDA is asked for but absent)."""
     from ..learned.devices import resolve_device
@@ -202,6 +212,8 @@ def run_predict(args: argparse.Namespace) -> int:
         raise ValueError("--refine-passes: the refinement network's passes are used with --refine network only")
     if args.overwrite and args.urdf is None:
         raise ValueError("--overwrite: only with --urdf DIR")
+    if args.max_objects is not None and (args.mask is not None or args.pixel is not None or args.box is not None):
+        raise ValueError("--max-objects: a --mask, --pixel or --box selects one object; leave --max-objects out")
     if args.urdf_align is not None and args.urdf is None:
         raise ValueError("--urdf-align: only with --urdf DIR")
     if args.urdf is not None:  # before any work
@@ -224,32 +236,20 @@ def run_predict(args: argparse.Namespace) -> int:
                          formulation=args.formulation, num_points=args.points, seed=args.seed,
                          isolate=not args.no_isolate, hint=hint, refine=args.refine, refiner=args.refiner,
                          **_passes(args),
-                         device=_device(args))
+                         device=_device(args), max_objects=args.max_objects, **_hypotheses(args))
     data = pred.to_json()
     data["input"] = {"depth": str(args.depth), "intrinsics": intr.to_json(), "mask": None if args.mask is None else str(args.mask),
                      "depth_scale": args.depth_scale, "max_depth": args.max_depth, "seed": args.seed,
                      "pixel": args.pixel, "box": args.box, "isolate": not args.no_isolate}
     r = pred.result
-    print(f"{args.category}: {data['points']} of {data['valid_pixels']} valid pixels, {r.formulation} fit: {r.status.value}"
-          f" (network {data['timings_ms']['network']:.0f} ms, fit {data['timings_ms']['fit']:.0f} ms)")
-    if not r.ok:
-        print(f"  {r.message}")
-    for note in pred.notes:
+    found = data["objects_found"]
+    print(f"{args.category}: {found} object(s) found" + ("" if found else f" ({r.status.value})")
+          + f", {r.formulation} fit (isolation {data['timings_ms']['isolate']:.0f} ms, verification "
+          f"{data['timings_ms']['verify']:.0f} ms, total {data['timings_ms']['total']:.0f} ms)")
+    for note in pred.notes[:1] if pred.isolation is not None else ():
         print(f"  note: {note}")
-    for part in data["parts"]:
-        if part["pose"] is not None:
-            t = part["pose"]["translation"]
-            ext = part["box"]["extents"] if part["box"] else None
-            q = part["quality"] or {}
-            evidence = ("" if q.get("inlier_ratio") is None or q.get("residual_m") is None else
-                        f"  inliers {100 * q['inlier_ratio']:.0f}%, residual {1e3 * q['residual_m']:.1f} mm")
-            print(f"  part {part['name']:12s} {part['points']:5d} pts  t = [{t[0]:+.3f} {t[1]:+.3f} {t[2]:+.3f}] m"
-                  + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else "") + evidence)
-    for j in data["joints"]:
-        if j["state"] is not None:
-            f, unit = (57.29577951308232, "deg") if j["type"] == "revolute" else (1.0, "m")
-            absolute = "" if j["state_abs"] is None else f", absolute {j['state_abs'] * f:.1f} {unit}"
-            print(f"  joint {j['name']:12s} ({j['type']}) state {j['state'] * f:.1f} {unit} relative to rest{absolute}")
+    for obj, o in zip(pred.objects or (pred,), data["objects"]):
+        _print_object(obj, o, skip_notes=1 if pred.isolation is not None else 0)
     if args.out is not None:
         write_bytes_atomically(args.out, (json.dumps(data, indent=1) + "\n").encode())
         print(f"  result: {args.out}")
@@ -272,6 +272,34 @@ def run_predict(args: argparse.Namespace) -> int:
         else:
             print(f"  URDF: none (the fit failed: {r.status.value})")
     return 0 if r.ok else 1
+
+
+def _print_object(pred, data: dict, *, skip_notes: int = 0) -> None:
+    """The summary lines of one object of ``ancsh predict`` (``data``: its :meth:`DepthPrediction.object_json`)."""
+    box = (data["mask"] or {}).get("bbox")
+    p_obj = data["confidence"]["p_object"]
+    print(f"object {data['id']}: {data['status']}, {data['points']} of {data['valid_pixels']} valid pixels"
+          + ("" if box is None else f", pixels {box[0]}..{box[2]} x {box[1]}..{box[3]}")
+          + ("" if p_obj is None else f", p_object {p_obj:.2f}")
+          + f" (network {data['timings_ms']['network']:.0f} ms, fit {data['timings_ms']['fit']:.0f} ms)")
+    if not data["ok"]:
+        print(f"  {data['message']}")
+    for note in pred.notes[skip_notes:]:
+        print(f"  note: {note}")
+    for part in data["parts"]:
+        if part["pose"] is not None:
+            t = part["pose"]["translation"]
+            ext = part["box"]["extents"] if part["box"] else None
+            q = part["quality"] or {}
+            evidence = ("" if q.get("inlier_ratio") is None or q.get("residual_m") is None else
+                        f"  inliers {100 * q['inlier_ratio']:.0f}%, residual {1e3 * q['residual_m']:.1f} mm")
+            print(f"  part {part['name']:12s} {part['points']:5d} pts  t = [{t[0]:+.3f} {t[1]:+.3f} {t[2]:+.3f}] m"
+                  + (f"  box {ext[0]:.3f} x {ext[1]:.3f} x {ext[2]:.3f} m" if ext else "") + evidence)
+    for j in data["joints"]:
+        if j["state"] is not None:
+            f, unit = (57.29577951308232, "deg") if j["type"] == "revolute" else (1.0, "m")
+            absolute = "" if j["state_abs"] is None else f", absolute {j['state_abs'] * f:.1f} {unit}"
+            print(f"  joint {j['name']:12s} ({j['type']}) state {j['state'] * f:.1f} {unit} relative to rest{absolute}")
 
 
 def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
@@ -304,7 +332,8 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
             depth = read_depth(path, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
             pred = predict_depth(depth, intr, args.category, max_depth=args.max_depth, provider=provider,
                                  formulation=args.formulation, num_points=args.points, seed=args.seed,
-                                 isolate=not args.no_isolate, hint=hint)
+                                 isolate=not args.no_isolate, hint=hint, max_objects=args.max_objects,
+                                 **_hypotheses(args))
         except (ValueError, OSError) as exc:  # one bad image (or a dangling link) does not stop the others
             statuses[path.name] = f"error: {exc}"
             continue

@@ -96,6 +96,12 @@ class JointConvention:
         machine's door is in front or on top).
     semantics : tuple of str
         PartNet-Mobility part names (``mobility_v2.json`` ``name``) of the child.
+    state_range : (float, float)
+        The states every object of the category can take (radians or metres, this parameterisation):
+        ``zero="closed"`` joints start at 0 (a lid cannot go through its base, a drawer into its
+        cabinet) and reach the widest opening of the category's real and procedural instances. The
+        fits take it as bounds on the state (:attr:`CategoryConvention.joint_limits`). Default: no
+        bound.
     """
 
     name: str
@@ -107,6 +113,7 @@ class JointConvention:
     rest: float
     side: tuple
     semantics: tuple
+    state_range: tuple = (-np.inf, np.inf)
 
     def __post_init__(self):
         object.__setattr__(self, "type", JointType(self.type))
@@ -120,6 +127,12 @@ class JointConvention:
         object.__setattr__(self, "side", side)
         object.__setattr__(self, "semantics", tuple(self.semantics))
         object.__setattr__(self, "rest", float(self.rest))
+        lo, hi = (float(v) for v in self.state_range)
+        if not (lo < hi and not np.isnan(lo) and not np.isnan(hi)):
+            raise ValueError(f"joint {self.name!r} state_range: expected lower < upper, got {self.state_range!r}")
+        if not lo <= self.rest <= hi:
+            raise ValueError(f"joint {self.name!r} state_range: the rest state {self.rest:.4g} lies outside [{lo:.4g}, {hi:.4g}]")
+        object.__setattr__(self, "state_range", (lo, hi))
 
 
 @dataclass(frozen=True)
@@ -189,6 +202,11 @@ class CategoryConvention:
         return np.array([j.rest for j in self.joints], dtype=np.float64)
 
     @property
+    def joint_limits(self) -> np.ndarray:
+        """(K, 2) the joints' :attr:`JointConvention.state_range` relative to the rest states (the fits' states)."""
+        return np.array([j.state_range for j in self.joints], dtype=np.float64).reshape(-1, 2) - self.rest_states[:, None]
+
+    @property
     def typical_size(self) -> float:
         """Typical rest-state box diagonal (metres): the middle of :attr:`diagonal_range`."""
         return 0.5 * (self.diagonal_range[0] + self.diagonal_range[1])
@@ -202,8 +220,18 @@ class CategoryConvention:
         return len(self.joints)
 
 
+#: Joint ranges (:attr:`JointConvention.state_range`), from closed to the widest opening of the category's procedural
+#: generators and of its PartNet-Mobility objects' limits (boxes open 116-265 deg; laptops lie flat at 180 deg;
+#: drawers travel at most 90 % of a cabinet's depth, 1.6 m across at most). Eyeglasses temples splay outwards up to
+#: 0.25 rad and fold up to 1.62 rad in the generator: 0.1 rad more both ways.
+_DOOR_RANGE = (0.0, np.pi)
+_LID_RANGE = (0.0, np.deg2rad(270.0))
+_TEMPLE_RANGE = (-0.35, 1.72)
+_DRAWER_RANGE = (0.0, 1.0)
+
+
 def _door(name="door_hinge", side=("front",), semantics=("door",)):
-    return JointConvention(name, REVOLUTE, "base", "door", "closed", "opens", 0.0, side, semantics)
+    return JointConvention(name, REVOLUTE, "base", "door", "closed", "opens", 0.0, side, semantics, _DOOR_RANGE)
 
 
 _DRAWER_SEMANTICS = ("drawer", "drawer_box", "handle")
@@ -212,7 +240,8 @@ _CONVENTIONS = (
         "eyeglasses",
         ("base", "left_temple", "right_temple"),
         tuple(
-            JointConvention(f"{s}_hinge", REVOLUTE, "base", f"{s}_temple", "perpendicular", "folds", 0.0, "back", ("leg",))
+            JointConvention(f"{s}_hinge", REVOLUTE, "base", f"{s}_temple", "perpendicular", "folds", 0.0, "back", ("leg",),
+                            _TEMPLE_RANGE)
             for s in ("left", "right")
         ),
         (0.17, 0.27),
@@ -242,7 +271,7 @@ _CONVENTIONS = (
         (
             JointConvention(
                 "display_hinge", REVOLUTE, "base", "display", "closed", "opens", np.pi / 2, "back",
-                ("shaft", "screen", "screen_side", "other_leaf"),
+                ("shaft", "screen", "screen_side", "other_leaf"), _DOOR_RANGE,
             ),
         ),
         (0.35, 0.62),
@@ -253,7 +282,8 @@ _CONVENTIONS = (
         "drawer",
         ("base", "lowest", "middle", "top"),
         tuple(
-            JointConvention(f"{n}_slide", PRISMATIC, "base", n, "closed", "opens", 0.0, "front", _DRAWER_SEMANTICS)
+            JointConvention(f"{n}_slide", PRISMATIC, "base", n, "closed", "opens", 0.0, "front", _DRAWER_SEMANTICS,
+                            _DRAWER_RANGE)
             for n in ("lowest", "middle", "top")
         ),
         (0.75, 1.60),
@@ -282,7 +312,8 @@ _CONVENTIONS = (
     CategoryConvention(
         "box",
         ("base", "lid"),
-        (JointConvention("lid_hinge", REVOLUTE, "base", "lid", "closed", "opens", 0.0, "top", ("rotation_lid", "lid")),),
+        (JointConvention("lid_hinge", REVOLUTE, "base", "lid", "closed", "opens", 0.0, "top", ("rotation_lid", "lid"),
+                             _LID_RANGE),),
         (0.12, 1.15),
         "lid closed (0)",
         source_categories=("Box",),

@@ -350,7 +350,17 @@ def fit(
                              f"got {len(previous.joint_states)}")
     fitter = _Fit(observation, correspondences, form, solver, config, rng, start)
     fitter.warm_start, fitter.previous = warm_start, previous
-    return fitter.run()
+    result = fitter.run()
+    if not (result.ok and _has_limits(config, correspondences)):
+        return result
+    from .limits import check_joint_range
+
+    bounded = JointLimitTerm in form.term_classes or form.parameterisation == "reduced"
+    return check_joint_range(
+        result, correspondences.joint_limits, [t.value == "revolute" for t in correspondences.joint_types],
+        bounded=bounded, unbounded=lambda: fit(observation, correspondences, formulation, solver,
+                                               replace(config, enforce_limits=False), 0, warm_start=result,
+                                               previous=previous))
 
 
 class _FitFailure(Exception):

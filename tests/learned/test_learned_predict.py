@@ -204,7 +204,7 @@ def test_refinements_sharing_the_first_stage_give_each_refinements_own_fit(rende
     options = ("template", "none", "network")
     args = (depth, frame.intrinsics, depth > 0, "laptop", provider, "exact_reduced", 1024, 3, None)
     shared = fit_candidate_refinements(*args, options, object_gate=False)
-    alone = {r: fit_candidate(*args, r, object_gate=False) for r in reversed(options)}
+    alone = {r: fit_candidate(*args, r, object_gate=False, hypotheses=1) for r in reversed(options)}
     assert len(shared) == len(options)
     for refine, a in zip(options, shared):
         b = alone[refine]

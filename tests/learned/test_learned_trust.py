@@ -200,7 +200,7 @@ def test_json_carries_version_weights_hash_and_both_joint_states(table_scene, tm
                  "--png", str(tmp_path / "v.png")])
     data = json.loads((tmp_path / "r.json").read_text())
     assert code == 0 and data["ok"]
-    assert data["schema"] == "ancsh.prediction/1" and data["ancsh_version"] == __version__
+    assert data["schema"] == "ancsh.prediction/2" and data["ancsh_version"] == __version__
     assert data["weights_sha256"] == hashlib.sha256(weights_path("laptop").read_bytes()).hexdigest()
     joint = data["joints"][0]
     assert joint["rest"] == pytest.approx(np.pi / 2)

@@ -25,6 +25,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.twin",
     "ancsh.cli.bench.sensor_realism",
     "ancsh.cli.bench.scenes",
+    "ancsh.cli.bench.mask_refusal",
 ]
 
 

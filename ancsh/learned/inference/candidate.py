@@ -19,14 +19,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...data.render import Intrinsics
-from .checks import check_confidence, check_plausibility, object_diagonal, part_quality
+from .checks import MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
-__all__ = ["MIN_POINTS", "depth_to_points", "fit_candidate", "fit_candidate_refinements", "infer", "inflate_uncertainty"]
+__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate",
+           "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty"]
 
 
 #: Fewer valid points than this: no fit is tried (status ``too_few_points``).
 MIN_POINTS = 100
+#: Hypotheses (independent samplings of the pixels, network passes, RANSAC and refinement seeds) per candidate of
+#: ``ancsh predict``: the answer is their consensus (:func:`consensus`), so it does not hang on one seed's luck.
+CONSENSUS_HYPOTHESES = 3
 
 
 def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: float | None = None,
@@ -87,27 +91,107 @@ def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: floa
 
 
 def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
-                  object_gate: bool = True) -> dict:
+                  object_gate: bool = True, hypotheses: int = CONSENSUS_HYPOTHESES,
+                  min_p_object: float = MIN_P_OBJECT) -> dict:
     """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit: one candidate segment of
     :func:`~ancsh.learned.inference.predict.predict_depth` (called once with a mask, or per verified candidate without
-    one).
+    one), as the consensus of ``hypotheses`` independent tries (:func:`consensus`; the tries stop once the failures are
+    a majority: a candidate that fails at every seed costs about half of them).
 
     ``d``: (H, W) depth (metres, 0 = none); ``mask``: (H, W) bool or ``None`` (every valid pixel); ``refine``:
     ``LearnedProvider.refine``'s option; ``why``: when given, nothing is sampled and the candidate fails with
     ``too_few_points`` naming it; ``object_gate=False`` measures the object evidence without letting ``p_object``
-    fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`). The other arguments are
-    :func:`~ancsh.learned.inference.predict.predict_depth`'s.
+    fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`); ``min_p_object``: the gate's
+    threshold (:data:`~ancsh.learned.inference.checks.MIN_P_OBJECT_MASKED` under the user's mask or hint). The other
+    arguments are :func:`~ancsh.learned.inference.predict.predict_depth`'s.
 
     Returns a dict: ``result`` (FitResult), ``pts`` ((N, 3) camera frame, metres), ``pixels``, ``valid``, ``labels``,
     ``quality``, ``p_good`` / ``p_object`` (or ``None``), ``comparison`` (render-and-compare or ``None``), ``corr``,
-    stage times ``t_bp`` / ``t_net`` / ``t_compare`` (seconds), ``notes`` and the joint structure.
+    stage times ``t_bp`` / ``t_net`` / ``t_compare`` (seconds, summed over the hypotheses), ``notes``, the joint
+    structure and ``consensus`` (:func:`consensus`'s record).
     """
-    return fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
-                                     (refine,), why=why, object_gate=object_gate)[0]
+    if isinstance(hypotheses, bool) or int(hypotheses) != hypotheses or hypotheses < 1:
+        raise ValueError(f"hypotheses: expected a positive integer, got {hypotheses!r}")
+    H = int(hypotheses) if why is None else 1
+    tries = []
+    for h in range(H):
+        tries.append(fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points,
+                                               hypothesis_seed(seed, h), max_depth, (refine,), why=why,
+                                               object_gate=object_gate, min_p_object=min_p_object)[0])
+        passed = sum(t["result"].ok for t in tries)
+        if tries[-1]["valid"] < MIN_POINTS or 2 * (passed + H - len(tries)) <= H:
+            break  # nothing to sample again, or the failures are a majority whatever the rest do
+    return consensus(tries)
+
+
+def hypothesis_seed(seed: int, h: int) -> int:
+    """The seed of hypothesis ``h`` of a candidate fitted with ``seed`` (hypothesis 0 keeps ``seed``: one hypothesis is
+    the single fit of before)."""
+    if h == 0:
+        return int(seed)
+    return int(np.random.SeedSequence([int(seed), int(h), 0xC0]).generate_state(1)[0])
+
+
+def _distance(a, b) -> float:
+    """How far two hypotheses' fits are apart: the largest joint-state difference in units of the joint-range
+    tolerance (:data:`~ancsh.solvers.limits.LIMIT_TOLERANCE_RAD` / ``_M``), plus the mean part rotation difference in
+    those radians."""
+    from ...geometry.rotations import rotation_angle
+    from ...solvers.limits import LIMIT_TOLERANCE_M, LIMIT_TOLERANCE_RAD
+
+    ra, rb = a["result"], b["result"]
+    tol = np.array([LIMIT_TOLERANCE_RAD if t == "revolute" else LIMIT_TOLERANCE_M for t in a["types"]])
+    dq = np.abs(np.asarray(ra.joint_states) - np.asarray(rb.joint_states))
+    dq = np.where(np.asarray([t == "revolute" for t in a["types"]]), np.minimum(dq, 2 * np.pi - dq % (2 * np.pi)), dq)
+    rot = [rotation_angle(Ta.rotation.T @ Tb.rotation) for Ta, Tb in zip(ra.T_cam_npcs, rb.T_cam_npcs)]
+    return float((np.max(dq / tol) if dq.size else 0.0) + (np.mean(rot) / LIMIT_TOLERANCE_RAD if rot else 0.0))
+
+
+def consensus(tries: list) -> dict:
+    """The answer of several hypotheses of one candidate (:func:`fit_candidate`'s dicts, each fitted with its own
+    seed): when most of them pass their checks, the passing one nearest the others (the medoid by :func:`_distance`),
+    else the first failure of the most common failed status. Its ``consensus`` record says how they went:
+    ``hypotheses``, ``passed``, ``statuses``, ``chosen`` (index), ``state_std`` (per joint, rad or m, over the passing
+    ones; ``None`` with fewer than 2) and ``rotation_spread_deg`` (per part, the RMS rotation angle of the passing
+    fits from the chosen one); the stage times are summed over the hypotheses."""
+    from collections import Counter
+
+    from ...geometry.rotations import rotation_angle
+
+    ok = [i for i, t in enumerate(tries) if t["result"].ok]
+    if 2 * len(ok) > len(tries):
+        dist = np.array([[_distance(tries[i], tries[j]) for j in ok] for i in ok])
+        chosen = ok[int(np.argmin(dist.sum(axis=1)))]
+    else:
+        statuses = Counter(t["result"].status for i, t in enumerate(tries) if i not in ok)
+        common = statuses.most_common(1)[0][0]
+        chosen = next(i for i, t in enumerate(tries) if t["result"].status == common)
+    best = dict(tries[chosen])
+    record = {"hypotheses": len(tries), "passed": len(ok), "statuses": [t["result"].status.value for t in tries],
+              "chosen": int(chosen), "state_std": None, "rotation_spread_deg": None}
+    if len(ok) >= 2 and best["result"].ok:
+        states = np.array([np.asarray(tries[i]["result"].joint_states, dtype=np.float64) for i in ok])
+        ref = states[ok.index(chosen)]
+        revolute = np.array([t == "revolute" for t in best["types"]], dtype=bool)
+        wrapped = np.where(revolute, (states - ref + np.pi) % (2 * np.pi) - np.pi, states - ref)
+        record["state_std"] = [float(x) for x in wrapped.std(axis=0, ddof=1)]
+        R0 = best["result"].T_cam_npcs
+        record["rotation_spread_deg"] = [
+            float(np.degrees(np.sqrt(np.mean([rotation_angle(R0[j].rotation.T @ tries[i]["result"].T_cam_npcs[j].rotation)
+                                              ** 2 for i in ok])))) for j in range(len(R0))]
+    if len(tries) > 1:
+        for key in ("t_bp", "t_net", "t_compare"):
+            best[key] = float(sum(t[key] for t in tries))
+        best["notes"] = list(best["notes"]) + [
+            f"consensus: {len(ok)} of {len(tries)} hypotheses (samplings and RANSAC seeds) passed; hypothesis {chosen} is "
+            "the answer" + (" (the passing one nearest the others)" if best["result"].ok else " (most failed alike)")]
+    best["consensus"] = record
+    return best
 
 
 def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
-                              refinements, *, why=None, object_gate: bool = True) -> list[dict]:
+                              refinements, *, why=None, object_gate: bool = True,
+                              min_p_object: float = MIN_P_OBJECT) -> list[dict]:
     """:func:`fit_candidate` once per option of ``refinements`` (a sequence of ``LearnedProvider.refine`` options),
     sharing what does not depend on it: the points, the network pass and the first-stage fit run once.
 
@@ -143,8 +227,8 @@ def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulati
     corr, raw = infer(provider, obs)
     t_net = time.perf_counter() - t0
     first = _FirstStage(obs, pts, pixels, valid, corr, raw, fit(obs, corr, formulation, rng=seed), t_bp, t_net)
-    return [_finish_candidate(first, d, intrinsics, mask, category, provider, formulation, seed, refine, object_gate)
-            for refine in refinements]
+    return [_finish_candidate(first, d, intrinsics, mask, category, provider, formulation, seed, refine, object_gate,
+                              min_p_object) for refine in refinements]
 
 
 @dataclass(frozen=True)
@@ -164,7 +248,7 @@ class _FirstStage:
 
 
 def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provider, formulation, seed, refine,
-                      object_gate) -> dict:
+                      object_gate, min_p_object=None) -> dict:
     """The refinement ``refine`` of the first-stage fit and its checks and evidence: :func:`fit_candidate_refinements`'
     per-option part (``first`` is not changed: every option starts from it)."""
     pts, corr, raw, result = first.pts, first.corr, first.raw, first.result
@@ -185,7 +269,7 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
         comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
         t_rc = time.perf_counter() - t0
     if object_gate:
-        result = check_confidence(result, p_object)
+        result = check_confidence(result, p_object, MIN_P_OBJECT if min_p_object is None else min_p_object)
     return {"result": result, "pts": pts, "pixels": first.pixels, "valid": first.valid, "labels": labels,
             "quality": quality, "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
             "t_net": first.t_net, "t_bp": first.t_bp, "notes": notes, "corr": corr,

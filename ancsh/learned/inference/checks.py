@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MAX_RELATIVE_RESIDUAL", "MIN_INLIER_RATIO", "MIN_P_OBJECT", "SIZE_TOLERANCE", "check_confidence",
+__all__ = ["MAX_RELATIVE_RESIDUAL", "MIN_INLIER_RATIO", "MIN_P_OBJECT", "MIN_P_OBJECT_MASKED", "SIZE_TOLERANCE", "check_confidence",
            "check_plausibility", "near_closed_notes", "object_diagonal", "part_quality"]
 
 #: A fit is plausible when the object's box diagonal lies in the category's rest-state range
@@ -25,6 +25,10 @@ MAX_RELATIVE_RESIDUAL = 0.25
 #: A fit whose calibrated probability of being an object of the category (``p_object``, render-and-compare and
 #: size; :mod:`ancsh.studies.object_evidence`) is below this is reported as ``not_this_category``.
 MIN_P_OBJECT = 0.5
+#: Under the user's own mask or hint (the user says the object is there) ``p_object`` refuses a fit only below this:
+#: strong evidence that the pixels are something else (``docs/results/mask_refusal.md`` measures what each threshold
+#: refuses on masked renders); the fit is judged by its inliers, size, residual and joint range.
+MIN_P_OBJECT_MASKED = 0.05
 #: A hinge whose zero state is closed and that is fitted within this many degrees of it gets a note: in the committed
 #: Table 1 reports every joint axis more than 45 deg off belonged to a door or lid opened at most 13.5 deg
 #: (``docs/results/levers_gpu/wrong_axes.py`` counts them below and above this threshold).
@@ -69,6 +73,8 @@ def part_quality(result, points_cam, corr, prediction=None) -> tuple:
 def check_plausibility(result, part_labels, category: str, quality=()):
     """The fit with a failed status naming the first check it fails (or unchanged).
 
+    A fit that failed already is returned unchanged, but for ``joint_at_limit``: its size or inliers, when they fail,
+    are the status instead (an object 3 m across fitted with a state past its range is first of all too big).
     Checks, in order: ``too_few_inliers`` (under :data:`MIN_INLIER_RATIO` of all points, or of a
     part's points for parts with at least 20 points), ``implausible_size`` (the diagonal of the
     box around all part boxes, in the base part's box frame, outside the category's
@@ -90,8 +96,8 @@ def check_plausibility(result, part_labels, category: str, quality=()):
     from ...data.procedural import CATEGORY_INFO
     from ...solvers.types import FitStatus
 
-    if not result.ok:
-        return result
+    if not result.ok and result.status != FitStatus.JOINT_AT_LIMIT:
+        return result  # a fit beyond its joint range is still checked: a wrong size or too few inliers say more
     labels = np.asarray(part_labels)
     inl = np.asarray(result.inliers, dtype=bool)
     if inl.shape == labels.shape and inl.size:
@@ -127,9 +133,10 @@ def object_diagonal(boxes) -> float:
     return float(np.linalg.norm(np.ptp(corners, axis=0)))
 
 
-def check_confidence(result, p_object):
-    """The fit with status ``not_this_category`` when its calibrated ``p_object`` is below :data:`MIN_P_OBJECT`
-    (or unchanged).
+def check_confidence(result, p_object, minimum: float = MIN_P_OBJECT):
+    """The fit with status ``not_this_category`` when its calibrated ``p_object`` is below ``minimum``
+    (:data:`MIN_P_OBJECT` for a segment found without the user's help, :data:`MIN_P_OBJECT_MASKED` under the user's
+    mask or hint) (or unchanged).
 
     ``p_good`` does not gate the status: it is calibrated on renders of the category alone, where the
     evidence it uses varies little, so outside them (a noise-free render, another sensor) it swings to 0
@@ -138,10 +145,11 @@ def check_confidence(result, p_object):
 
     from ...solvers.types import FitStatus
 
-    if result.ok and p_object is not None and p_object < MIN_P_OBJECT:
+    if result.ok and p_object is not None and p_object < minimum:
+        given = " (under the user's mask or hint: strong evidence only)" if minimum < MIN_P_OBJECT else ""
         return dataclasses.replace(result, status=FitStatus.NOT_THIS_CATEGORY, message=(
             f"check object: the calibrated probability that the fitted segment is an object of this category is "
-            f"{p_object:.2f}, below {MIN_P_OBJECT} (render-and-compare and size against the category's objects)"))
+            f"{p_object:.2f}, below {minimum}{given} (render-and-compare and size against the category's objects)"))
     return result
 
 

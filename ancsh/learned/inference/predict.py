@@ -13,6 +13,7 @@ Frames: camera (OpenCV: x right, y down, z forward), metres. A part pose maps it
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -24,6 +25,7 @@ from .checks import (  # noqa: F401 - re-exported
     MAX_RELATIVE_RESIDUAL,
     MIN_INLIER_RATIO,
     MIN_P_OBJECT,
+    MIN_P_OBJECT_MASKED,
     NEAR_CLOSED_DEG,
     SIZE_TOLERANCE,
     check_confidence,
@@ -33,6 +35,7 @@ from .checks import (  # noqa: F401 - re-exported
     part_quality,
 )
 from .candidate import (  # noqa: F401 - re-exported
+    CONSENSUS_HYPOTHESES,
     MIN_POINTS,
     depth_to_points,
     fit_candidate,
@@ -40,6 +43,7 @@ from .candidate import (  # noqa: F401 - re-exported
     infer,
     inflate_uncertainty,
 )
+from .objects import ObjectCandidate, mask_rle, same_object, select_objects
 from .picture import draw_prediction  # noqa: F401 - re-exported
 from .refine_network import DEFAULT_PASSES
 
@@ -115,6 +119,21 @@ class DepthPrediction:
         (:func:`ancsh.solvers.twin.compare_fit`), where there is a mask or an isolated segment.
     correspondences : Correspondences or None
         What the fit was made on (its joint tree and types; not in the JSON); ``None`` without a network pass.
+    object_id : int
+        The object's number in the frame's object list (0: the best supported).
+    mask : (H, W) bool or None
+        The object's pixels: its isolated segment without occluders and without pixels of a better-supported object,
+        the user's mask, or (no isolation) every valid pixel; ``None`` when nothing was found.
+    objects : tuple of DepthPrediction
+        Every object of the category the frame holds (:func:`predict_depth`), ``objects[0]`` this one; each of them has
+        an empty ``objects``. Empty for an object of the list itself.
+    consensus : dict or None
+        How the object's hypotheses went (:func:`~ancsh.learned.inference.candidate.consensus`): ``hypotheses``,
+        ``passed``, ``statuses``, ``chosen``, ``state_std`` (per joint, rad or m: the spread of the passing
+        hypotheses' states) and ``rotation_spread_deg`` (per part).
+    rejected : tuple of DepthPrediction
+        The candidate segments that were fitted and failed a check (``object_id`` -1; their status says which), for
+        pictures and the JSON's ``rejected`` list.
     """
 
     category: str
@@ -140,6 +159,11 @@ class DepthPrediction:
     p_object: float | None = None
     render_compare: object = None
     correspondences: object = None
+    object_id: int = 0
+    mask: np.ndarray | None = field(default=None, repr=False)
+    objects: tuple = field(default=(), repr=False)
+    rejected: tuple = field(default=(), repr=False)
+    consensus: dict | None = None
 
     def to_urdf(self, folder, **options):
         """:meth:`export_urdf`'s ``.urdf`` path (the same options)."""
@@ -167,8 +191,10 @@ class DepthPrediction:
                                   align=align if observed is not None else 0, rng=rng)
 
     def object_mask(self, shape) -> np.ndarray | None:
-        """The pixels ``(H, W)`` bool this prediction took as the object: the isolated segment, else (a user's mask,
-        or no isolation) the sampled points' pixels; ``None`` without points."""
+        """The pixels ``(H, W)`` bool this prediction took as the object: :attr:`mask`, else the isolated segment,
+        else the sampled points' pixels; ``None`` without points."""
+        if self.mask is not None and self.mask.shape == tuple(shape):
+            return np.asarray(self.mask, dtype=bool)
         if self.isolation is not None and np.asarray(self.isolation.mask).any():
             return np.asarray(self.isolation.mask, dtype=bool)
         if len(self.pixels) == 0:
@@ -177,8 +203,11 @@ class DepthPrediction:
         mask[self.pixels[:, 1], self.pixels[:, 0]] = True
         return mask
 
-    def to_json(self) -> dict:
-        """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``."""
+    def object_json(self) -> dict:
+        """This object's record of the JSON's ``objects`` list (``docs/json_schema.md``): its id, pixel mask, status,
+        evidence, parts and joints (plain JSON; NaN -> ``None``)."""
+        from ...outputs import json_safe
+
         r = self.result
         counts = np.bincount(self.part_labels, minlength=len(self.part_names))
         parts = []
@@ -204,29 +233,46 @@ class DepthPrediction:
                 "state": float(r.joint_states[k]), "state_abs": float(r.joint_states[k]) + rest, "rest": rest,
                 "state_unit": "rad" if jt == "revolute" else "m",
             })
-        from ...outputs import provenance
-
-        data = {
-            "schema": "ancsh.prediction/1", **provenance(self.weights, self.weights_sha256),
-            "category": self.category, "rest_state": self.rest_description,
-            "formulation": r.formulation, "solver": r.solver, "status": r.status.value, "ok": bool(r.ok),
-            "message": r.message, "iterations": int(r.iterations),
-            "max_constraint_violation": float(r.max_constraint_violation),
+        return json_safe({
+            "id": int(self.object_id), "status": r.status.value, "ok": bool(r.ok), "message": r.message,
+            "mask": None if self.mask is None else mask_rle(self.mask),
+            "iterations": int(r.iterations), "max_constraint_violation": float(r.max_constraint_violation),
             "points": int(self.points_cam.shape[0]), "valid_pixels": int(self.valid_pixels),
             "confidence": {"p_good": self.p_good, "good": "every part's rotation error below 10 deg",
                            "calibration": "ancsh calibrate (docs/results/<category>_confidence.md)",
                            "p_object": self.p_object, "object": "the fitted pixels are an object of the category"},
             "render_compare": None if self.render_compare is None else self.render_compare.to_dict(),
-            "notes": list(self.notes), "isolation": None if self.isolation is None else self.isolation.to_dict(),
-            "parts": parts, "joints": joints,
+            "consensus": self.consensus, "notes": list(self.notes), "parts": parts, "joints": joints,
             "uncertainty": None if getattr(r, "uncertainty", None) is None else r.uncertainty.to_dict(),
+            "timings_ms": {k: v for k, v in self.timings_ms.items() if k not in ("isolate", "verify", "total")},
+        })
+
+    def to_json(self) -> dict:
+        """Plain-JSON description (lists, floats; NaN -> ``None``); the schema is ``docs/json_schema.md``
+        (``ancsh.prediction/2``): ``objects`` lists every object found, and the top-level keys of schema 1 (status,
+        parts, joints, ...) are the first object's."""
+        from ...outputs import json_safe, provenance
+
+        r = self.result
+        objects = [o.object_json() for o in (self.objects or (self,))]
+        first = dict(objects[0])
+        first.pop("id")
+        first.pop("mask")
+        first.pop("timings_ms")
+        data = {
+            "schema": "ancsh.prediction/2", **provenance(self.weights, self.weights_sha256),
+            "category": self.category, "rest_state": self.rest_description,
+            "formulation": r.formulation, "solver": r.solver, **first,
+            "objects_found": sum(o["ok"] for o in objects), "objects": objects,
+            "rejected": [{"segment": None if o.isolation is None else o.isolation.chosen, "status": o.result.status.value,
+                          "message": o.result.message, "bbox": None if o.mask is None else mask_rle(o.mask)["bbox"]}
+                         for o in self.rejected],
+            "isolation": None if self.isolation is None else self.isolation.to_dict(),
             "timings_ms": dict(self.timings_ms),
             "frames": "camera frame (x right, y down, z forward), metres; pose maps part NPCS c to the camera: "
                       "p = scale * rotation @ c + translation; joint 'state' relative to the category's rest state "
                       "('rest'), 'state_abs' = state + rest",
         }
-        from ...outputs import json_safe
-
         return json_safe(data)
 
 
@@ -247,7 +293,8 @@ def check_weights_category(provider, category: str, weights) -> None:
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
                   seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
-                  refiner=None, device="cpu", refine_passes: int = DEFAULT_PASSES) -> DepthPrediction:
+                  refiner=None, device="cpu", refine_passes: int = DEFAULT_PASSES,
+                  max_objects: int | None = None, hypotheses: int = CONSENSUS_HYPOTHESES) -> DepthPrediction:
     """Run the learned pipeline on one depth image: the one call for a prediction.
 
     Without a ``mask``, the object is found first: :func:`ancsh.data.isolate.isolate_object` proposes
@@ -296,6 +343,20 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     refine_passes : int
         With ``refine="network"`` and no ``provider``: passes of the refinement network (default
         :data:`~ancsh.learned.inference.refine_network.DEFAULT_PASSES`; ``docs/results/refine_network.md``).
+    max_objects : int, optional
+        Without a mask or hint: at most this many objects in :attr:`DepthPrediction.objects` (default: every one that
+        passes the verification). A mask or a hint selects one object.
+    hypotheses : int
+        Independent tries per candidate (samplings of its pixels, network passes, RANSAC and refinement seeds; default
+        :data:`~ancsh.learned.inference.candidate.CONSENSUS_HYPOTHESES`): the answer is their consensus
+        (:func:`~ancsh.learned.inference.candidate.consensus`), reported in :attr:`DepthPrediction.consensus`. 1: a
+        single try, the answer of one seed.
+
+    Returns
+    -------
+    DepthPrediction
+        The best-supported object, with every object found in ``objects`` (itself first; module
+        :mod:`~ancsh.learned.inference.objects`). When none passes, the best-supported failure alone.
 
     Raises
     ------
@@ -311,6 +372,10 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
 
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
+    if max_objects is not None and (isinstance(max_objects, bool) or int(max_objects) != max_objects or max_objects < 1):
+        raise ValueError(f"max_objects: expected a positive integer or None, got {max_objects!r}")
+    if isinstance(hypotheses, bool) or int(hypotheses) != hypotheses or hypotheses < 1:
+        raise ValueError(f"hypotheses: expected a positive integer, got {hypotheses!r}")
     t_start = time.perf_counter()
     if provider is None:
         if weights is None and not weights_path(str(category)).is_file():
@@ -339,44 +404,70 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         t_iso = time.perf_counter() - t0
     elif mask is not None and hint is not None:
         notes.append("a mask was given: the hint is ignored")
-    if isolation is None:  # a mask (or every valid pixel): one attempt
-        best = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
+    if isolation is None:  # a mask (or every valid pixel, checked as one: no check is skipped): one attempt
+        whole = mask if mask is not None else np.isfinite(d) & (d > 0)
+        best = fit_candidate(d, intrinsics, whole, category, provider, formulation, num_points, seed, max_depth, refine,
+                             hypotheses=hypotheses, min_p_object=MIN_P_OBJECT if mask is None else MIN_P_OBJECT_MASKED)
+        found, rejected = [ObjectCandidate(None, best, np.asarray(whole, dtype=bool))], []
     elif isolation.chosen is None:  # nothing but planes / noise: no object to fit
         best = fit_candidate(d, intrinsics, None, category, provider, formulation, num_points, seed, max_depth, refine,
-                        why=f"no object found ({isolation.reason})")
+                             why=f"no object found ({isolation.reason})")
+        found, rejected = [ObjectCandidate(None, best, np.zeros(d.shape, dtype=bool))], []
     else:
         t0 = time.perf_counter()
-        best, isolation = _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points,
-                                             seed, max_depth, refine)
-        isolation = _without_occluders(isolation, best, d)
+        found, rejected, isolation = _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points,
+                                              seed, max_depth, refine, max_objects=1 if hint is not None else max_objects,
+                                              hypotheses=hypotheses)
         t_verify = time.perf_counter() - t0
+    shared = {"category": str(category), "provider": provider, "valid_notes": notes, "isolation": isolation,
+              "joint_names": joint_names, "part_names": part_names, "num_points": num_points,
+              "timings": {"isolate": 1e3 * t_iso, "verify": 1e3 * t_verify}, "t_start": t_start}
+    objects = [_object_prediction(k, c, shared, d) for k, c in enumerate(found)]
+    shared["valid_notes"] = []
+    failed = tuple(_object_prediction(-1, c, shared, d, occluders=False) for c in rejected)
+    total = 1e3 * (time.perf_counter() - t_start)
+    objects = [dataclasses.replace(o, timings_ms={**o.timings_ms, "total": total}) for o in objects]
+    return dataclasses.replace(objects[0], objects=tuple(objects), rejected=failed)
+
+
+def _object_prediction(index: int, found: ObjectCandidate, shared: dict, d, *, occluders: bool = True) -> DepthPrediction:
+    """Object ``index`` of :func:`predict_depth`'s list from its candidate (``shared``: what every object has in
+    common: the category, provider, isolation, names, notes and the isolation / verification times); ``occluders``:
+    leave the pixels in front of the fitted model out of its mask."""
+    best, provider, isolation = found.attempt, shared["provider"], shared["isolation"]
+    mask = np.asarray(found.mask, dtype=bool)
+    if isolation is not None and isolation.chosen is not None and found.segment is not None:
+        isolation = isolation.with_choice(found.segment, isolation.reason, isolation.verified)
+        if occluders:
+            isolation = _without_occluders(isolation, best, d)
+        isolation = dataclasses.replace(isolation, mask=isolation.mask & mask)
+        mask = isolation.mask
+    notes = list(shared["valid_notes"])
     if isolation is not None:
         notes.append(isolation.summary())
     notes += best["notes"]
+    num_points = shared["num_points"]
     if 0 < best["valid"] < num_points:
         notes.append(f"{best['valid']} valid pixels, fewer than the {num_points} points asked for: all of them are used "
                      f"(the network pads its input to {provider.network.config.num_points} points with repeats)")
     result = best["result"]
+    category, joint_names = shared["category"], shared["joint_names"]
     if result.ok:
-        notes += near_closed_notes(str(category), result, joint_names)
-    t_net = best["t_net"]
-    pts, pixels, valid, labels, quality, p_good = (best[k] for k in ("pts", "pixels", "valid", "labels", "quality", "p_good"))
-    types, parents, children = best["types"], best["parents"], best["children"]
-    t_bp = best["t_bp"]
+        notes += near_closed_notes(category, result, joint_names)
     rest, rest_text = _rest_states(category, len(joint_names))
     return DepthPrediction(
-        category=str(category), result=result, points_cam=pts, pixels=pixels, part_labels=labels,
-        part_names=part_names, joint_names=joint_names, weights=str(provider.network.source), valid_pixels=valid,
-        timings_ms={"isolate": 1e3 * t_iso, "verify": 1e3 * t_verify, "backproject": 1e3 * t_bp, "network": 1e3 * t_net,
-                    "fit": 1e3 * result.time_s, "render_compare": 1e3 * best["t_compare"],
-                    "total": 1e3 * (time.perf_counter() - t_start)},
-        joint_types=types,
-        joint_parents=tuple(int(p) for p in parents),
-        joint_children=tuple(int(c) for c in children),
-        joint_rest=rest, rest_description=rest_text,
+        category=category, result=result, points_cam=best["pts"], pixels=best["pixels"], part_labels=best["labels"],
+        part_names=shared["part_names"], joint_names=joint_names, weights=str(provider.network.source),
+        valid_pixels=best["valid"],
+        timings_ms={**shared["timings"], "backproject": 1e3 * best["t_bp"], "network": 1e3 * best["t_net"],
+                    "fit": 1e3 * result.time_s, "render_compare": 1e3 * best["t_compare"]},
+        joint_types=best["types"], joint_parents=tuple(int(p) for p in best["parents"]),
+        joint_children=tuple(int(c) for c in best["children"]), joint_rest=rest, rest_description=rest_text,
         weights_sha256=getattr(provider.network, "sha256", None), notes=tuple(notes), isolation=isolation,
-        part_quality=quality, p_good=p_good, p_object=best["p_object"], render_compare=best["comparison"],
-        correspondences=best.get("corr"),
+        part_quality=best["quality"], p_good=best["p_good"], p_object=best["p_object"],
+        render_compare=best["comparison"], correspondences=best.get("corr"), object_id=index,
+        consensus=best.get("consensus"),
+        mask=mask if mask.any() else None,
     )
 
 
@@ -395,21 +486,26 @@ def _score(attempt) -> float:
 
 
 def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points, seed, max_depth,
-                       refine) -> tuple[dict, object]:
-    """Fit the isolation's candidates and choose (the module's verification; see :func:`predict_depth`).
+                       refine, *, max_objects: int | None = None, hypotheses: int = CONSENSUS_HYPOTHESES) -> tuple:
+    """Fit the isolation's candidates and make the object list (the module's verification; see :func:`predict_depth`).
 
     With a hint, the candidates it points at (the segments under the pixel, from every depth of plane
     removal, or those in the box; up to :data:`MAX_VERIFIED`) are fitted. Without one, up to
     :data:`MAX_VERIFIED` candidates whose size fits the category (or the first, when none does) are
-    fitted. A segment that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or
+    fitted, skipping one that is mostly an object already passed (:func:`~ancsh.learned.inference.objects.same_object`).
+    A segment that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or
     a curtain seen around nearer things) is no object (``not_this_category``); without a hint, one that runs out of
     the image (:func:`ancsh.data.isolate.out_of_view`: a sliver of wall or floor at the edge) is ``out_of_view``. When
     none passes, up to :data:`MAX_MERGED` unions of two fitted candidates that touch in the image
     (:func:`ancsh.data.isolate.merged_candidate`: an object that plane removal cut in two) are fitted and judged
-    alike. The best-supported fit that passes every check wins; when none passes, the best-supported one comes back
-    with status ``no_object``.
+    alike. Every fit that passes is an object (:func:`~ancsh.learned.inference.objects.select_objects`: best supported
+    first, at most ``max_objects``, no pixel in two); when none passes, the best-supported one comes back alone with
+    status ``no_object``.
+
+    Returns ``(objects, rejected, isolation)``: lists of :class:`~ancsh.learned.inference.objects.ObjectCandidate`
+    (the objects; the fitted candidates that failed) and the isolation with the first object chosen and every judged
+    candidate in ``verified``.
     """
-    import dataclasses
     import itertools
 
     from ...solvers.types import FitStatus
@@ -417,19 +513,22 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     if hint is not None:
         chosen = list(isolation.hinted[:MAX_VERIFIED]) or isolation.order[:1]
     else:
-        chosen = [c for c in isolation.order if isolation.clusters[c].fits_category][:MAX_VERIFIED] or isolation.order[:1]
+        chosen = [c for c in isolation.order if isolation.clusters[c].fits_category] or isolation.order[:1]
     from ...data.isolate import behind_surroundings, merged_candidate, out_of_view
 
-    attempts, verified = {}, []
+    attempts, verified, masks = {}, [], {}
 
     def judge(isolation, c):
         """Fit candidate ``c`` of ``isolation`` and check it; its attempt and evidence go to ``attempts`` /
         ``verified``."""
-        mask = isolation.mask_of(c)
-        a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine)
+        mask = masks[c] = isolation.mask_of(c)
+        # the cheap checks of the segment alone first: one that fails them gets one try (its fit is shown, not kept)
+        background, jumps, behind = behind_surroundings(d, mask)
+        cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
+        a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine,
+                          hypotheses=1 if background or cut else hypotheses,
+                          min_p_object=MIN_P_OBJECT if hint is None else MIN_P_OBJECT_MASKED)
         if a["result"].ok:
-            background, jumps, behind = behind_surroundings(d, mask)
-            cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
             if background:
                 a["result"] = dataclasses.replace(a["result"], status=FitStatus.NOT_THIS_CATEGORY, message=(
                     f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
@@ -445,6 +544,11 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
                          "render_compare": None if a["comparison"] is None else a["comparison"].to_dict()})
 
     for c in chosen:
+        if len(attempts) == MAX_VERIFIED:
+            break
+        passed = [masks[k] for k, a in attempts.items() if a["result"].ok]
+        if passed and same_object(isolation.mask_of(c), passed):
+            continue  # the same object again (another depth of plane removal): not worth a fit
         judge(isolation, c)
     if not any(a["result"].ok for a in attempts.values()):
         merged = 0
@@ -457,20 +561,27 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
                 judge(isolation, c)
                 verified[-1]["merged"] = [int(i), int(j)]
                 merged += 1
-    best = max(attempts, key=lambda c: _score(attempts[c]))
-    a = attempts[best]
-    if a["result"].ok:
+    found = select_objects([ObjectCandidate(c, a, masks[c]) for c, a in attempts.items()], _score,
+                           max_objects=max_objects)
+    if found:
+        best = found[0].segment
         why = (f"{isolation.reason}; of {len(attempts)} candidate(s) fitted, segment {best} is the best supported"
                if len(attempts) > 1 else isolation.reason)
+        if len(found) > 1:
+            why += f"; {len(found)} objects passed (segments {', '.join(str(f.segment) for f in found)})"
         joined = next((v["merged"] for v in verified if v["segment"] == best and "merged" in v), None)
         if joined is not None:
             why += f" (segments {joined[0]} and {joined[1]} joined: none of the candidates passed alone)"
-        return a, isolation.with_choice(best, why, verified)
+        rejected = [ObjectCandidate(c, a, masks[c]) for c, a in attempts.items() if not a["result"].ok]
+        return found, rejected, isolation.with_choice(best, why, verified)
+    best = max(attempts, key=lambda c: _score(attempts[c]))
     failures = "; ".join(f"segment {v['segment']} ({v['diagonal_m']:.2f} m): {v['status']}" for v in verified)
-    a = dict(a)
+    a = dict(attempts[best])
     a["result"] = dataclasses.replace(a["result"], status=FitStatus.NO_OBJECT, message=(
         f"check object: no candidate passed its checks, the {category} is not found ({failures})"))
-    return a, isolation.with_choice(best, f"no candidate passed: the best supported shown ({failures})", verified)
+    isolation = isolation.with_choice(best, f"no candidate passed: the best supported shown ({failures})", verified)
+    rejected = [ObjectCandidate(c, a, masks[c]) for c, a in attempts.items() if c != best]
+    return [ObjectCandidate(best, a, masks[best])], rejected, isolation
 
 
 def _without_occluders(isolation, attempt, depth):

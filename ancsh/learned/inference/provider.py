@@ -191,10 +191,15 @@ class LearnedProvider:
     device : str or torch.device, optional
         Where the network runs: ``"cpu"``, ``"cuda"``, ``"auto"`` (:func:`~ancsh.learned.devices.resolve_device`);
         the network is moved there. Default: where it is (the CPU for a loaded file).
+    joint_limits : "category", None or (K, 2) array
+        The joint ranges (relative to rest) the fits of these correspondences are bounded by: ``"category"`` (default)
+        the network category's :attr:`~ancsh.data.conventions.CategoryConvention.joint_limits` where it has a
+        convention of the network's structure (none otherwise), ``None`` none, or the array itself.
     """
 
     def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
-                 refine: str | None = None, refiner=None, refine_passes: int = DEFAULT_PASSES, device=None):
+                 refine: str | None = None, refiner=None, refine_passes: int = DEFAULT_PASSES, device=None,
+                 joint_limits="category"):
         from ..network.weights import LoadedNetwork, load_network
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source)
@@ -208,6 +213,7 @@ class LearnedProvider:
         self.seed = int(seed)
         self.min_votes = int(min_votes)
         self.joint_types = tuple(JointType.REVOLUTE if r else JointType.PRISMATIC for r in self.network.revolute)
+        self.joint_limits = self._joint_limits(joint_limits)
         if refine not in REFINE_OPTIONS:
             raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {refine!r}")
         self.refine_option = None if refine == "none" else refine
@@ -221,6 +227,25 @@ class LearnedProvider:
             self.refiner  # load it now: a missing or wrong refinement network is the first thing to hear about
         elif refiner is not None:
             raise ValueError(f"refiner: a refinement network is used with refine='network' only, not refine={refine!r}")
+
+    def _joint_limits(self, joint_limits):
+        """The ``(K, 2)`` limits of the ``joint_limits`` option (``None`` for none)."""
+        K = len(self.joint_types)
+        if joint_limits is None:
+            return None
+        if isinstance(joint_limits, str):
+            if joint_limits != "category":
+                raise ValueError(f"joint_limits: expected 'category', None or a (K, 2) array, got {joint_limits!r}")
+            from ...data.conventions import CONVENTIONS
+
+            conv = CONVENTIONS.get(self.category)
+            if conv is None or conv.joint_types != self.joint_types:
+                return None
+            return conv.joint_limits
+        limits = np.asarray(joint_limits, dtype=np.float64)
+        if limits.shape != (K, 2):
+            raise ValueError(f"joint_limits: expected a ({K}, 2) array of (lower, upper), got shape {limits.shape}")
+        return limits
 
     @property
     def refiner(self) -> "LearnedProvider":
@@ -393,6 +418,7 @@ class LearnedProvider:
             joint_axes_naocs=np.array([v.axis for v in votes]).reshape(K, 3),
             joint_pivots_naocs=np.array([v.pivot for v in votes]).reshape(K, 3),
             weights=pred.seg_prob[rows, labels],
+            joint_limits=self.joint_limits,
         )
         return Inference(corr, pred, tuple(votes))
 
