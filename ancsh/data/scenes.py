@@ -19,7 +19,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SceneFrame", "clutter_model", "curtain_mesh", "render_scene"]
+__all__ = ["SceneFrame", "SceneObject", "clutter_model", "curtain_mesh", "render_scene"]
+
+#: Companions (more objects of the category, :func:`render_scene`) stand this far beside the frame's object (a share
+#: of its size), or touch it (``TOUCHING_SHARE`` of them).
+COMPANION_GAP = (0.02, 0.3)
+TOUCHING_SHARE = 0.3
+#: A companion is placed where the camera sees its whole box, this share of the image inside the border (at most
+#: COMPANION_ATTEMPTS draws; else it is left out).
+COMPANION_MARGIN = 0.02
+COMPANION_ATTEMPTS = 8
+#: With companions the camera stands this many times further from the frame's object (along its line of sight), so
+#: that there is room for them in the view; the frame's object's truth is then measured again.
+COMPANION_STEP_BACK = 1.6
+#: A translucent object keeps this share of its visible pixels' depth (in blobs; the rest reads 0).
+TRANSLUCENT_KEEP = (0.2, 0.5)
 
 #: Staircase: riser height, tread depth (metres) and number of steps.
 STAIR_RISE_M = 0.17
@@ -92,12 +106,15 @@ class SceneFrame:
     visible : (H, W) bool
         The object's visible pixels (all ``False`` without the object).
     frame : Frame
-        The test frame the scene is built around (its object's ground truth, ``frame.gt``).
+        The test frame the scene is built around (without companions, its object's ground truth is ``frame.gt``;
+        with them the camera stands further back: the truth is in :attr:`objects`).
     support : str
         ``"floor"`` or ``"stairs"``.
     with_object : bool
     clutter : (H, W) int
         Which clutter piece each pixel shows (``-1``: none; ``k``: the ``k``-th of ``clutter_kinds``).
+    objects : tuple of SceneObject
+        Every object of the scene, the frame's own first (its ``visible`` is :attr:`visible`); empty without objects.
     clutter_kinds : tuple of str
         What each clutter piece is (:func:`clutter_model`'s name without ``"clutter:"``, e.g. ``"box"``).
     """
@@ -110,9 +127,25 @@ class SceneFrame:
     with_object: bool = True
     clutter: np.ndarray | None = None
     clutter_kinds: tuple = ()
+    objects: tuple = ()
 
 
-def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool | None = None) -> SceneFrame:
+@dataclass(frozen=True)
+class SceneObject:
+    """One object of a :class:`SceneFrame`: its visible pixels ``(H, W)`` bool, its ground truth
+    (:class:`~ancsh.model.canonical.AncshGroundTruth`, camera frame; ``None`` when it is hidden), its joint states (absolute), whether its depth is
+    mostly missing (``translucent``: a translucent or dark object the sensor sees through) and how it stands to the
+    frame's object (``placement``: ``"frame"``, ``"beside"`` or ``"touching"``)."""
+
+    visible: np.ndarray
+    gt: object
+    joint_states_abs: np.ndarray
+    translucent: bool = False
+    placement: str = "frame"
+
+
+def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool | None = None, companions: int = 0,
+                 translucent: int | None = None) -> SceneFrame:
     """Test frame ``index`` of ``gen`` (a :class:`~ancsh.data.generate.FrameGenerator`) in a scene (module docstring).
 
     Parameters
@@ -125,22 +158,42 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
         Render the object (``False``: the same scene without it).
     stairs : bool, optional
         A staircase instead of a floor (default: one scene in three, drawn from ``rng``).
+    companions : int
+        More objects of the category (other test instances at other joint states, test frames ``index + 7919 k``) on
+        the same support beside the frame's object, left or right of it, turned up to 25 deg about the vertical,
+        :data:`COMPANION_GAP` of its size apart or (:data:`TOUCHING_SHARE`) touching it, where the camera sees their
+        whole box (a companion with no such place is left out); the surroundings are placed around them all. Their truth is in :attr:`SceneFrame.objects`.
+    translucent : int, optional
+        The index in :attr:`SceneFrame.objects` of an object whose depth is mostly missing (:data:`TRANSLUCENT_KEEP`
+        of its visible pixels kept, in blobs): a translucent or dark object.
     """
     import trimesh
 
     from ..geometry._checks import check_generator
+    from ..geometry.transforms import Sim3
     from ..model.articulated import ArticulatedModel, Part
     from .conventions import part_vertices_canonical
     from .render import ModelRenderer
 
     rng = check_generator(rng)
+    if isinstance(companions, bool) or int(companions) != companions or companions < 0:
+        raise ValueError(f"companions: expected a non-negative integer, got {companions!r}")
+    if translucent is not None and not 0 <= int(translucent) <= int(companions):
+        raise ValueError(f"translucent: expected an object index 0..{int(companions)}, got {translucent!r}")
     frame = gen.frame(index)
     model, renderer = gen.instance(frame.instance_index)
     verts = np.concatenate(part_vertices_canonical(model, frame.joint_states_abs))
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     size = float(np.linalg.norm(hi - lo))
+    T_cam_base = frame.T_cam_base
+    if companions:  # the camera steps back along its line of sight to see the companions too
+        T_cam_base = Sim3(T_cam_base.rotation, COMPANION_STEP_BACK * T_cam_base.translation)
+    # placed also without the objects: the empty scene's surroundings are the same
+    placed = _companions(gen, index, int(companions), model, T_cam_base, frame.intrinsics, lo, hi, size, rng)
+    for c in placed:  # the surroundings go around every object
+        lo, hi = np.minimum(lo, c["lo"]), np.maximum(hi, c["hi"])
     centre = (lo + hi) / 2
-    eye = model.R_canon_base @ frame.T_cam_base.inverse().translation  # the camera in the canonical frame
+    eye = model.R_canon_base @ T_cam_base.inverse().translation  # the camera in the canonical frame
     back = -1.0 if eye[2] > centre[2] else 1.0  # behind the object, seen from the camera
     stairs = bool(rng.random() < 1 / 3) if stairs is None else bool(stairs)
     pieces, clutter_pieces, kinds = [], [], []
@@ -177,17 +230,107 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
         kinds.append(piece.name.split(":", 1)[1])
     to_base = np.eye(4)
     to_base[:3, :3] = model.R_canon_base.T  # canonical axes -> the base frame
-    views = [renderer.render(frame.joint_states_abs, frame.T_cam_base, frame.intrinsics).depth] if with_object else []
+    object_views = [renderer.render(frame.joint_states_abs, T_cam_base, frame.intrinsics)] if with_object else []
+    object_views += [c["renderer"].render(c["q"], c["T_cam_base"], frame.intrinsics) for c in placed] if with_object else []
+    views = [v.depth for v in object_views]
     for group in [pieces] + [[c] for c in clutter_pieces]:  # the walls and supports, then each clutter piece
         mesh = trimesh.util.concatenate(group)
         mesh.apply_transform(to_base)
         surroundings = ArticulatedModel((Part("surroundings", mesh),), (), name="surroundings")
-        views.append(ModelRenderer(surroundings).render(np.zeros(0), frame.T_cam_base, frame.intrinsics).depth)
+        views.append(ModelRenderer(surroundings).render(np.zeros(0), T_cam_base, frame.intrinsics).depth)
     stack = np.stack([np.where(v > 0, v, np.inf) for v in views])
     depth = stack.min(axis=0)
     nearest = np.where(np.isfinite(depth), np.argmin(stack, axis=0), -1)
-    visible = nearest == 0 if with_object else np.zeros(depth.shape, bool)
     first_clutter = len(views) - len(clutter_pieces)
     clutter = np.where(nearest >= first_clutter, nearest - first_clutter, -1)
-    return SceneFrame(np.where(np.isfinite(depth), depth, 0.0), frame.intrinsics, visible, frame,
-                      "stairs" if stairs else "floor", bool(with_object), clutter, tuple(kinds))
+    depth = np.where(np.isfinite(depth), depth, 0.0)
+    objects = []
+    for k, view in enumerate(object_views):
+        seen = nearest == k
+        if translucent is not None and k == int(translucent):
+            holes = seen & ~_blobs(depth.shape, rng.uniform(*TRANSLUCENT_KEEP), rng)
+            depth[holes] = 0.0  # the sensor sees through it: no measurement (as on the real translucent lid)
+            seen &= ~holes
+        objects.append((seen, view))
+    visible = objects[0][0] if with_object else np.zeros(depth.shape, bool)
+    truth = []
+    for k, (seen, view) in enumerate(objects):
+        if k == 0:
+            gt = frame.gt if not companions else _truth(
+                {"model": model, "q": frame.joint_states_abs, "T_cam_base": T_cam_base}, view, seen, frame.intrinsics,
+                rng) if np.count_nonzero(seen) >= 3 else None
+            truth.append(SceneObject(seen, gt, np.asarray(frame.joint_states_abs), translucent == 0, "frame"))
+            continue
+        c = placed[k - 1]
+        gt = _truth(c, view, seen, frame.intrinsics, rng) if np.count_nonzero(seen) >= 3 else None
+        truth.append(SceneObject(seen, gt, np.asarray(c["q"]),
+                                 translucent == k, c["placement"]))
+    return SceneFrame(depth, frame.intrinsics, visible, frame, "stairs" if stairs else "floor", bool(with_object),
+                      clutter, tuple(kinds), tuple(truth))
+
+
+def _companions(gen, index, count, model, T_cam_base, intr, lo, hi, size, rng) -> list:
+    """Placements of ``count`` more objects of ``gen``'s category beside the frame's object (:func:`render_scene`):
+    per companion its renderer, model, absolute states ``q``, ``T_cam_base`` and canonical bounds (``lo``, ``hi``) in
+    the frame object's canonical frame, and whether it touches."""
+    from ..geometry.rotations import axis_angle_matrix
+    from ..geometry.transforms import Sim3
+    from .conventions import part_vertices_canonical
+    from .render import project
+
+    if count == 0:  # no draw: scenes without companions stay as they were
+        return []
+    out, sides = [], list(rng.permutation([-1.0, 1.0]))
+    edges = {-1.0: lo[0], 1.0: hi[0]}
+    R1 = model.R_canon_base
+    for k in range(count):
+        other = gen.frame(index + 7919 * (k + 1))
+        m2, r2 = gen.instance(other.instance_index)
+        q2 = np.asarray(other.joint_states_abs, dtype=np.float64)
+        v2_own = np.concatenate(part_vertices_canonical(m2, q2))
+        for attempt in range(COMPANION_ATTEMPTS):  # a place where the camera sees all of it
+            Ry = axis_angle_matrix(np.array([0.0, 1.0, 0.0]), np.deg2rad(rng.uniform(-25.0, 25.0)))
+            v2 = v2_own @ Ry.T  # its canonical frame, turned
+            side = sides[(k + attempt) % 2]
+            touching = bool(rng.random() < TOUCHING_SHARE)
+            gap = 0.0 if touching else rng.uniform(*COMPANION_GAP) * size
+            x = edges[side] + side * gap - (v2[:, 0].min() if side > 0 else v2[:, 0].max())
+            shift = np.array([x, lo[1] - v2[:, 1].min(), (lo[2] + hi[2]) / 2 - (v2[:, 2].min() + v2[:, 2].max()) / 2
+                              + rng.uniform(-0.1, 0.1) * size])
+            placed = v2 + shift
+            # base2 -> canonical2 (R2) -> turned (Ry) -> shifted, in the frame object's canonical frame -> base1 (R1^T)
+            T = T_cam_base @ Sim3(R1.T @ Ry @ m2.R_canon_base, R1.T @ shift)
+            box = np.array(np.meshgrid(*[(placed[:, i].min(), placed[:, i].max()) for i in range(3)])).reshape(3, -1).T
+            cam = T_cam_base.apply(box @ R1)  # canonical -> base1 (row vectors: c @ R1 = R1^T c) -> camera
+            if np.all(cam[:, 2] > 0.1):
+                uv = project(cam, intr)[0]
+                mu, mv = COMPANION_MARGIN * intr.width, COMPANION_MARGIN * intr.height
+                if np.all((uv[:, 0] > mu) & (uv[:, 0] < intr.width - mu) & (uv[:, 1] > mv) & (uv[:, 1] < intr.height - mv)):
+                    break
+        else:
+            continue  # no place in view: one companion fewer
+        edges[side] = placed[:, 0].max() if side > 0 else placed[:, 0].min()
+        out.append({"renderer": r2, "model": m2, "q": q2, "T_cam_base": Sim3(T.rotation, T.translation),
+                    "lo": placed.min(axis=0), "hi": placed.max(axis=0), "placement": "touching" if touching else "beside"})
+    return out
+
+
+def _blobs(shape, keep: float, rng) -> np.ndarray:
+    """``(H, W)`` bool: ``keep`` of the pixels, in smooth blobs (a coarse random field, thresholded)."""
+    from scipy.ndimage import zoom
+
+    coarse = rng.random((max(2, shape[0] // 24), max(2, shape[1] // 24)))
+    field = zoom(coarse, (shape[0] / coarse.shape[0], shape[1] / coarse.shape[1]), order=1)[: shape[0], : shape[1]]
+    field = np.pad(field, ((0, shape[0] - field.shape[0]), (0, shape[1] - field.shape[1])), mode="edge")
+    return field <= np.quantile(field, keep)
+
+
+def _truth(placed: dict, view, seen, intrinsics, rng):
+    """A companion's ground truth from points of its visible pixels (:func:`ancsh.model.canonical.ancsh_ground_truth`)."""
+    from ..model.canonical import ancsh_ground_truth
+    from .render import sample_points
+
+    ids = np.where(seen, view.part_ids, -1)
+    depth = np.where(seen, view.depth, 0.0)
+    points, labels, _ = sample_points(depth, ids, intrinsics, 1024, rng)
+    return ancsh_ground_truth(placed["model"], placed["q"], placed["T_cam_base"], points, labels)
