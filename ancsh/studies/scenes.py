@@ -148,6 +148,8 @@ def load_scenes_records(path) -> tuple[dict, Provenance]:
     try:
         data = json.loads(Path(path).read_text())
         results = {"records": data["records"], "hidden": data.get("hidden") or [], "settings": data["settings"]}
+        if data.get("stress") is not None:
+            results["stress"] = data["stress"]
         prov = Provenance(data["command"], date=data["date"], machine=data["machine"])
     except (OSError, KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"--records: {path} is not the JSON of an `ancsh bench scenes` report ({exc})") from exc
@@ -165,6 +167,7 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
     n = results["settings"]["frames"]
     lines = [
         "# Rendered scenes: `ancsh predict` without a mask", "",
+        "## Single objects", "",
         f"Command: `{provenance.command}`  ",
         f"Date: {provenance.date}; machine: {provenance.machine_text}  ",
         *([f"Report written again from the records by `{rewritten_by}`  "] if rewritten_by else []),
@@ -215,8 +218,12 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
                   "pixels show that clutter piece -- a closed box and a `box` piece look alike in depth; "
                   "`surroundings`: the walls, floor or stairs): "
                   + ", ".join(f"{k} {n}" for k, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))) + ".", ""]
+    if results.get("stress") is not None:
+        from .stress_scenes import stress_table
+
+        lines += stress_table(results["stress"])
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), {"command": provenance.command, "date": provenance.date,
                                            "machine": provenance.machine, "settings": results["settings"],
-                                           "records": recs, "hidden": hidden}, indent=1)
+                                           "records": recs, "hidden": hidden, "stress": results.get("stress")}, indent=1)
     return path

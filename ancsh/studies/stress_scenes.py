@@ -255,7 +255,12 @@ def stress_table(results) -> list:
     recs, settings = results["records"], results["settings"]
     seeds = settings["seeds"]
     lines = ["## Stress scenes: several objects of one category, keyed by object", "",
-             __doc__.split("\n\n", 1)[1].replace("\n", " ").strip(), "",
+             "Each test frame in a scene of one kind, in turn: `pair` (one more object of the category beside it or "
+             "touching it), `triple` (two more), `translucent` (a pair, one of them mostly without depth), `single`; "
+             "with companions the camera stands further back (smaller objects, off the image centre). Returned objects "
+             f"are matched to the scene's by mask IoU (>= {FOUND_IOU:g}); *merged*: one returned mask holds "
+             f"{MERGED_SHARE:.0%} of two objects; *wrong*: a success that is no object of the scene or more than "
+             f"{WRONG_ROTATION_DEG:g} deg off (mean part rotation).", "",
              f"{settings['frames']} scenes per category (kinds in turn: {', '.join(settings['kinds'])}); `auto` at seeds "
              f"{', '.join(map(str, seeds))}. Per category: scene objects found right without a mask (at seed "
              f"{seeds[0]}; *wrong*: successes that are no object of the scene or far off), merged, with the object's "

@@ -7,9 +7,9 @@ from ancsh.cli import main
 
 def test_the_benchmark_runs_every_mode_on_each_scene_and_writes_its_command(tmp_path, capsys):
     out = tmp_path / "scenes.md"
-    assert main(["bench", "scenes", "--categories", "laptop", "--frames", "2", "--out", str(out), "--quiet"]) == 0
+    assert main(["bench", "scenes", "--categories", "laptop", "--frames", "2", "--stress-frames", "0", "--out", str(out), "--quiet"]) == 0
     data = json.loads(out.with_suffix(".json").read_text())
-    assert data["command"] == f"ancsh bench scenes --categories laptop --frames 2 --out {out}"
+    assert data["command"] == f"ancsh bench scenes --categories laptop --frames 2 --stress-frames 0 --out {out}"
     modes = sorted((r["frame"], r["mode"]) for r in data["records"])
     assert modes == [(0, "auto"), (0, "empty"), (0, "mask"), (1, "auto"), (1, "empty"), (1, "mask")]
     for r in data["records"]:
@@ -35,7 +35,7 @@ def test_the_report_counts_wrong_successes_and_is_written_again_from_its_records
     # a measured report's records, one auto success made wrong by hand: the report written again counts it and keeps
     # the measuring run's command, date and machine
     out = tmp_path / "measured.md"
-    assert main(["bench", "scenes", "--categories", "laptop", "--frames", "1", "--out", str(out), "--quiet"]) == 0
+    assert main(["bench", "scenes", "--categories", "laptop", "--frames", "1", "--stress-frames", "0", "--out", str(out), "--quiet"]) == 0
     data = json.loads(out.with_suffix(".json").read_text())
     auto = next(r for r in data["records"] if r["mode"] == "auto")
     auto.update(ok=True, status="success", mask_iou=0.1, rot_deg=5.0)
@@ -52,3 +52,30 @@ def test_the_report_counts_wrong_successes_and_is_written_again_from_its_records
     assert "--records: the records hold their own categories" in capsys.readouterr().err
     assert main(["bench", "scenes", "--records", str(tmp_path / "none.json"), "--out", str(again)]) == 2
     assert "is not the JSON of an `ancsh bench scenes` report" in capsys.readouterr().err
+
+
+def test_the_stress_scenes_are_keyed_by_object_and_matched_by_mask(tmp_path):
+    """One pair scene: every run has one record per scene object (two), auto at both seeds; the report has its
+    section; the matching counts a returned mask by its IoU with each object."""
+    import numpy as np
+
+    from ancsh.studies.stress_scenes import FOUND_IOU, match_objects
+
+    out = tmp_path / "scenes.md"
+    assert main(["bench", "scenes", "--categories", "laptop", "--frames", "1", "--stress-frames", "1", "--seeds", "0",
+                 "1", "--out", str(out), "--quiet"]) == 0
+    stress = json.loads(out.with_suffix(".json").read_text())["stress"]
+    recs = [r for r in stress["records"] if r["object"] is not None]
+    assert {r["kind"] for r in stress["records"]} == {"pair"}
+    keys = sorted((r["mode"], r["seed"], r["object"]) for r in recs)
+    assert keys == [("auto", 0, 0), ("auto", 0, 1), ("auto", 1, 0), ("auto", 1, 1), ("hint", 0, 0), ("hint", 0, 1),
+                    ("mask", 0, 0), ("mask", 0, 1)]
+    assert all((r["rot_deg"] is not None) == (r["found"] and r["mask_iou"] is not None) for r in recs if r["mode"] == "auto")
+    assert "## Stress scenes" in out.read_text() and "| laptop |" in out.read_text().split("## Stress scenes")[1]
+    a = np.zeros((10, 10), bool)
+    a[:, :5] = True
+    b = ~a
+    half = np.zeros_like(a)
+    half[:, :3] = True
+    matched, unmatched, merged = match_objects([half, np.ones_like(a), None], [True, True, False], [a, b])
+    assert matched == {0: (0, 0.6), 1: (1, 0.5)} and FOUND_IOU <= 0.5 and unmatched == [2] and merged == {0, 1}
