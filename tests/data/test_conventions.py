@@ -126,3 +126,21 @@ def test_batched_probe_equals_forward_kinematics(category):
         batch = c._child_vertices_at(model, k, qs)
         for i, q in enumerate(qs):
             np.testing.assert_allclose(batch[i], c._joint_pair(model, k, c._with_state(model, k, q))[1], atol=1e-12)
+
+
+@pytest.mark.parametrize("category", CATEGORIES)
+def test_the_category_range_holds_every_procedural_instances_limits(category):
+    """The fits are bounded by the category's joint range (JointConvention.state_range): no instance of the generator
+    may reach a state outside it, or its true state would be out of the fit's reach; closed joints start at 0."""
+    conv = convention(category)
+    ranges = np.array([j.state_range for j in conv.joints])
+    for seed in instance_seeds(category, "train")[:10] + instance_seeds(category, "test")[:10]:
+        model = make_object(category, seed)
+        assert np.all(model.lower_limits >= ranges[:, 0] - 1e-9) and np.all(model.upper_limits <= ranges[:, 1] + 1e-9), (
+            model.name, model.lower_limits, model.upper_limits, ranges)
+    for j in conv.joints:
+        if j.zero == "closed":
+            assert j.state_range[0] == 0.0, j.name
+    np.testing.assert_allclose(conv.joint_limits, ranges - conv.rest_states[:, None])
+    with pytest.raises(ValueError, match="state_range"):
+        type(conv.joints[0])("j", conv.joints[0].type, "base", "x", "closed", "opens", 0.5, "front", (), (0.0, 0.2))

@@ -49,3 +49,89 @@ def test_mask_run_length_code_round_trips(seed):
     assert mask_rle(np.zeros((3, 4), bool))["bbox"] is None
     with pytest.raises(ValueError, match="run lengths"):
         rle_mask({"size": [3, 4], "counts": [5]})
+
+
+@pytest.fixture(scope="module")
+def box_pair():
+    """A rendered scene of two boxes side by side (noisy depth) and the shipped box network's prediction."""
+    from ancsh.data.generate import FrameGenerator, GenerationConfig
+    from ancsh.data.noise import DepthNoise, apply_noise
+    from ancsh.data.scenes import render_scene
+    from ancsh.learned.inference.predict import predict_depth
+    from ancsh.learned.inference.provider import LearnedProvider
+
+    gen = FrameGenerator(GenerationConfig(category="box", split="test", seed=0))
+    scene = render_scene(gen, 0, np.random.default_rng([0, 0, 5]), companions=1)
+    depth = apply_noise(scene.depth, DepthNoise(), np.random.default_rng([0, 0, 6]))
+    provider = LearnedProvider("box", refine="auto")
+    return scene, depth, provider, predict_depth(depth, scene.intrinsics, "box", provider=provider, seed=0)
+
+
+def test_predict_returns_every_object_once_with_disjoint_masks_and_the_json_lists_them(box_pair):
+    from ancsh.learned.inference.predict import predict_depth
+
+    scene, depth, provider, pred = box_pair
+    assert len(scene.objects) == 2 and all(o.visible.any() for o in scene.objects)
+    objects = pred.objects
+    assert len(objects) >= 2 and all(o.result.ok for o in objects)  # the scene's two boxes: two objects
+    assert [o.object_id for o in objects] == list(range(len(objects))) and objects[0].result is pred.result
+    for i in range(len(objects)):
+        for j in range(i + 1, len(objects)):
+            assert not (objects[i].mask & objects[j].mask).any()
+    data = pred.to_json()
+    assert data["schema"] == "ancsh.prediction/2" and data["objects_found"] == len(objects)
+    assert data["status"] == data["objects"][0]["status"] and data["joints"] == data["objects"][0]["joints"]
+    for o, rec in zip(objects, data["objects"]):
+        np.testing.assert_array_equal(rle_mask(rec["mask"]), o.mask)
+        assert rec["consensus"]["hypotheses"] == 3 and rec["consensus"]["passed"] >= 2
+        assert len(rec["consensus"]["state_std"]) == 1
+    assert all(r["status"] != "success" for r in data["rejected"])
+    one = predict_depth(depth, scene.intrinsics, "box", provider=provider, seed=0, max_objects=1)
+    assert len(one.objects) == 1 and one.object_id == 0
+    with pytest.raises(ValueError, match="max_objects"):
+        predict_depth(depth, scene.intrinsics, "box", provider=provider, max_objects=0)
+    with pytest.raises(ValueError, match="hypotheses"):
+        predict_depth(depth, scene.intrinsics, "box", provider=provider, hypotheses=0)
+
+
+def test_no_isolate_runs_the_object_checks(box_pair):
+    """Every valid pixel as one object is checked like an isolated segment: render-and-compare and p_object are
+    measured (the whole scene as a box is refused)."""
+    from ancsh.learned.inference.predict import predict_depth
+
+    scene, depth, provider, _ = box_pair
+    pred = predict_depth(depth, scene.intrinsics, "box", provider=provider, isolate=False, hypotheses=1)
+    assert not pred.result.ok
+    assert pred.mask is not None and pred.mask.sum() == np.count_nonzero(depth > 0)
+
+
+def test_no_isolate_on_a_real_frame_without_the_object_is_refused_by_its_evidence():
+    """The shared mug frame (no oven): with every pixel as the object, the oven fit passes its size check and is
+    refused by render-and-compare and p_object (it was ``success`` when --no-isolate skipped them)."""
+    from ancsh.data.paths import shared_data_dir
+    from ancsh.learned.inference.predict import predict_depth, read_depth, read_intrinsics
+
+    folder = shared_data_dir() / "real_frames" / "sarnet_mug_negative"
+    if not folder.is_dir():
+        pytest.skip("no shared real frames")
+    K = read_intrinsics(folder / "K.json")
+    depth = read_depth(folder / "depth.png", shape=(K.height, K.width))
+    pred = predict_depth(depth, K, "oven", isolate=False, hypotheses=1)
+    assert pred.result.status.value == "not_this_category"
+    assert pred.p_object is not None and pred.render_compare is not None
+
+
+def test_a_users_mask_lets_p_object_refuse_only_on_strong_evidence(box_pair):
+    """The same fit is refused at p_object 0.2 without the user's help and kept under a mask; below
+    MIN_P_OBJECT_MASKED it is refused either way."""
+    import dataclasses
+
+    from ancsh.learned.inference.checks import MIN_P_OBJECT, MIN_P_OBJECT_MASKED, check_confidence
+
+    result = box_pair[3].result
+    assert result.ok and MIN_P_OBJECT_MASKED < 0.2 < MIN_P_OBJECT
+    assert check_confidence(result, 0.2).status.value == "not_this_category"
+    assert check_confidence(result, 0.2, MIN_P_OBJECT_MASKED).ok
+    low = check_confidence(result, MIN_P_OBJECT_MASKED / 2, MIN_P_OBJECT_MASKED)
+    assert low.status.value == "not_this_category" and "user's mask" in low.message
+    assert check_confidence(dataclasses.replace(result), None, MIN_P_OBJECT_MASKED).ok
