@@ -77,7 +77,7 @@ def _run(frame, category, mode, provider, truth, *, seed, num_points):
 
 
 def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: int = 1024, progress: bool = True,
-                        weights=None, refine=None) -> dict:
+                        weights=None, refine=None, seeds=()) -> dict:
     """Run the real-frame benchmark (module docstring) on ``folders``.
 
     Parameters
@@ -96,6 +96,9 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
     refine : dict, optional
         ``{category: "template" | "network" | "none"}`` instead of ``"auto"`` (what ``ancsh predict`` does; the
         calibrations were measured on its fits).
+    seeds : sequence of int
+        Every run again at each of these seeds: ``"agreement"`` holds per run the statuses and joint states (the
+        seed agreement of the status and the spread of the states; none by default).
 
     Returns
     -------
@@ -119,7 +122,7 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
                                    if category in weights or weights_path(category).is_file() else None)
         return providers[category]
 
-    records, predictions, summaries = [], {}, []
+    records, predictions, summaries, agreement = [], {}, [], []
     for frame in frames:
         runs = ([(o.category, mode, o) for o in frame.objects for mode in MODES] if frame.objects
                 else [(c, "auto", None) for c in negatives])
@@ -133,13 +136,21 @@ def measure_real_frames(folders, *, categories=None, seed: int = 0, num_points: 
             rec, pred = _run(frame, category, mode, provider(category), truth, seed=seed, num_points=num_points)
             records.append(rec)
             predictions[(frame.name, category, mode)] = pred
+            if seeds and provider(category) is not None:
+                runs_at = [_run(frame, category, mode, provider(category), truth, seed=s, num_points=num_points)[0]
+                           for s in seeds]
+                agreement.append({"frame": frame.name, "category": category, "mode": mode, "seeds": list(seeds),
+                                  "statuses": [r["status"] for r in runs_at],
+                                  "states": [r["joint_state"][0] if r["ok"] and r["joint_state"] else None
+                                             for r in runs_at],
+                                  "errors": [r["joint_state_error_deg"] for r in runs_at]})
     isolation = [{"frame": frame.name, "size": [frame.intrinsics.width, frame.intrinsics.height], "category": c,
                   "ms": isolation_times(frame, c, seed=seed)}
                  for frame in frames for c in dict.fromkeys(o.category for o in frame.objects or ()) or negatives]
     used = {c: {"file": str(w), "sha256": getattr(providers[c].network, "sha256", None)}
             for c, w in weights.items() if providers.get(c) is not None}
     return {"records": records, "frames": summaries, "predictions": predictions, "frame_data": frames,
-            "isolation": isolation, "weights": used, "refine": refine}
+            "isolation": isolation, "weights": used, "refine": refine, "agreement": agreement}
 
 
 #: Isolation is timed alone this many times per frame and category (the median is reported).
@@ -288,6 +299,20 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
         big = [np.median(t["ms"]) for t in timed if t["size"][0] * t["size"][1] >= 1280 * 720]
         if big:
             lines += ["", f"At 1280x720 or more: median {np.median(big):.0f} ms, the slowest frame {max(big):.0f} ms."]
+    agreement = results.get("agreement") or []
+    if agreement:
+        lines += ["", "## The same answer at every seed", "",
+                  f"Every run again at seeds {', '.join(map(str, agreement[0]['seeds']))}: the most common status and at how "
+                  "many seeds it came, the spread (std) of the successful states and their largest error against the "
+                  "truth (degrees).", "", "| frame | category | mode | status (seeds) | state std | largest error |",
+                  "|---|---|---|---|---|---|"]
+        for a in agreement:
+            common = max(set(a["statuses"]), key=a["statuses"].count)
+            ok = [q for q, st in zip(a["states"], a["statuses"]) if st == "success" and q is not None]
+            errs = [e for e, st in zip(a["errors"], a["statuses"]) if st == "success" and e is not None]
+            lines.append(f"| {a['frame']} | {a['category']} | {a['mode']} | {common} ({a['statuses'].count(common)}/"
+                         f"{len(a['statuses'])}) | {_fmt(float(np.std(ok, ddof=1)) if len(ok) > 1 else None)} "
+                         f"| {_fmt(max(errs) if errs else None)} |")
     lines.append("")
     for f in results["frame_data"]:
         fr = [r for r in recs if r["frame"] == f.name]
@@ -298,6 +323,7 @@ def write_real_frames_report(results: dict, path, *, command: str) -> Path:
     write_json(path.with_suffix(".json"), json_safe({"command": command, "date": prov.date, "machine": prov.machine,
                                                      "frames": results["frames"], "records": recs,
                                                      "isolation_ms": timed, "weights": results.get("weights") or {},
+                                                     "agreement": agreement,
                                                      "refine": results.get("refine") or {}}),
                indent=1)
     return path

@@ -126,3 +126,14 @@ def test_another_refinement_than_auto_is_run_and_named(frames, tmp_path, capsys)
         assert main(["bench", "real-frames", str(negative), *bad, "--quiet"] + ([] if "--update-docs" in bad else
                                                                                ["--out", str(tmp_path / "x.md")])) == 2
         assert why in capsys.readouterr().err
+
+
+def test_seeds_run_every_prediction_again_and_report_their_agreement(frames, tmp_path):
+    laptop, _, _ = frames
+    out = tmp_path / "seeds" / "real_frames.md"
+    assert main(["bench", "real-frames", str(laptop), "--seeds", "0", "1", "--out", str(out), "--quiet"]) == 0
+    data = json.loads(out.with_suffix(".json").read_text())
+    assert "--seeds 0 1" in data["command"]
+    assert sorted(a["mode"] for a in data["agreement"]) == ["auto", "mask", "pixel"]
+    assert all(len(a["statuses"]) == 2 and len(a["states"]) == 2 for a in data["agreement"])
+    assert "## The same answer at every seed" in out.read_text()

@@ -21,6 +21,9 @@ def register(sub) -> None:
                    "with shipped weights)")
     p.add_argument("--points", type=positive_int, default=1024, help="points per prediction (default 1024)")
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling and RANSAC seed (default 0)")
+    p.add_argument("--seeds", type=non_negative_int, nargs="+", default=[], metavar="SEED",
+                   help="every run again at these seeds: the status's seed agreement and the states' spread (e.g. "
+                   "0 1 2 3 4 5 6 7 8 9; default: none)")
     p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/real-frames-<time>/real_frames.md)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/real_frames.md (when --out is not given)")
     p.add_argument("--weights", action="append", default=[], metavar="CATEGORY=FILE",
@@ -48,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
         parts += ["--points", str(args.points)]
     if args.seed != 0:
         parts += ["--seed", str(args.seed)]
+    if args.seeds:
+        parts += ["--seeds", *map(str, args.seeds)]
     weights = {}
     for item in args.weights:
         category, file = named_value(item, "--weights", "CATEGORY=FILE")
@@ -74,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="real_frames.md", command="real-frames")
     results = measure_real_frames(folders, categories=args.categories, seed=args.seed, num_points=args.points,
-                                  progress=not args.quiet, weights=weights, refine=refine)
+                                  progress=not args.quiet, weights=weights, refine=refine, seeds=args.seeds)
     write_real_frames_report(results, path, command=command)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
