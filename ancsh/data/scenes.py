@@ -145,7 +145,7 @@ class SceneObject:
 
 
 def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool | None = None, companions: int = 0,
-                 translucent: int | None = None) -> SceneFrame:
+                 translucent: int | None = None, pixel_scale: int = 1) -> SceneFrame:
     """Test frame ``index`` of ``gen`` (a :class:`~ancsh.data.generate.FrameGenerator`) in a scene (module docstring).
 
     Parameters
@@ -166,6 +166,9 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
     translucent : int, optional
         The index in :attr:`SceneFrame.objects` of an object whose depth is mostly missing (:data:`TRANSLUCENT_KEEP`
         of its visible pixels kept, in blobs): a translucent or dark object.
+    pixel_scale : int
+        The image has this many times the frame's pixels along each side (the same field of view: a 640x480 frame at 2
+        is 1280x960, as the real frames' 1280x720 sensors see); the truth is measured on it.
     """
     import trimesh
 
@@ -176,11 +179,20 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
     from .render import ModelRenderer
 
     rng = check_generator(rng)
+    if isinstance(pixel_scale, bool) or int(pixel_scale) != pixel_scale or pixel_scale < 1:
+        raise ValueError(f"pixel_scale: expected a positive integer, got {pixel_scale!r}")
     if isinstance(companions, bool) or int(companions) != companions or companions < 0:
         raise ValueError(f"companions: expected a non-negative integer, got {companions!r}")
     if translucent is not None and not 0 <= int(translucent) <= int(companions):
         raise ValueError(f"translucent: expected an object index 0..{int(companions)}, got {translucent!r}")
     frame = gen.frame(index)
+    if pixel_scale != 1:
+        import dataclasses
+
+        k, i0 = int(pixel_scale), frame.intrinsics
+        intr = dataclasses.replace(i0, fx=k * i0.fx, fy=k * i0.fy, cx=k * (i0.cx + 0.5) - 0.5, cy=k * (i0.cy + 0.5) - 0.5,
+                                   width=k * i0.width, height=k * i0.height)
+        frame = dataclasses.replace(frame, intrinsics=intr)
     model, renderer = gen.instance(frame.instance_index)
     verts = np.concatenate(part_vertices_canonical(model, frame.joint_states_abs))
     lo, hi = verts.min(axis=0), verts.max(axis=0)
@@ -256,7 +268,7 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
     truth = []
     for k, (seen, view) in enumerate(objects):
         if k == 0:
-            gt = frame.gt if not companions else _truth(
+            gt = frame.gt if not companions and pixel_scale == 1 else _truth(
                 {"model": model, "q": frame.joint_states_abs, "T_cam_base": T_cam_base}, view, seen, frame.intrinsics,
                 rng) if np.count_nonzero(seen) >= 3 else None
             truth.append(SceneObject(seen, gt, np.asarray(frame.joint_states_abs), translucent == 0, "frame"))

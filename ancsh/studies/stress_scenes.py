@@ -37,6 +37,9 @@ FOUND_IOU = 0.5
 MERGED_SHARE = 0.5
 #: A success more than this far off (mean part rotation, degrees) is wrong.
 WRONG_ROTATION_DEG = 20.0
+#: The scenes are rendered at this many times the frames' pixels along each side (1280x960 from 640x480: the real
+#: scenes' sensors are 1280x720).
+PIXEL_SCALE = 2
 #: A scene object with fewer visible pixels is left out (and counted).
 MIN_VISIBLE_PIXELS = 300
 
@@ -128,7 +131,8 @@ def _object_records(pred, scene, base, mode, seed, seconds, only=None) -> list:
     return out
 
 
-def measure_stress_scenes(categories, frames: int = 8, *, seed: int = 0, seeds=(0,), progress=None) -> dict:
+def measure_stress_scenes(categories, frames: int = 8, *, seed: int = 0, seeds=(0,), progress=None,
+                          pixel_scale: int = PIXEL_SCALE) -> dict:
     """Run the stress scenes (module docstring).
 
     Parameters
@@ -143,6 +147,8 @@ def measure_stress_scenes(categories, frames: int = 8, *, seed: int = 0, seeds=(
         ``predict`` seeds of the ``auto`` runs (their agreement is measured).
     progress : callable, optional
         Called with a line per category.
+    pixel_scale : int
+        :func:`~ancsh.data.scenes.render_scene`'s (default :data:`PIXEL_SCALE`).
     """
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.noise import DepthNoise, apply_noise
@@ -165,7 +171,7 @@ def measure_stress_scenes(categories, frames: int = 8, *, seed: int = 0, seeds=(
             kind, companions, translucent = KINDS[i % len(KINDS)]
             key = [seed, i, zlib.crc32(category.encode()), 0x57]
             scenes = {w: render_scene(gen, i, np.random.default_rng(key), with_object=w, companions=companions,
-                                      translucent=translucent) for w in (True, False)}
+                                      translucent=translucent, pixel_scale=pixel_scale) for w in (True, False)}
             noise_rng = np.random.default_rng(key + [1])
             depth = apply_noise(scenes[True].depth, DepthNoise(), noise_rng)
             empty = apply_noise(scenes[False].depth, DepthNoise(), noise_rng)
@@ -201,6 +207,7 @@ def measure_stress_scenes(categories, frames: int = 8, *, seed: int = 0, seeds=(
                      "right")
     return {"records": records, "hidden": hidden,
             "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed), "seeds": list(seeds),
+                         "pixel_scale": int(pixel_scale),
                          "kinds": [k[0] for k in KINDS]}}
 
 
@@ -257,7 +264,8 @@ def stress_table(results) -> list:
     lines = ["## Stress scenes: several objects of one category, keyed by object", "",
              "Each test frame in a scene of one kind, in turn: `pair` (one more object of the category beside it or "
              "touching it), `triple` (two more), `translucent` (a pair, one of them mostly without depth), `single`; "
-             "with companions the camera stands further back (smaller objects, off the image centre). Returned objects "
+             "with companions the camera stands further back (smaller objects, off the image centre); images at "
+             f"{settings.get('pixel_scale', 1)}x the frames' pixels per side (1280x960). Returned objects "
              f"are matched to the scene's by mask IoU (>= {FOUND_IOU:g}); *merged*: one returned mask holds "
              f"{MERGED_SHARE:.0%} of two objects; *wrong*: a success that is no object of the scene or more than "
              f"{WRONG_ROTATION_DEG:g} deg off (mean part rotation).", "",

@@ -54,6 +54,11 @@ __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RES
            "read_depth", "read_intrinsics", "read_mask"]
 
 
+#: The plane search of isolation is seeded with this, not with ``seed``: the candidate segments are a function of the
+#: image, so the answer does not change with the seed through them (on a frame with a robot arm beside a mug, 2 or 3
+#: planes were removed by seed, and with them arm pieces came and went as candidates); ``seed`` drives the sampling and
+#: fitting hypotheses of each candidate, whose consensus is the answer.
+ISOLATION_SEED = 0
 #: Isolation without a hint fits at most this many candidate segments and keeps the best supported.
 MAX_VERIFIED = 5
 #: When none of them passes, at most this many unions of two that touch (:func:`ancsh.data.isolate.merged_candidate`:
@@ -326,7 +331,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     num_points : int
         Points sampled from the valid pixels.
     seed : int
-        Sampling, network chunking and RANSAC seed.
+        Seed of the hypotheses of each candidate (point sampling, RANSAC, refinement); the isolation is seeded with
+        :data:`ISOLATION_SEED` (its segments are a function of the image).
     isolate : bool
         Isolate the object when no ``mask`` is given (default). ``False`` uses every valid pixel.
     hint : ObjectHint, optional
@@ -400,7 +406,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     if mask is None and isolate:
         from ...data.isolate import isolate_object
 
-        isolation = isolate_object(d, intrinsics, category, hint=hint, max_depth=max_depth, rng=seed)
+        isolation = isolate_object(d, intrinsics, category, hint=hint, max_depth=max_depth, rng=ISOLATION_SEED)
         t_iso = time.perf_counter() - t0
     elif mask is not None and hint is not None:
         notes.append("a mask was given: the hint is ignored")
