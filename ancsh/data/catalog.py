@@ -122,6 +122,8 @@ def _urdfs(paths) -> list[Path]:
             out.extend(found)
         elif p.is_file():
             out.append(p)
+        elif p.exists():
+            raise ValueError(f"paths: {p} exists but is neither a URDF file nor a folder of URDF objects")
         else:
             raise ValueError(f"paths: {p} does not exist")
     unique, seen = [], {}

@@ -300,6 +300,11 @@ def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links
         moving = list(forced_links)
         unknown = [x for x in moving if x not in joints]
         if unknown:
+            links = {link.get("name") for link in _urdf_root(path, name).findall("link")}
+            base = [x for x in unknown if x in links]
+            if base:
+                raise ValueError(f"{name}: override moving_links: link(s) {base} are not the child of any joint (the "
+                                 "base of the file's tree): the base cannot move; name the links of the moving parts")
             raise ValueError(f"{name}: override moving_links names unknown link(s) {unknown}")
     elif mobility is None:
         moving = [link for link in joints if link in movable]
@@ -420,8 +425,10 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
     if path.is_dir() and (path / "mobility.urdf").is_file():
         path = path / "mobility.urdf"
     name = _object_name(path)
-    if not path.is_file():
+    if not path.exists():
         raise ValueError(f"{name}: URDF file {path} does not exist")
+    if not path.is_file():
+        raise ValueError(f"{name}: {path} exists but is neither a URDF file nor a folder holding mobility.urdf")
     override = dict(override or {})
     if "reject" in override:
         raise ImportRejected(name, f"rejected by override: {override['reject']}")
@@ -447,6 +454,10 @@ def import_object(urdf, category: str | None = None, *, override: dict | None = 
         raise ImportRejected(name, f"part(s) {empty} carry no geometry")
     index = {j.child: k for k, j in enumerate(raw.joints)}
     for link in moving:
+        if link not in index:  # an override naming the base, or a link merged into another part by fixed joints
+            raise ValueError(f"{name}: override moving_links: link {link!r} does not move in the file (it is the base or "
+                             "is fixed to another link; its joint is fixed or it has none): name the links of the "
+                             "moving parts")
         if raw.joint_parts(index[link])[0] != raw.base_index:
             raise ImportRejected(name, f"moving link {link!r} hangs from another moving part, not from the base")
     notes = []

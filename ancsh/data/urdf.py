@@ -95,8 +95,10 @@ def load_urdf(path, *, category: str | None = None, joint_types=None) -> Articul
         a zero axis, or missing limits on a revolute/prismatic joint.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ValueError(f"path: URDF file {str(path)!r} does not exist")
+    if not path.is_file():
+        raise ValueError(f"path: {str(path)!r} exists but is not a URDF file (a folder, a device or a pipe)")
     robot = _parse(path, joint_types or {})
     links = {link.name: link for link in robot.links}
     if not links:

@@ -437,3 +437,9 @@ def test_a_shared_box_turned_into_a_side_hinged_top_loader_imports_without_overr
     assert abs(axis[2]) > 0.99  # hinged front to back
     _, opened = part_vertices_canonical(model, model.rest_states + 0.5)
     assert opened.max(axis=0)[1] > door.max(axis=0)[1] + 0.2 * size[1]  # a positive state lifts it
+
+
+def test_moving_links_naming_the_base_say_so(tmp_path, make_oven_urdf):
+    good = make_oven_urdf(tmp_path / "oven_b")
+    with pytest.raises(ValueError, match=r"oven_b: override moving_links: link\(s\) \['body'\] .*the base cannot move"):
+        import_object(good, "oven", override={"moving_links": ["body"]})

@@ -346,3 +346,26 @@ def test_partnet_joint_axes_match_the_procedural_conventions(loaded):
             assert gap_deg < max_axis_deg, f"{model.name}: joint {joint.name} axis {model.R_canon_base @ joint.axis} is no procedural variant's"
             checked += 1
     assert checked >= 9
+
+
+def test_a_duplicate_link_name_and_a_path_that_is_no_file_are_named(chain, tmp_path, capsys):
+    from ancsh.cli import main
+
+    twice = tmp_path / "twice.urdf"
+    twice.write_text(CHAIN.replace('<link name="tray">', '<link name="arm">').replace('<child link="tray"/>',
+                                                                                     '<child link="arm"/>'))
+    with pytest.raises(ValueError, match=r"<link name='arm'> is defined twice"):
+        load_urdf(twice)
+    with pytest.raises(ValueError, match="exists but is not a URDF file"):
+        load_urdf(tmp_path)
+    with pytest.raises(ValueError, match="does not exist"):
+        load_urdf(tmp_path / "none.urdf")
+    out = tmp_path / "cat"
+    assert main(["data", "import", "/dev/null", "--category", "oven", "--out", str(out)]) != 0
+    text = capsys.readouterr()
+    report = (out / "import_report.md").read_text() if (out / "import_report.md").is_file() else ""
+    assert "exists but is neither a URDF file" in text.err + text.out + report
+    assert main(["data", "import", str(twice), "--category", "oven", "--out", str(tmp_path / "cat2")]) != 0
+    text = capsys.readouterr()
+    report = (tmp_path / "cat2" / "import_report.md")
+    assert "defined twice" in text.err + text.out + (report.read_text() if report.is_file() else "")
