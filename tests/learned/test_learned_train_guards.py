@@ -127,3 +127,21 @@ def test_exporting_weights_to_a_folder_that_refuses_writes_is_an_os_error_naming
     with pytest.raises(OSError, match=r"could not write the weights .*w.pt: Read-only file system") as exc:
         export_weights(run / "last.pt", tmp_path / "ro" / "w.pt")
     assert exc.value.errno == errno.EROFS
+
+
+def test_a_cache_holding_python_objects_is_refused_naming_the_file(tmp_path):
+    """``train --resume`` on a run folder whose ``.npz`` holds an object array: the message names the file."""
+    import numpy as np
+
+    from ancsh.learned.training.data import TrainingArrays, read_npz
+
+    bad = tmp_path / "arrays.npz"
+    np.savez(bad, points=np.array([{"a": 1}], dtype=object))
+    with pytest.raises(ValueError, match=r"arrays.npz: not a training-array cache of ancsh .*delete it to rebuild it"):
+        TrainingArrays.load(bad)
+    with pytest.raises(ValueError, match=r"arrays.npz: not a neighbourhood cache"):
+        read_npz(bad, "neighbourhood cache")
+    other = tmp_path / "other.npz"
+    np.savez(other, something=np.zeros(3))
+    with pytest.raises(ValueError, match=r"other.npz: not a training-array cache of ancsh \(no \["):
+        TrainingArrays.load(other)

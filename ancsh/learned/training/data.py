@@ -118,10 +118,25 @@ class TrainingArrays:
 
     @classmethod
     def load(cls, path) -> "TrainingArrays":
-        with np.load(Path(path)) as z:
-            kw = {f.name: z[f.name] for f in fields(cls)}
+        """Read a cache written by :meth:`save`; a file that is not one (an array of Python objects, a missing array)
+        raises ``ValueError`` naming it."""
+        z = read_npz(path, "training-array cache")
+        missing = [f.name for f in fields(cls) if f.name not in z]
+        if missing:
+            raise ValueError(f"{path}: not a training-array cache of ancsh (no {missing}); delete it to rebuild it")
+        kw = {f.name: z[f.name] for f in fields(cls)}
         kw["num_parts"] = int(kw["num_parts"])
         return cls(**kw)
+
+
+def read_npz(path, what: str) -> dict:
+    """Every array of the ``.npz`` file ``path`` (no pickled objects); ``ValueError`` naming the file and ``what`` it
+    should be (an array of Python objects, a file that is no ``.npz``) -- delete it to rebuild it."""
+    try:
+        with np.load(Path(path)) as z:
+            return {k: z[k] for k in z.files}
+    except (ValueError, OSError) as exc:
+        raise ValueError(f"{path}: not a {what} of ancsh ({exc}); delete it to rebuild it") from exc
 
 
 def naocs_rotations(points_cam: np.ndarray, naocs: np.ndarray, on_base: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ import torch
 
 from ...outputs import write_bytes_atomically
 from ..network.config import TrainConfig
-from .data import TrainingArrays
+from .data import TrainingArrays, read_npz
 from ..devices import model_device, move
 from ..distributed import DistributedContext, global_batch
 from .losses import ancsh_loss, direct_voting_loss
@@ -193,9 +193,9 @@ def neighbourhood_cache(model, points: np.ndarray, *, batch_size: int = 64, path
         key.update(f"normal_idx {NORMAL_NEIGHBOURS}".encode())
     key = key.hexdigest()
     if path is not None and Path(path).is_file():
-        with np.load(path) as z:
-            if str(z["key"]) == key:
-                return {k: z[k] for k in z.files if k != "key"}
+        z = read_npz(path, "neighbourhood cache")
+        if str(z.get("key")) == key:
+            return {k: v for k, v in z.items() if k != "key"}
     from ..devices import model_device
 
     device = model_device(model)  # on a GPU the sampling and grouping run there too
