@@ -277,3 +277,25 @@ def test_a_full_disk_during_generation_says_so_and_keeps_complete_shards(tmp_pat
     assert len(dataset.FrameDataset(out)) == 1
 
 
+
+
+def test_an_unwritable_report_names_its_path_not_a_temporary_file(tmp_path, monkeypatch, capsys):
+    """``bench render --out`` in a folder that cannot be written: the message names the report's path."""
+    import os
+
+    import ancsh.outputs as outputs
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    target = locked / "render.md"
+
+    def refuse(*args, **kwargs):  # as a read-only folder does (root may write anywhere: simulate it)
+        raise PermissionError(13, os.strerror(13), str(locked / ".render.md.abc.tmp"))
+
+    monkeypatch.setattr(outputs.tempfile, "mkstemp", refuse)
+    with pytest.raises(OSError) as err:
+        outputs.write_bytes_atomically(target, b"x")
+    assert err.value.filename == str(target) and ".tmp" not in str(err.value)
+    assert main(["bench", "render", "--frames", "2", "--out", str(target)]) == 2
+    msg = capsys.readouterr().err
+    assert f"cannot read or write {target}: Permission denied" in msg and ".tmp" not in msg

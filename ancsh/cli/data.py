@@ -141,6 +141,9 @@ def run_generate(args) -> int:
     )
     split = config.split if config.urdf is None else "urdf"
     out = Path(args.out) if args.out else Path("data") / f"{config.name}_{split}"
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out: {out} is a file, not a folder: the dataset's shards go into a folder; give a "
+                         "folder's path")
     try:
         report = generate_dataset(
             config, args.frames, out, executor=executor, progress=not args.quiet, overwrite=args.overwrite

@@ -331,3 +331,11 @@ def test_cli_reports_objects_without_acceptable_views(tmp_path, capsys):
     code = main(["data", "generate", "--category", "laptop", "--frames", "1", "--workers", "1", "--width", "64",
                  "--height", "48", "--min-part-pixels", "5000", "--out", str(tmp_path / "never"), "--quiet"])
     assert code == 1 and "no view of" in capsys.readouterr().err
+
+
+def test_cli_generate_into_a_file_names_out(tmp_path, capsys):
+    out = tmp_path / "taken.txt"
+    out.write_text("not a dataset")
+    assert main(["data", "generate", "--category", "oven", "--frames", "1", "--out", str(out), "--quiet"]) == 2
+    assert f"--out: {out} is a file, not a folder" in capsys.readouterr().err
+    assert out.read_text() == "not a dataset"
