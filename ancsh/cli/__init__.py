@@ -50,7 +50,10 @@ EXAMPLES = {
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
     "bench twin": "ancsh bench twin --categories laptop --frames 2   # exported fit models against the depth",
     "bench sensor-realism": "ancsh bench sensor-realism --frames 5   # real frames' sensor artefacts against renders",
-    "bench scenes": "ancsh bench scenes --categories box laptop --frames 5   # predict without a mask on rendered scenes",
+    "bench scenes": "ancsh bench scenes --categories box laptop --frames 5 --stress-frames 4 --seeds 0 1 2   # rendered "
+                    "scenes: single objects, then two or three of one category",
+    "bench mask-refusal": "ancsh bench mask-refusal --categories laptop box --frames 20   # what p_object refuses "
+                          "under a mask",
 }
 
 # Modules that contribute sub-commands, in help order.
