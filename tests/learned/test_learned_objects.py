@@ -135,3 +135,29 @@ def test_a_users_mask_lets_p_object_refuse_only_on_strong_evidence(box_pair):
     low = check_confidence(result, MIN_P_OBJECT_MASKED / 2, MIN_P_OBJECT_MASKED)
     assert low.status.value == "not_this_category" and "user's mask" in low.message
     assert check_confidence(dataclasses.replace(result), None, MIN_P_OBJECT_MASKED).ok
+
+
+def test_the_consensus_answers_with_the_medoid_and_needs_every_hypothesis_when_asked(box_pair):
+    import dataclasses
+
+    from ancsh.learned.inference.candidate import consensus
+    from ancsh.solvers.types import FitStatus
+
+    pred = box_pair[3]
+    base = {"result": pred.result, "types": pred.joint_types, "t_bp": 0.001, "t_net": 0.01, "t_compare": 0.002,
+            "notes": []}
+
+    def turned(deg):
+        return dict(base, result=dataclasses.replace(pred.result, joint_states=pred.result.joint_states
+                                                     + np.deg2rad(deg)))
+
+    failed = dict(base, result=dataclasses.replace(pred.result, status=FitStatus.NOT_THIS_CATEGORY))
+    out = consensus([turned(4.0), turned(0.0), turned(-3.0)])
+    assert out["result"].ok and out["consensus"]["chosen"] == 1  # the one nearest the others
+    assert out["consensus"]["state_std"][0] == pytest.approx(np.std(np.deg2rad([4.0, 0.0, -3.0]), ddof=1), rel=1e-6)
+    assert np.isclose(out["t_net"], 0.03)
+    two = consensus([turned(0.0), failed, turned(1.0)])
+    assert two["result"].ok and two["consensus"]["passed"] == 2
+    strict = consensus([turned(0.0), failed, turned(1.0)], needed=3)
+    assert strict["result"].status == FitStatus.NOT_THIS_CATEGORY and "3 needed" in strict["notes"][-1]
+    assert consensus([failed, failed, turned(0.0)])["result"].status == FitStatus.NOT_THIS_CATEGORY

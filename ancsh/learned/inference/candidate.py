@@ -92,7 +92,7 @@ def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: floa
 
 def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
                   object_gate: bool = True, hypotheses: int = CONSENSUS_HYPOTHESES,
-                  min_p_object: float = MIN_P_OBJECT) -> dict:
+                  min_p_object: float = MIN_P_OBJECT, unanimous: bool = False) -> dict:
     """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit: one candidate segment of
     :func:`~ancsh.learned.inference.predict.predict_depth` (called once with a mask, or per verified candidate without
     one), as the consensus of ``hypotheses`` independent tries (:func:`consensus`; the tries stop once the failures are
@@ -102,8 +102,10 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     ``LearnedProvider.refine``'s option; ``why``: when given, nothing is sampled and the candidate fails with
     ``too_few_points`` naming it; ``object_gate=False`` measures the object evidence without letting ``p_object``
     fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`); ``min_p_object``: the gate's
-    threshold (:data:`~ancsh.learned.inference.checks.MIN_P_OBJECT_MASKED` under the user's mask or hint). The other
-    arguments are :func:`~ancsh.learned.inference.predict.predict_depth`'s.
+    threshold (:data:`~ancsh.learned.inference.checks.MIN_P_OBJECT_MASKED` under the user's mask or hint);
+    ``unanimous``: the candidate passes only when every hypothesis does (a segment found without the user's help;
+    else most of them must), and the tries stop at the first failure. The other arguments are
+    :func:`~ancsh.learned.inference.predict.predict_depth`'s.
 
     Returns a dict: ``result`` (FitResult), ``pts`` ((N, 3) camera frame, metres), ``pixels``, ``valid``, ``labels``,
     ``quality``, ``p_good`` / ``p_object`` (or ``None``), ``comparison`` (render-and-compare or ``None``), ``corr``,
@@ -119,9 +121,10 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
                                                hypothesis_seed(seed, h), max_depth, (refine,), why=why,
                                                object_gate=object_gate, min_p_object=min_p_object)[0])
         passed = sum(t["result"].ok for t in tries)
-        if tries[-1]["valid"] < MIN_POINTS or 2 * (passed + H - len(tries)) <= H:
-            break  # nothing to sample again, or the failures are a majority whatever the rest do
-    return consensus(tries)
+        needed = H if unanimous else H // 2 + 1
+        if tries[-1]["valid"] < MIN_POINTS or passed + H - len(tries) < needed:
+            break  # nothing to sample again, or the passes needed can no longer come
+    return consensus(tries, needed=H if unanimous else None)
 
 
 def hypothesis_seed(seed: int, h: int) -> int:
@@ -147,10 +150,10 @@ def _distance(a, b) -> float:
     return float((np.max(dq / tol) if dq.size else 0.0) + (np.mean(rot) / LIMIT_TOLERANCE_RAD if rot else 0.0))
 
 
-def consensus(tries: list) -> dict:
+def consensus(tries: list, *, needed: int | None = None) -> dict:
     """The answer of several hypotheses of one candidate (:func:`fit_candidate`'s dicts, each fitted with its own
-    seed): when most of them pass their checks, the passing one nearest the others (the medoid by :func:`_distance`),
-    else the first failure of the most common failed status. Its ``consensus`` record says how they went:
+    seed): when most of them (or ``needed`` of them) pass their checks, the passing one nearest the others (the medoid
+    by :func:`_distance`), else the first failure of the most common failed status. Its ``consensus`` record says how they went:
     ``hypotheses``, ``passed``, ``statuses``, ``chosen`` (index), ``state_std`` (per joint, rad or m, over the passing
     ones; ``None`` with fewer than 2) and ``rotation_spread_deg`` (per part, the RMS rotation angle of the passing
     fits from the chosen one); the stage times are summed over the hypotheses."""
@@ -159,7 +162,7 @@ def consensus(tries: list) -> dict:
     from ...geometry.rotations import rotation_angle
 
     ok = [i for i, t in enumerate(tries) if t["result"].ok]
-    if 2 * len(ok) > len(tries):
+    if (len(ok) >= needed) if needed is not None else (2 * len(ok) > len(tries)):
         dist = np.array([[_distance(tries[i], tries[j]) for j in ok] for i in ok])
         chosen = ok[int(np.argmin(dist.sum(axis=1)))]
     else:
@@ -183,8 +186,9 @@ def consensus(tries: list) -> dict:
         for key in ("t_bp", "t_net", "t_compare"):
             best[key] = float(sum(t[key] for t in tries))
         best["notes"] = list(best["notes"]) + [
-            f"consensus: {len(ok)} of {len(tries)} hypotheses (samplings and RANSAC seeds) passed; hypothesis {chosen} is "
-            "the answer" + (" (the passing one nearest the others)" if best["result"].ok else " (most failed alike)")]
+            f"consensus: {len(ok)} of {len(tries)} hypotheses (samplings and RANSAC seeds) passed"
+            + ("" if needed is None else f", {needed} needed") + f"; hypothesis {chosen} is the answer"
+            + (" (the passing one nearest the others)" if best["result"].ok else " (most failed alike)")]
     best["consensus"] = record
     return best
 

@@ -413,7 +413,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     if isolation is None:  # a mask (or every valid pixel, checked as one: no check is skipped): one attempt
         whole = mask if mask is not None else np.isfinite(d) & (d > 0)
         best = fit_candidate(d, intrinsics, whole, category, provider, formulation, num_points, seed, max_depth, refine,
-                             hypotheses=hypotheses, min_p_object=MIN_P_OBJECT if mask is None else MIN_P_OBJECT_MASKED)
+                             hypotheses=hypotheses, min_p_object=MIN_P_OBJECT if mask is None else MIN_P_OBJECT_MASKED,
+                             unanimous=mask is None)
         found, rejected = [ObjectCandidate(None, best, np.asarray(whole, dtype=bool))], []
     elif isolation.chosen is None:  # nothing but planes / noise: no object to fit
         best = fit_candidate(d, intrinsics, None, category, provider, formulation, num_points, seed, max_depth, refine,
@@ -533,7 +534,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
         a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine,
                           hypotheses=1 if background or cut else hypotheses,
-                          min_p_object=MIN_P_OBJECT if hint is None else MIN_P_OBJECT_MASKED)
+                          min_p_object=MIN_P_OBJECT if hint is None else MIN_P_OBJECT_MASKED, unanimous=hint is None)
         if a["result"].ok:
             if background:
                 a["result"] = dataclasses.replace(a["result"], status=FitStatus.NOT_THIS_CATEGORY, message=(
