@@ -59,9 +59,9 @@ def draw_prediction(depth, prediction, intrinsics: Intrinsics, *, title: str = "
         fig.colorbar(im, ax=ax, label="depth (m)", shrink=0.8, pad=0.02)
     _draw_isolation(ax, prediction.isolation)
     found = sum(o.result.ok for o in (prediction.objects or (prediction,)))
-    ax.set_title(("colour" if rgb is not None else "depth") + f" image: {found} object(s) found, numbered, boxes in part "
-                 "colours, joint axes black;\nrejected fits dashed grey with their status"
-                 + ("; other segments outlined blue" if prediction.isolation is not None else ""), fontsize=8)
+    ax.set_title(("colour" if rgb is not None else "depth") + f" image: {found} object(s) found, numbered with their "
+                 "opening;\nboxes in part colours, joint axes black;\nrejected fits dashed grey with their status"
+                 + ("; other segments blue" if prediction.isolation is not None else ""), fontsize=8)
     return fig
 
 
