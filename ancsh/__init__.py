@@ -44,13 +44,14 @@ def predict(depth, intrinsics, category: str, **options):
     **options
         Of :func:`ancsh.learned.inference.predict.predict_depth`: ``mask`` (array, or a PNG/``.npy`` path),
         ``hint`` (:class:`ancsh.data.isolate.ObjectHint`), ``isolate``, ``max_depth``, ``weights``,
-        ``formulation``, ``num_points``, ``seed``.
+        ``formulation``, ``num_points``, ``seed``, ``max_objects``, ``hypotheses``.
 
     Returns
     -------
     DepthPrediction
-        ``.result`` (a :class:`ancsh.solvers.FitResult`: ``status``, ``message``, ``T_cam_npcs``,
-        ``boxes_cam``, ``joint_*``), ``.notes``, and ``.to_json()`` (``docs/json_schema.md``).
+        The best-supported object: ``.result`` (a :class:`ancsh.solvers.FitResult`: ``status``, ``message``,
+        ``T_cam_npcs``, ``boxes_cam``, ``joint_*``), ``.notes``, ``.mask``, ``.consensus``; ``.objects``, every object
+        of the category found (itself first); and ``.to_json()`` (``docs/json_schema.md``).
     """
     from pathlib import Path
 
