@@ -167,11 +167,11 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
     n = results["settings"]["frames"]
     lines = [
         "# Rendered scenes: `ancsh predict` without a mask", "",
-        "## Single objects", "",
         f"Command: `{provenance.command}`  ",
         f"Date: {provenance.date}; machine: {provenance.machine_text}  ",
         *([f"Report written again from the records by `{rewritten_by}`  "] if rewritten_by else []),
         "Study: `ancsh.studies.scenes` (scenes: `ancsh.data.scenes.render_scene`)", "",
+        "## Single objects", "",
         f"{n} test frames per category, each in a scene: on a floor or (one in three) the lowest tread of a staircase, a "
         "wall or a curtain behind, up to two pieces of clutter beside; the dataset's sensor noise. `mask`: predicted "
         "with the object's visible pixels as the mask; `auto`: without a mask (isolation and verification, as a user "
