@@ -355,8 +355,12 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     hypotheses : int
         Independent tries per candidate (samplings of its pixels, network passes, RANSAC and refinement seeds; default
         :data:`~ancsh.learned.inference.candidate.CONSENSUS_HYPOTHESES`): the answer is their consensus
-        (:func:`~ancsh.learned.inference.candidate.consensus`), reported in :attr:`DepthPrediction.consensus`. 1: a
-        single try, the answer of one seed.
+        (:func:`~ancsh.learned.inference.candidate.consensus`), reported in :attr:`DepthPrediction.consensus`. A
+        segment found without the user's mask or hint passes only when every hypothesis does; under a mask or hint
+        most of them must. 1: a single try, the answer of one seed. Measured on ``bench scenes`` (seed 0), all /
+        most of 3 / one hypothesis: stress scenes 26 / 25 / - of 124 objects right, 6 / 12 / - wrong successes;
+        single objects 74 / 83 / 84 of 158 right, 10 / 14 / 16 wrong, 8 / 13 / 14 of 158 empty scenes taken for an
+        object: fewer right for fewer false reports, the trade the issue's targets (<= 2 % of each) ask for.
 
     Returns
     -------
