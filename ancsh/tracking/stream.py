@@ -147,8 +147,10 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
         else:
             if mask is None and isolate and np.any(depth > 0):
                 from ..data.isolate import isolate_object
+                from ..learned.inference.predict import ISOLATION_SEED
 
-                mask = isolate_object(depth, intrinsics, category, max_depth=max_depth, rng=seed).mask
+                # seeded like predict's isolation: the segments are a function of the image, not of the seed
+                mask = isolate_object(depth, intrinsics, category, max_depth=max_depth, rng=ISOLATION_SEED).mask
             try:
                 points = depth_to_points(depth, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points,
                                          rng=seed + i)[0]
