@@ -156,11 +156,55 @@ def load_scenes_records(path) -> tuple[dict, Provenance]:
     return results, prov
 
 
-def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritten_by: str | None = None) -> Path:
+def side_by_side(results: dict, real_frames) -> list:
+    """Markdown lines: the real frames (a ``bench real-frames`` JSON, ``real_frames``: its path) beside the single-object
+    and stress scenes, per way of asking (with the object's mask, without one, with a pixel hint): successes that are
+    right, wrong successes, and scenes or frames without the object reported as one."""
+    import json
+
+    data = json.loads(Path(real_frames).read_text())
+    real = [r for r in data["records"] if r.get("truth_category")]
+    negative = [r for r in data["records"] if not r.get("truth_category")]
+
+    def share(rows, good):
+        return f"{sum(map(good, rows))}/{len(rows)}" if rows else "-"
+
+    recs = results["records"]
+    single = {m: [r for r in recs if r["mode"] == m] for m in MODES}
+    lines = ["## Real frames and rendered scenes side by side", "",
+             f"The real frames from `{Path(real_frames).name}` (`{data.get('command', '?')}`, {data.get('date', '?')}; "
+             "right = `success`, its joint error in the last column); the scenes as above (right = `success` and not "
+             "wrong). Empty: frames or scenes without the object (the real negative frame once per category).", "",
+             "| source | with mask: right | without: right (wrong) | with a hint: right | empty: false success "
+             "| joint error of the real successes (deg) |", "|---|---|---|---|---|---|"]
+    by = {m: [r for r in real if r["mode"] == m] for m in ("mask", "auto", "pixel")}
+    errs = [r["joint_state_error_deg"] for r in real if r["ok"] and r.get("joint_state_error_deg") is not None]
+    lines.append(f"| real frames | {share(by['mask'], lambda r: r['ok'])} | {share(by['auto'], lambda r: r['ok'])} "
+                 f"| {share(by['pixel'], lambda r: r['ok'])} | {share(negative, lambda r: r['ok'])} "
+                 f"| {', '.join(f'{e:.1f}' for e in errs) or '-'} |")
+    lines.append(f"| single-object scenes | {share(single['mask'], lambda r: r['ok'] and not wrong_success(r))} "
+                 f"| {share(single['auto'], lambda r: r['ok'] and not wrong_success(r))} "
+                 f"({sum(map(wrong_success, single['auto']))}) | - | {share(single['empty'], lambda r: r['ok'])} | - |")
+    stress = results.get("stress")
+    if stress is not None:
+        seed0 = stress["settings"]["seeds"][0]
+        st = {m: [r for r in stress["records"] if r["mode"] == m and r["object"] is not None
+                  and (m != "auto" or r["seed"] == seed0)] for m in ("mask", "auto", "hint")}
+        wrong = sum(r["ok"] and r["wrong"] for r in stress["records"] if r["mode"] == "auto" and r["seed"] == seed0)
+        empty = [r for r in stress["records"] if r["mode"] == "empty"]
+        right = (lambda r: r["found"] and not r["wrong"])
+        lines.append(f"| stress scenes (objects) | {share(st['mask'], right)} | {share(st['auto'], right)} ({wrong}) "
+                     f"| {share(st['hint'], right)} | {share(empty, lambda r: r['ok'])} | - |")
+    return lines + [""]
+
+
+def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritten_by: str | None = None,
+                        real_frames=None) -> Path:
     """Markdown at ``path`` and the records as JSON beside it.
 
     ``provenance``: the measuring run's -- this run's (``Provenance(command)``), or, when the report is written again
     from its records (:func:`load_scenes_records`) by the command ``rewritten_by``, the one stored with them.
+    ``real_frames``: a ``bench real-frames`` JSON to summarise beside the scenes (:func:`side_by_side`).
     """
     path = Path(path)
     recs = results["records"]
@@ -222,6 +266,8 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
         from .stress_scenes import stress_table
 
         lines += stress_table(results["stress"])
+    if real_frames is not None:
+        lines += side_by_side(results, real_frames)
     write_text(path, "\n".join(lines))
     write_json(path.with_suffix(".json"), {"command": provenance.command, "date": provenance.date,
                                            "machine": provenance.machine, "settings": results["settings"],

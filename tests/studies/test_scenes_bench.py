@@ -62,8 +62,16 @@ def test_the_stress_scenes_are_keyed_by_object_and_matched_by_mask(tmp_path):
     from ancsh.studies.stress_scenes import FOUND_IOU, match_objects
 
     out = tmp_path / "scenes.md"
+    real = tmp_path / "real.json"  # a real-frames report's records: one object found with its mask only, a negative
+    real.write_text(json.dumps({"command": "ancsh bench real-frames", "date": "today", "records": [
+        {"truth_category": "laptop", "mode": "mask", "ok": True, "joint_state_error_deg": 2.5},
+        {"truth_category": "laptop", "mode": "auto", "ok": False}, {"truth_category": "laptop", "mode": "pixel", "ok": False},
+        {"truth_category": None, "mode": "auto", "ok": False}]}))
     assert main(["bench", "scenes", "--categories", "laptop", "--frames", "1", "--stress-frames", "1", "--seeds", "0",
-                 "1", "--out", str(out), "--quiet"]) == 0
+                 "1", "--real-frames", str(real), "--out", str(out), "--quiet"]) == 0
+    assert "| real frames | 1/1 | 0/1 | 0/1 | 0/1 | 2.5 |" in out.read_text()
+    assert main(["bench", "scenes", "--records", str(out.with_suffix(".json")), "--real-frames", str(tmp_path / "x.json"),
+                 "--out", str(tmp_path / "again.md")]) == 2
     stress = json.loads(out.with_suffix(".json").read_text())["stress"]
     recs = [r for r in stress["records"] if r["object"] is not None]
     assert {r["kind"] for r in stress["records"]} == {"pair"}

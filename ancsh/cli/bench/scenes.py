@@ -27,6 +27,9 @@ def register(sub) -> None:
     p.add_argument("--update-docs", action="store_true", help="write docs/results/scenes.md (when --out is not given)")
     p.add_argument("--records", type=Path, metavar="JSON", help="write the report again from a report's records (its "
                    "scenes.json; the measuring run's command, date and machine kept) instead of fitting the scenes")
+    p.add_argument("--real-frames", type=Path, metavar="JSON", default=None,
+                   help="a bench real-frames JSON summarised beside the scenes (default: docs/results/real_frames.json "
+                   "where it exists; 'none' for no such table)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -38,10 +41,16 @@ def run(args: argparse.Namespace) -> int:
 
     categories = shipped_categories_option(args.categories)
     parts = ["bench", "scenes", *changed_options(args, {"categories": None, "frames": 20, "seed": 0, "stress_frames": 8,
-                                                        "seeds": [0]})]
+                                                        "seeds": [0], "real_frames": None})]
     parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="scenes.md", command="scenes")
+    from ...outputs import DOCS_RESULTS
+
+    real = DOCS_RESULTS / "real_frames.json" if args.real_frames is None else args.real_frames
+    real = None if str(real) == "none" or not Path(real).is_file() else real
+    if args.real_frames is not None and str(args.real_frames) != "none" and real is None:
+        raise ValueError(f"--real-frames: no such file {args.real_frames}")
     if args.records is not None:
         from ...studies.scenes import load_scenes_records
 
@@ -51,8 +60,9 @@ def run(args: argparse.Namespace) -> int:
                              "--categories, --frames, --seed, --stress-frames and --seeds")
         results, provenance = load_scenes_records(args.records)
         rewritten = "ancsh " + " ".join(shlex.quote(a) for a in ["bench", "scenes", "--records", str(args.records),
+                                                                   *changed_options(args, {"real_frames": None}),
                                                                    *output_flags(args.out, update_docs=args.update_docs)])
-        write_scenes_report(results, path, provenance, rewritten_by=rewritten)
+        write_scenes_report(results, path, provenance, rewritten_by=rewritten, real_frames=real)
     else:
         progress = None if args.quiet else (lambda line: print(line, flush=True))
         results = measure_scenes(categories, frames=args.frames, seed=args.seed, progress=progress)
@@ -61,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
             results["stress"] = measure_stress_scenes(categories, args.stress_frames, seed=args.seed, seeds=args.seeds,
                                                       progress=progress)
-        write_scenes_report(results, path, Provenance(command))
+        write_scenes_report(results, path, Provenance(command), real_frames=real)
     print(path.read_text())
     print(f"wrote {path} and {path.with_suffix('.json')}")
     return 0
