@@ -146,8 +146,10 @@ def save_figure(fig, out, **savefig) -> Path:
     return out
 
 
-def _draw_boxes_and_axes(ax, boxes, pivots, axes, length: float, *, style: str, to_plot) -> list:
-    """Box edges per part (tab10 colours) and joint axes through their pivots; returns drawn points."""
+def _draw_boxes_and_axes(ax, boxes, pivots, axes, length: float, *, style: str, to_plot, color=None,
+                         lw: float = 1.2) -> list:
+    """Box edges per part (tab10 colours, or ``color`` for all) and joint axes through their pivots; returns drawn
+    points."""
     from matplotlib import colormaps
 
     cmap = colormaps["tab10"]
@@ -156,7 +158,7 @@ def _draw_boxes_and_axes(ax, boxes, pivots, axes, length: float, *, style: str, 
         c = box.corners()
         drawn.append(c)
         for a, b in _BOX_EDGES:
-            ax.plot(*to_plot(c[[a, b]]), color=cmap(j % 10), lw=1.2, ls=style)
+            ax.plot(*to_plot(c[[a, b]]), color=cmap(j % 10) if color is None else color, lw=lw, ls=style)
     for p, u in zip(pivots, axes):
         if np.all(np.isfinite(p)) and np.all(np.isfinite(u)):
             seg = np.stack([p - 0.5 * length * u, p + 0.5 * length * u])

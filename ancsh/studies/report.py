@@ -18,7 +18,15 @@ from .._machine import describe_machine, machine_facts
 from ..data.show import save_figure  # (the one figure writer: atomic, format from the suffix)
 from ..outputs import write_bytes_atomically
 
-__all__ = ["Provenance", "save_figure", "utc_date", "write_json", "write_text"]
+__all__ = ["Provenance", "median_text", "save_figure", "utc_date", "write_json", "write_text"]
+
+
+def median_text(values, spec: str = ".1f") -> str:
+    """The median of the finite ``values`` (``None`` and NaN left out) as a table cell, ``"-"`` when there are none."""
+    import numpy as np
+
+    v = [x for x in values if x is not None and np.isfinite(x)]
+    return format(float(np.median(v)), spec) if v else "-"
 
 
 def utc_date() -> str:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .report import Provenance, write_json, write_text
+from .report import Provenance, median_text, write_json, write_text
 
 __all__ = ["MODES", "WRONG_MASK_IOU", "WRONG_ROTATION_DEG", "load_scenes_records", "measure_scenes", "wrong_success",
            "write_scenes_report"]
@@ -129,11 +129,6 @@ def measure_scenes(categories, frames: int = 20, *, seed: int = 0, progress=None
             "settings": {"categories": list(categories), "frames": int(frames), "seed": int(seed)}}
 
 
-def _median(values, spec=".1f"):
-    v = [x for x in values if x is not None and np.isfinite(x)]
-    return format(float(np.median(v)), spec) if v else "-"
-
-
 def load_scenes_records(path) -> tuple[dict, Provenance]:
     """The results and provenance of a report's JSON (:func:`write_scenes_report`), to write the report again from
     its records (``ancsh bench scenes --records``) without fitting the scenes again.
@@ -235,11 +230,11 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
         lines.append(
             f"| {c} | {len(ok['mask'])}/{len(by['mask'])} ({sum(map(wrong_success, ok['mask']))}) "
             f"| {len(ok['auto'])}/{len(by['auto'])} ({sum(map(wrong_success, ok['auto']))}) "
-            f"| {_median([r['mask_iou'] for r in by['auto']], '.2f')} "
-            f"| {_median([r['rot_deg'] for r in ok['mask']])} / {_median([r['rot_deg'] for r in ok['auto']])} "
-            f"| {_median([r['state_err'] for r in ok['mask']], '.3g')} / {_median([r['state_err'] for r in ok['auto']], '.3g')} "
+            f"| {median_text([r['mask_iou'] for r in by['auto']], '.2f')} "
+            f"| {median_text([r['rot_deg'] for r in ok['mask']])} / {median_text([r['rot_deg'] for r in ok['auto']])} "
+            f"| {median_text([r['state_err'] for r in ok['mask']], '.3g')} / {median_text([r['state_err'] for r in ok['auto']], '.3g')} "
             f"| {len(ok['empty'])}/{len(by['empty'])} "
-            f"| {_median([r['time_ms'] for r in by['mask']], '.0f')} / {_median([r['time_ms'] for r in by['auto']], '.0f')} |")
+            f"| {median_text([r['time_ms'] for r in by['mask']], '.0f')} / {median_text([r['time_ms'] for r in by['auto']], '.0f')} |")
     stairs = [r for r in recs if r["mode"] == "auto" and r["support"] == "stairs"]
     floor = [r for r in recs if r["mode"] == "auto" and r["support"] == "floor"]
     hidden = results.get("hidden") or []
@@ -249,9 +244,9 @@ def write_scenes_report(results: dict, path, provenance: Provenance, *, rewritte
     auto = [r for r in recs if r["mode"] == "auto"]
     lines += ["", "By support (`auto`, every category): "
               f"floor {sum(r['ok'] for r in floor)}/{len(floor)} success ({sum(map(wrong_success, floor))} wrong), mask IoU "
-              f"{_median([r['mask_iou'] for r in floor], '.2f')}; "
+              f"{median_text([r['mask_iou'] for r in floor], '.2f')}; "
               f"stairs {sum(r['ok'] for r in stairs)}/{len(stairs)} success ({sum(map(wrong_success, stairs))} wrong), mask IoU "
-              f"{_median([r['mask_iou'] for r in stairs], '.2f')}. Right successes without a mask, every category: "
+              f"{median_text([r['mask_iou'] for r in stairs], '.2f')}. Right successes without a mask, every category: "
               f"{sum(r['ok'] and not wrong_success(r) for r in auto)}/{len(auto)}.", ""]
     false = [r for r in recs if r["mode"] == "empty" and r["ok"] and r.get("found")]
     if false:

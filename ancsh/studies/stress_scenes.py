@@ -26,6 +26,8 @@ import zlib
 
 import numpy as np
 
+from .report import median_text
+
 __all__ = ["FOUND_IOU", "KINDS", "MERGED_SHARE", "WRONG_ROTATION_DEG", "match_objects", "measure_stress_scenes",
            "stress_summary", "stress_table"]
 
@@ -230,11 +232,6 @@ def _share(n, d) -> str:
     return f"{n}/{d}" if d else "-"
 
 
-def _median(values, spec=".1f") -> str:
-    v = [x for x in values if x is not None and np.isfinite(x)]
-    return format(float(np.median(v)), spec) if v else "-"
-
-
 def stress_summary(records, seeds) -> dict:
     """Headline figures over every category: objects right without a mask (first seed), wrong successes, merged,
     empty scenes taken for an object, seed agreement (share of objects whose ``auto`` status is the same at all seeds
@@ -253,8 +250,8 @@ def stress_summary(records, seeds) -> dict:
             "successes": sum(r["ok"] for r in first), "merged": sum(r["merged"] for r in objs),
             "empty": len(empty), "empty_false": sum(r["ok"] for r in empty),
             "seed_agreement": (sum(agree), len(agree)),
-            "state_deg": _median([r["state_err"] for r in ok if r["state_unit"] == "deg"]),
-            "state_m": _median([r["state_err"] for r in ok if r["state_unit"] == "m"], ".3f")}
+            "state_deg": median_text([r["state_err"] for r in ok if r["state_unit"] == "deg"]),
+            "state_m": median_text([r["state_err"] for r in ok if r["state_unit"] == "m"], ".3f")}
 
 
 def stress_table(results) -> list:
@@ -287,7 +284,7 @@ def stress_table(results) -> list:
         lines.append(f"| {c} | {_share(s['right'], s['objects'])} ({s['wrong_successes']}) | {s['merged']} "
                      f"| {_share(right['mask'], len(per['mask']))} | {_share(right['hint'], len(per['hint']))} "
                      f"| {_share(s['empty_false'], s['empty'])} | {_share(*s['seed_agreement'])} | {s['state_deg']} "
-                     f"| {s['state_m']} | {_median(times['auto'], '.0f')} / {_median(times['mask'], '.0f')} |")
+                     f"| {s['state_m']} | {median_text(times['auto'], '.0f')} / {median_text(times['mask'], '.0f')} |")
     s = stress_summary(recs, seeds)
     kinds = []
     for kind in settings["kinds"]:

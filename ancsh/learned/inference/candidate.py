@@ -115,13 +115,13 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     if isinstance(hypotheses, bool) or int(hypotheses) != hypotheses or hypotheses < 1:
         raise ValueError(f"hypotheses: expected a positive integer, got {hypotheses!r}")
     H = int(hypotheses) if why is None else 1
+    needed = H if unanimous else H // 2 + 1
     tries = []
     for h in range(H):
         tries.append(fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points,
                                                hypothesis_seed(seed, h), max_depth, (refine,), why=why,
                                                object_gate=object_gate, min_p_object=min_p_object)[0])
         passed = sum(t["result"].ok for t in tries)
-        needed = H if unanimous else H // 2 + 1
         if tries[-1]["valid"] < MIN_POINTS or passed + H - len(tries) < needed:
             break  # nothing to sample again, or the passes needed can no longer come
     return consensus(tries, needed=H if unanimous else None)
@@ -135,6 +135,14 @@ def hypothesis_seed(seed: int, h: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(h), 0xC0]).generate_state(1)[0])
 
 
+def _state_differences(states, reference, types) -> np.ndarray:
+    """``states - reference`` per joint (``(..., K)``), revolute ones wrapped into ``[-pi, pi)`` (radians; metres for
+    prismatic joints); ``types``: ``"revolute"`` / ``"prismatic"`` per joint."""
+    diff = np.asarray(states, dtype=np.float64) - np.asarray(reference, dtype=np.float64)
+    revolute = np.array([t == "revolute" for t in types], dtype=bool)
+    return np.where(revolute, (diff + np.pi) % (2 * np.pi) - np.pi, diff)
+
+
 def _distance(a, b) -> float:
     """How far two hypotheses' fits are apart: the largest joint-state difference in units of the joint-range
     tolerance (:data:`~ancsh.solvers.limits.LIMIT_TOLERANCE_RAD` / ``_M``), plus the mean part rotation difference in
@@ -144,8 +152,7 @@ def _distance(a, b) -> float:
 
     ra, rb = a["result"], b["result"]
     tol = np.array([LIMIT_TOLERANCE_RAD if t == "revolute" else LIMIT_TOLERANCE_M for t in a["types"]])
-    dq = np.abs(np.asarray(ra.joint_states) - np.asarray(rb.joint_states))
-    dq = np.where(np.asarray([t == "revolute" for t in a["types"]]), np.minimum(dq, 2 * np.pi - dq % (2 * np.pi)), dq)
+    dq = np.abs(_state_differences(ra.joint_states, rb.joint_states, a["types"]))
     rot = [rotation_angle(Ta.rotation.T @ Tb.rotation) for Ta, Tb in zip(ra.T_cam_npcs, rb.T_cam_npcs)]
     return float((np.max(dq / tol) if dq.size else 0.0) + (np.mean(rot) / LIMIT_TOLERANCE_RAD if rot else 0.0))
 
@@ -174,9 +181,7 @@ def consensus(tries: list, *, needed: int | None = None) -> dict:
               "chosen": int(chosen), "state_std": None, "rotation_spread_deg": None}
     if len(ok) >= 2 and best["result"].ok:
         states = np.array([np.asarray(tries[i]["result"].joint_states, dtype=np.float64) for i in ok])
-        ref = states[ok.index(chosen)]
-        revolute = np.array([t == "revolute" for t in best["types"]], dtype=bool)
-        wrapped = np.where(revolute, (states - ref + np.pi) % (2 * np.pi) - np.pi, states - ref)
+        wrapped = _state_differences(states, states[ok.index(chosen)], best["types"])
         record["state_std"] = [float(x) for x in wrapped.std(axis=0, ddof=1)]
         R0 = best["result"].T_cam_npcs
         record["rotation_spread_deg"] = [
@@ -252,7 +257,7 @@ class _FirstStage:
 
 
 def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provider, formulation, seed, refine,
-                      object_gate, min_p_object=None) -> dict:
+                      object_gate, min_p_object=MIN_P_OBJECT) -> dict:
     """The refinement ``refine`` of the first-stage fit and its checks and evidence: :func:`fit_candidate_refinements`'
     per-option part (``first`` is not changed: every option starts from it)."""
     pts, corr, raw, result = first.pts, first.corr, first.raw, first.result
@@ -273,7 +278,7 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
         comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
         t_rc = time.perf_counter() - t0
     if object_gate:
-        result = check_confidence(result, p_object, MIN_P_OBJECT if min_p_object is None else min_p_object)
+        result = check_confidence(result, p_object, min_p_object)
     return {"result": result, "pts": pts, "pixels": first.pixels, "valid": first.valid, "labels": labels,
             "quality": quality, "p_good": p_good, "p_object": p_object, "comparison": comparison, "t_compare": t_rc,
             "t_net": first.t_net, "t_bp": first.t_bp, "notes": notes, "corr": corr,

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MAX_RELATIVE_RESIDUAL", "MIN_INLIER_RATIO", "MIN_P_OBJECT", "MIN_P_OBJECT_MASKED", "SIZE_TOLERANCE", "check_confidence",
-           "check_plausibility", "near_closed_notes", "object_diagonal", "part_quality"]
+__all__ = ["MAX_RELATIVE_RESIDUAL", "MIN_INLIER_RATIO", "MIN_P_OBJECT", "MIN_P_OBJECT_MASKED", "SIZE_TOLERANCE",
+           "check_confidence", "check_plausibility", "near_closed_notes", "object_diagonal", "part_quality"]
 
 #: A fit is plausible when the object's box diagonal lies in the category's rest-state range
 #: ``diagonal_range`` widened by this factor both ways (articulation changes the box, and real

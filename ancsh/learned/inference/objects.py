@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SAME_OBJECT_SHARE", "ObjectCandidate", "mask_rle", "rle_mask", "same_object", "select_objects"]
+__all__ = ["SAME_OBJECT_SHARE", "ObjectCandidate", "mask_bbox", "mask_rle", "rle_mask", "same_object",
+           "select_objects"]
 
 #: A passed candidate that has at least this share of its pixels in an object already kept is that object again.
 SAME_OBJECT_SHARE = 0.5
@@ -87,10 +88,14 @@ def mask_rle(mask) -> dict:
     counts = np.diff(edges).tolist()
     if flat.size and flat[0]:
         counts = [0] + counts
-    v, u = np.nonzero(m)
-    bbox = None if u.size == 0 else [int(u.min()), int(v.min()), int(u.max()), int(v.max())]
     return {"size": [int(m.shape[0]), int(m.shape[1])], "counts": [int(c) for c in counts],
-            "pixels": int(u.size), "bbox": bbox, "order": "row-major runs, the first of False"}
+            "pixels": int(np.count_nonzero(m)), "bbox": mask_bbox(m), "order": "row-major runs, the first of False"}
+
+
+def mask_bbox(mask) -> list | None:
+    """``[u0, v0, u1, v1]`` (pixels, inclusive) around a mask ``(H, W)`` bool; ``None`` when it is empty."""
+    v, u = np.nonzero(np.asarray(mask, dtype=bool))
+    return None if u.size == 0 else [int(u.min()), int(v.min()), int(u.max()), int(v.max())]
 
 
 def rle_mask(record: dict) -> np.ndarray:

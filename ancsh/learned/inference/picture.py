@@ -80,24 +80,17 @@ def _opening(pred) -> str:
 def _draw_objects(ax, prediction, intrinsics) -> None:
     """Every object of ``prediction`` (numbered, its mask outlined, its opening written) and its rejected fits
     (dashed grey boxes and their status) on the image axis."""
-    from ...data.show import _draw_boxes_and_axes, _image_projector
+    from ...data.show import _draw_boxes_and_axes, _image_projector, draw_fit_on_image
 
     to_image = _image_projector(intrinsics)
     for pred in tuple(prediction.objects or (prediction,)) + tuple(prediction.rejected):
         r = pred.result
         ok = r.ok
-        if pred is not prediction and ok and r.boxes_cam:  # a successful first object's boxes are drawn by draw_fit
+        if r is not prediction.result and ok and r.boxes_cam:  # the first object's boxes are drawn by draw_fit
             length = 0.6 * max(float(np.linalg.norm(np.ptp(pred.points_cam, axis=0))), 1e-3)
-            _draw_boxes_and_axes(ax, r.boxes_cam, r.joint_pivots_cam, r.joint_axes_cam, length, style="-",
-                                 to_plot=to_image)
+            draw_fit_on_image(ax, r, intrinsics, length)
         elif not ok and r.boxes_cam:
-            for box in r.boxes_cam:
-                corners = box.corners()
-                signs = np.sign((corners - box.center) @ box.rotation)
-                for i, j in ((i, j) for i in range(8) for j in range(i + 1, 8)
-                             if np.count_nonzero(signs[i] != signs[j]) == 1):  # the 12 edges
-                    u, v = to_image(corners[[i, j]])
-                    ax.plot(u, v, linestyle="--", color="0.55", linewidth=0.8)
+            _draw_boxes_and_axes(ax, r.boxes_cam, (), (), 0.0, style="--", to_plot=to_image, color="0.55", lw=0.8)
         mask = pred.mask
         if mask is not None and mask.any():
             ax.contour(mask.astype(float), levels=[0.5], colors="red" if ok else "0.55", linewidths=1.2 if ok else 0.8,

@@ -43,7 +43,7 @@ from .candidate import (  # noqa: F401 - re-exported
     infer,
     inflate_uncertainty,
 )
-from .objects import ObjectCandidate, mask_rle, same_object, select_objects
+from .objects import ObjectCandidate, mask_bbox, mask_rle, same_object, select_objects
 from .picture import draw_prediction  # noqa: F401 - re-exported
 from .refine_network import DEFAULT_PASSES
 
@@ -270,7 +270,7 @@ class DepthPrediction:
             "formulation": r.formulation, "solver": r.solver, **first,
             "objects_found": sum(o["ok"] for o in objects), "objects": objects,
             "rejected": [{"segment": None if o.isolation is None else o.isolation.chosen, "status": o.result.status.value,
-                          "message": o.result.message, "bbox": None if o.mask is None else mask_rle(o.mask)["bbox"]}
+                          "message": o.result.message, "bbox": None if o.mask is None else mask_bbox(o.mask)}
                          for o in self.rejected],
             "isolation": None if self.isolation is None else self.isolation.to_dict(),
             "timings_ms": dict(self.timings_ms),
@@ -417,8 +417,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     if isolation is None:  # a mask (or every valid pixel, checked as one: no check is skipped): one attempt
         whole = mask if mask is not None else np.isfinite(d) & (d > 0)
         best = fit_candidate(d, intrinsics, whole, category, provider, formulation, num_points, seed, max_depth, refine,
-                             hypotheses=hypotheses, min_p_object=MIN_P_OBJECT if mask is None else MIN_P_OBJECT_MASKED,
-                             unanimous=mask is None)
+                             hypotheses=hypotheses, **_gate(user_given=mask is not None))
         found, rejected = [ObjectCandidate(None, best, np.asarray(whole, dtype=bool))], []
     elif isolation.chosen is None:  # nothing but planes / noise: no object to fit
         best = fit_candidate(d, intrinsics, None, category, provider, formulation, num_points, seed, max_depth, refine,
@@ -426,13 +425,13 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         found, rejected = [ObjectCandidate(None, best, np.zeros(d.shape, dtype=bool))], []
     else:
         t0 = time.perf_counter()
-        found, rejected, isolation = _verify_candidates(isolation, hint, d, intrinsics, category, provider, formulation, num_points,
-                                              seed, max_depth, refine, max_objects=1 if hint is not None else max_objects,
-                                              hypotheses=hypotheses)
+        found, rejected, isolation = _verify_candidates(
+            isolation, hint, d, intrinsics, category, provider, formulation, num_points, seed, max_depth, refine,
+            max_objects=1 if hint is not None else max_objects, hypotheses=hypotheses)
         t_verify = time.perf_counter() - t0
     shared = {"category": str(category), "provider": provider, "valid_notes": notes, "isolation": isolation,
               "joint_names": joint_names, "part_names": part_names, "num_points": num_points,
-              "timings": {"isolate": 1e3 * t_iso, "verify": 1e3 * t_verify}, "t_start": t_start}
+              "timings": {"isolate": 1e3 * t_iso, "verify": 1e3 * t_verify}}
     objects = [_object_prediction(k, c, shared, d) for k, c in enumerate(found)]
     shared["valid_notes"] = []
     failed = tuple(_object_prediction(-1, c, shared, d, occluders=False) for c in rejected)
@@ -482,6 +481,13 @@ def _object_prediction(index: int, found: ObjectCandidate, shared: dict, d, *, o
     )
 
 
+def _gate(*, user_given: bool) -> dict:
+    """:func:`fit_candidate`'s object gate: under the user's mask or hint (``user_given``) ``p_object`` refuses only
+    below :data:`MIN_P_OBJECT_MASKED` and most hypotheses must pass; a segment found without help needs
+    :data:`MIN_P_OBJECT` and every hypothesis."""
+    return {"min_p_object": MIN_P_OBJECT_MASKED if user_given else MIN_P_OBJECT, "unanimous": not user_given}
+
+
 def _score(attempt) -> float:
     """How well a candidate's fit is supported (higher is better; -1 for a failed fit): its calibrated
     ``p_object`` where there is one, else the share of its pixels its rendered template explains times the
@@ -529,16 +535,15 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
 
     attempts, verified, masks = {}, [], {}
 
-    def judge(isolation, c):
-        """Fit candidate ``c`` of ``isolation`` and check it; its attempt and evidence go to ``attempts`` /
-        ``verified``."""
-        mask = masks[c] = isolation.mask_of(c)
+    def judge(isolation, c, mask):
+        """Fit candidate ``c`` of ``isolation`` (its pixels ``mask``) and check it; its attempt and evidence go to
+        ``attempts`` / ``verified``."""
+        masks[c] = mask
         # the cheap checks of the segment alone first: one that fails them gets one try (its fit is shown, not kept)
         background, jumps, behind = behind_surroundings(d, mask)
         cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
         a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine,
-                          hypotheses=1 if background or cut else hypotheses,
-                          min_p_object=MIN_P_OBJECT if hint is None else MIN_P_OBJECT_MASKED, unanimous=hint is None)
+                          hypotheses=1 if background or cut else hypotheses, **_gate(user_given=hint is not None))
         if a["result"].ok:
             if background:
                 a["result"] = dataclasses.replace(a["result"], status=FitStatus.NOT_THIS_CATEGORY, message=(
@@ -557,10 +562,11 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     for c in chosen:
         if len(attempts) == MAX_VERIFIED:
             break
+        mask = isolation.mask_of(c)
         passed = [masks[k] for k, a in attempts.items() if a["result"].ok]
-        if passed and same_object(isolation.mask_of(c), passed):
+        if passed and same_object(mask, passed):
             continue  # the same object again (another depth of plane removal): not worth a fit
-        judge(isolation, c)
+        judge(isolation, c, mask)
     if not any(a["result"].ok for a in attempts.values()):
         merged = 0
         for i, j in itertools.combinations(list(attempts), 2):
@@ -569,7 +575,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
             union = merged_candidate(isolation, i, j, d, intrinsics, category)
             if union is not None:
                 isolation, c = union
-                judge(isolation, c)
+                judge(isolation, c, isolation.mask_of(c))
                 verified[-1]["merged"] = [int(i), int(j)]
                 merged += 1
     found = select_objects([ObjectCandidate(c, a, masks[c]) for c, a in attempts.items()], _score,
