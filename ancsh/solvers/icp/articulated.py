@@ -12,7 +12,7 @@ Each iteration
 3. stops when no part moves by more than the tolerance.
 
 The data energy is the core's point-to-point :class:`~ancsh.solvers.terms.DataTerm`, plus
-(``point_to_plane=True``) the point-to-plane term of :mod:`ancsh.solvers.icp.terms`. Both
+(``point_to_plane=True``) the point-to-plane term of :mod:`ancsh.solvers.terms.data`. Both
 live on per-part moments, and each part's energy is weighted by its share of the weights,
 so the total is the classic ICP sum over points.
 

@@ -4,7 +4,7 @@ import casadi as ca
 import numpy as np
 
 from ancsh.geometry.rotations import exp_so3
-from ancsh.solvers.icp.terms import PointToPlaneTerm, plane_moments
+from ancsh.solvers.terms import PointToPlaneTerm, plane_moments
 from ancsh.solvers.terms import TERMS, Context, KinematicStructure, Params, PoseExpr, exp_so3_sx
 
 L = 1.7
