@@ -1,5 +1,4 @@
 """Articulated fitting: RANSAC initialisation, the formulations, and post-processing.
-Long: the fit's validated settings (FitConfig) and the one procedure that reads them (_Fit) belong together.
 
 :func:`fit` is the one entry point::
 
@@ -20,251 +19,33 @@ Every formulation shares the same pipeline:
 3. **Post-process** (paper Sec. 4.4): camera-space joint axes and pivots, joint states
    relative to rest, amodal boxes.
 
-Formulations (:data:`FORMULATIONS`): ``per_part`` (Umeyama + RANSAC), ``soft`` (paper Sec.
-4.3: data + lambda soft joint energies), ``exact_maximal`` (every part SE(3)+scale with exact
-joint equalities and limit inequalities, IPOPT), ``exact_reduced`` (object pose + joint
-states, joints exact by construction, limits as bounds; IPOPT, least squares or the projected Levenberg-Marquardt ``lm``).
+The configuration (:class:`FitConfig`, the formulations :data:`FORMULATIONS`) is :mod:`ancsh.solvers.formulations`;
+the result's assembly (camera-space joints, boxes, violations) is :mod:`ancsh.solvers.fit_result`. This module is the
+driver: validation of the call, RANSAC or the warm start, the solve loop, the covariances.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry._checks import check_bool, check_choice, check_generator, check_int, check_number
+from ..geometry._checks import check_generator
 from ..geometry.robust import robust_loss, robust_weights
-from ..geometry.boxes import OrientedBox, unit_diagonal
 from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
+from .fit_result import closed_form_costs, fit_result, postprocess
+from .formulations import FORMULATIONS, FitConfig, Formulation, has_limits
 from .terms import (
-    CanonicalParameters, CanonicalPriorTerm, CommonScaleTerm, DataTerm, ExactCommonScaleTerm, ExactJointTerm, JointLimitTerm,
-    NpcsBiasPriorTerm, PreviousSolution, ProgramInputs, ProgramStart, SoftJointTerm, TemporalPriorTerm, TermWeights,
+    CanonicalParameters, DataTerm, JointLimitTerm, PreviousSolution, ProgramInputs, ProgramStart, TemporalPriorTerm,
+    TermWeights,
 )
 from .types import Correspondences, FitResult, FitStatus, Observation
 
 __all__ = ["FORMULATIONS", "FitConfig", "Formulation", "fit"]
 
 _MIN_POINTS = 3
-SCALE_ESTIMATORS = ("umeyama", "symmetric", "reverse")
-FIT_ROBUST_KERNELS = ("huber", "cauchy")
-"""The kernels of :data:`ancsh.geometry.robust.ROBUST_LOSSES` that ``FitConfig.robust`` accepts
-(Tukey's zero weights could leave a part without points)."""
-
-
-@dataclass(frozen=True)
-class FitConfig:
-    """Settings of :func:`fit`, validated on construction.
-
-    Attributes
-    ----------
-    ransac : bool
-        Run RANSAC; ``False`` fits every part on all its points.
-    ransac_iterations : int
-        Maximum number of minimal samples (the loop stops early at ``ransac_confidence``).
-    ransac_confidence : float
-        In ``(0, 1]``.
-    inlier_threshold : float
-        Inlier distance in object diagonals (NAOCS units; the object's size in metres is
-        estimated from the RANSAC minimal-sample scales), ``> 0``.
-    rescore_rounds : int
-        After a solve, recompute the inliers with the solved poses and solve again (at most
-        this many times, stopping when the inliers do not change).
-    optimize_scale : bool
-        ``False`` keeps the initial per-part scales fixed as in the paper (reduced: one object
-        scale, the median over parts); ``True`` optimises log-scales.
-    scale_estimator : str
-        Initial per-part scale on the RANSAC inliers: ``"umeyama"`` (the least-squares scale of
-        the Umeyama fit, as in the paper; shrunk by noise on the NPCS coordinates) or
-        ``"symmetric"`` (the geometric mean of the forward and reverse least-squares scales,
-        i.e. the ratio of RMS spreads ``sqrt(var(p) / var(c))``: half the shrinkage under NPCS
-        noise) or ``"reverse"`` (default: the least-squares scale of the reverse regression, camera
-        onto NPCS, ``var(p) / tr(R^T cov(p, c))``; NPCS noise does not shrink it, and the
-        translation of the NPCS origin, which carries the scale error times the distance from the
-        observed points to that origin, comes out lower: ``docs/results/fit_translation.md``).
-        The translation is re-centred for the chosen scale.
-    soft_weight : float
-        ``lambda`` of the paper's soft joint energies (``soft``), ``>= 0``.
-    soft_mu : float
-        ``mu`` of the prismatic soft energy, ``>= 0``.
-    common_scale_weight : float
-        Weight of the soft common-object-scale term (``soft`` with ``optimize_scale``); 0 = off.
-        (``exact_maximal`` with ``optimize_scale`` holds one object scale exactly.)
-    naocs_prior_weight : float
-        0: the provider's canonical parameters (NPCS -> NAOCS translations ``G_t``, revolute
-        pivots) are taken as exact (as in the paper, :meth:`paper`). ``> 0`` (default 0.1): they
-        get offset variables with this prior weight (energy ``w |offset|^2`` in NAOCS units beside the data energies), so the joints
-        hold exactly for adjusted parameters that the data may move -- useful when the
-        provider's NAOCS parameters are noisy; the reported pivots use the adjusted values.
-    npcs_bias_weight : float
-        0 (default): off. ``> 0``: per-part NPCS-bias rotations about the NPCS origins in the data term,
-        prior ``w |b_j|^2`` (:class:`~ancsh.solvers.terms.NpcsBiasPriorTerm`; ``docs/results/fit_translation.md``).
-    npcs_scale_bias : bool
-        With ``npcs_bias_weight > 0``: each part's NPCS bias also scales about its origin (a log-scale under the
-        same prior, the data term weighted as the reverse regression in it; :meth:`~ancsh.solvers.terms.Context.data_pose`).
-        Default ``False``.
-    npcs_stretch_bias : bool
-        With ``npcs_scale_bias``: each part's NPCS bias also stretches about its origin (a symmetric traceless
-        matrix under the same prior), so the bias is any linear map near the identity -- what a per-part affine fit
-        absorbs. Point-to-point data term only. Default ``False``.
-    robust : str or None
-        ``None`` (least squares), ``"huber"`` or ``"cauchy"``: the robust data term, by IRLS on
-        the moments (each round reweights the points and re-solves with the same program).
-    robust_scale : float
-        Kernel scale in object diagonals, ``> 0``.
-    irls_iterations : int
-        IRLS rounds when ``robust`` is set, ``>= 1``.
-    enforce_limits : bool
-        Use the correspondences' joint limits (inequalities / bounds) when present.
-    max_iterations : int
-        Backend iteration limit.
-    tol : float
-        Backend tolerance.
-    box_extents : str
-        Amodal part boxes where the correspondences carry no NPCS extents (a learned provider): ``"max"``
-        (default: twice the largest |NPCS| of the part's inliers per axis) or ``"unit_diagonal"`` (the same, scaled
-        to the unit diagonal every NPCS box has: noise no longer inflates it; ``docs/results/box_extents.md``).
-    uncertainty : bool
-        Compute :attr:`FitResult.uncertainty` (Gauss-Newton covariances from the program's
-        Jacobian at the solution, :mod:`ancsh.solvers.uncertainty`; about 5 ms on a ~50 ms fit,
-        ``docs/results/uncertainty_calibration.md``).
-    """
-
-    ransac: bool = True
-    ransac_iterations: int = 200
-    ransac_confidence: float = 0.99
-    inlier_threshold: float = 0.1
-    rescore_rounds: int = 0
-    optimize_scale: bool = False
-    scale_estimator: str = "reverse"
-    soft_weight: float = 1.0
-    soft_mu: float = 1.0
-    common_scale_weight: float = 0.0
-    naocs_prior_weight: float = 0.1
-    npcs_bias_weight: float = 0.0
-    npcs_scale_bias: bool = False
-    npcs_stretch_bias: bool = False
-    robust: str | None = None
-    robust_scale: float = 0.02
-    irls_iterations: int = 5
-    enforce_limits: bool = True
-    max_iterations: int = 100
-    tol: float = 1e-10
-    box_extents: str = "max"
-    uncertainty: bool = True
-
-    def __post_init__(self):
-        for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty", "npcs_scale_bias", "npcs_stretch_bias"):
-            check_bool(getattr(self, name), name)
-        for name, lo in (("ransac_iterations", 1), ("rescore_rounds", 0), ("irls_iterations", 1), ("max_iterations", 1)):
-            check_int(getattr(self, name), name, minimum=lo)
-        for name, positive in (
-            ("inlier_threshold", True), ("soft_weight", False), ("soft_mu", False),
-            ("common_scale_weight", False), ("naocs_prior_weight", False), ("npcs_bias_weight", False), ("robust_scale", True), ("tol", True),
-        ):
-            check_number(getattr(self, name), name, minimum=0.0, lower_open=positive)
-        check_number(self.ransac_confidence, "ransac_confidence", minimum=0.0, maximum=1.0, lower_open=True)
-        check_choice(self.scale_estimator, "scale_estimator", SCALE_ESTIMATORS)
-        check_choice(self.box_extents, "box_extents", ("max", "unit_diagonal"))
-        if self.robust is not None and self.robust not in FIT_ROBUST_KERNELS:
-            raise ValueError(f"robust: expected None or one of {FIT_ROBUST_KERNELS}, got {self.robust!r}")
-        if self.npcs_scale_bias and not self.npcs_bias_weight > 0:
-            raise ValueError("npcs_scale_bias: needs the NPCS biases (npcs_bias_weight > 0)")
-        if self.npcs_stretch_bias and not self.npcs_scale_bias:
-            raise ValueError("npcs_stretch_bias: needs the NPCS scale biases (npcs_scale_bias=True)")
-
-    @classmethod
-    def paper(cls, **overrides) -> "FitConfig":
-        """The paper's choices: Umeyama scales kept fixed, canonical parameters taken as exact.
-
-        (RANSAC threshold 0.1 object diagonals as in the official code.) The defaults differ in
-        ``scale_estimator="reverse"`` and ``naocs_prior_weight=0.1``, which measured better on
-        oracle-corrupted procedural frames (lower rotation and translation errors;
-        ``docs/results/fit_translation.md``).
-        ``max_iterations=1000``: the official code runs ``scipy.optimize.least_squares`` with its
-        default evaluation budget (``100·n·(n+1)`` for finite-difference ``lm``, thousands here);
-        at the default 100, the soft energies stop short of convergence on a few percent of
-        learned eyeglasses frames, which would count as failures the paper's method does not have.
-        """
-        values = dict(scale_estimator="umeyama", naocs_prior_weight=0.0, optimize_scale=False, inlier_threshold=0.1,
-                      max_iterations=1000)
-        values.update(overrides)
-        return cls.from_dict(values)
-
-    @classmethod
-    def from_dict(cls, values: dict) -> "FitConfig":
-        """Build from a mapping; unknown keys raise ``ValueError`` naming them."""
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"config: unknown key(s) {unknown}; known: {sorted(known)}")
-        return cls(**values)
-
-
-def _has_limits(config: FitConfig, corr: Correspondences) -> bool:
-    return config.enforce_limits and corr.joint_limits is not None and bool(np.any(np.isfinite(corr.joint_limits)))
-
-
-_TERM_ENABLED = {
-    # A formulation's term is in its program unless this says otherwise for the config / data.
-    CommonScaleTerm: lambda config, corr: config.optimize_scale and config.common_scale_weight > 0,
-    # Optimised scales: one object scale, exactly (as in the reduced parameterisation).
-    ExactCommonScaleTerm: lambda config, corr: config.optimize_scale,
-    JointLimitTerm: _has_limits,
-    CanonicalPriorTerm: lambda config, corr: config.naocs_prior_weight > 0,
-    NpcsBiasPriorTerm: lambda config, corr: config.npcs_bias_weight > 0,
-}
-"""Conditions of the optional terms (a term not listed is always used)."""
-
-
-@dataclass(frozen=True)
-class Formulation:
-    """A fitting formulation: which program (parameterisation + terms) and which backends.
-
-    Attributes
-    ----------
-    name : str
-    description : str
-    solvers : tuple of str
-        Supported backends, the first being the default.
-    parameterisation : str or None
-        ``"maximal"``, ``"reduced"`` or ``None`` (closed form, no program).
-    term_classes : tuple of EnergyTerm subclasses
-        The program's terms in residual order; the optional ones (see ``_TERM_ENABLED``)
-        are kept or dropped by :meth:`terms`.
-    """
-
-    name: str
-    description: str
-    solvers: tuple
-    parameterisation: str | None
-    term_classes: tuple = ()
-
-    def terms(self, config: FitConfig, corr: Correspondences) -> tuple:
-        """The term classes of this formulation's program for ``config`` and ``corr``."""
-        return tuple(t for t in self.term_classes if _TERM_ENABLED.get(t, lambda *_: True)(config, corr))
-
-
-FORMULATIONS: dict[str, Formulation] = {
-    f.name: f
-    for f in (
-        Formulation("per_part", "per-part Umeyama + RANSAC (the paper's NPCS baseline)", ("umeyama",), None),
-        Formulation(
-            "soft", "paper Sec. 4.3: data + lambda * soft joint energies", ("lsq", "ipopt", "lm"), "maximal",
-            (DataTerm, SoftJointTerm, CommonScaleTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
-        ),
-        Formulation(
-            "exact_maximal", "every part SE(3)+scale, exact joint equalities, limit inequalities", ("ipopt",), "maximal",
-            (DataTerm, ExactJointTerm, ExactCommonScaleTerm, JointLimitTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
-        ),
-        Formulation(
-            "exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced",
-            (DataTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
-        ),
-    )
-}
-"""Formulations by name; loop over it to compare them."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -351,7 +132,7 @@ def fit(
     fitter = _Fit(observation, correspondences, form, solver, config, rng, start)
     fitter.warm_start, fitter.previous = warm_start, previous
     result = fitter.run()
-    if not (result.ok and _has_limits(config, correspondences)):
+    if not (result.ok and has_limits(config, correspondences)):
         return result
     from .limits import check_joint_range
 
@@ -408,7 +189,6 @@ class _Fit:
         self.warm_start: FitResult | None = None
         self.previous: PreviousSolution | None = None
 
-    # -- results ---------------------------------------------------------------------------
     def run(self) -> FitResult:
         """The fit's result; every failure raised below (:class:`_FitFailure`) becomes a status here."""
         try:
@@ -439,7 +219,7 @@ class _Fit:
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         if self.form.parameterisation is None:
             moments = self._moments(inliers, self.weights, L)
-            costs = self._data_costs(poses, L, moments)
+            costs = closed_form_costs(self.structure, self.canonical, poses, L, moments)
             uncertainty = self._uncertainty(poses, None, inliers, self.weights, moments, L)
             return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, costs,
                                 self.canonical, uncertainty)
@@ -647,7 +427,7 @@ class _Fit:
         """The start ``x``: joint states (reduced) read off the per-part poses, clipped to the limits."""
         states = None
         if prog.has_joint_states:
-            _, _, states = _postprocess(self.structure, poses, self.canonical)
+            _, _, states = postprocess(self.structure, poses, self.canonical)
             states = np.clip(states, limits[:, 0], limits[:, 1])
         return prog.initial_x(states)
 
@@ -687,49 +467,10 @@ class _Fit:
         return total
 
     # -- post-processing ------------------------------------------------------------------------
+
+    # -- the result ---------------------------------------------------------------------------
     def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical, uncertainty=None) -> FitResult:
-        axes, pivots, states = _postprocess(self.structure, poses, canonical)
-        violation = self._violation(poses, canonical, L)
-        boxes = tuple(self._box(j, T, inliers) for j, T in enumerate(poses))
-        return FitResult(
-            formulation=self.form.name, solver=self.solver, T_cam_npcs=tuple(poses), joint_axes_cam=axes,
-            joint_pivots_cam=pivots, joint_states=states, boxes_cam=boxes, status=status, message=message,
-            cost_per_term=costs, iterations=int(iterations), max_constraint_violation=violation, inliers=inliers,
-            time_s=time.perf_counter() - self.start, uncertainty=uncertainty, canonical=canonical,
-        )
-
-    def _violation(self, poses, canonical, L) -> float:
-        """Largest exact-joint or limit violation at the given poses."""
-        from .program import ProgramKey, get_program
-
-        prog = get_program(ProgramKey(self.structure, "maximal", False, (ExactJointTerm,) + ((JointLimitTerm,) if self.K else ())))
-        p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_npcs=tuple(poses))))
-        g = np.asarray(prog.constraints(prog.initial_x(), p)).ravel()
-        lo, hi = prog.constraint_bounds(self._limits())
-        return float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
-
-    def _data_costs(self, poses, L, moments: tuple) -> dict:
-        """``{"data": e}``: the data energy of the points with these moments at the given poses (closed-form fits)."""
-        from .program import ProgramKey, get_program
-
-        prog = get_program(ProgramKey(self.structure, "maximal", False, (DataTerm,)))
-        inputs = ProgramInputs(L, self.canonical, ProgramStart(T_cam_npcs=tuple(poses)), moments)
-        p = prog.pack(inputs)
-        return dict(zip(prog.cost_names, np.asarray(prog.term_costs(prog.initial_x(), p)).ravel().tolist()))
-
-    def _box(self, j: int, T: Sim3, inliers: np.ndarray) -> OrientedBox:
-        """Amodal box: the NPCS box (centred at the NPCS origin) mapped by the part pose."""
-        if self.corr.npcs_extents is not None:
-            extents = self.corr.npcs_extents[j]
-        else:
-            sel = inliers & (self.labels == j)
-            extents = 2.0 * np.max(np.abs(self.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
-            if self.config.box_extents == "unit_diagonal":
-                extents = unit_diagonal(extents)
-        return OrientedBox(T.translation, T.rotation, T.scale * extents)
-
-
-def _postprocess(structure, poses: list, canonical: CanonicalParameters):
-    from .program import postprocess_function
-
-    return postprocess_function(structure)(poses, canonical)
+        return fit_result(
+            self.structure, self.corr, poses, inliers, L, canonical, self._limits(), formulation=self.form.name,
+            solver=self.solver, status=status, message=message, iterations=iterations, costs=costs,
+            uncertainty=uncertainty, box_extents=self.config.box_extents, time_s=time.perf_counter() - self.start)
