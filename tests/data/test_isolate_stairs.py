@@ -6,7 +6,8 @@ import pytest
 import trimesh
 from scipy.ndimage import gaussian_filter
 
-from ancsh.data.isolate import _view_border, isolate_object
+from ancsh.data.isolate import isolate_object
+from ancsh.data.isolate.planes import view_border
 from ancsh.data.procedural import load_instance
 from ancsh.data.render import Intrinsics, ModelRenderer, look_at
 from ancsh.learned.inference.predict import MAX_VERIFIED
@@ -62,7 +63,7 @@ def test_the_view_border_includes_a_dead_band_joined_to_the_edge_but_not_holes_i
     gv = np.ones((40, 60), dtype=bool)
     gv[:, :5] = False  # dead band along the left edge
     gv[18:22, 28:32] = False  # a hole inside the image
-    border = _view_border(gv)
+    border = view_border(gv)
     assert not border[~gv].any()
     assert border[20, 5] and border[20, 7]  # beside the dead band
     assert not border[20, 26] and not border[17, 30]  # beside the inner hole: no border
@@ -89,7 +90,7 @@ def test_a_wall_seen_around_nearer_things_lies_behind_them_and_an_object_before_
 
 
 def test_a_door_parted_by_a_small_depth_step_is_attached_to_its_object_in_a_second_candidate():
-    from ancsh.data.isolate import _with_attached
+    from ancsh.data.isolate.proposals import with_attached
 
     seg = np.full((30, 30), -1)
     g = np.full((30, 30), 2.0)
@@ -98,17 +99,17 @@ def test_a_door_parted_by_a_small_depth_step_is_attached_to_its_object_in_a_seco
     seg[2:6, 14:18], g[2:6, 14:18] = 2, 1.6  # something far behind, touching it in the image
     seg[14:30, :], g[14:30, :] = 3, 1.02  # a larger neighbour close by: not attached to the smaller body
     sizes = np.bincount(seg[seg >= 0])
-    with_door = _with_attached(seg, 0, sizes, g, 0.15)
+    with_door = with_attached(seg, 0, sizes, g, 0.15)
     assert np.array_equal(with_door, np.isin(seg, [0, 1]))
-    assert np.array_equal(_with_attached(seg, 0, sizes, g, 0.05), seg == 0)  # a tighter gap: the body alone
-    assert np.array_equal(_with_attached(seg, 2, sizes, g, 0.15), seg == 2)  # nothing smaller touches it closely
-    assert np.array_equal(_with_attached(seg, 3, sizes, g, 0.15), np.isin(seg, [3, 0]))  # the body is smaller
+    assert np.array_equal(with_attached(seg, 0, sizes, g, 0.05), seg == 0)  # a tighter gap: the body alone
+    assert np.array_equal(with_attached(seg, 2, sizes, g, 0.15), seg == 2)  # nothing smaller touches it closely
+    assert np.array_equal(with_attached(seg, 3, sizes, g, 0.15), np.isin(seg, [3, 0]))  # the body is smaller
 
 
 def test_a_wide_region_without_depth_is_no_dead_band():
     gv = np.ones((40, 60), dtype=bool)
     gv[:, 30:] = False  # everything right of the middle beyond the sensor's range
-    border = _view_border(gv)
+    border = view_border(gv)
     assert not border[20, 28] and not border[20, 29]  # an object's edge against the background: not the view's end
     assert border[0, 10] and border[20, 0]
 
