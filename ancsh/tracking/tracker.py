@@ -1,5 +1,4 @@
 """Category-level tracking over a depth sequence: warm starts, fusion over time, carried correspondences.
-Long: one tracker whose steps (warm fits, carried and fused correspondences, carried templates) share its state.
 
 :class:`CategoryTracker` turns one observation after another into a :class:`TrackedFrame`:
 
@@ -47,394 +46,30 @@ Long: one tracker whose steps (warm fits, carried and fused correspondences, car
 Per-frame statuses (:class:`TrackStatus`): ``initialised`` (the first cold fit), ``tracked``
 (a warm fit), ``reinitialised`` (a cold fit after the track was lost or a warm fit failed),
 ``lost`` (no acceptable fit this frame).
+
+This module is the loop (:class:`CategoryTracker`); its settings are :mod:`ancsh.tracking.config`, its filter
+(predictions, fusion) :mod:`ancsh.tracking.fusion`, its cold fits and checks :mod:`ancsh.tracking.cold_fit`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry._checks import check_bool, check_choice, check_int, check_number
-from ..geometry.transforms import Sim3
-from ..solvers.fit import FORMULATIONS, FitConfig, fit
+from ..solvers.fit import FitConfig, fit
 from ..solvers.terms import PreviousSolution
 from ..solvers.types import FitResult, FitStatus, Observation
-from .instance import InstanceTracker, InstanceTrackerConfig
+from .cold_fit import check_fit, cold_fit, fit_frame
+from .config import TrackerConfig
+from .fusion import fitted_canonical, fused_canonical, predicted_fit, previous_solution, recentred
+from .instance import InstanceTracker
 from .records import TrackedFrame, TrackStatus, joint_state_std
 
 __all__ = ["CategoryTracker", "TrackStatus", "TrackedFrame", "TrackerConfig", "check_fit", "fit_frame",
            "fitted_canonical", "joint_state_std", "predicted_fit", "previous_solution"]
-
-
-@dataclass(frozen=True)
-class TrackerConfig:
-    """Settings of :class:`CategoryTracker` (validated on construction).
-
-    Attributes
-    ----------
-    network_every : int
-        Run the provider on every ``k``-th frame (1: every frame); frames in between use
-        correspondences carried by the previous fit.
-    formulation : str
-        A formulation with a program (:data:`ancsh.solvers.FORMULATIONS`).
-    solver : str or None
-        Its backend (default: the formulation's first).
-    temporal_weight : float
-        Weight of the pose part of the temporal prior (0: none), ``>= 0``.
-    temporal_state_weight : float
-        Weight of its joint-state part, ``>= 0``. Default 0: the constant-velocity prediction of a joint
-        state is poor where the joint swings (a laptop lid: 4-7 degrees off where the fits are 1-2), and the
-        prior pulled the fits toward it; measured with fusion on (``ancsh bench tracking``, k = 3, no
-        template), tracking / per-frame joint-state error 0.01 -> 0: laptop learned 1.61 -> 0.90, oracle
-        0.92 -> 0.49; drawer 1.0-1.1 either way.
-    fusion_weight : float
-        Weight of the carried correspondences in a network frame's fit, relative to the network's
-        (module docstring, item 3), ``>= 0``; 0: a network frame is fitted on the network's
-        correspondences alone (each network frame then a per-frame measurement). Default 2, measured with
-        ``ancsh bench tracking`` (k = 3, two sequences per object; tracking / per-frame rotation, translation,
-        joint state; laptop without its template) without -> with fusion: oracle drawer 1.12 / 1.56 / 1.68 ->
-        0.80 / 1.20 / 1.08, eyeglasses 0.98 / 1.97 / 1.03 -> 0.55 / 1.61 / 0.76, laptop 1.01 / 1.75 / 0.86 ->
-        0.67 / 1.41 / 0.49; learned drawer 1.04 / 1.07 / 1.05 -> 0.99 / 1.08 / 1.05, eyeglasses 0.91 / 0.96 /
-        0.86 -> 0.88 / 0.96 / 0.85, laptop 0.90 / 1.03 / 0.98 -> 0.84 / 1.02 / 0.90 (the learned errors are
-        mostly a per-instance bias, which no fusion removes). A fused network frame costs about a tenth more
-        than an unfused one (twice the rows, one closest-point match).
-    fusion_recentre : bool
-        Re-centre the carried rows of a fused fit on the network's (:func:`recentred`). Measured on oracle
-        laptop frames (re-centred along every direction): translation 2.07x per-frame without, 1.56x with.
-        Default ``True``.
-    recentre_threshold : float or None
-        Re-centre only along the directions a part's observed normals see less than this share of
-        (:func:`~ancsh.geometry.normals.sliding_projector`), ``> 0``; ``None``: along every direction.
-        Default 0.15, measured with ``ancsh bench tracking --categories drawer,eyeglasses --urdf none`` (two
-        sequences, k = 3; tracking / per-frame rotation, translation, joint state) ``None`` -> 0.15: oracle
-        drawer 0.80 / 1.20 / 1.08 -> 0.84 / 0.97 / 1.01, eyeglasses 0.55 / 1.61 / 0.74 -> 0.56 / 1.53 / 0.77;
-        learned drawer 1.00 / 1.06 / 1.07 -> 0.96 / 0.95 / 0.96, eyeglasses 0.99 / 0.99 / 0.84 -> 0.99 / 1.00 /
-        0.85; thresholds 0.08 and 0.3 alike. A normal estimate of the frame's points (a few milliseconds) per
-        fused frame. (With ``carried_iterations`` 3 as well: oracle translation 0.90 and 1.35, learned 0.93 and
-        1.01, at about twice a carried frame's cost.)
-    velocity : float
-        ``damping`` of the constant-velocity prediction, in ``[0, 1]`` (0: zero velocity).
-    carried_iterations : int
-        Closest-point matches and solves per frame on carried correspondences, ``>= 1`` (default
-        1: one match and one warm solve; 3 measured no more accurate on noisy frames at 3x the
-        cost, ``docs/results/tracking.md``).
-    carried_gate : float
-        Matches farther than this many object diagonals get weight 0, ``> 0``.
-    carried_uncertainty : bool
-        Compute the fit covariances (``FitConfig.uncertainty``) of carried frames (on their last
-        solve only; intermediate solves never do). Default ``True``: every tracked frame reports its
-        standard deviations (``ancsh bench tracking`` measures their coverage and the cost); ``False``
-        saves a fifth to a third of a carried frame's time (``docs/results/tracking.md``), and carried frames then report no
-        ``joint_states_std``. A carried frame's raw covariance counts the carried rows as data, which
-        they are not (they repeat the last network frame's errors): its inflation is measured per
-        source (``learned-tracked-carried``).
-    predict_from : str
-        Where the constant-velocity prediction (warm start and temporal prior) of a carried frame
-        takes its *object pose*: ``"network"`` (default) from the last two network frames of the track,
-        extrapolated by the frames since (``ahead`` of
-        :meth:`~ancsh.solvers.terms.PreviousSolution.constant_velocity`); ``"frames"`` from the last two
-        fits whatever their source. Joint states, and network frames, always use the last two fits.
-        (Measured on realistic oracle laptop frames: carried-frame translation error 0.015 vs 0.031
-        object diagonals; the carried ICP step hardly moves a thin part tangentially, so the prediction's
-        error stays, and two carried fits are a noisier velocity than two network fits.)
-    warm_rescore_rounds : int
-        Warm fits (network and carried frames) re-select their inliers with the solved poses and solve
-        again, at most this many times (``FitConfig.rescore_rounds`` of warm fits; the larger of the
-        two applies), ``>= 0``. A warm start's inliers are the points near the *predicted* pose: where the
-        prediction is off (a swinging eyeglasses temple) a part keeps too few of them and the fit fails
-        the plausibility check. Measured with the network on every frame (learned provider, benchmark
-        sequences): eyeglasses re-initialisations 22 -> 0 with 2 rounds (default), errors unchanged or lower.
-    network_scale : bool
-        Warm network frames re-estimate the object scale (its log-scale a variable of the solve,
-        ``FitConfig.optimize_scale``), pulled toward the predicted scale by the temporal prior's scale
-        part; carried frames keep the last fit's scale. ``False``: the scale of the (re-)initialisation
-        is kept for the whole track (one frame's scale error on every frame). Default ``True``.
-    template_categories : tuple of str
-        Categories whose tracks carry the category template refined at (re-)initialisation (see the
-        module docstring; the provider's category is ``category`` of :class:`CategoryTracker`). Default
-        ``("laptop",)``, measured on the benchmark's learned sequences (tracking / per-frame error, rotation,
-        translation, joint state): laptop 0.09, 0.68, 0.39; drawer 16, 2.9, 1.8 (the template ICP slid off the
-        drawers); eyeglasses 1.10, 1.22, 1.29. ``()``: never.
-    template_icp : InstanceTrackerConfig or None
-        The template's warm ICP (default: :class:`~ancsh.tracking.instance.InstanceTrackerConfig` without
-        its own cold multi-start: a frame it loses is re-initialised by the network). With its
-        ``uncertainty`` (default on) a template frame reports the ICP's covariance mapped to the fit's
-        frames (:func:`~ancsh.solvers.icp.category.template_fit_uncertainty`; scale variances unknown),
-        inflated for a learned provider by the factors measured on tracked template frames
-        (``learned-tracked-template``, ``ancsh bench tracking --calibration-sequences``), else by those of
-        single-frame template refinements (``learned-template``, ``ancsh bench uncertainty``).
-    template_reuse : bool
-        A re-initialisation after a loss first refines against the template chosen before the loss, at its scale
-        only (one articulated ICP run, about half the cost of the nearest-template choice with its scale search),
-        and falls back to the full refinement where that is not accepted: the object is assumed the same
-        when it comes back. Default ``True``, measured with ``ancsh bench tracking --categories laptop`` (learned,
-        two sequences, one loss each; tracking / per-frame rotation, translation, joint state and frame rate)
-        without -> with: 0.29 / 0.92 / 1.13 at 0.59x the per-frame rate -> 0.24 / 0.96 / 0.94 at 0.71x.
-    template_states : bool
-        While a category template is carried, the network still runs on every ``network_every``-th frame and a
-        quick fit warm from the template's gives its joint states; the template frames report their revolute
-        joint states moved by the recursive weighted mean (``fusion_weight`` on the past, the refinement the first)
-        of the differences, kept across a re-initialisation that reuses the template. The template's lid is not
-        the object's, and its ICP can settle degrees off the network's fit (on 2 of 10 learned test laptops 7-9
-        degrees at the refinement); the network's states are the slow part, the template's motion the fast one.
-        Default ``True``, measured with ``ancsh bench tracking --categories laptop --sequences 10`` (tracking /
-        per-frame rotation, joint state) without -> with: learned 0.37 / 1.69 -> 0.33 / 1.27, oracle 0.33 / 0.53
-        -> 0.49 / 0.49 (the oracle's noisier lid rotation pulls the template's), at a network pass and a quick fit
-        every ``network_every``-th template frame (laptop frames/s 0.7x of per-frame, 0.95x before). These
-        biased templates were real laptops of the library (the shared data); without the shared data the library
-        holds procedural laptops only, and there it bought nothing: learned joint-state error of frames 10-20 of
-        the first 16 test sequences 1.08 degrees without, 1.24 with.
-        ``False``: the network only re-initialises.
-    refine_network : bool
-        The provider's refinement network (``LearnedProvider(..., refine="network")``) sees each network frame's
-        points rotated into the predicted object orientation (CAPTRA's set-up: the previous frames' pose
-        canonicalises the input) instead of the first stage's camera-frame input; cold fits are refined by it
-        (:func:`~ancsh.learned.inference.refine_network.refine_with_network`). Default ``False``.
-    min_points : int
-        Fewer observed points: the frame is lost (no fit is tried).
-    max_relative_residual : float
-        A part whose median point-to-fit distance exceeds this many object diagonals makes a fit
-        implausible (``large_residual``), ``> 0``.
-    fit : FitConfig
-        Settings of every fit (RANSAC settings apply to the cold ones).
-    """
-
-    network_every: int = 1
-    formulation: str = "exact_reduced"
-    solver: str | None = None
-    temporal_weight: float = 0.01
-    temporal_state_weight: float = 0.0
-    velocity: float = 1.0
-    carried_iterations: int = 1
-    carried_gate: float = 0.1
-    carried_uncertainty: bool = True
-    predict_from: str = "network"
-    warm_rescore_rounds: int = 2
-    network_scale: bool = True
-    fusion_weight: float = 2.0
-    fusion_recentre: bool = True
-    recentre_threshold: float | None = 0.15
-    template_categories: tuple = ("laptop",)
-    template_icp: object = None
-    template_reuse: bool = True
-    template_states: bool = True
-    refine_network: bool = False
-    min_points: int = 100
-    max_relative_residual: float = 0.1
-    fit: FitConfig = field(default_factory=FitConfig)
-
-    def __post_init__(self):
-        for name, lo in (("network_every", 1), ("carried_iterations", 1), ("min_points", 3), ("warm_rescore_rounds", 0)):
-            object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=lo))
-        check_choice(self.formulation, "formulation", tuple(n for n, f in FORMULATIONS.items() if f.parameterisation))
-        if self.solver is not None:
-            check_choice(self.solver, "solver", FORMULATIONS[self.formulation].solvers)
-        for name in ("temporal_weight", "temporal_state_weight", "fusion_weight"):
-            check_number(getattr(self, name), name, minimum=0.0)
-        check_number(self.velocity, "velocity", minimum=0.0, maximum=1.0)
-        check_bool(self.carried_uncertainty, "carried_uncertainty")
-        check_bool(self.network_scale, "network_scale")
-        check_bool(self.fusion_recentre, "fusion_recentre")
-        if self.recentre_threshold is not None:
-            check_number(self.recentre_threshold, "recentre_threshold", minimum=0.0, lower_open=True)
-        check_bool(self.template_reuse, "template_reuse")
-        check_bool(self.template_states, "template_states")
-        check_bool(self.refine_network, "refine_network")
-        check_choice(self.predict_from, "predict_from", ("network", "frames"))
-        for name in ("carried_gate", "max_relative_residual"):
-            check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
-        if not isinstance(self.fit, FitConfig):
-            raise ValueError(f"fit: expected a FitConfig, got {type(self.fit).__name__}")
-        if isinstance(self.template_categories, str) or not all(isinstance(c, str) for c in self.template_categories):
-            raise ValueError(f"template_categories: expected a tuple of category names, got {self.template_categories!r}")
-        object.__setattr__(self, "template_categories", tuple(self.template_categories))
-
-        if self.template_icp is None:
-            object.__setattr__(self, "template_icp", InstanceTrackerConfig(reinitialise=False))
-        elif not isinstance(self.template_icp, InstanceTrackerConfig):
-            raise ValueError(f"template_icp: expected an InstanceTrackerConfig, got {type(self.template_icp).__name__}")
-
-
-def previous_solution(result: FitResult, correspondences, weight: float, state_weight: float) -> PreviousSolution:
-    """The :class:`PreviousSolution` of a fit: its object pose through the root part and its joint states.
-
-    Parameters
-    ----------
-    result : FitResult
-        A successful fit.
-    correspondences : Correspondences
-        The correspondences it was fitted on (their NPCS -> NAOCS map of the root part).
-    """
-    r = correspondences.root_part
-    T = result.T_cam_npcs[r]
-    sigma = T.scale / float(correspondences.npcs_scale[r])
-    origin = T.translation - sigma * (T.rotation @ np.asarray(correspondences.npcs_translation[r]))
-    return PreviousSolution(Sim3.unchecked(T.rotation, origin, sigma), np.asarray(result.joint_states), weight, state_weight)
-
-
-def fitted_canonical(correspondences, result: FitResult):
-    """``correspondences`` with the canonical parameters ``result`` was solved with (:attr:`FitResult.canonical`).
-
-    A fit with free canonical parameters (``FitConfig.naocs_prior_weight > 0``, the default) moves each
-    part's NPCS -> NAOCS translation and each pivot by solved offsets; the tracker's predictions
-    (:func:`previous_solution`, :func:`predicted_fit`) and carried correspondences must use the moved
-    ones, or forward kinematics of the object pose and joint states does not give back the fitted part
-    poses (measured on oracle eyeglasses: the temples moved by 3-6 mm along their length, which the
-    carried frames' closest-point matches cannot correct). Unchanged where the fit reports none.
-    """
-    c = getattr(result, "canonical", None)
-    if c is None:
-        return correspondences
-    return dataclasses.replace(correspondences, npcs_translation=c.npcs_translation, joint_pivots_naocs=c.joint_pivots_naocs)
-
-
-def recentred(carried, network, points_cam, T_cam_npcs, gate: float, threshold: float | None = None):
-    """``carried`` correspondences restricted to the points the network's rows keep and shifted to agree with
-    them on each part's position along the directions their closest-point matches cannot see.
-
-    A point keeps its carried weight where the carried and the network's label agree and the network's
-    NPCS coordinate, posed at ``T_cam_npcs`` (the warm start), lies within ``gate`` metres of it (the
-    warm fit's own inlier rule); each part's carried NPCS coordinates are then shifted so that their
-    mean over those points equals the network's. The data term's translation of a part is then the
-    same for either set of rows at any rotation and scale: in a fused fit the carried rows inform the
-    parts' rotations (and the joint states through them), the network's rows their positions -- closest-
-    point matches reproduce the predicted pose along a thin part (they cannot see a slide along it),
-    where the network's positions are unbiased. Along the directions the part's surface normals do see
-    (:func:`~ancsh.geometry.normals.sliding_projector` of the normals of its observed points, ``threshold``),
-    the carried rows keep their position: there the closest-point matches hold the previous estimate moved
-    by the observed motion, and the fused fit averages positions over time. ``threshold`` ``None``: every
-    direction is re-centred.
-
-    Parameters
-    ----------
-    carried, network : Correspondences
-        Of the same ``N`` points.
-    points_cam : (N, 3) float64
-        The points (camera frame, metres).
-    T_cam_npcs : sequence of Sim3
-        ``(M,)`` part poses at which the network's inliers are judged.
-    gate : float
-        Metres.
-    threshold : float or None
-        Of :func:`~ancsh.geometry.normals.sliding_projector`, ``> 0`` (``None``: re-centre along every direction).
-    """
-    from ..geometry.normals import estimate_normals, sliding_projector
-
-    if threshold is not None:
-        threshold = check_number(threshold, "threshold", minimum=0.0, lower_open=True)
-    pts = np.asarray(points_cam, dtype=np.float64)
-    normals = None if threshold is None or pts.shape[0] < 3 else estimate_normals(pts)
-    npcs = np.array(carried.npcs, dtype=np.float64, copy=True)
-    w = np.ones(carried.num_points) if carried.weights is None else np.array(carried.weights, dtype=np.float64)
-    keep = np.zeros(carried.num_points, dtype=bool)
-    for j, T in enumerate(T_cam_npcs):
-        sel = (carried.part_labels == j) & (network.part_labels == j) & (w > 0)
-        sel[sel] = np.linalg.norm(T.apply(network.npcs[sel]) - pts[sel], axis=1) <= gate
-        keep |= sel
-        if np.count_nonzero(sel) >= 3:
-            shift = network.npcs[sel].mean(axis=0) - carried.npcs[sel].mean(axis=0)
-            if normals is not None:  # the sliding directions, camera frame -> this part's NPCS
-                shift = T.rotation.T @ sliding_projector(normals[sel], threshold) @ T.rotation @ shift
-            npcs[sel] += shift
-    return dataclasses.replace(carried, npcs=npcs, weights=np.where(keep, w, 0.0))
-
-
-def fused_canonical(network, previous, weight: float):
-    """``network`` correspondences with canonical parameters averaged with ``previous``'s (weight ``weight``
-    on them): NPCS -> NAOCS scales and translations, joint pivots, and joint axes (normalised) --
-    the recursive fusion of tracking applied to the per-frame estimates of the canonical parameters
-    (``TrackerConfig.fusion_weight``). ``network`` unchanged where the joint types differ."""
-    if previous.num_parts != network.num_parts or tuple(previous.joint_types) != tuple(network.joint_types):
-        return network
-    a = 1.0 / (1.0 + weight)
-    mix = lambda new, old: a * np.asarray(new, dtype=np.float64) + (1.0 - a) * np.asarray(old, dtype=np.float64)  # noqa: E731
-    axes = mix(network.joint_axes_naocs, previous.joint_axes_naocs)
-    norms = np.linalg.norm(axes, axis=1, keepdims=True)
-    axes = np.where(norms > 1e-9, axes / np.maximum(norms, 1e-12), network.joint_axes_naocs)
-    return dataclasses.replace(network, npcs_scale=mix(network.npcs_scale, previous.npcs_scale),
-                               npcs_translation=mix(network.npcs_translation, previous.npcs_translation),
-                               joint_pivots_naocs=mix(network.joint_pivots_naocs, previous.joint_pivots_naocs),
-                               joint_axes_naocs=axes)
-
-
-def predicted_fit(result: FitResult, correspondences, prediction: PreviousSolution) -> FitResult:
-    """``result`` with its part poses moved to a predicted object pose and joint states (forward
-    kinematics of the reduced program with ``correspondences``' canonical parameters), as a warm start."""
-    from ..solvers.program import ProgramKey, get_program
-    from ..solvers.terms import CanonicalParameters, KinematicStructure, ProgramInputs, ProgramStart
-
-    prog = get_program(ProgramKey(KinematicStructure.from_correspondences(correspondences), "reduced", False, ()))
-    canonical = CanonicalParameters.of(correspondences, correspondences.joint_limits)
-    T = prediction.T_cam_naocs
-    states = prediction.joint_states
-    if correspondences.joint_limits is not None:
-        states = np.clip(states, correspondences.joint_limits[:, 0], correspondences.joint_limits[:, 1])
-    p = prog.pack(ProgramInputs(T.scale, canonical, ProgramStart(T_cam_naocs=T)))
-    poses = prog.unpack(prog.initial_x(states), p).T_cam_npcs
-    return dataclasses.replace(result, T_cam_npcs=tuple(poses))
-
-
-def check_fit(result: FitResult, points_cam, correspondences, category: str | None, max_relative_residual: float) -> FitResult:
-    """The fit, or a copy with the failed status of the first plausibility check it fails.
-
-    The checks of ``ancsh predict`` (:func:`ancsh.learned.inference.predict.check_plausibility`: inliers,
-    the category's size range, its residual limit), then a residual limit relative to the
-    fitted object: a part (with at least 20 points) whose median distance between its points and
-    their fitted NPCS exceeds ``max_relative_residual`` object diagonals is ``large_residual``.
-    """
-
-    from ..learned.inference.predict import check_plausibility, part_quality
-
-    if not result.ok:
-        return result
-    quality = part_quality(result, points_cam, correspondences)
-    checked = check_plausibility(result, correspondences.part_labels, category, quality)
-    if not checked.ok:
-        return checked
-    L = float(np.median([T.scale / g for T, g in zip(result.T_cam_npcs, correspondences.npcs_scale)]))
-    for j, q in enumerate(quality):
-        if q["points"] >= 20 and q["residual_m"] > max_relative_residual * L:
-            return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
-                f"check residual: part {j}'s points lie {q['residual_m'] / L:.3g} object diagonals (median) from the fit, "
-                f"above {max_relative_residual}"))
-    return result
-
-
-def fit_frame(provider, observation: Observation, config: TrackerConfig, category: str | None = None, rng=0):
-    """An independent (cold) fit of one frame: the provider, RANSAC + the formulation, the checks.
-
-    Returns ``(FitResult, Correspondences or None)``; fewer than ``config.min_points`` points give
-    ``too_few_points`` without calling the provider. This is the per-frame baseline of tracking
-    and the tracker's re-initialisation.
-    """
-    result, corr, _ = _cold_fit(provider, observation, config, category, rng)
-    return result, corr
-
-
-def _cold_fit(provider, observation: Observation, config: TrackerConfig, category: str | None, rng):
-    """:func:`fit_frame` and whether its result rests on the refinement network's correspondences:
-    ``(FitResult, Correspondences or None, refined)``."""
-    if observation.num_points < config.min_points:
-        return FitResult.failure(FitStatus.TOO_FEW_POINTS, f"{observation.num_points} points, at least {config.min_points} "
-                                 "are needed for a fit", formulation=config.formulation, solver="none",
-                                 num_points=observation.num_points), None, False
-    corr = provider.correspond(observation)
-    result = fit(observation, corr, config.formulation, config.solver, config.fit, rng=rng)
-    checked = check_fit(result, observation.points_cam, corr, category, config.max_relative_residual)
-    if config.refine_network and checked.ok:  # the refined fit where it passes the checks too
-        from ..learned.inference.refine_network import refine_with_network
-
-        ref = refine_with_network(provider.refiner, observation, result, formulation=config.formulation,
-                                  config=config.fit, rng=rng)
-        if ref.accepted:
-            refined = check_fit(ref.result, observation.points_cam, ref.inference.correspondences, category,
-                                config.max_relative_residual)
-            if refined.ok:
-                return refined, ref.inference.correspondences, True
-    return checked, corr, False
 
 
 @dataclass
@@ -530,7 +165,7 @@ class CategoryTracker:
                 return self._frame(index, TrackStatus.TRACKED, result.message, result, source, t0,
                                    refined=self._track.refined)
             why = f"warm fit failed ({result.status.value}: {result.message}); "
-        result, corr, by_refiner = _cold_fit(self.provider, observation, cfg, self.category, self.rng)
+        result, corr, by_refiner = cold_fit(self.provider, observation, cfg, self.category, self.rng)
         if not result.ok:
             self._track = None
             return self._lost(index, f"{why}cold fit failed ({result.status.value}: {result.message})", t0)
