@@ -22,10 +22,7 @@ from __future__ import annotations
 
 import importlib
 
-from . import _moved
 from ._version import __version__  # noqa: F401  (ancsh.__version__)
-
-_moved.install()  # old module names (before the 0.1 re-layout) stay importable for one release
 
 _SUBPACKAGES = ("geometry", "model", "data", "solvers", "evaluation", "learned", "tracking", "studies", "cli")
 

@@ -1,13 +1,9 @@
 """The layout of docs/ARCHITECTURE.md, enforced: imports run from a higher floor to a lower one (or within one
-floor), no module imports itself through others (no circles), modules over 700 lines say why, and the old module
-names of the 0.1 re-layout still import, with a deprecation warning."""
+floor), no module imports itself through others (no circles), and modules over 700 lines say why."""
 
 from __future__ import annotations
 
 import ast
-import importlib
-import sys
-import warnings
 from pathlib import Path
 
 import pytest
@@ -20,7 +16,7 @@ MAX_LINES = 700
 # Floors from the bottom up (docs/ARCHITECTURE.md's picture). A module belongs to the floor of the longest prefix
 # of its name listed here; it may import its own floor and the floors below it, never one above.
 FLOORS = [
-    ("infrastructure", ("ancsh._version", "ancsh._machine", "ancsh._moved", "ancsh.outputs", "ancsh.executors")),
+    ("infrastructure", ("ancsh._version", "ancsh._machine", "ancsh.outputs", "ancsh.executors")),
     ("geometry", ("ancsh.geometry",)),
     ("model", ("ancsh.model",)),
     ("data", ("ancsh.data",)),
@@ -167,38 +163,3 @@ def test_the_long_module_check_asks_for_a_reason(tmp_path):
 
 def test_long_modules_say_why():
     assert unexplained_long_modules(sorted(PACKAGE.rglob("*.py"))) == []
-
-
-@pytest.mark.parametrize("old", sorted(importlib.import_module("ancsh._moved").MOVED))
-def test_old_module_names_still_import_with_a_deprecation_warning(old):
-    from ancsh._moved import MOVED
-
-    new = MOVED[old]
-    new_names = (new,) if isinstance(new, str) else new
-    sys.modules.pop(old, None)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        module = importlib.import_module(old)
-    assert any(issubclass(w.category, DeprecationWarning) and old in str(w.message) for w in caught)
-    for name in new_names:
-        target = importlib.import_module(name)
-        for public in getattr(target, "__all__", ()):
-            if isinstance(new, str):
-                assert getattr(module, public) is getattr(target, public)
-            else:
-                assert hasattr(module, public)
-    if isinstance(new, str):
-        assert module is importlib.import_module(new) and module.__spec__.name == new
-
-
-MOVED_NAMES = importlib.import_module("ancsh._moved").MOVED_NAMES
-
-
-@pytest.mark.parametrize("module, name", sorted((m, n) for m, names in MOVED_NAMES.items() for n in names))
-def test_names_that_left_a_module_still_import_from_it_with_a_warning(module, name):
-    old = importlib.import_module(module)
-    with pytest.warns(DeprecationWarning, match=f"{module}.{name} moved"):
-        value = getattr(old, name)
-    assert value is getattr(importlib.import_module(MOVED_NAMES[module][name]), name)
-    with pytest.raises(AttributeError):
-        old.no_such_name_here

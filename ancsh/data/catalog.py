@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import _moved
 from ..outputs import write_bytes_atomically
 from .importer import ImportedObject, ImportRejected, _guess_category, _object_name, assign_splits, import_object
 
@@ -258,7 +257,3 @@ def draw_preview_sheet(objects, out, *, title: str = "", points_per_part: int = 
     out = Path(out)
     write_bytes_atomically(out, buf.getvalue())
     return out
-
-
-# ranges_report, write_import_report: moved to ancsh.studies.catalog_reports (importable from here until 0.2)
-__getattr__ = _moved.moved_names(__name__)

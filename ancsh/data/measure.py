@@ -44,7 +44,6 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .. import _moved
 from ..model.articulated import ArticulatedModel
 from .conventions import CategoryConvention, part_vertices_canonical
 
@@ -242,7 +241,3 @@ def procedural_summary(category: str, n: int, split: str = "train") -> dict:
         raise ValueError(f"n: expected an int in [1, {len(seeds)}] for split {split!r}, got {n!r}")
     conv = convention(category)
     return summarize([measure_instance(make_object(category, s), conv) for s in seeds[:n]])
-
-
-# ranges_table: moved to ancsh.studies.catalog_reports (importable from here until 0.2)
-__getattr__ = _moved.moved_names(__name__)
