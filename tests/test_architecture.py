@@ -27,6 +27,7 @@ FLOORS = [
     ("learned.inference", ("ancsh.learned.inference",)),
     ("learned.training", ("ancsh.learned.training",)),
     ("tracking", ("ancsh.tracking",)),
+    ("service", ("ancsh.service",)),
     ("studies", ("ancsh.studies",)),
     ("commands", ("ancsh.cli", "ancsh.__main__", "ancsh")),
 ]

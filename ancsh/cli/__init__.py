@@ -45,6 +45,7 @@ EXAMPLES = {
     "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~30 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
+    "serve": "ancsh serve --root frames/ --categories laptop   # then: curl -s localhost:8765/health",
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
     "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
@@ -65,6 +66,7 @@ COMMAND_MODULES = [
     "ancsh.cli.bench",
     "ancsh.cli.cad",
     "ancsh.cli.track",
+    "ancsh.cli.serve",
 ]
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["JsonLinesWriter", "depth_files", "track_files"]
+__all__ = ["JsonLinesWriter", "depth_files", "track_depth", "track_files"]
 
 _SUFFIXES = (".png", ".npy")
 
@@ -125,8 +125,6 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
         The records (see ``docs/json_schema.md``, ``ancsh.track/1``).
     """
     from ..data.images import read_depth, read_mask
-    from ..learned.inference.predict import depth_to_points
-    from ..solvers.types import Observation
 
     if isolate and mask_dir is None and category is None:
         raise ValueError("category: isolating the object needs its category (or give masks, or isolate=False)")
@@ -145,23 +143,46 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
         except (ValueError, FileNotFoundError, OSError) as exc:
             rec = _lost_record(i, path, f"unreadable frame: {exc}", num_joints)
         else:
-            if mask is None and isolate and np.any(depth > 0):
-                from ..data.isolate import isolate_object
-                from ..learned.inference.predict import ISOLATION_SEED
-
-                # seeded like predict's isolation: the segments are a function of the image, not of the seed
-                mask = isolate_object(depth, intrinsics, category, max_depth=max_depth, rng=ISOLATION_SEED).mask
-            try:
-                points = depth_to_points(depth, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points,
-                                         rng=seed + i)[0]
-            except ValueError:  # no valid pixel: an empty frame
-                points = np.zeros((0, 3))
-            tracked = tracker.step(Observation(points))
-            rec = tracked.to_dict()
-            rec["frame"], rec["file"] = i, path.name
+            rec = track_depth(depth, intrinsics, tracker, i, mask=mask, category=category, isolate=isolate,
+                              max_depth=max_depth, num_points=num_points, seed=seed)
+            rec["file"] = path.name
         records.append(rec)
         if writer is not None:
             writer.write(rec)
         if progress is not None:
             progress(rec)
     return records
+
+
+def track_depth(depth, intrinsics, tracker, index: int, *, mask=None, category: str | None = None, isolate: bool = True,
+                max_depth: float | None = None, num_points: int = 1024, seed: int = 0) -> dict:
+    """One frame of a track: the object's pixels (``mask``, or isolation seeded like ``predict``'s, or every valid
+    pixel), ``num_points`` of them sampled (seed ``seed + index``) and the tracker stepped; the frame's record
+    (``ancsh.track/1`` without its ``file``).
+
+    Parameters
+    ----------
+    depth : (H, W) float64
+        Metres, 0 = no measurement.
+    intrinsics : Intrinsics
+    tracker : CategoryTracker or InstanceTracker
+    index : int
+        The frame's number in the sequence.
+    """
+    from ..learned.inference.predict import depth_to_points
+    from ..solvers.types import Observation
+
+    if mask is None and isolate and np.any(depth > 0):
+        from ..data.isolate import isolate_object
+        from ..learned.inference.predict import ISOLATION_SEED
+
+        # seeded like predict's isolation: the segments are a function of the image, not of the seed
+        mask = isolate_object(depth, intrinsics, category, max_depth=max_depth, rng=ISOLATION_SEED).mask
+    try:
+        points = depth_to_points(depth, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points,
+                                 rng=seed + index)[0]
+    except ValueError:  # no valid pixel: an empty frame
+        points = np.zeros((0, 3))
+    rec = tracker.step(Observation(points)).to_dict()
+    rec["frame"] = index
+    return rec
