@@ -72,6 +72,9 @@ def register(sub) -> None:
                    help="with --urdf: align the best N templates to the depth by articulated ICP, each at its size and "
                    "4%% smaller and larger (default 3, about 2.7 s in all: the URDF's pose, joint states and size are then the "
                    "aligned model's, which explains the depth better; 0: the fit's own pose and joint states)")
+    p.add_argument("--workers", type=positive_int, default=1, metavar="N",
+                   help="with a folder --depth: predict its images in N processes, each loading the network once "
+                   "(default 1); the results do not depend on N")
     add_device_argument(p)
     p.set_defaults(func=run_predict)
     p.epilog = "A failed status (too_few_points, implausible_size, too_few_inliers, ...) exits with code 1."
@@ -229,6 +232,8 @@ def run_predict(args: argparse.Namespace) -> int:
     intr = read_intrinsics(args.intrinsics)
     if args.depth.is_dir():
         return _predict_folder(args, intr, hint)
+    if args.workers != 1:
+        raise ValueError("--workers: one image is predicted in one process; give a folder --depth to use workers")
     depth = read_depth(args.depth, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
     mask = None if args.mask is None else read_mask(args.mask, depth.shape)
     rgb = None if args.rgb is None else read_rgb(args.rgb, depth.shape)
@@ -303,13 +308,13 @@ def _print_object(pred, data: dict, *, skip_notes: int = 0) -> None:
 
 
 def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
-    """``ancsh predict --depth DIR``: every depth image of a folder, one JSON (and picture) each, a progress bar."""
+    """``ancsh predict --depth DIR``: every depth image of a folder, one JSON (and picture) each, a progress bar;
+    ``--workers N`` processes, each loading the network once."""
     from tqdm import tqdm
 
-    from ..data.show import save_figure
+    from ..executors import LocalExecutor
+    from ..learned.inference.folder import FolderOptions, predict_folder
     from ..outputs import fresh_output_dir
-    from ..learned.inference.predict import check_weights_category, draw_prediction, predict_depth, read_depth
-    from ..learned.inference.provider import LearnedProvider
 
     files = sorted(p for p in args.depth.iterdir() if p.suffix.lower() in (".png", ".npy") and not p.is_dir())
     if not files:
@@ -322,29 +327,18 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if args.png is not None:
         args.png.mkdir(parents=True, exist_ok=True)
-    provider = LearnedProvider(args.category if args.weights is None else args.weights, seed=args.seed, refine=args.refine,
-                               refiner=args.refiner, device=_device(args), **_passes(args))
-    if args.weights is not None:
-        check_weights_category(provider, args.category, args.weights)
-    statuses = {}
-    for path in tqdm(files, desc=f"predict {args.category}", unit="image", dynamic_ncols=True):
-        try:
-            depth = read_depth(path, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
-            pred = predict_depth(depth, intr, args.category, max_depth=args.max_depth, provider=provider,
-                                 formulation=args.formulation, num_points=args.points, seed=args.seed,
-                                 isolate=not args.no_isolate, hint=hint, max_objects=args.max_objects,
-                                 **_hypotheses(args))
-        except (ValueError, OSError) as exc:  # one bad image (or a dangling link) does not stop the others
-            statuses[path.name] = f"error: {exc}"
-            continue
-        data = pred.to_json()
-        data["input"] = {"depth": str(path), "intrinsics": intr.to_json(), "depth_scale": args.depth_scale,
-                         "max_depth": args.max_depth, "seed": args.seed, "pixel": args.pixel, "box": args.box,
-                         "isolate": not args.no_isolate}
-        write_bytes_atomically(out / f"{path.stem}.json", (json.dumps(data, indent=1) + "\n").encode())
-        if args.png is not None:
-            save_figure(draw_prediction(depth, pred, intr), args.png / f"{path.stem}.png")
-        statuses[path.name] = pred.result.status.value
+    provider = dict(seed=args.seed, refine=args.refine, refiner=None if args.refiner is None else str(args.refiner),
+                    device=str(_device(args)), **_passes(args), **({"num_threads": 1} if args.workers > 1 else {}))
+    options = FolderOptions(
+        category=args.category, intrinsics=intr, depth_scale=args.depth_scale,
+        weights=None if args.weights is None else str(args.weights), provider=provider,
+        predict=dict(max_depth=args.max_depth, formulation=args.formulation, num_points=args.points, seed=args.seed,
+                     isolate=not args.no_isolate, hint=hint, max_objects=args.max_objects, **_hypotheses(args)),
+        input={"max_depth": args.max_depth, "seed": args.seed, "pixel": args.pixel, "box": args.box,
+               "isolate": not args.no_isolate})
+    with tqdm(total=len(files), desc=f"predict {args.category}", unit="image", dynamic_ncols=True) as bar:
+        statuses = predict_folder(files, options, out, args.png, executor=LocalExecutor(workers=args.workers),
+                                  progress=lambda: bar.update(1))
     for name, status in statuses.items():
         print(f"  {name}: {status}")
     good = sum(s == "success" for s in statuses.values())

@@ -220,3 +220,36 @@ def test_refinements_sharing_the_first_stage_give_each_refinements_own_fit(rende
     assert not np.allclose(t[0], t[1]) and not np.allclose(t[1], t[2])
     with pytest.raises(ValueError, match="refinements"):
         fit_candidate_refinements(*args, ())
+
+
+def test_a_folder_gives_the_same_files_with_one_and_two_workers(files, rendered, capsys):
+    """``--workers 2``: two processes, each loading the network once; every image's JSON as with one worker."""
+    frames = files / "frames"
+    frames.mkdir()
+    depth = read_depth(files / "depth.png")
+    for i, shift in enumerate((0.0, 0.05, 0.1)):  # the laptop nearer and farther
+        np.save(frames / f"f{i}.npy", np.where(depth > 0, depth + shift, 0.0))
+    results = {}
+    for workers in (1, 2):
+        out = files / f"out{workers}"
+        code = main(["predict", "--depth", str(frames), "--intrinsics", str(files / "K.json"), "--category", "laptop",
+                     "--hypotheses", "1", "--workers", str(workers), "--out", str(out)])
+        assert code in (0, 1) and "3 images" in capsys.readouterr().out.replace("of 3 images", "3 images")
+        results[workers] = {p.name: json.loads(p.read_text()) for p in sorted(out.glob("*.json"))}
+    assert sorted(results[1]) == ["f0.json", "f1.json", "f2.json"]
+    for name in results[1]:
+        assert _without_times(results[1][name]) == _without_times(results[2][name])
+    assert main(["predict", "--depth", str(files / "depth.png"), "--intrinsics", str(files / "K.json"), "--category",
+                 "laptop", "--workers", "2"]) == 2
+    assert "--workers: one image is predicted in one process" in capsys.readouterr().err
+
+
+def _without_times(x):
+    """``x`` without its timings (the one thing two runs of the same prediction may differ in)."""
+    if isinstance(x, dict):
+        return {k: _without_times(v) for k, v in x.items() if k not in ("timings_ms", "time_ms")}
+    if isinstance(x, list):
+        return [_without_times(v) for v in x]
+    if isinstance(x, str):  # the notes say how long a step took
+        return re.sub(r"\d+(\.\d+)? ms", "<time> ms", x)
+    return x
