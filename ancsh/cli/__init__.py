@@ -53,6 +53,7 @@ EXAMPLES = {
     "bench sensor-realism": "ancsh bench sensor-realism --frames 5   # real frames' sensor artefacts against renders",
     "bench scenes": "ancsh bench scenes --categories box laptop --frames 5 --stress-frames 4 --seeds 0 1 2   # rendered "
                     "scenes: single objects, then two or three of one category",
+    "bench latency": "ancsh bench latency --stress-frames 2 --repeats 2   # warm, cold, stages, serve, workers",
     "bench mask-refusal": "ancsh bench mask-refusal --categories laptop box --frames 20   # what p_object refuses "
                           "under a mask",
 }
