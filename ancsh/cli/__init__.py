@@ -71,7 +71,13 @@ COMMAND_MODULES = [
 ]
 
 
-def build_parser() -> argparse.ArgumentParser:
+#: The help line of ``ancsh bench`` (also where its benchmarks are not registered).
+BENCH_HELP = "benchmarks that print throughput / accuracy numbers"
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``ancsh`` parser. Given the ``command`` that will run, the benchmarks' parsers (which import their
+    studies' settings, a few tenths of a second) are built only for ``bench``."""
     parser = argparse.ArgumentParser(
         prog="ancsh",
         description="Category-level articulated object pose estimation from a single depth image (ANCSH).",
@@ -79,6 +85,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"ancsh {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
+        if name == "ancsh.cli.bench" and command not in (None, "bench"):
+            sub.add_parser("bench", help=BENCH_HELP)  # not run: its benchmarks' options are not needed
+            continue
         importlib.import_module(name).register(sub)
     _add_examples(sub, "")
     return parser
@@ -115,8 +124,9 @@ def _join_signed_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(_join_signed_values(list(sys.argv[1:] if argv is None else argv)))
+    argv = _join_signed_values(list(sys.argv[1:] if argv is None else argv))
+    parser = build_parser(next((a for a in argv if not a.startswith("-")), None))
+    args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

@@ -31,7 +31,9 @@ BENCH_MODULES = [
 
 
 def register(sub) -> None:
-    p = sub.add_parser("bench", help="benchmarks that print throughput / accuracy numbers")
+    from .. import BENCH_HELP
+
+    p = sub.add_parser("bench", help=BENCH_HELP)
     bench_sub = p.add_subparsers(dest="bench", metavar="BENCHMARK")
     p.set_defaults(func=lambda args: _help(p))
     for entry in BENCH_MODULES:

@@ -25,14 +25,17 @@ The child frame has its origin on the hinge line and the base's axes at state 0.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
 
 from ...geometry.transforms import SE3
 from ...model.articulated import Joint
 from . import _mesh as m
 from .registry import REVOLUTE
+
+if TYPE_CHECKING:  # (imported where a mesh is made: not at import, it takes a second)
+    import trimesh
 
 HINGES = ("left", "right", "bottom", "top", "top_left", "top_right")
 

@@ -10,14 +10,20 @@ mesh is the concatenation of several such pieces (no boolean unions needed).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import trimesh
 
 from ...geometry.rotations import axis_angle_matrix
+
+if TYPE_CHECKING:  # (imported where a mesh is made: not at import, it takes a second)
+    import trimesh
 
 
 def box(extents, center=(0.0, 0.0, 0.0)) -> trimesh.Trimesh:
     """Axis-aligned box of ``extents`` (3,) centred at ``center`` (3,)."""
+    import trimesh
+
     T = np.eye(4)
     T[:3, 3] = center
     return trimesh.creation.box(extents=np.asarray(extents, dtype=np.float64), transform=T)
@@ -79,6 +85,8 @@ def prism(outline, depth: float) -> trimesh.Trimesh:
 def ring_prism(outer, inner, depth: float) -> trimesh.Trimesh:
     """Closed extrusion along z of the region between ``outer`` and ``inner`` (both (N, 2), ccw,
     sampled at matching parameters); ``inner=None`` gives a solid prism (fan-capped)."""
+    import trimesh
+
     outer = np.asarray(outer, dtype=np.float64)
     n = len(outer)
     z0, z1 = -depth / 2, depth / 2
@@ -156,6 +164,8 @@ def rotated(mesh: trimesh.Trimesh, axis, angle: float, center=(0.0, 0.0, 0.0)) -
 
 def concat(pieces) -> trimesh.Trimesh:
     """One mesh made of several closed pieces (vertices not merged)."""
+    import trimesh
+
     pieces = list(pieces)
     if not pieces:
         raise ValueError("pieces: need at least one mesh piece")
