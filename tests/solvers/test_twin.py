@@ -308,3 +308,42 @@ def test_a_model_written_tilted_so_no_axis_is_horizontal_loads_back(tmp_path):
     path = write_urdf(model, tmp_path / "tilted", states=model.rest_states, T_root_base=Sim3(R, np.array([0.0, 0.0, 1.0])))
     back = load_urdf(path)
     assert back.num_parts == model.num_parts and [j.name for j in back.joints] == [j.name for j in model.joints]
+
+
+def test_a_written_model_loads_back_at_its_base_link_with_its_orientation_and_category(tmp_path):
+    """``load_urdf`` of a model written in a camera frame (``predict --urdf``): the ``<ancsh>`` element makes the
+    object start at its base link -- parts and joints as written, no ``camera`` part, the base's meshes in the base
+    frame, the joints' axes, pivots and limits there, the model's ``R_canon_base`` and category -- where the camera's
+    +z would otherwise be taken for up."""
+    from ancsh.data.urdf import load_urdf
+
+    model = make_object("laptop", 3)
+    rng = np.random.default_rng(3)
+    T = Sim3(exp_so3(rng.normal(size=3)), rng.normal(size=3))
+    q = model.random_states(rng)
+    back = load_urdf(write_urdf(model, tmp_path / "twin", states=q, T_root_base=T))
+    assert back.part_names == model.part_names and back.category == model.category
+    np.testing.assert_allclose(back.R_canon_base, model.R_canon_base, atol=1e-12)
+    for a, b in zip(back.forward_kinematics(q), model.forward_kinematics(q)):  # the same parts in the same base frame
+        np.testing.assert_allclose(a.matrix(), b.matrix(), atol=1e-9)
+    for pa, pb in zip(back.parts, model.parts):  # the OBJ files hold 8 decimals of a metre
+        np.testing.assert_allclose(pa.mesh.bounds, pb.mesh.bounds, atol=1e-8)
+    for ja, jb in zip(back.joints, model.joints):
+        assert (ja.lower, ja.upper) == (jb.lower, jb.upper)
+        np.testing.assert_allclose(ja.axis, jb.axis, atol=1e-12)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace('base_link="base"', 'base_link="keyboard"'), "names no <link>"),
+    (lambda t: t.replace('canonical_rpy="', 'canonical_rpy="x '), "canonical_rpy must be 3 finite numbers"),
+    (lambda t: t.replace('base_link="base"', 'base_link="display"'), "hangs from the revolute joint"),
+    (lambda t: t.replace('<link name="camera"/>', '<link name="camera"><visual><geometry><box size="1 1 1"/>'
+                         '</geometry></visual></link>'), "link 'camera' above the base carries geometry"),
+])
+def test_a_written_object_record_that_does_not_fit_the_file_is_refused(tmp_path, edit, message):
+    from ancsh.data.urdf import load_urdf
+
+    path = write_urdf(make_object("laptop", 3), tmp_path / "twin")
+    path.write_text(edit(path.read_text()))
+    with pytest.raises(ValueError, match=message):
+        load_urdf(path)
