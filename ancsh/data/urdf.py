@@ -24,7 +24,8 @@ What the loader does
 - A URDF written by ancsh (:mod:`ancsh.model.urdf_export`: ``predict --urdf``, ``fit-cad --urdf-out``) names its
   base link, canonical orientation and category in an ``<ancsh>`` element: the object starts at that link (the
   geometry-free root link and the fixed joints placing the base in the camera or the user's frame are dropped, so
-  the base part is the base link, in its frame), and the element gives ``R_canon_base`` and the category.
+  the base part is the base link, in its frame), and the element gives ``R_canon_base``, the rest states and the
+  category.
 
 Orientation (``R_canon_base``, base part frame -> canonical +y up, +z front, +x right)
 -------------------------------------------------------------------------------------
@@ -67,6 +68,7 @@ class _ObjectRecord:
     base_link: str
     R_canon_base: np.ndarray  # (3, 3) the base link's frame -> canonical axes
     category: str | None
+    rest: tuple | None  # (K,) rest states in joint order, radians / file units
 
 
 @dataclass
@@ -173,7 +175,24 @@ def load_urdf(path, *, category: str | None = None, joint_types=None) -> Articul
         category = record.category if record is not None and record.category else _guess_category(path)
     model = ArticulatedModel(tuple(parts), tuple(joints), name=_model_name(path), category=category)
     R = record.R_canon_base if record is not None else _orientation(path, links, model, info)
-    return ArticulatedModel(model.parts, model.joints, name=model.name, category=category, R_canon_base=R)
+    if record is not None and record.rest is not None:
+        joints = _with_rest(path, joints, record.rest)
+    return ArticulatedModel(model.parts, tuple(joints), name=model.name, category=category, R_canon_base=R)
+
+
+def _with_rest(path: Path, joints: list, rest: tuple) -> list:
+    """``joints`` at the rest states of the file's ``<ancsh rest=...>``; ``ValueError`` for a wrong count or a rest
+    state outside its joint's limits."""
+    import dataclasses
+
+    if len(rest) != len(joints):
+        raise ValueError(f"{path}: <ancsh rest=...> must hold {len(joints)} finite number(s), one per movable joint "
+                         f"({[j.name for j in joints]}), got {len(rest)}")
+    for j, r in zip(joints, rest):
+        if not j.lower <= r <= j.upper:
+            raise ValueError(f"{path}: <ancsh rest=...>: joint {j.name!r} rest {r:.6g} lies outside its limits "
+                             f"[{j.lower:.6g}, {j.upper:.6g}]")
+    return [dataclasses.replace(j, rest=float(r)) for j, r in zip(joints, rest)]
 
 
 # --- parsing ----------------------------------------------------------------------------------
@@ -250,7 +269,15 @@ def _object_record(path: Path, root) -> _ObjectRecord | None:
     if len(rpy) != 3 or not np.all(np.isfinite(rpy)):
         raise ValueError(f"{where}: canonical_rpy must be 3 finite numbers (roll pitch yaw, radians), "
                          f"got {el.get('canonical_rpy')!r}")
-    return _ObjectRecord(base, rpy_matrix(*rpy), el.get("category") or None)
+    rest = None
+    if el.get("rest") is not None:
+        try:
+            rest = tuple(float(v) for v in el.get("rest").split())
+        except ValueError:
+            rest = ()
+        if not np.all(np.isfinite(rest)):
+            rest = ()
+    return _ObjectRecord(base, rpy_matrix(*rpy), el.get("category") or None, rest)
 
 
 def _drop_placement(path: Path, root, base: str) -> None:

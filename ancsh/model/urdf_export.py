@@ -15,12 +15,14 @@ The root frame says nothing about which way is up (a camera's +z is its viewing 
 one ``<ancsh>`` element (:data:`OBJECT_ELEMENT`; URDF readers ignore elements they do not know) naming the base link,
 the model's canonical orientation there and its category::
 
-    <ancsh base_link="base" canonical_rpy="r p y" category="laptop"/>
+    <ancsh base_link="base" canonical_rpy="r p y" rest="1.5707963267948966" category="laptop"/>
 
 ``canonical_rpy`` is ``R_canon_base`` (the base link's frame -> the canonical +x right, +y up, +z front) as URDF
-roll, pitch, yaw. :func:`ancsh.data.urdf.load_urdf` reads it: the object starts at the base link (the root link and
-the fixed joint placing the base are where the object was put, not part of it), so ``ancsh data import`` and
-``ancsh fit-cad`` see the model that was written, with its base frame, orientation and category.
+roll, pitch, yaw; ``rest`` the model's rest states in joint order (the states that define its canonical space: a
+laptop's display upright, not URDF's 0). :func:`ancsh.data.urdf.load_urdf` reads it: the object starts at the base
+link (the root link and the fixed joint placing the base are where the object was put, not part of it), so
+``ancsh data import`` and ``ancsh fit-cad`` see the model that was written, with its base frame, orientation, rest
+states and category.
 """
 
 from __future__ import annotations
@@ -160,8 +162,9 @@ def write_urdf(model: ArticulatedModel, folder, *, states=None, T_root_base: Sim
     note = f" limits widened to the states of {widened}" if widened else ""
     rpy = " ".join(repr(float(v)) for v in urdf_rpy(model.R_canon_base))  # the base link's frame is the base part's
     category = f" category={_name(model.category)}" if model.category else ""
+    rest = " ".join(repr(float(v)) for v in model.rest_states)
     record = (f"  <{OBJECT_ELEMENT} base_link={_name(model.parts[model.base_index].name)} canonical_rpy=\"{rpy}\""
-              f"{category}/>")
+              f" rest=\"{rest}\"{category}/>")
     text = (f'<?xml version="1.0"?>\n<!-- written by ancsh; load it at the joint states of joint_states.json.{note} -->\n'
             f"<robot name={_name(stem)}>\n" + "\n".join([record, *links, *joints]) + "\n</robot>\n")
     path = folder / f"{stem}.urdf"

@@ -309,8 +309,12 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
                     observed: ObservedDepth | None = None, candidates: int = 1, align: int = 0,
                     box_extents: str = EXPORT_BOX_EXTENTS, rng=0):
     """Write a fit as a URDF folder (:func:`ancsh.model.urdf_export.write_urdf`): one link per part, the template's
-    meshes reshaped to the fit, joints with the fitted axes and pivots, the category's limits, the fitted states
-    in ``joint_states.json``, the base placed in the camera frame (``root="camera"``) or in a frame the user gives.
+    meshes reshaped to the fit, joints with the fitted axes and pivots, the template's limits (widened to the
+    exported states where they lie outside), the fitted states in ``joint_states.json``, the base placed in the camera
+    frame (``root="camera"``) or in a frame the user gives. The file names its base link, orientation, rest states
+    and category, so that :func:`ancsh.data.urdf.load_urdf` (``ancsh data import``, ``ancsh fit-cad``) reads back
+    the model written, its base frame ``B`` and not the root's (``fit-cad --init``'s ``T_cam_base`` on the same depth
+    is the returned model's ``T_cam_B``).
 
     Parameters
     ----------
