@@ -56,6 +56,7 @@ from ..geometry._checks import check_bool
 from ..geometry.rotations import axis_angle_matrix
 from ..model.articulated import ArticulatedModel
 from ..model.edit import reparameterized, restructured, scaled, with_limits, with_orientation
+from ..model.urdf_export import OBJECT_ELEMENT
 from .conventions import (
     CONVENTIONS,
     UP,
@@ -219,8 +220,6 @@ def _guess_category(path: Path) -> str | None:
     for conv in CONVENTIONS.values():
         if cat in conv.source_categories:
             return conv.name
-    from ..model.urdf_export import OBJECT_ELEMENT
-
     written = _urdf_root(path, _object_name(path)).find(OBJECT_ELEMENT)
     if written is not None and written.get("category") in CONVENTIONS:
         return written.get("category")

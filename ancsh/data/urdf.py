@@ -18,7 +18,8 @@ What the loader does
   and ``pivot`` = the child frame origin (a point on a revolute axis).
 - ``continuous`` joints become unlimited revolute joints; ``floating``/``planar`` joints
   are rejected. A URDF without movable joints loads as a single part with 0 joints.
-- Rest state = 0 when it lies within the limits, otherwise the limit nearest to 0.
+- Rest state = 0 when it lies within the limits, otherwise the limit nearest to 0 (a URDF written by ancsh: its
+  own, below).
 - A part whose links carry no geometry (e.g. the empty world link a ReplicaCAD door swings
   from) keeps ``mesh=None``.
 - A URDF written by ancsh (:mod:`ancsh.model.urdf_export`: ``predict --urdf``, ``fit-cad --urdf-out``) names its
@@ -56,6 +57,7 @@ import trimesh
 
 from ..geometry.transforms import Sim3
 from ..model.articulated import ArticulatedModel, Joint, JointType, Part
+from ..model.urdf_export import OBJECT_ELEMENT, rpy_matrix
 
 _MOVABLE = {"revolute": JointType.REVOLUTE, "continuous": JointType.REVOLUTE, "prismatic": JointType.PRISMATIC}
 _SUPPORTED = set(_MOVABLE) | {"fixed"}
@@ -186,7 +188,7 @@ def _with_rest(path: Path, joints: list, rest: tuple) -> list:
     import dataclasses
 
     if len(rest) != len(joints):
-        raise ValueError(f"{path}: <ancsh rest=...> must hold {len(joints)} finite number(s), one per movable joint "
+        raise ValueError(f"{path}: <ancsh rest=...> must hold {len(joints)} number(s), one per movable joint "
                          f"({[j.name for j in joints]}), got {len(rest)}")
     for j, r in zip(joints, rest):
         if not j.lower <= r <= j.upper:
@@ -250,8 +252,6 @@ def _parse(path: Path, joint_types: dict):
 
 def _object_record(path: Path, root) -> _ObjectRecord | None:
     """The file's ``<ancsh>`` element (:data:`~ancsh.model.urdf_export.OBJECT_ELEMENT`), or ``None`` without one."""
-    from ..model.urdf_export import OBJECT_ELEMENT, rpy_matrix
-
     found = root.findall(OBJECT_ELEMENT)
     if not found:
         return None
@@ -274,9 +274,10 @@ def _object_record(path: Path, root) -> _ObjectRecord | None:
         try:
             rest = tuple(float(v) for v in el.get("rest").split())
         except ValueError:
-            rest = ()
+            rest = (np.nan,)
         if not np.all(np.isfinite(rest)):
-            rest = ()
+            raise ValueError(f"{where}: rest must be finite numbers (one rest state per movable joint), "
+                             f"got {el.get('rest')!r}")
     return _ObjectRecord(base, rpy_matrix(*rpy), el.get("category") or None, rest)
 
 

@@ -54,8 +54,10 @@ def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """The rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (3, 3) of URDF roll, pitch, yaw (radians); inverse of :func:`urdf_rpy`."""
-    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    """The rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (3, 3) of URDF roll, pitch, yaw (radians); inverse of
+    :func:`urdf_rpy`."""
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
     Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
     Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
     Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])

@@ -9,7 +9,7 @@ import yourdfpy
 from ancsh.data.procedural import make_object
 from ancsh.geometry.rotations import exp_so3
 from ancsh.geometry.transforms import Sim3
-from ancsh.model.urdf_export import urdf_rpy, write_urdf
+from ancsh.model.urdf_export import rpy_matrix, urdf_rpy, write_urdf
 from ancsh.solvers.types import FitResult, FitStatus
 
 
@@ -27,6 +27,7 @@ def test_rpy_round_trip_including_gimbal_lock():
         roll, pitch, yaw = urdf_rpy(R)
         back = Rotation.from_euler("xyz", [roll, pitch, yaw]).as_matrix()  # URDF: Rz(yaw) Ry(pitch) Rx(roll)
         assert np.abs(back - R).max() < 1e-12
+        assert np.abs(rpy_matrix(roll, pitch, yaw) - R).max() < 1e-12  # what load_urdf reads back
 
 
 @pytest.mark.parametrize("category, seed", [("laptop", 3), ("drawer", 5), ("eyeglasses", 7)])
@@ -338,7 +339,8 @@ def test_a_written_model_loads_back_at_its_base_link_with_its_orientation_and_ca
     (lambda t: t.replace('base_link="base"', 'base_link="keyboard"'), "names no <link>"),
     (lambda t: t.replace('canonical_rpy="', 'canonical_rpy="x '), "canonical_rpy must be 3 finite numbers"),
     (lambda t: t.replace('base_link="base"', 'base_link="display"'), "hangs from the revolute joint"),
-    (lambda t: t.replace('rest="', 'rest="0.5 '), "rest=...> must hold 1 finite number"),
+    (lambda t: t.replace('rest="', 'rest="0.5 '), "rest=...> must hold 1 number"),
+    (lambda t: t.replace('rest="', 'rest="x'), "rest must be finite numbers"),
     (lambda t: t.replace('rest="', 'rest="-1'), "rest -11.5.* lies outside its limits"),
     (lambda t: t.replace('<link name="camera"/>', '<link name="camera"><visual><geometry><box size="1 1 1"/>'
                          '</geometry></visual></link>'), "link 'camera' above the base carries geometry"),
@@ -384,7 +386,8 @@ def test_the_twin_round_trips_through_data_import_and_fit_cad(tmp_path, category
     from ancsh.data.urdf import load_urdf
     from ancsh.solvers.icp import ArticulatedIcpConfig
 
-    gen = FrameGenerator(GenerationConfig(category=category, split="test", seed=0, intrinsics=Intrinsics.kinect(320, 240)))
+    config = GenerationConfig(category=category, split="test", seed=0, intrinsics=Intrinsics.kinect(320, 240))
+    gen = FrameGenerator(config)
     fr = gen.frame(ROUND_TRIP_FRAMES[category])
     _, renderer = gen.instance(fr.instance_index)
     depth, K = tmp_path / "d.npy", tmp_path / "K.json"
@@ -408,11 +411,13 @@ def test_the_twin_round_trips_through_data_import_and_fit_cad(tmp_path, category
     assert all(abs(z) <= step for z, step in zip(obj.zero, steps)), (obj.zero, steps)
 
     robot, states = _reload(urdf)
-    T_cam_B = robot.get_transform(model.part_names[0], "camera")
+    T_cam_B = robot.get_transform(model.part_names[0], "camera")  # the fixed joint placing the base
     q = np.array([states[j.name] for j in model.joints])
-    (tmp_path / "init.json").write_text(json.dumps({"T_cam_base": T_cam_B.tolist(), "q": q.tolist()}))
+    init = json.loads((tmp_path / "twin" / "init.json").read_text())  # written for fit-cad --init: the same
+    np.testing.assert_allclose(init["T_cam_base"], T_cam_B, atol=1e-12)
+    np.testing.assert_array_equal(init["q"], q)
     code = main(["fit-cad", "--urdf", str(urdf), "--depth", str(depth), "--intrinsics", str(K), "--init",
-                 str(tmp_path / "init.json"), "--points", "800", "--out", str(tmp_path / "fit.json")])
+                 str(tmp_path / "twin" / "init.json"), "--points", "800", "--out", str(tmp_path / "fit.json")])
     result = json.loads((tmp_path / "fit.json").read_text())
     assert result["status"] in ("success", "max_iter") and code == (0 if result["status"] == "success" else 1), result
     config = ArticulatedIcpConfig()
