@@ -270,7 +270,10 @@ def run_predict(args: argparse.Namespace) -> int:
             align = URDF_ALIGN if args.urdf_align is None else args.urdf_align
             path, twin = pred.export_urdf(args.urdf, overwrite=args.overwrite, observed=observed, align=align,
                                           rng=args.seed)
-            print(f"  URDF: {path} (joint states in {args.urdf / 'joint_states.json'})")
+            from ..solvers.twin import FIT_CAD_INIT
+
+            print(f"  URDF: {path} (joint states in {args.urdf / 'joint_states.json'}; its pose for fit-cad --init in "
+                  f"{args.urdf / FIT_CAD_INIT})")
             print(f"    model: template {twin.template}" + ("" if twin.median_residual_m is None else
                   f", {'aligned to the depth' if twin.aligned else 'at the fitted pose and states'}, median |depth "
                   f"residual| {1e3 * twin.median_residual_m:.1f} mm on the object's pixels"))

@@ -63,6 +63,8 @@ def register(sub) -> None:
     e.add_argument("--frames", type=int, help="score this many evenly spaced validation frames (default: all)")
     e.add_argument("--test-data", type=Path, help="held-out test shards: the chosen network's scores against trivial "
                    "baselines, stored with the weights (as `ancsh train --test-data`)")
+    e.add_argument("--overwrite", action="store_true", help="replace an existing weights file --out and the files "
+                   "beside it (<stem>_config.json, ...); without it they are kept and nothing is scored")
     e.set_defaults(func=run_export)
 
 
@@ -175,6 +177,10 @@ def run_export(args: argparse.Namespace) -> int:
     if not config_path.is_file():
         raise FileNotFoundError(f"--run: no run configuration {config_path}")
     config = TrainConfig.from_json(config_path)
+    existing = [p for p in exported_paths(args.run, args.out) if p.exists() or p.is_symlink()]
+    if existing and not args.overwrite:  # before the scoring, which takes minutes
+        raise ValueError(f"--out: {', '.join(map(str, existing))} exist(s); choose another --out or add --overwrite "
+                         "to replace the exported files")
     candidates = args.checkpoints or [c for c in (args.run / "best.pt", args.run / "last.pt") if c.is_file()]
     if not candidates:
         raise FileNotFoundError(f"--run: {args.run} holds neither best.pt nor last.pt")
@@ -249,14 +255,27 @@ def evaluate_checkpoint(checkpoint, test_data, config) -> dict:
     return {"checkpoint": str(checkpoint), "test_frames": len(arrays), **scores, **trivial_baselines(arrays)}
 
 
+#: The run's files :func:`copy_training_log` puts beside an exported weights file: ``(run file, suffix of the copy)``.
+_TRAINING_LOG = (("config.json", "_config.json"), ("history.csv", "_history.csv"), ("curves.png", "_curves.png"))
+_TEST_METRICS_SUFFIX = "_test_metrics.json"
+
+
+def exported_paths(run_dir, weights) -> list:
+    """The files an export of ``run_dir`` to ``weights`` writes: the weights file, the copies of the run's config,
+    history and curves that the run has (:func:`copy_training_log`) and the test metrics, as ``Path`` s."""
+    run_dir, weights = Path(run_dir), Path(weights)
+    logs = [weights.with_name(weights.stem + suffix) for name, suffix in _TRAINING_LOG if (run_dir / name).is_file()]
+    return [weights, *logs, weights.with_name(weights.stem + _TEST_METRICS_SUFFIX)]
+
+
 def copy_training_log(run_dir, weights, metrics: dict) -> None:
     """Put the run's config, history, curves (and test metrics) beside an exported weights file."""
     import json
     import shutil
 
     run_dir, weights = Path(run_dir), Path(weights)
-    for name, suffix in (("config.json", "_config.json"), ("history.csv", "_history.csv"), ("curves.png", "_curves.png")):
+    for name, suffix in _TRAINING_LOG:
         if (run_dir / name).is_file():
             shutil.copy(run_dir / name, weights.with_name(weights.stem + suffix))
     if metrics:
-        weights.with_name(weights.stem + "_test_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+        weights.with_name(weights.stem + _TEST_METRICS_SUFFIX).write_text(json.dumps(metrics, indent=2) + "\n")

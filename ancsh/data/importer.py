@@ -11,7 +11,8 @@ rejected with :class:`ImportRejected` and the reason; it is never mis-evaluated.
 Rules (each measured on the geometry, see :mod:`ancsh.data.conventions`)
 -------------------------------------------------------------------------
 1. Category: given, or PartNet-Mobility's ``meta.json`` ``model_cat`` matched against each
-   convention's ``source_categories``.
+   convention's ``source_categories``, or the category a URDF written by ancsh names (``predict --urdf``:
+   its ``<ancsh category=...>``, :mod:`ancsh.model.urdf_export`), or the folder name's prefix.
 2. Moving parts: with ``semantics.txt`` (PartNet-Mobility), the links whose original joint
    has the convention's type (``hinge`` = revolute, ``slider`` = prismatic) and whose part name
    is one of the convention's ``semantics``; those joints are restored when the file froze them
@@ -55,6 +56,7 @@ from ..geometry._checks import check_bool
 from ..geometry.rotations import axis_angle_matrix
 from ..model.articulated import ArticulatedModel
 from ..model.edit import reparameterized, restructured, scaled, with_limits, with_orientation
+from ..model.urdf_export import OBJECT_ELEMENT
 from .conventions import (
     CONVENTIONS,
     UP,
@@ -218,6 +220,9 @@ def _guess_category(path: Path) -> str | None:
     for conv in CONVENTIONS.values():
         if cat in conv.source_categories:
             return conv.name
+    written = _urdf_root(path, _object_name(path)).find(OBJECT_ELEMENT)
+    if written is not None and written.get("category") in CONVENTIONS:
+        return written.get("category")
     prefix = re.sub(r"_\d+$", "", path.parent.name)
     return prefix if prefix in CONVENTIONS else None
 

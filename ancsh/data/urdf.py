@@ -18,9 +18,15 @@ What the loader does
   and ``pivot`` = the child frame origin (a point on a revolute axis).
 - ``continuous`` joints become unlimited revolute joints; ``floating``/``planar`` joints
   are rejected. A URDF without movable joints loads as a single part with 0 joints.
-- Rest state = 0 when it lies within the limits, otherwise the limit nearest to 0.
+- Rest state = 0 when it lies within the limits, otherwise the limit nearest to 0 (a URDF written by ancsh: its
+  own, below).
 - A part whose links carry no geometry (e.g. the empty world link a ReplicaCAD door swings
   from) keeps ``mesh=None``.
+- A URDF written by ancsh (:mod:`ancsh.model.urdf_export`: ``predict --urdf``, ``fit-cad --urdf-out``) names its
+  base link, canonical orientation and category in an ``<ancsh>`` element: the object starts at that link (the
+  geometry-free root link and the fixed joints placing the base in the camera or the user's frame are dropped, so
+  the base part is the base link, in its frame), and the element gives ``R_canon_base``, the rest states and the
+  category.
 
 Orientation (``R_canon_base``, base part frame -> canonical +y up, +z front, +x right)
 -------------------------------------------------------------------------------------
@@ -51,9 +57,20 @@ import trimesh
 
 from ..geometry.transforms import Sim3
 from ..model.articulated import ArticulatedModel, Joint, JointType, Part
+from ..model.urdf_export import OBJECT_ELEMENT, rpy_matrix
 
 _MOVABLE = {"revolute": JointType.REVOLUTE, "continuous": JointType.REVOLUTE, "prismatic": JointType.PRISMATIC}
 _SUPPORTED = set(_MOVABLE) | {"fixed"}
+
+
+@dataclass(frozen=True)
+class _ObjectRecord:
+    """What the ``<ancsh>`` element of a written URDF says (:mod:`ancsh.model.urdf_export`)."""
+
+    base_link: str
+    R_canon_base: np.ndarray  # (3, 3) the base link's frame -> canonical axes
+    category: str | None
+    rest: tuple | None  # (K,) rest states in joint order, radians / file units
 
 
 @dataclass
@@ -99,7 +116,7 @@ def load_urdf(path, *, category: str | None = None, joint_types=None) -> Articul
         raise ValueError(f"path: URDF file {str(path)!r} does not exist")
     if not path.is_file():
         raise ValueError(f"path: {str(path)!r} exists but is not a URDF file (a folder, a device or a pipe)")
-    robot = _parse(path, joint_types or {})
+    robot, record = _parse(path, joint_types or {})
     links = {link.name: link for link in robot.links}
     if not links:
         raise ValueError(f"{path}: <robot> has no <link> elements")
@@ -157,10 +174,27 @@ def load_urdf(path, *, category: str | None = None, joint_types=None) -> Articul
         parts.append(Part(part_names[k], mesh))
 
     if category is None:
-        category = _guess_category(path)
+        category = record.category if record is not None and record.category else _guess_category(path)
     model = ArticulatedModel(tuple(parts), tuple(joints), name=_model_name(path), category=category)
-    R = _orientation(path, links, model, info)
-    return ArticulatedModel(model.parts, model.joints, name=model.name, category=category, R_canon_base=R)
+    R = record.R_canon_base if record is not None else _orientation(path, links, model, info)
+    if record is not None and record.rest is not None:
+        joints = _with_rest(path, joints, record.rest)
+    return ArticulatedModel(model.parts, tuple(joints), name=model.name, category=category, R_canon_base=R)
+
+
+def _with_rest(path: Path, joints: list, rest: tuple) -> list:
+    """``joints`` at the rest states of the file's ``<ancsh rest=...>``; ``ValueError`` for a wrong count or a rest
+    state outside its joint's limits."""
+    import dataclasses
+
+    if len(rest) != len(joints):
+        raise ValueError(f"{path}: <ancsh rest=...> must hold {len(joints)} number(s), one per movable joint "
+                         f"({[j.name for j in joints]}), got {len(rest)}")
+    for j, r in zip(joints, rest):
+        if not j.lower <= r <= j.upper:
+            raise ValueError(f"{path}: <ancsh rest=...>: joint {j.name!r} rest {r:.6g} lies outside its limits "
+                             f"[{j.lower:.6g}, {j.upper:.6g}]")
+    return [dataclasses.replace(j, rest=float(r)) for j, r in zip(joints, rest)]
 
 
 # --- parsing ----------------------------------------------------------------------------------
@@ -207,10 +241,81 @@ def _parse(path: Path, joint_types: dict):
         if name in seen:
             raise ValueError(f"{path}: <link name={name!r}> is defined twice (line {link.sourceline})")
         seen.add(name)
+    record = _object_record(path, root)
+    if record is not None:
+        _drop_placement(path, root, record.base_link)
     try:
-        return yourdfpy.URDF._parse_robot(xml_element=root)
+        return yourdfpy.URDF._parse_robot(xml_element=root), record
     except Exception as exc:  # noqa: BLE001
         raise ValueError(f"{path}: could not read the URDF structure: {exc}") from None
+
+
+def _object_record(path: Path, root) -> _ObjectRecord | None:
+    """The file's ``<ancsh>`` element (:data:`~ancsh.model.urdf_export.OBJECT_ELEMENT`), or ``None`` without one."""
+    found = root.findall(OBJECT_ELEMENT)
+    if not found:
+        return None
+    if len(found) > 1:
+        raise ValueError(f"{path}: {len(found)} <{OBJECT_ELEMENT}> elements; a written object has one")
+    el = found[0]
+    where = f"{path}: <{OBJECT_ELEMENT}> (line {el.sourceline})"
+    base = el.get("base_link")
+    if not base:
+        raise ValueError(f"{where} has no base_link attribute (the name of the object's base link)")
+    try:
+        rpy = [float(v) for v in el.get("canonical_rpy", "").split()]
+    except ValueError:
+        rpy = []
+    if len(rpy) != 3 or not np.all(np.isfinite(rpy)):
+        raise ValueError(f"{where}: canonical_rpy must be 3 finite numbers (roll pitch yaw, radians), "
+                         f"got {el.get('canonical_rpy')!r}")
+    rest = None
+    if el.get("rest") is not None:
+        try:
+            rest = tuple(float(v) for v in el.get("rest").split())
+        except ValueError:
+            rest = (np.nan,)
+        if not np.all(np.isfinite(rest)):
+            raise ValueError(f"{where}: rest must be finite numbers (one rest state per movable joint), "
+                             f"got {el.get('rest')!r}")
+    return _ObjectRecord(base, rpy_matrix(*rpy), el.get("category") or None, rest)
+
+
+def _drop_placement(path: Path, root, base: str) -> None:
+    """Remove, in place, the links above ``base`` and the joints between them: where a written object was placed
+    (a camera or world root), not part of it. They must be free of geometry, joined by fixed joints and carry
+    nothing else; ``ValueError`` naming the element otherwise."""
+    links = {link.get("name"): link for link in root.findall("link")}
+    if base not in links:
+        raise ValueError(f"{path}: <ancsh base_link={base!r}> names no <link> of the file")
+    by_child, by_parent = {}, {}
+    for j in root.findall("joint"):
+        parent, child = j.find("parent"), j.find("child")
+        if parent is not None and child is not None:
+            by_child[child.get("link")] = j
+            by_parent.setdefault(parent.get("link"), []).append(j)
+    chain, above, link = [], [], base
+    while link in by_child and len(chain) <= len(by_child):
+        j = by_child[link]
+        if j.get("type") != "fixed":
+            raise ValueError(f"{path}: <ancsh base_link={base!r}>: the base hangs from the {j.get('type')} joint "
+                             f"{j.get('name')!r}; the links above the base may only place it (fixed joints)")
+        chain.append(j)
+        link = j.find("parent").get("link")
+        above.append(link)
+    for name in above:
+        el = links.get(name)
+        if el is None:
+            raise ValueError(f"{path}: <ancsh base_link={base!r}>: link {name!r} above the base is not defined")
+        if el.find("visual") is not None or el.find("collision") is not None:
+            raise ValueError(f"{path}: <ancsh base_link={base!r}>: link {name!r} above the base carries geometry; the "
+                             "links above the base may only place it")
+        others = [j.get("name") for j in by_parent.get(name, []) if j not in chain]
+        if others:
+            raise ValueError(f"{path}: <ancsh base_link={base!r}>: link {name!r} above the base also carries the "
+                             f"joint(s) {others}; the links above the base may only place it")
+    for el in chain + [links[name] for name in above]:
+        root.remove(el)
 
 
 def _make_joint(path: Path, j, parent_part: str, T_ppart_origin: np.ndarray) -> Joint:

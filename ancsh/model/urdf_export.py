@@ -10,6 +10,19 @@ The folder holds ``<name>.urdf``, ``meshes/<index>_<part>.obj`` (the part meshes
 ``joint_states.json`` (the states to load the model at: URDF has no initial position). A root link (no
 geometry) carries the base through a fixed joint placed at ``T_root_base``: the camera frame of a fit, or a
 frame the user gives.
+
+The root frame says nothing about which way is up (a camera's +z is its viewing direction), so the file also holds
+one ``<ancsh>`` element (:data:`OBJECT_ELEMENT`; URDF readers ignore elements they do not know) naming the base link,
+the model's canonical orientation there and its category::
+
+    <ancsh base_link="base" canonical_rpy="r p y" rest="1.5707963267948966" category="laptop"/>
+
+``canonical_rpy`` is ``R_canon_base`` (the base link's frame -> the canonical +x right, +y up, +z front) as URDF
+roll, pitch, yaw; ``rest`` the model's rest states in joint order (the states that define its canonical space: a
+laptop's display upright, not URDF's 0). :func:`ancsh.data.urdf.load_urdf` reads it: the object starts at the base
+link (the root link and the fixed joint placing the base are where the object was put, not part of it), so
+``ancsh data import`` and ``ancsh fit-cad`` see the model that was written, with its base frame, orientation, rest
+states and category.
 """
 
 from __future__ import annotations
@@ -25,7 +38,10 @@ import numpy as np
 from ..geometry.transforms import Sim3
 from .articulated import ArticulatedModel
 
-__all__ = ["check_urdf_folder", "write_urdf", "urdf_rpy"]
+__all__ = ["OBJECT_ELEMENT", "check_urdf_folder", "rpy_matrix", "write_urdf", "urdf_rpy"]
+
+#: The element of a written URDF that names its base link, canonical orientation and category (module docstring).
+OBJECT_ELEMENT = "ancsh"
 
 
 def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
@@ -35,6 +51,17 @@ def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
     if math.hypot(R[0, 0], R[1, 0]) < 1e-12:  # gimbal lock: yaw folded into roll
         return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
     return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """The rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (3, 3) of URDF roll, pitch, yaw (radians); inverse of
+    :func:`urdf_rpy`."""
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    return Rz @ Ry @ Rx
 
 
 def _origin(T: Sim3) -> str:
@@ -135,8 +162,13 @@ def write_urdf(model: ArticulatedModel, folder, *, states=None, T_root_base: Sim
         geom = f"{_origin(offsets[i])}<geometry><mesh filename={_name(mesh_file)}/></geometry>"
         links.append(f"  <link name={_name(part.name)}><visual>{geom}</visual><collision>{geom}</collision></link>")
     note = f" limits widened to the states of {widened}" if widened else ""
+    rpy = " ".join(repr(float(v)) for v in urdf_rpy(model.R_canon_base))  # the base link's frame is the base part's
+    category = f" category={_name(model.category)}" if model.category else ""
+    rest = " ".join(repr(float(v)) for v in model.rest_states)
+    record = (f"  <{OBJECT_ELEMENT} base_link={_name(model.parts[model.base_index].name)} canonical_rpy=\"{rpy}\""
+              f" rest=\"{rest}\"{category}/>")
     text = (f'<?xml version="1.0"?>\n<!-- written by ancsh; load it at the joint states of joint_states.json.{note} -->\n'
-            f"<robot name={_name(stem)}>\n" + "\n".join(links + joints) + "\n</robot>\n")
+            f"<robot name={_name(stem)}>\n" + "\n".join([record, *links, *joints]) + "\n</robot>\n")
     path = folder / f"{stem}.urdf"
     write_bytes_atomically(path, text.encode())
     write_bytes_atomically(folder / "joint_states.json",

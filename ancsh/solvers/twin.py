@@ -20,14 +20,17 @@ import numpy as np
 from ..geometry.transforms import Sim3
 from .types import Correspondences, FitResult
 
-__all__ = ["ALIGN_POINTS", "ALIGN_SCALES", "EXPORT_BOX_EXTENTS", "FittedModel", "ObservedDepth", "align_config",
-           "align_model", "compare_fit", "depth_residual", "export_fit_urdf", "fitted_model", "render_fit"]
+__all__ = ["ALIGN_POINTS", "ALIGN_SCALES", "EXPORT_BOX_EXTENTS", "FIT_CAD_INIT", "FittedModel", "ObservedDepth",
+           "align_config", "align_model", "compare_fit", "depth_residual", "export_fit_urdf", "fitted_model",
+           "render_fit", "write_fit_cad_init"]
 
 #: :func:`align_model` uses at most this many of the object's observed pixels (a seeded random subsample).
 ALIGN_POINTS = 1500
 #: :func:`align_model` also tries the model scaled by these factors (about its base frame's origin) and keeps the one
 #: that explains the depth best (``docs/results/twin.md``: the learned boxes are a few per cent off in size).
 ALIGN_SCALES = (1.0, 0.96, 1.04)
+#: The file beside an exported URDF that starts ``ancsh fit-cad --init`` at the twin (:func:`write_fit_cad_init`).
+FIT_CAD_INIT = "init.json"
 #: The part boxes an exported model is shaped from (:func:`~ancsh.solvers.icp.category.fitted_layout`'s
 #: ``box_extents``): the NPCS sides scaled to the unit diagonal (the learned cabinets' "max" boxes overshoot).
 EXPORT_BOX_EXTENTS = "unit_diagonal"
@@ -309,8 +312,13 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
                     observed: ObservedDepth | None = None, candidates: int = 1, align: int = 0,
                     box_extents: str = EXPORT_BOX_EXTENTS, rng=0):
     """Write a fit as a URDF folder (:func:`ancsh.model.urdf_export.write_urdf`): one link per part, the template's
-    meshes reshaped to the fit, joints with the fitted axes and pivots, the category's limits, the fitted states
-    in ``joint_states.json``, the base placed in the camera frame (``root="camera"``) or in a frame the user gives.
+    meshes reshaped to the fit, joints with the fitted axes and pivots, the template's limits (widened to the
+    exported states where they lie outside), the fitted states in ``joint_states.json``, the base placed in the camera
+    frame (``root="camera"``) or in a frame the user gives. The file names its base link, orientation, rest states
+    and category, so that :func:`ancsh.data.urdf.load_urdf` (``ancsh data import``, ``ancsh fit-cad``) reads back
+    the model written, its base frame ``B`` and not the root's; ``init.json`` beside it holds that frame's pose in the
+    input camera and the states, ``{"T_cam_base": 4x4, "q": [...]}``, what ``ancsh fit-cad --init`` reads to start
+    at the twin on the same depth (:data:`FIT_CAD_INIT`).
 
     Parameters
     ----------
@@ -357,7 +365,22 @@ def export_fit_urdf(fit: FitResult, corr: Correspondences, templates, folder, *,
     T = twin.T_cam_B if T_frame_cam is None else T_frame_cam @ twin.T_cam_B
     path = write_urdf(twin.model, folder, states=twin.states, T_root_base=Sim3(T.rotation, T.translation), root=root,
                       name=name or templates.category, overwrite=overwrite)
+    write_fit_cad_init(path.parent / FIT_CAD_INIT, twin)
     return path, twin
+
+
+def write_fit_cad_init(path, twin: FittedModel):
+    """Write ``twin``'s base pose in the camera (rigid) and joint states as ``ancsh fit-cad --init`` reads them
+    (``{"T_cam_base": 4x4, "q": [...]}``, metres and radians); returns the path."""
+    import json
+    from pathlib import Path
+
+    from ..outputs import write_bytes_atomically
+
+    T = Sim3(twin.T_cam_B.rotation, twin.T_cam_B.translation)
+    data = {"T_cam_base": T.matrix().tolist(), "q": [float(v) for v in twin.states]}
+    write_bytes_atomically(Path(path), (json.dumps(data, indent=1) + "\n").encode())
+    return Path(path)
 
 
 def compare_fit(fit, corr, templates, depth, intrinsics, object_mask):

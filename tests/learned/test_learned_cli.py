@@ -116,6 +116,39 @@ def test_export_confirms_the_checkpoints_on_all_validation_frames(tmp_path, lapt
     assert "--checkpoints" in lost["command"]
     assert main(["export", "--run", str(tmp_path / "missing"), "--data", str(laptop_shards), "--out", str(weights)]) == 2
     assert "--run" in capsys.readouterr().err
+    # an existing export is kept without --overwrite and replaced with it
+    before = weights.read_bytes()
+    args = ["export", "--run", str(run), "--data", str(laptop_shards), "--out", str(weights), "--checkpoints",
+            str(run / "last.pt")]
+    assert main(args) == 2 and weights.read_bytes() == before
+    assert main([*args, "--overwrite"]) == 0
+    assert load_network(weights).step == load_network(run / "last.pt").step
+    assert json.loads((tmp_path / "w_test_metrics.json").read_text())["selection"]["chosen"] == str(run / "last.pt")
+
+
+def test_export_keeps_an_existing_weights_file_without_overwrite(tmp_path, capsys):
+    """``ancsh export --out`` naming an existing weights file (or a file beside it that the export writes) refuses
+    before any scoring, names ``--out`` and ``--overwrite``, and leaves every file as it was."""
+    from ancsh.learned.network.config import TrainConfig
+
+    run = tmp_path / "run"
+    run.mkdir()
+    TrainConfig().to_json(run / "config.json")
+    (run / "history.csv").write_text("step\n1\n")
+    weights = tmp_path / "w.pt"
+    weights.write_bytes(b"shipped weights")
+    args = ["export", "--run", str(run), "--data", str(tmp_path / "no_shards"), "--out", str(weights)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"--out: {weights}" in err and "--overwrite" in err and "Traceback" not in err
+    assert weights.read_bytes() == b"shipped weights"
+    weights.unlink()
+    (tmp_path / "w_history.csv").write_text("an earlier export's history\n")  # a file the export would replace
+    assert main(args) == 2
+    assert f"--out: {tmp_path / 'w_history.csv'}" in capsys.readouterr().err
+    assert (tmp_path / "w_history.csv").read_text() == "an earlier export's history\n" and not weights.exists()
+    assert main([*args, "--overwrite"]) == 2  # past the check: the run's missing checkpoints are what stops it now
+    assert "--run: " in capsys.readouterr().err
 
 
 def test_validation_frame_indices_spreads_evenly_over_the_validation_instances():
