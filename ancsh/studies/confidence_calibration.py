@@ -43,7 +43,7 @@ import numpy as np
 from ..learned.inference.confidence import FEATURES, GOOD_ROTATION_DEG, fit_features, probability_good
 from .report import save_figure, write_text
 
-__all__ = ["MIN_FRAMES", "MIN_FRAMES_PER_OUTCOME", "SOURCES", "calibrate_and_check", "check_informative", "collect",
+__all__ = ["MIN_FRAMES", "MIN_FRAMES_PER_OUTCOME", "SOURCES", "auc", "calibrate_and_check", "check_informative", "collect",
            "constant_calibrator", "fit_calibrator", "fitting_half", "reliability", "source_table", "standardised_logistic",
            "write_report"]
 
@@ -330,8 +330,6 @@ def calibrate_and_check(X_fit, good_fit, X_check, good_check) -> tuple[dict, dic
         Naming ``good_fit`` / ``good_check`` where a half holds fewer than :data:`MIN_FRAMES_PER_OUTCOME` good or bad
         fits.
     """
-    from .object_evidence import auc
-
     yc = np.asarray(good_check, dtype=bool)
     if min(int(yc.sum()), int((~yc).sum())) < MIN_FRAMES_PER_OUTCOME:
         raise ValueError(f"good_check: {int(yc.sum())} good and {int((~yc).sum())} bad check fits; at least "
@@ -346,6 +344,17 @@ def calibrate_and_check(X_fit, good_fit, X_check, good_check) -> tuple[dict, dic
     logistic["brier_check"] = {"logistic": rel["brier"], "constant": constant["brier"]}
     logistic["auc_check"] = auc(p[yc], p[~yc])
     return logistic, rel
+
+
+def auc(p_positive, p_negative) -> float:
+    """The area under the ROC curve: the chance that a positive's probability exceeds a negative's (ties count
+    half), threshold-free; ``nan`` without both."""
+    from sklearn.metrics import roc_auc_score
+
+    a, b = np.asarray(p_positive, dtype=np.float64), np.asarray(p_negative, dtype=np.float64)
+    if not a.size or not b.size:
+        return float("nan")
+    return float(roc_auc_score(np.r_[np.ones(a.size), np.zeros(b.size)], np.r_[a, b]))
 
 
 def reliability(calibration: dict, X, good, bins: int = 5) -> dict:
