@@ -143,17 +143,22 @@ def _worst_rotation(result, gt) -> float:
     return max((p.rot_deg for p in ev.parts), default=float("inf")) if ev.ok else float("inf")
 
 
-def _fits(depth, intrinsics, mask, category, provider, seed) -> dict:
+def _fits(depth, intrinsics, mask, category, provider, seed) -> dict | None:
     """``ancsh predict --mask`` on one segment (:func:`~ancsh.learned.inference.candidate.fit_candidate_refinements`,
-    one hypothesis, ``--refine auto``, without the ``p_object`` gate): its candidate dict."""
+    one hypothesis, ``--refine auto``, without the ``p_object`` gate): its candidate dict; ``None`` where the segment
+    has no measured pixel (an object hidden in its scene, a sensor that lost a thin one: ``predict`` refuses the mask)."""
     from ..learned.inference.candidate import fit_candidate_refinements
+
+    if not np.any(np.asarray(mask, dtype=bool) & (depth > 0)):
+        return None
 
     return fit_candidate_refinements(depth, intrinsics, mask, category, provider, "exact_reduced", 1024, seed, None,
                                      ("auto",), object_gate=False)[0]
 
 
 def _examples(source, i, category, provider, gens, key) -> list:
-    """``[(candidate dict, truth or None), ...]``: the fits of example frame ``i`` of ``source`` (module docstring)."""
+    """``[(candidate dict or None, truth or None), ...]``: the fits of example frame ``i`` of ``source`` (module
+    docstring; ``None``: a segment without a measured pixel, counted as a failed fit)."""
     from ..data.noise import DepthNoise, apply_noise
     from ..data.procedural import CATEGORIES
     from ..data.scenes import render_scene
@@ -234,7 +239,7 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
         counts[source] = counts.get(source, 0) + 1
         key = [int(seed), i, zlib.crc32(category.encode()), _STREAM]
         for cand, gt in _examples(source, i, category, provider, gens, key):
-            if not cand["result"].ok:
+            if cand is None or not cand["result"].ok:
                 failed[source] = failed.get(source, 0) + 1
                 continue
             X.append(fit_features(cand["quality"], category))
