@@ -54,7 +54,7 @@ SOURCES = ("plain", "scene", "crop", "plain", "perturbed", "merged", "other", "p
 MIN_FRAMES_PER_OUTCOME = len(FEATURES)
 #: ``calibrate`` refuses fewer frames than this (with or without ``--install``): four cycles of :data:`SOURCES` in each
 #: half (half fit the model, half check it); each half then needs :data:`MIN_FRAMES_PER_OUTCOME` good and bad fits,
-#: counted after the fits (a cycle gives about four bad ones, fewer for a network that rarely fails).
+#: counted after the fits (a cycle gave 3-6 bad ones at 800 frames: the laptop 3, the box 6).
 MIN_FRAMES = 8 * len(SOURCES)
 #: A crop keeps this range of shares of the object's pixels (one side of a random line through them).
 CROP_KEEP = (0.3, 0.7)
@@ -73,6 +73,7 @@ _STREAM = 0xCA1B
 
 
 def _min_frames_error(frames) -> None:
+    """Raise ``ValueError`` naming ``frames`` where it is no integer of at least :data:`MIN_FRAMES`."""
     if isinstance(frames, bool) or int(frames) != frames or frames < MIN_FRAMES:
         raise ValueError(f"frames: expected an integer >= {MIN_FRAMES} (half fit, half check, each half with "
                          f"{MIN_FRAMES_PER_OUTCOME} good and bad fits), got {frames!r}")
