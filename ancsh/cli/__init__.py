@@ -25,7 +25,7 @@ EXAMPLES = {
     "predict": "ancsh predict --depth D.png --intrinsics K.json --category laptop --out result.json --png view.png",
     "evaluate": "ancsh evaluate --category laptop --quick            # writes a fresh ancsh_results/evaluate-laptop-<time>/",
     "weights": "ancsh weights --out weights.md",
-    "calibrate": "ancsh calibrate --category laptop --frames 300 --update-docs --install   # --object: p_object",
+    "calibrate": "ancsh calibrate --category laptop --frames 800 --update-docs --install   # --object: p_object",
     "data": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
     "data generate": "ancsh data generate --category laptop --split train --frames 1000 --out data/laptop_train",
     "data show": "ancsh data show data/laptop_train --frame 7 --out view.png",

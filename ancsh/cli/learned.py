@@ -116,16 +116,22 @@ def register(sub) -> None:
     e.add_argument("--update-docs", action="store_true", help="write into the committed docs/results/ (when --out is not given)")
     e.add_argument("--no-progress", action="store_true")
     e.set_defaults(func=run_evaluate)
+    from ..studies.confidence_calibration import MIN_FRAMES
+
     c = sub.add_parser(
         "calibrate",
         help="learn how far to trust a prediction: P(rotation errors < 10 deg) from the fit's evidence",
-        description="Render held-out frames (a seed stream other than `ancsh evaluate`'s), fit them, and learn a "
-        "logistic regression of whether every part's rotation error is below 10 deg on the fit's evidence; half the "
-        "frames train it, the other half measure its reliability (report and diagram). --install puts it beside "
-        "the shipped weights, where `ancsh predict` uses it.",
+        description="Fit a seeded mix of good and hard cases (rendered held-out frames of a seed stream other than "
+        "`ancsh evaluate`'s; stress scenes isolated without a mask, cropped and merged segments, perturbed network "
+        "outputs, other categories' frames: ancsh.studies.confidence_calibration) and learn a logistic regression of "
+        "whether every part's rotation error is below 10 deg on the fit's evidence; half the frames train it, the other "
+        "half measure its reliability against the base rate as a constant (report and diagram). A constant model, or "
+        "too few good or bad fits in a half, is an error. --install puts it beside the shipped weights, where "
+        "`ancsh predict` uses it.",
     )
     c.add_argument("--category", required=True)
-    c.add_argument("--frames", type=int, default=300, help="rendered frames, half to fit, half to measure (default 300)")
+    c.add_argument("--frames", type=int, default=300, help="example frames, half to fit, half to measure (default 300; "
+                   f"at least {MIN_FRAMES}, with --object 8)")
     c.add_argument("--seed", type=non_negative_int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")
     c.add_argument("--out", type=Path, help="report folder (default: a fresh ancsh_results/calibrate-<category>-<time>/)")
     c.add_argument("--update-docs", action="store_true", help="write the report into docs/results/ (when --out is not given)")
@@ -135,8 +141,8 @@ def register(sub) -> None:
                    "object of the category at all, against the other categories' objects and clutter "
                    "(ancsh.studies.object_evidence; --frames counts the category's frames, about as many others are added)")
     c.add_argument("--scenes", type=non_negative_int, default=0,
-                   help="with --object: also this many rendered scenes, their candidate segments isolated without a mask "
-                   "(the object's against the rest; default 0)")
+                   help="with --object only (an error without it): also this many rendered scenes, their candidate segments "
+                   "isolated without a mask (the object's against the rest; default 0)")
     c.add_argument("--no-progress", action="store_true")
     c.set_defaults(func=run_calibrate)
     register_weights(sub)
@@ -351,6 +357,7 @@ def _predict_folder(args: argparse.Namespace, intr, hint) -> int:
 
 #: ``ancsh calibrate --install`` (either calibration) needs at least this many frames: half fit the model, half check
 #: it, and a model from a handful of frames (one outcome, or a regression on noise) must not replace the shipped one.
+#: (``p_good`` needs :data:`ancsh.studies.confidence_calibration.MIN_FRAMES` with or without ``--install``.)
 MIN_INSTALL_FRAMES = 40
 
 
@@ -359,9 +366,16 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     from ..outputs import file_sha256
     from ..learned.inference.confidence import calibration_path
-    from ..studies.confidence_calibration import choose_calibrator, collect, write_report
+    from ..studies.confidence_calibration import (MIN_FRAMES, MIN_FRAMES_PER_OUTCOME, calibrate_and_check,
+                                                  check_informative, collect, fitting_half, source_table, write_report)
     from ..learned.network.weights import weights_path
 
+    if args.scenes and not args.object:  # before any work: p_good's examples hold their scenes already
+        raise ValueError(f"--scenes: only with --object (p_object's scenes); p_good's examples include stress scenes "
+                         f"already (one frame in eight of --frames), got --scenes {args.scenes} without --object")
+    if not args.object and args.frames < MIN_FRAMES:  # before any work, whether or not --install is given
+        raise ValueError(f"--frames: a p_good calibration needs at least {MIN_FRAMES} frames (half fit it, half check "
+                         f"it, each half with {MIN_FRAMES_PER_OUTCOME} good and bad fits), got --frames {args.frames}")
     if args.frames < 4:
         raise ValueError(f"--frames: expected at least 4 frames, got {args.frames}")
     if args.install and args.frames < MIN_INSTALL_FRAMES:  # before any work: it would replace the shipped calibration
@@ -374,14 +388,22 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if args.object:
         return _run_calibrate_object(args)
     data = collect(args.category, args.frames, seed=args.seed, progress=not args.no_progress)
-    fit_half = np.arange(len(data["good"])) % 2 == 0
-    calibration, rel = choose_calibrator(data["X"][fit_half], data["good"][fit_half], data["X"][~fit_half], data["good"][~fit_half])
+    fit_half = fitting_half(data["frame"])
+    try:
+        calibration, rel = calibrate_and_check(data["X"][fit_half], data["good"][fit_half], data["X"][~fit_half],
+                                               data["good"][~fit_half])
+    except ValueError as e:  # too few good or bad fits in a half: more frames
+        raise ValueError(f"--frames: {args.frames} frames gave too few good or bad fits ({e}); raise --frames") from None
+    check_informative(calibration)
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))  # it holds for these weights only
+    calibration["example_frames"] = int(args.frames)
+    calibration["source_frames"] = data["source_frames"]
     out, command = _calibrate_output(args)
-    paths = write_report(args.category, calibration, rel, out, command=command)
-    print(f"good fits {100 * rel['good_rate']:.0f}%, {calibration['model']} model, Brier {rel['brier']:.4f} "
-          f"(constant {rel['brier_constant']:.4f}); "
-          f"wrote {paths['md']}, {paths['png']}")
+    paths = write_report(args.category, calibration, rel, out, command=command, sources=source_table(calibration, data))
+    b = calibration["brier_check"]
+    print(f"good fits {100 * rel['good_rate']:.0f}% of {rel['frames']} check fits, logistic Brier {b['logistic']:.4f} "
+          f"(constant {b['constant']:.4f}{'' if b['logistic'] < b['constant'] else ': NOT beaten'}), "
+          f"AUC {calibration['auc_check']:.3f}; wrote {paths['md']}, {paths['png']}")
     _install_calibration(args, paths["json"], calibration_path(args.category))
     return 0
 

@@ -1,8 +1,9 @@
 """``ancsh calibrate --object``: is the fitted segment an object of the category at all?
 
-The confidence model of :mod:`ancsh.studies.confidence_calibration` (``p_good``) is trained on renders of
-the category only: it says how good a fit of a *laptop* is, not whether the pixels were a laptop (on a real
-frame without one, the laptop network fitted a mug with ``p_good`` 0.99). This study trains the second
+The confidence model of :mod:`ancsh.studies.confidence_calibration` (``p_good``) says how good a fit is, from the
+fit's evidence, not whether the pixels were a laptop (on a real frame without one, the laptop network fitted a mug
+with ``p_good`` 0.99; the calibrations since issue 63 see other categories' frames as bad fits, but their features
+are the fit's inliers and margins only). This study trains the second
 model, ``p_object``: a logistic regression (scikit-learn) on :data:`~ancsh.learned.inference.confidence.OBJECT_FEATURES`
 (render-and-compare of the fitted category template, the fitted size, the fit's inliers and segmentation
 margin) with
@@ -41,6 +42,7 @@ import numpy as np
 
 from ..data.scenes import clutter_model
 from ..learned.inference.confidence import OBJECT_FEATURES, object_features, probability_good
+from .confidence_calibration import auc, standardised_logistic
 from .report import Provenance, write_text
 
 __all__ = ["REFINEMENTS", "auc", "available_refinements", "collect_object_evidence", "fit_object_calibrator", "measure",
@@ -188,24 +190,11 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
 
 def fit_object_calibrator(X, is_object) -> dict:
     """Standardised logistic regression of ``is_object`` on ``X`` (the format of the ``p_good`` calibration)."""
-    from .confidence_calibration import standardised_logistic
-
     y = np.asarray(is_object, dtype=bool)
     if y.all() or not y.any():
         raise ValueError("is_object: both objects of the category and other things are needed")
     return {"features": list(OBJECT_FEATURES), "meaning": "P(the fitted pixels are an object of the category)",
             **standardised_logistic(X, y, balanced=True), "frames": int(len(y)), "object_rate": float(y.mean())}
-
-
-def auc(p_objects, p_others) -> float:
-    """The area under the ROC curve: the chance that an object's ``p_object`` exceeds another thing's (ties count
-    half), threshold-free; ``nan`` without both."""
-    from sklearn.metrics import roc_auc_score
-
-    a, b = np.asarray(p_objects, dtype=np.float64), np.asarray(p_others, dtype=np.float64)
-    if not a.size or not b.size:
-        return float("nan")
-    return float(roc_auc_score(np.r_[np.ones(a.size), np.zeros(b.size)], np.r_[a, b]))
 
 
 def measure(calibration: dict, X, is_object, source, threshold: float, refinement=None) -> dict:

@@ -46,10 +46,39 @@ def test_features_treat_missing_evidence_as_worst():
 
 
 @pytest.mark.slow
-def test_collect_labels_rendered_frames():
-    data = collect("laptop", 4, progress=False)
-    assert data["X"].shape == (4, len(FEATURES)) and data["good"].dtype == bool
+def test_collect_holds_good_and_bad_fits_of_every_source():
+    """The minimum frames of the mix: every source in both halves, labels by the rotation rule, other categories'
+    fits never good, and both outcomes present (the rendered frames alone were nearly all good)."""
+    from ancsh.studies.confidence_calibration import MIN_FRAMES, SOURCES, fitting_half
+
+    data = collect("laptop", MIN_FRAMES, progress=False)
+    n = len(data["good"])
+    assert data["X"].shape == (n, len(FEATURES)) and data["good"].dtype == bool and data["frame"].shape == (n,)
     assert np.array_equal(data["good"], data["rot_deg"] < 10.0)
+    assert data["source_frames"] == {s: MIN_FRAMES * SOURCES.count(s) // len(SOURCES) for s in SOURCES}
+    src = np.asarray(data["source"])
+    assert not data["good"][src == "other"].any()
+    assert data["good"].any() and not data["good"].all()
+    half = fitting_half(data["frame"])
+    kept = {s for s in SOURCES if s not in data["failed"] or data["failed"][s] < data["source_frames"][s]}
+    for s in kept - {"merged", "other"}:  # the sources whose fits mostly pass their checks
+        assert (half & (src == s)).any() and (~half & (src == s)).any(), s
+    assert np.all(np.diff(data["frame"]) >= 0) and data["frame"].max() < MIN_FRAMES
+
+
+def test_hard_segments_are_the_share_asked_for():
+    from ancsh.studies.confidence_calibration import CROP_KEEP, _crop, _grown
+
+    rng = np.random.default_rng(4)
+    mask = np.zeros((60, 80), dtype=bool)
+    mask[20:40, 30:60] = True
+    depth = np.where(rng.random(mask.shape) < 0.5, 1.0, 0.0)
+    for _ in range(20):
+        crop = _crop(mask, rng)
+        assert not np.any(crop & ~mask)
+        assert CROP_KEEP[0] - 0.05 <= crop.sum() / mask.sum() <= CROP_KEEP[1] + 0.05
+        grown = _grown(mask, depth, rng)
+        assert np.all(grown[mask]) and np.all(depth[grown & ~mask] > 0) and grown.sum() > mask.sum()
 
 
 def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
@@ -76,25 +105,76 @@ def test_predict_reports_the_calibrated_probability(monkeypatch, tmp_path):
     assert predict_depth(depth, frame.intrinsics, "laptop").to_json()["confidence"]["p_good"] is None
 
 
-def test_calibrate_refuses_too_few_frames(capsys):
-    assert main(["calibrate", "--category", "laptop", "--frames", "2"]) == 2
-    assert "--frames" in capsys.readouterr().err
+@pytest.mark.parametrize("install", [[], ["--install"]])
+def test_calibrate_refuses_fewer_frames_than_its_minimum(capsys, install):
+    """Issue 63: ``calibrate --frames 5`` exits non-zero naming the minimum, with or without --install, before any
+    work (nothing is installed)."""
+    from ancsh.learned.inference.confidence import calibration_path
+    from ancsh.studies.confidence_calibration import MIN_FRAMES
+
+    before = calibration_path("laptop").read_bytes()
+    for frames in ("2", "5", str(MIN_FRAMES - 1)):
+        assert main(["calibrate", "--category", "laptop", "--frames", frames, *install, "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert "--frames" in err and f"at least {MIN_FRAMES} frames" in err
+    assert calibration_path("laptop").read_bytes() == before
 
 
-@pytest.mark.parametrize("kind", [[], ["--object"]])
-def test_calibrate_installs_only_from_enough_frames(capsys, kind):
+def test_calibrate_object_installs_only_from_enough_frames(capsys):
     """A calibration from a handful of frames (issue 35: 3 fit frames) is refused before any work when it would be
     installed over the shipped one."""
     from ancsh.cli.learned import MIN_INSTALL_FRAMES
-    from ancsh.learned.inference.confidence import calibration_path, object_calibration_path
+    from ancsh.learned.inference.confidence import object_calibration_path
 
-    shipped = (object_calibration_path if kind else calibration_path)("laptop")
+    shipped = object_calibration_path("laptop")
     before = shipped.read_bytes()
     frames = str(MIN_INSTALL_FRAMES - 1)
-    assert main(["calibrate", "--category", "laptop", *kind, "--frames", frames, "--install", "--no-progress"]) == 2
+    assert main(["calibrate", "--category", "laptop", "--object", "--frames", frames, "--install", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "--install" in err and f"at least {MIN_INSTALL_FRAMES} frames" in err
     assert shipped.read_bytes() == before
+
+
+def test_calibrate_scenes_needs_object(capsys):
+    """``--scenes`` belongs to the p_object calibration: without ``--object`` it is an error, not ignored."""
+    assert main(["calibrate", "--category", "laptop", "--frames", "400", "--scenes", "3", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "--scenes" in err and "--object" in err
+
+
+def _synthetic_collect(rng, frames, informative=True):
+    """What :func:`collect` returns, for ``frames`` example frames of one fit each (a fake, no network)."""
+    from ancsh.studies.confidence_calibration import SOURCES
+
+    X = rng.normal(size=(frames, len(FEATURES)))
+    good = rng.random(frames) < (1.0 / (1.0 + np.exp(-3.0 * X[:, 0])) if informative else 0.5)
+    src = [SOURCES[i % len(SOURCES)] for i in range(frames)]
+    return {"X": X, "good": good, "rot_deg": np.where(good, 1.0, 30.0), "source": src,
+            "frame": np.arange(frames), "failed": {"merged": 3},
+            "source_frames": {s: src.count(s) for s in dict.fromkeys(SOURCES)}}
+
+
+def test_calibrate_writes_an_informative_model_and_refuses_one_outcome(monkeypatch, tmp_path, capsys):
+    """End to end without the network: the installed-to-be JSON is a logistic regression with both check-fit Brier
+    scores and its report names the command and the sources; fits of one outcome are an error naming --frames (no
+    constant is written)."""
+    from ancsh.studies import confidence_calibration as cc
+
+    rng = np.random.default_rng(5)
+    fake = _synthetic_collect(rng, 200)
+    monkeypatch.setattr(cc, "collect", lambda *a, **k: fake)
+    out = tmp_path / "report"
+    assert main(["calibrate", "--category", "laptop", "--frames", "200", "--out", str(out), "--no-progress"]) == 0
+    cal = json.loads((out / "laptop_confidence.json").read_text())
+    assert cal["model"] == "logistic" and any(c != 0.0 for c in cal["coef"]) and cal["example_frames"] == 200
+    assert cal["brier_check"]["logistic"] < cal["brier_check"]["constant"] and 0.5 < cal["auc_check"] <= 1.0
+    md = (out / "laptop_confidence.md").read_text()
+    assert "calibrate --category laptop --frames 200" in md and "| perturbed |" in md and "beats the constant" in md
+    one_outcome = dict(fake, good=np.ones(200, dtype=bool))
+    monkeypatch.setattr(cc, "collect", lambda *a, **k: one_outcome)
+    out2 = tmp_path / "one"
+    assert main(["calibrate", "--category", "laptop", "--frames", "200", "--out", str(out2), "--no-progress"]) == 2
+    assert "--frames" in capsys.readouterr().err and not (out2 / "laptop_confidence.json").exists()
 
 
 def test_infer_takes_the_raw_prediction_from_either_provider_interface():
@@ -109,36 +189,55 @@ def test_infer_takes_the_raw_prediction_from_either_provider_interface():
     assert infer(new, None) == (corr, raw) and infer(old, None) == (corr, raw) and infer(bare, None) == (corr, None)
 
 
-def test_calibration_falls_back_to_the_base_rate_where_the_evidence_does_not_predict():
-    """Informative features: the regression is kept; features unrelated to the outcome at a 96 % base rate: the
-    constant base rate is (the regression's check-frame Brier score is no better); p_good is then the rate."""
-    from ancsh.studies.confidence_calibration import choose_calibrator
+def test_a_constant_model_is_an_error_not_a_calibration():
+    """Informative features: the regression beats the base rate on the check fits; features unrelated to the outcome:
+    the regression is still the result, and the report says it does not beat the constant; a constant model (the base
+    rate, or a regression of features that never vary) and too few fits of an outcome are errors."""
+    from ancsh.studies.confidence_calibration import (MIN_FRAMES_PER_OUTCOME, _model_sentence, calibrate_and_check,
+                                                      check_informative, constant_calibrator)
 
     rng = np.random.default_rng(3)
     X = rng.normal(size=(400, len(FEATURES)))
     informative = rng.random(400) < 1.0 / (1.0 + np.exp(-3.0 * X[:, 0]))
-    cal, rel = choose_calibrator(X[:200], informative[:200], X[200:], informative[200:])
+    cal, rel = calibrate_and_check(X[:200], informative[:200], X[200:], informative[200:])
     assert cal["model"] == "logistic" and cal["brier_check"]["logistic"] < cal["brier_check"]["constant"]
-    assert rel["brier"] == cal["brier_check"]["logistic"]
-    noise = rng.random(400) < 0.96
-    noise[:4] = False  # both outcomes in the fitting half
-    cal, rel = choose_calibrator(X[:200], noise[:200], X[200:], noise[200:])
-    assert cal["model"] == "constant" and cal["brier_check"]["constant"] <= cal["brier_check"]["logistic"]
-    assert probability_good(cal, X[250]) == pytest.approx(noise[:200].mean())
-    assert rel["brier"] == cal["brier_check"]["constant"]
-    # every fitting frame good (a network without a bad fit in them): the constant at the add-one rate, not an error
-    all_good = np.ones(400, dtype=bool)
-    all_good[300] = False
-    cal, rel = choose_calibrator(X[:200], all_good[:200], X[200:], all_good[200:])
-    assert cal["model"] == "constant" and set(cal["brier_check"]) == {"constant"}
-    assert probability_good(cal, X[250]) == pytest.approx(201 / 202)
-    assert rel["frames"] == 200 and rel["good_rate"] == pytest.approx(199 / 200)
-    from ancsh.studies.confidence_calibration import _model_sentence
+    assert rel["brier"] == cal["brier_check"]["logistic"] and "beats the constant" in _model_sentence(cal)
+    noise = rng.random(400) < 0.9
+    cal, rel = calibrate_and_check(X[:200], noise[:200], X[200:], noise[200:])
+    assert cal["model"] == "logistic" and rel["brier"] == cal["brier_check"]["logistic"]
+    if cal["brier_check"]["logistic"] >= cal["brier_check"]["constant"]:
+        assert "does not beat the constant" in _model_sentence(cal)
+    with pytest.raises(ValueError, match="constant model"):
+        check_informative(constant_calibrator(noise))
+    with pytest.raises(ValueError, match="constant model"):
+        check_informative({k: v for k, v in cal.items() if k != "coef"})
+    with pytest.raises(ValueError, match="constant model"):  # features that never vary: every coefficient 0
+        fit_calibrator(np.ones((200, len(FEATURES))), informative[:200])
+    check_informative(cal)
+    # one bad fit too few among the fitting fits, each told apart by its first feature: refused, not a constant
+    few_bad = np.ones(400, dtype=bool)
+    few_bad[:MIN_FRAMES_PER_OUTCOME - 1] = False
+    few_bad[200:200 + MIN_FRAMES_PER_OUTCOME] = False
+    with pytest.raises(ValueError, match="good_fit"):
+        calibrate_and_check(X[:200], few_bad[:200], X[200:], few_bad[200:])
+    with pytest.raises(ValueError, match="good_check"):
+        calibrate_and_check(X[200:], few_bad[200:], X[:200], few_bad[:200])
 
-    assert "one outcome only" in _model_sentence(cal)  # the report says why no regression was tried
-    # three bad fits among 200 fitting frames, each told apart by its first feature (a regression would even win on
-    # the check frames): too few to fit five coefficients, so the constant rate
-    few_bad = X[:, 0] > -1.9
-    assert (~few_bad[:200]).sum() == 3 and (~few_bad[200:]).sum() >= 3
-    cal, _ = choose_calibrator(X[:200], few_bad[:200], X[200:], few_bad[200:])
-    assert cal["model"] == "constant" and probability_good(cal, X[250]) == pytest.approx(197 / 200)
+
+def test_every_shipped_calibration_carries_information():
+    """Issue 63: no shipped p_good calibration is a constant model, and each is one of the shipped weights: it ranks
+    a fit with the best evidence (every point an inlier, no residual, certain segmentation) above one with the worst."""
+    from ancsh.data.procedural import CATEGORIES
+    from ancsh.learned.network.weights import weights_path
+    from ancsh.outputs import file_sha256
+    from ancsh.studies.confidence_calibration import check_informative
+
+    shipped = [c for c in CATEGORIES if confidence.calibration_path(c).is_file()]
+    assert shipped == [c for c in CATEGORIES if weights_path(c).is_file()]
+    for category in shipped:
+        cal = json.loads(confidence.calibration_path(category).read_text())
+        check_informative(cal)
+        assert cal["features"] == list(FEATURES) and cal["weights_sha256"] == file_sha256(weights_path(category))
+        best = np.array([1.0, 0.0, 1.0, 1.0, np.log(1024)])
+        worst = np.array([0.3, 0.3, 0.1, 0.3, np.log(1024)])
+        assert probability_good(cal, best) > probability_good(cal, worst), category

@@ -3,10 +3,11 @@
 Features of a fit (:func:`fit_features`, from :func:`ancsh.learned.inference.predict.part_quality`): the
 lowest part inlier ratio, the largest part residual relative to the category's typical size, the
 lowest and the mean part segmentation margin, and the log of the point count. A logistic
-regression (scikit-learn) maps them to the probability, trained on rendered frames of the held-out
-instances drawn from a seed stream other than the evaluation's, its reliability measured on a separate
-half of them (:mod:`ancsh.studies.confidence_calibration`, ``ancsh calibrate --category laptop``, which
-with ``--install`` writes the model beside the shipped weights). The fitted model is a few numbers in
+regression (scikit-learn) maps them to the probability, trained on the fits of a seeded mix of good and bad
+cases (rendered held-out frames of a seed stream other than the evaluation's, stress scenes isolated without a
+mask, cropped and merged segments, perturbed network outputs, other categories' frames), its reliability
+measured on a separate half of them (:mod:`ancsh.studies.confidence_calibration`, ``ancsh calibrate --category
+laptop``, which with ``--install`` writes the model beside the shipped weights; a constant model is refused). The fitted model is a few numbers in
 ``ancsh/weights/<category>_confidence.json``; applying it needs numpy only (:func:`probability_good`).
 """
 
