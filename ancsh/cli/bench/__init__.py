@@ -26,6 +26,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.sensor_realism",
     "ancsh.cli.bench.scenes",
     "ancsh.cli.bench.mask_refusal",
+    "ancsh.cli.bench.cad_auto",
 ]
 
 
