@@ -11,7 +11,7 @@ from pathlib import Path
 from ...outputs import output_flags
 from .._args import changed_options, non_negative_int
 
-_DEFAULTS = {"per_category": 4, "seeds": [0, 1, 2], "points": 3000, "noise": False, "scene_seed": 0, "data": None,
+_DEFAULTS = {"per_category": 3, "seeds": [0, 1, 2], "points": 3000, "noise": False, "scene_seed": 0, "data": None,
              "before": None}
 
 
@@ -19,8 +19,8 @@ def register(sub) -> None:
     """Add ``ancsh bench cad-auto`` to the ``bench`` sub-parsers."""
     p = sub.add_parser("cad-auto", help="fit-cad with its automatic start on renders of the shared real objects at "
                        "several seeds: right / wrong but success / refused, seed agreement")
-    p.add_argument("--per-category", type=int, default=4, help="objects per category, the first in name order "
-                   "(default 4)")
+    p.add_argument("--per-category", type=int, default=3, help="objects per category, the first in name order "
+                   "(default 3)")
     p.add_argument("--seeds", type=non_negative_int, nargs="+", default=[0, 1, 2], help="fit-cad --seed values "
                    "(default 0 1 2)")
     p.add_argument("--points", type=int, default=3000, help="fit-cad --points (default 3000)")

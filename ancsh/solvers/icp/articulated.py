@@ -49,6 +49,7 @@ import numpy as np
 
 from ...geometry._checks import as_array, check_bool, check_choice, check_generator, check_int, check_number, check_positive
 from ...geometry.robust import ROBUST_LOSSES
+from ...geometry.metrics import AD_THRESHOLD
 from ...geometry.rotations import exp_so3, geodesic_angle
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
@@ -56,10 +57,17 @@ from ..types import FitStatus, Observation
 from .result import CadFitResult, IcpIteration
 from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProvider
 from .reduced import icp_uncertainty, reduced_step
-from .scoring import FitScore, FitScorer
+from .scoring import NOISE_SIGMAS, DepthSupport, FitScore, FitScorer, depth_support, noise_tolerance, paired_z
 
-__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init", "icp_uncertainty",
-           "part_evidence", "reduced_step", "unsupported_parts"]
+__all__ = ["AMBIGUITY_Z", "ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init",
+           "icp_uncertainty", "part_evidence", "reduced_step", "symmetric_hypotheses", "unsupported_parts"]
+
+AMBIGUITY_Z = 3.0
+"""A rival fit explains the points significantly worse when its per-point errors exceed the best fit's by more than
+this many standard errors (:func:`~.scoring.paired_z`; one-sided 0.13% for normal errors)."""
+
+SCORE_SEED = 0
+"""Seed of the surface samples that score the symmetric starts (a constant: the choice must not depend on ``rng``)."""
 
 
 @dataclass(frozen=True)
@@ -122,6 +130,20 @@ class ArticulatedIcpConfig:
     uncertainty : bool
         Compute :attr:`CadFitResult.uncertainty` at the result (:func:`icp_uncertainty`; one more
         closest-point match and a linearisation).
+    symmetric_starts : bool
+        After the search, finish the turns of its result that the model's shape allows as well
+        (:func:`symmetric_hypotheses`: each revolute joint's two parts swapped, 180 degree turns about the
+        model's principal axes) and keep the one the depth supports best (:func:`~.scoring.depth_support`,
+        scored with surface samples drawn from a fixed seed, so the choice does not depend on ``rng``).
+    noise_status : bool
+        Judge the result at the scale of the sensor noise, estimated from the points
+        (:func:`~.scoring.noise_tolerance`): ``LARGE_RESIDUAL`` when fewer than ``accept_inliers`` of the
+        points lie within the tolerance of the model (or more than ``1 - accept_inliers`` of its visible
+        surface is unobserved); ``AMBIGUOUS`` when an AD-distinct fit (another part pose more than
+        :data:`~ancsh.geometry.metrics.AD_THRESHOLD` of the part's diameter away) explains the points too and
+        not significantly worse (:data:`AMBIGUITY_Z`); a fit stopped by ``max_iterations`` that explains the
+        points and whose last step moved every part by less than the tolerance is ``SUCCESS`` (converged to
+        the noise) rather than ``MAX_ITER``.
     """
 
     max_iterations: int = 40
@@ -146,6 +168,14 @@ class ArticulatedIcpConfig:
     solver: str = "lsq"
     solver_iterations: int = 8
     uncertainty: bool = True
+    symmetric_starts: bool = False
+    noise_status: bool = False
+
+    @classmethod
+    def instance(cls, **changes) -> "ArticulatedIcpConfig":
+        """The settings of ``ancsh fit-cad``: the exact model of the observed object, so its symmetric starts and
+        the status at the sensor noise are on (``changes`` override any field)."""
+        return cls(**{"symmetric_starts": True, "noise_status": True, **changes})
 
     def __post_init__(self):
         for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations", "candidates"):
@@ -159,7 +189,7 @@ class ArticulatedIcpConfig:
         check_number(self.accept_inliers, "accept_inliers", minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.gate_decay, "gate_decay", minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.point_weight, "point_weight", minimum=0.0)
-        for name in ("point_to_plane", "joint_restarts", "uncertainty"):
+        for name in ("point_to_plane", "joint_restarts", "uncertainty", "symmetric_starts", "noise_status"):
             check_bool(getattr(self, name), name)
         if not self.point_to_plane and self.point_weight == 0:
             raise ValueError("point_weight: must be positive without the point-to-plane term")
@@ -361,6 +391,61 @@ def _starts(model: ArticulatedModel, inits: list, config: ArticulatedIcpConfig, 
     return starts
 
 
+def _turned(T: Sim3, R: np.ndarray, origin: np.ndarray) -> Sim3:
+    """``T`` turned by ``R`` about the camera-frame point ``origin``."""
+    return Sim3(R @ T.rotation, R @ (T.translation - origin) + origin)
+
+
+def symmetric_hypotheses(model: ArticulatedModel, estimate: ArticulatedPose, diagonal: float) -> list:
+    """The turns of ``estimate`` that a near-symmetric shape allows, joint states kept.
+
+    - for each revolute joint, its two parts swapped: a half turn about the line through the joint's pivot,
+      perpendicular to its axis and halfway between the directions to the two parts' centres (mean of their mesh
+      vertices; a laptop's base where its display was and vice versa);
+    - half turns about the three principal axes of the posed model's mesh vertices, through their mean (a box
+      turned by its symmetry).
+
+    Turns that land in the basin of ``estimate`` or of an earlier turn (in this order) are dropped (deduplicated).
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    estimate : ArticulatedPose
+    diagonal : float
+        The model's diagonal (metres; the basin test's scale).
+    """
+    parts = estimate.part_poses(model)
+    posed = [T.apply(np.asarray(p.vertices, dtype=np.float64)) for T, p in zip(parts, model.parts)]
+    cloud = np.concatenate(posed)
+    centre = cloud.mean(axis=0)
+    _, vecs = np.linalg.eigh(np.cov((cloud - centre).T))
+    lines = []
+    T = estimate.T_cam_base
+    for k, joint in enumerate(model.joints):
+        if not joint.is_revolute:
+            continue
+        axis_b, pivot_b = model.joint_line_in_base(k, estimate.q)
+        a, o = T.apply_direction(axis_b), T.apply(pivot_b)
+        a = a / np.linalg.norm(a)
+        p, c = model.joint_parts(k)
+        dirs = []
+        for j in (p, c):
+            u = posed[j].mean(axis=0) - o
+            u -= a * (a @ u)
+            dirs.append(u / max(np.linalg.norm(u), 1e-12))
+        b = dirs[0] + dirs[1]
+        if np.linalg.norm(b) < 1e-6:  # the parts opposite each other (flat): turn about the line across them
+            b = np.cross(a, dirs[0])
+        lines.append((o, b / np.linalg.norm(b)))
+    lines += [(centre, vecs[:, i]) for i in range(3)]  # after the swaps: a near-copy of a swap is dropped
+    out: list = []
+    for origin, axis in lines:
+        h = ArticulatedPose(_turned(T, exp_so3(np.pi * axis), origin), estimate.q)
+        if not any(_same_basin(h, other, diagonal) for other in [estimate, *out]):
+            out.append(h)
+    return out
+
+
 def auto_init(model: ArticulatedModel, points_cam, *, azimuths: int = 8, elevation_deg: float = 30.0) -> list:
     """Initial estimates without prior knowledge: ``azimuths`` views of the upright model.
 
@@ -484,9 +569,35 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
             final = second
     if final is None:
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
+    judge = _Judge(model, points, provider.surface, diagonal, config) if config.symmetric_starts or config.noise_status \
+        else None
+    finished = [final]
+    if config.symmetric_starts:
+        hyps = symmetric_hypotheses(model, final.estimate, diagonal)
+        for h in hyps:
+            hist: list = []
+            e, st, n, _ = run.iterate(h, 0, config.start_iterations, hist)
+            iterations += n
+            if st == FitStatus.TOO_FEW_POINTS:
+                continue
+            out, used = _finish_candidate(run, model, config, _Candidate(run.score(e)[0], 0, e, hist, n))
+            iterations += used
+            if out is not None:
+                finished.append(out)
+        starts = starts + hyps
     est = final.estimate
     status = final.status
     msg = "converged" if final.status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    if judge is not None:
+        supports = [judge.support(f.estimate) for f in finished]
+        best = min(range(len(finished)), key=lambda i: (supports[i].score, i))  # ties: the search's own result
+        final = finished[best]
+        est, status = final.estimate, final.status
+        msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+        if config.symmetric_starts:
+            msg += f" (best of {len(finished)} symmetric hypotheses by depth support)"
+        if config.noise_status and status in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
+            status, msg = judge.verdict(finished, supports, best, status, msg, radii)
     inlier_gate = max(config.gate_end * diagonal, config.gate_floor)
     near, inl = part_evidence(provider, est, points, run.gate(0), inlier_gate)
     weak = unsupported_parts(model, near, inl, inlier_gate)
@@ -503,6 +614,62 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts), uncertainty=uncertainty,
         part_points=tuple(int(n) for n in near), part_inliers=tuple(int(n) for n in inl),
     )
+
+
+class _Judge:
+    """Scores finished fits at the sensor noise (:func:`~.scoring.depth_support`) with surface samples drawn from
+    :data:`SCORE_SEED`, and gives the status of the best one (:meth:`verdict`)."""
+
+    def __init__(self, model, points, surface, diagonal, config):
+        self.model, self.surface, self.config = model, surface, config
+        self.scorer = FitScorer(points, SCORE_SEED)
+        self.samples, self.labels, _ = self.scorer.samples(surface)
+        self.tolerance, self.sigma = noise_tolerance(points, config.tolerance * diagonal)
+        self.diameters = []
+        for j in range(model.num_parts):
+            p = self.samples[self.labels == j]
+            self.diameters.append(float(np.max(np.linalg.norm(p[:, None] - p[None], axis=2))) if len(p) else 0.0)
+
+    def support(self, estimate: ArticulatedPose) -> DepthSupport:
+        return depth_support(self.scorer, self.surface, estimate.part_poses(self.model), self.tolerance)
+
+    def distinct(self, a: ArticulatedPose, b: ArticulatedPose) -> bool:
+        """Some part of ``a`` is more than the AD threshold of its diameter from the same part of ``b``."""
+        pa, pb = a.part_poses(self.model), b.part_poses(self.model)
+        for j, d in enumerate(self.diameters):
+            p = self.samples[self.labels == j]
+            if len(p) and np.mean(np.linalg.norm(pa[j].apply(p) - pb[j].apply(p), axis=1)) > AD_THRESHOLD * d:
+                return True
+        return False
+
+    def verdict(self, finished, supports, best, status, msg, radii):
+        """``(status, message)`` of ``finished[best]`` (status ``SUCCESS`` or ``MAX_ITER`` so far)."""
+        share = self.config.accept_inliers
+        sup, fit = supports[best], finished[best]
+        noise = (f"{self.tolerance:.3g} ({NOISE_SIGMAS:g} x the sensor noise {self.sigma:.2g} estimated from the "
+                 "points, or the solver's resolution)")
+        if not sup.explains(share):
+            return FitStatus.LARGE_RESIDUAL, (
+                f"{msg}, but {100 * sup.share:.0f}% of the points lie within {noise} of the model and "
+                f"{100 * sup.unobserved:.0f}% of its visible surface is unobserved (at least {100 * share:.0f}% and at "
+                f"most {100 * (1 - share):.0f}% are needed): the fit does not explain the depth")
+        for i, (other, s2) in enumerate(zip(finished, supports)):
+            if i == best or not s2.explains(share) or not self.distinct(fit.estimate, other.estimate):
+                continue
+            z = paired_z(sup, s2)
+            if z < AMBIGUITY_Z:
+                return FitStatus.AMBIGUOUS, (
+                    f"{msg}, but a fit turned away from it (some part beyond {AD_THRESHOLD:g} of its diameter) explains "
+                    f"the points as well: {100 * s2.share:.0f}% against {100 * sup.share:.0f}% within {noise}, "
+                    f"{z:.1f} standard errors worse ({AMBIGUITY_Z:g} needed): the depth cannot tell them apart")
+        if status == FitStatus.MAX_ITER:
+            h = fit.history
+            step = _pose_change(h[-2].T_cam_parts, h[-1].T_cam_parts, radii) if len(h) >= 2 else float("inf")
+            if step < self.tolerance:
+                return FitStatus.SUCCESS, (
+                    f"converged to the sensor noise: {100 * sup.share:.0f}% of the points within {noise} of the model, "
+                    f"the last of {self.config.max_iterations} iterations moved no part by more than {step:.2g}")
+        return status, msg
 
 
 MIN_PART_INLIERS = 3

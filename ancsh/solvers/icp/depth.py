@@ -52,6 +52,7 @@ def fit_depth(model: ArticulatedModel, points_cam, *, points: int = 3000, rng=0,
         Draws the subset (and is passed on to :func:`articulated_icp`).
     init : ArticulatedPose, optional
     config : ArticulatedIcpConfig, optional
+        Default :meth:`ArticulatedIcpConfig.instance` (symmetric starts, status at the sensor noise).
     surface : ModelSurface, optional
         A reusable closest-point structure of ``model``.
     """
@@ -61,4 +62,5 @@ def fit_depth(model: ArticulatedModel, points_cam, *, points: int = 3000, rng=0,
     if pts.shape[0] > points:
         pts = pts[rng.choice(pts.shape[0], points, replace=False)]
     start = init if init is not None else auto_init(model, pts)
+    config = ArticulatedIcpConfig.instance() if config is None else config
     return articulated_icp(model, Observation(pts), start, config=config, rng=rng, surface=surface)

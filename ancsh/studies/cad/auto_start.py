@@ -60,7 +60,7 @@ class AutoStartConfig:
         Folder holding ``<category>_<id>/mobility.urdf`` objects (default: the shared data's ``partnet_mobility``).
     """
 
-    per_category: int = 4
+    per_category: int = 3
     seeds: tuple = (0, 1, 2)
     points: int = 3000
     noise: bool = False
