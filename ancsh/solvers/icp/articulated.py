@@ -35,6 +35,11 @@ Multi-start, in three stages:
    of the points, the next best start from another basin goes through stages 2-3 (at
    most ``candidates`` starts), and the best-scoring result wins.
 
+Then, with ``symmetric_starts``, the turns of the result that a near-symmetric shape allows (its parts
+swapped, half turns) are finished too and the fit the depth supports best is kept; with ``noise_status`` the
+status says whether that fit explains the depth to the sensor noise and whether a distinct fit explains it
+as well (see :class:`ArticulatedIcpConfig`). ``ancsh fit-cad`` uses both (:meth:`ArticulatedIcpConfig.instance`).
+
 Visibility: correspondences are restricted to model surface the camera can see (see
 :meth:`~ancsh.solvers.icp.template.ModelSurface.closest`), so front-face points of a thin
 part are never matched to its back face.
@@ -143,7 +148,8 @@ class ArticulatedIcpConfig:
         :data:`~ancsh.geometry.metrics.AD_THRESHOLD` of the part's diameter away) explains the points too and
         not significantly worse (:data:`AMBIGUITY_Z`); a fit stopped by ``max_iterations`` that explains the
         points and whose last step moved every part by less than the tolerance is ``SUCCESS`` (converged to
-        the noise) rather than ``MAX_ITER``.
+        the noise) rather than ``MAX_ITER``. When no fit explains the points, up to ``candidates`` more of the
+        basins the searches left unfinished are finished first (best-scoring first, until one does).
     """
 
     max_iterations: int = 40
@@ -285,8 +291,9 @@ class _Finished:
     history: list
 
 
-def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
-    """Stages 1-3 (see the module docstring) from ``starts``: ``(best finished or None, iterations)``."""
+def _search(run: _Run, model, config, starts, untried: list | None = None) -> tuple[_Finished | None, int]:
+    """Stages 1-3 (see the module docstring) from ``starts``: ``(best finished or None, iterations)``; the
+    candidates left unfinished (best first) are appended to ``untried`` when given."""
     iterations = 0
     candidates = []
     for s in starts:
@@ -300,8 +307,10 @@ def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
     candidates.sort(key=lambda c: (c.score, c.order))
     final = None
     tried: list = []
-    for cand in candidates:
+    for ci, cand in enumerate(candidates):
         if len(tried) >= config.candidates:
+            if untried is not None:
+                untried.extend(candidates[ci:])
             break
         if any(_same_basin(cand.estimate, other, run.diagonal) for other in tried):
             continue  # finishing a start that sits where a tried one sat would end where it ended
@@ -311,6 +320,8 @@ def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
         if out is not None and (final is None or out.score < final.score):
             final = out
         if final is not None and final.inlier_ratio >= config.accept_inliers:
+            if untried is not None:
+                untried.extend(candidates[ci + 1:])
             break
     return final, max(iterations, 1)
 
@@ -546,7 +557,8 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     center_base = np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0)
 
     starts = _starts(model, inits, config, center_base)
-    final, iterations = _search(run, model, config, starts)
+    untried: list = []  # candidates of the searches left unfinished, for the status at the sensor noise
+    final, iterations = _search(run, model, config, starts, untried)
     if final is None and iterations == 0:
         return failed(FitStatus.TOO_FEW_POINTS,
                       f"no observed point within {run.gate(0):.3g} (model units) of the model at any start "
@@ -562,7 +574,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
                 dR = exp_so3(rv)
                 T = Sim3(dR @ b.T_cam_base.rotation, dR @ (b.T_cam_base.translation - c) + c)
                 rescue.extend(_starts(model, [ArticulatedPose(T, b.q)], replace(config, orientations=()), center_base))
-        second, used = _search(run, model, config, rescue)
+        second, used = _search(run, model, config, rescue, untried)
         iterations += used
         starts = starts + rescue
         if second is not None and (final is None or second.score < final.score):
@@ -591,6 +603,25 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     if judge is not None:
         supports = [judge.support(f.estimate) for f in finished]
         best = min(range(len(finished)), key=lambda i: (supports[i].score, i))  # ties: the search's own result
+        if config.noise_status and not supports[best].explains(config.accept_inliers):
+            # Nothing found explains the depth: finish further basins the searches left (best first, at most
+            # ``candidates``) until one does.
+            tried = [f.estimate for f in finished]
+            for cand in sorted(untried, key=lambda c: c.score):
+                if len(tried) >= len(finished) + config.candidates:
+                    break
+                if any(_same_basin(cand.estimate, other, diagonal) for other in tried):
+                    continue
+                tried.append(cand.estimate)
+                out, used = _finish_candidate(run, model, config, cand)
+                iterations += used
+                if out is None:
+                    continue
+                finished.append(out)
+                supports.append(judge.support(out.estimate))
+                if supports[-1].explains(config.accept_inliers):
+                    break
+            best = min(range(len(finished)), key=lambda i: (supports[i].score, i))
         final = finished[best]
         est, status = final.estimate, final.status
         msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
