@@ -8,7 +8,9 @@ fits a known URDF model to one depth image by articulated ICP:
 - ``K.json``: ``{"fx", "fy", "cx", "cy", "width", "height"}`` (pixels; OpenCV pinhole, pixel
   centres at integer coordinates).
 - ``INIT.json`` (optional): ``{"T_cam_base": 4x4 rigid matrix, "q": [absolute joint states]}``;
-  ``q`` defaults to the rest state. Without it, :func:`auto_init` tries 8 upright views.
+  ``q`` defaults to the rest state. Without it, :func:`auto_init` tries 8 upright views. The fit is
+  :func:`~ancsh.solvers.icp.depth.fit_depth` with :meth:`ArticulatedIcpConfig.instance`: symmetric starts (parts
+  swapped, half turns) and the status at the sensor noise (``large_residual``, ``ambiguous``).
 - ``--out``: the result as JSON (part poses, joint states, status, their standard deviations:
   ``uncertainty``, see ``docs/json_schema.md``); ``--png``: the fitted
   model drawn over the depth points.

@@ -68,8 +68,8 @@ __all__ = ["AMBIGUITY_Z", "ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_
            "icp_uncertainty", "part_evidence", "reduced_step", "symmetric_hypotheses", "unsupported_parts"]
 
 AMBIGUITY_Z = 3.0
-"""A rival fit explains the points significantly worse when its per-point errors exceed the best fit's by more than
-this many standard errors (:func:`~.scoring.paired_z`; one-sided 0.13% for normal errors)."""
+"""A rival fit explains the points significantly worse when it puts fewer of them on the model than the best fit by
+this many standard errors (:func:`~.scoring.paired_z`, McNemar's test; one-sided 0.13% for normal statistics)."""
 
 SCORE_SEED = 0
 """Seed of the surface samples that score the symmetric starts (a constant: the choice must not depend on ``rng``)."""

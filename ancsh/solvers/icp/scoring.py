@@ -199,7 +199,7 @@ class DepthSupport:
     score : float
         ``mean(min(d / tolerance, 1)^2) + unobserved`` (lower is better).
     errors : (N,) float64
-        ``min(d / tolerance, 1)^2`` per observed point (for :func:`paired_z`).
+        ``min(d / tolerance, 1)^2`` per observed point (below 1: on the model; :func:`paired_z`).
     """
 
     tolerance: float
@@ -221,14 +221,13 @@ def depth_support(scorer: FitScorer, surface: ModelSurface, T_cam_parts, toleran
 
 
 def paired_z(better: DepthSupport, worse: DepthSupport) -> float:
-    """How many standard errors ``worse`` explains the same points worse than ``better``: the mean of the per-point
-    differences of :attr:`DepthSupport.errors` over its standard error (``inf`` when every difference is the same
-    positive number, 0 when all are 0)."""
+    """How many standard errors ``worse`` puts fewer of the same points on the model than ``better`` (McNemar's
+    test): ``(b - c) / sqrt(b + c)`` with ``b`` the points within the tolerance of ``better`` only and ``c`` those
+    within that of ``worse`` only (0 when there are none). Only the share within the tolerance counts, so
+    differences far below the sensor noise (one fit converged a little further) do not."""
     if worse.errors.shape != better.errors.shape or better.errors.size < 2:
         raise ValueError(f"worse: expected the support of the same (at least 2) points as better, got "
                          f"{worse.errors.shape} errors against {better.errors.shape}")
-    diff = worse.errors - better.errors
-    mean, sd = float(np.mean(diff)), float(np.std(diff, ddof=1))
-    if sd == 0:
-        return float("inf") if mean > 0 else 0.0
-    return mean / (sd / np.sqrt(diff.size))
+    on_better, on_worse = better.errors < 1.0, worse.errors < 1.0
+    b, c = int(np.sum(on_better & ~on_worse)), int(np.sum(on_worse & ~on_better))
+    return 0.0 if b + c == 0 else (b - c) / np.sqrt(b + c)
