@@ -17,8 +17,9 @@ def _results(outcomes_by_object):
         objects.append({"name": name, "category": category, "parts": ["base", "lid"], "joints": [["j", "revolute"]]})
         for seed, o in enumerate(outs):
             success, correct = o in ("right", "wrong_success"), o in ("right", "refused_correct")
-            records.append({"object": name, "category": category, "seed": seed, "status": "success" if success
-                            else "large_residual", "message": "", "correct": correct, "outcome": outcome(success, correct),
+            records.append({"object": name, "category": category, "seed": seed,
+                            "status": "success" if success else "large_residual", "message": "", "correct": correct,
+                            "outcome": outcome(success, correct),
                             "ad_over_diameter": [0.0 if correct else 0.5], "rmse": 1e-6, "inlier_ratio": 1.0,
                             "time_s": 1.0, "q": [0.1], "q_true": [0.1]})
         agreement[name] = len(set(outs)) == 1

@@ -54,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
         before = json.loads(args.before.read_text())
         if not isinstance(before, dict) or "records" not in before or "agreement" not in before:
             raise ValueError(f"--before: {args.before} is not the JSON of an ancsh bench cad-auto run")
-    parts = ["bench", "cad-auto", *changed_options(args, _DEFAULTS), *output_flags(args.out, update_docs=args.update_docs)]
+    parts = ["bench", "cad-auto", *changed_options(args, _DEFAULTS)]
+    parts += output_flags(args.out, update_docs=args.update_docs)
     command = "ancsh " + " ".join(shlex.quote(a) for a in parts)
     path = report_path(args.out, update_docs=args.update_docs, docs_name="cad_auto_start.md", command="cad-auto")
     t0 = time.perf_counter()

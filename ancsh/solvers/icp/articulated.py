@@ -54,7 +54,6 @@ import numpy as np
 
 from ...geometry._checks import as_array, check_bool, check_choice, check_generator, check_int, check_number, check_positive
 from ...geometry.robust import ROBUST_LOSSES
-from ...geometry.metrics import AD_THRESHOLD
 from ...geometry.rotations import exp_so3, geodesic_angle
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel
@@ -62,17 +61,11 @@ from ..types import FitStatus, Observation
 from .result import CadFitResult, IcpIteration
 from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProvider
 from .reduced import icp_uncertainty, reduced_step
-from .scoring import NOISE_SIGMAS, DepthSupport, FitScore, FitScorer, depth_support, noise_tolerance, paired_z
+from .scoring import FitScore, FitScorer
+from .verdict import NoiseJudge
 
-__all__ = ["AMBIGUITY_Z", "ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init",
+__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init",
            "icp_uncertainty", "part_evidence", "reduced_step", "symmetric_hypotheses", "unsupported_parts"]
-
-AMBIGUITY_Z = 3.0
-"""A rival fit explains the points significantly worse when it puts fewer of them on the model than the best fit by
-this many standard errors (:func:`~.scoring.paired_z`, McNemar's test; one-sided 0.13% for normal statistics)."""
-
-SCORE_SEED = 0
-"""Seed of the surface samples that score the symmetric starts (a constant: the choice must not depend on ``rng``)."""
 
 
 @dataclass(frozen=True)
@@ -146,7 +139,7 @@ class ArticulatedIcpConfig:
         points lie within the tolerance of the model (or more than ``1 - accept_inliers`` of its visible
         surface is unobserved); ``AMBIGUOUS`` when an AD-distinct fit (another part pose more than
         :data:`~ancsh.geometry.metrics.AD_THRESHOLD` of the part's diameter away) explains the points too and
-        not significantly worse (:data:`AMBIGUITY_Z`); a fit stopped by ``max_iterations`` that explains the
+        not significantly worse (:data:`~.verdict.AMBIGUITY_Z`); a fit stopped by ``max_iterations`` that explains the
         points and whose last step moved every part by less than the tolerance is ``SUCCESS`` (converged to
         the noise) rather than ``MAX_ITER``. When no fit explains the points, up to ``candidates`` more of the
         basins the searches left unfinished are finished first (best-scoring first, until one does).
@@ -581,8 +574,9 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
             final = second
     if final is None:
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
-    judge = _Judge(model, points, provider.surface, diagonal, config) if config.symmetric_starts or config.noise_status \
-        else None
+    judge = None
+    if config.symmetric_starts or config.noise_status:
+        judge = NoiseJudge(model, points, provider.surface, config.tolerance * diagonal, config.accept_inliers)
     finished = [final]
     if config.symmetric_starts:
         hyps = symmetric_hypotheses(model, final.estimate, diagonal)
@@ -603,7 +597,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     if judge is not None:
         supports = [judge.support(f.estimate) for f in finished]
         best = min(range(len(finished)), key=lambda i: (supports[i].score, i))  # ties: the search's own result
-        if config.noise_status and not supports[best].explains(config.accept_inliers):
+        if config.noise_status and not judge.explains(supports[best]):
             # Nothing found explains the depth: finish further basins the searches left (best first, at most
             # ``candidates``) until one does.
             tried = [f.estimate for f in finished]
@@ -619,7 +613,7 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
                     continue
                 finished.append(out)
                 supports.append(judge.support(out.estimate))
-                if supports[-1].explains(config.accept_inliers):
+                if judge.explains(supports[-1]):
                     break
             best = min(range(len(finished)), key=lambda i: (supports[i].score, i))
         final = finished[best]
@@ -628,7 +622,10 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         if config.symmetric_starts:
             msg += f" (best of {len(finished)} symmetric hypotheses by depth support)"
         if config.noise_status and status in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
-            status, msg = judge.verdict(finished, supports, best, status, msg, radii)
+            h = final.history
+            step = _pose_change(h[-2].T_cam_parts, h[-1].T_cam_parts, radii) if len(h) >= 2 else float("inf")
+            status, msg = judge.verdict([f.estimate for f in finished], supports, best, status, msg, step,
+                                        config.max_iterations)
     inlier_gate = max(config.gate_end * diagonal, config.gate_floor)
     near, inl = part_evidence(provider, est, points, run.gate(0), inlier_gate)
     weak = unsupported_parts(model, near, inl, inlier_gate)
@@ -645,62 +642,6 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
         time_s=time.perf_counter() - t0, history=tuple(final.history), starts=len(starts), uncertainty=uncertainty,
         part_points=tuple(int(n) for n in near), part_inliers=tuple(int(n) for n in inl),
     )
-
-
-class _Judge:
-    """Scores finished fits at the sensor noise (:func:`~.scoring.depth_support`) with surface samples drawn from
-    :data:`SCORE_SEED`, and gives the status of the best one (:meth:`verdict`)."""
-
-    def __init__(self, model, points, surface, diagonal, config):
-        self.model, self.surface, self.config = model, surface, config
-        self.scorer = FitScorer(points, SCORE_SEED)
-        self.samples, self.labels, _ = self.scorer.samples(surface)
-        self.tolerance, self.sigma = noise_tolerance(points, config.tolerance * diagonal)
-        self.diameters = []
-        for j in range(model.num_parts):
-            p = self.samples[self.labels == j]
-            self.diameters.append(float(np.max(np.linalg.norm(p[:, None] - p[None], axis=2))) if len(p) else 0.0)
-
-    def support(self, estimate: ArticulatedPose) -> DepthSupport:
-        return depth_support(self.scorer, self.surface, estimate.part_poses(self.model), self.tolerance)
-
-    def distinct(self, a: ArticulatedPose, b: ArticulatedPose) -> bool:
-        """Some part of ``a`` is more than the AD threshold of its diameter from the same part of ``b``."""
-        pa, pb = a.part_poses(self.model), b.part_poses(self.model)
-        for j, d in enumerate(self.diameters):
-            p = self.samples[self.labels == j]
-            if len(p) and np.mean(np.linalg.norm(pa[j].apply(p) - pb[j].apply(p), axis=1)) > AD_THRESHOLD * d:
-                return True
-        return False
-
-    def verdict(self, finished, supports, best, status, msg, radii):
-        """``(status, message)`` of ``finished[best]`` (status ``SUCCESS`` or ``MAX_ITER`` so far)."""
-        share = self.config.accept_inliers
-        sup, fit = supports[best], finished[best]
-        noise = (f"{self.tolerance:.3g} ({NOISE_SIGMAS:g} x the sensor noise {self.sigma:.2g} estimated from the "
-                 "points, or the solver's resolution)")
-        if not sup.explains(share):
-            return FitStatus.LARGE_RESIDUAL, (
-                f"{msg}, but {100 * sup.share:.0f}% of the points lie within {noise} of the model and "
-                f"{100 * sup.unobserved:.0f}% of its visible surface is unobserved (at least {100 * share:.0f}% and at "
-                f"most {100 * (1 - share):.0f}% are needed): the fit does not explain the depth")
-        for i, (other, s2) in enumerate(zip(finished, supports)):
-            if i == best or not s2.explains(share) or not self.distinct(fit.estimate, other.estimate):
-                continue
-            z = paired_z(sup, s2)
-            if z < AMBIGUITY_Z:
-                return FitStatus.AMBIGUOUS, (
-                    f"{msg}, but a fit turned away from it (some part beyond {AD_THRESHOLD:g} of its diameter) explains "
-                    f"the points as well: {100 * s2.share:.0f}% against {100 * sup.share:.0f}% within {noise}, "
-                    f"{z:.1f} standard errors worse ({AMBIGUITY_Z:g} needed): the depth cannot tell them apart")
-        if status == FitStatus.MAX_ITER:
-            h = fit.history
-            step = _pose_change(h[-2].T_cam_parts, h[-1].T_cam_parts, radii) if len(h) >= 2 else float("inf")
-            if step < self.tolerance:
-                return FitStatus.SUCCESS, (
-                    f"converged to the sensor noise: {100 * sup.share:.0f}% of the points within {noise} of the model, "
-                    f"the last of {self.config.max_iterations} iterations moved no part by more than {step:.2g}")
-        return status, msg
 
 
 MIN_PART_INLIERS = 3

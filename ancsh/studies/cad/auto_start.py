@@ -230,7 +230,8 @@ def write_auto_start_report(results: dict, path, provenance, *, before: dict | N
     path = Path(path)
     s = summarise_auto_start(results)
     cfg = results["config"]
-    head = "| run | fits | right | wrong but success | refused (correct) | refused (wrong) | objects whose seeds agree |"
+    head = ("| run | fits | right | wrong but success | refused (correct) | refused (wrong) | "
+            "objects whose seeds agree |")
     rule = "| --- | --- | --- | --- | --- | --- | --- |"
 
     def row(label, summ):
@@ -266,7 +267,8 @@ def write_auto_start_report(results: dict, path, provenance, *, before: dict | N
     if before is not None:
         lines.append(row(f"before (`{before.get('command', '?')}`)", summarise_auto_start(before)))
     lines += [row("this run", s), "", "## Per category (all seeds)", "",
-              "| category | right | wrong but success | refused (correct) | refused (wrong) |", "| --- | --- | --- | --- | --- |"]
+              "| category | right | wrong but success | refused (correct) | refused (wrong) |",
+              "| --- | --- | --- | --- | --- |"]
     for c, t in s["per_category"].items():
         lines.append(f"| {c} | {t['right']} | {t['wrong_success']} | {t['refused_correct']} | {t['refused_wrong']} |")
     lines += ["", "## Per object", "",
