@@ -223,7 +223,7 @@ def summarise_auto_start(results: dict) -> dict:
 def write_auto_start_report(results: dict, path, provenance, *, before: dict | None = None,
                             wall_s: float | None = None) -> Path:
     """Write ``path`` (markdown) and ``path.with_suffix('.json')``; ``before`` (a former run's JSON) adds its totals
-    beside this run's."""
+    beside this run's (with its ``note``, when it has one: what code it ran)."""
     from ...outputs import json_safe
     from ..report import write_json, write_text
 
@@ -265,7 +265,8 @@ def write_auto_start_report(results: dict, path, provenance, *, before: dict | N
         rule,
     ]
     if before is not None:
-        lines.append(row(f"before (`{before.get('command', '?')}`)", summarise_auto_start(before)))
+        label = f"before (`{before.get('command', '?')}`" + (f"; {before['note']}" if before.get("note") else "") + ")"
+        lines.append(row(label, summarise_auto_start(before)))
     lines += [row("this run", s), "", "## Per category (all seeds)", "",
               "| category | right | wrong but success | refused (correct) | refused (wrong) |",
               "| --- | --- | --- | --- | --- |"]
@@ -288,6 +289,7 @@ def write_auto_start_report(results: dict, path, provenance, *, before: dict | N
     payload = {"command": provenance.command, "date": provenance.date, "machine": provenance.machine,
                "wall_s": wall_s, "summary": s, **results}
     if before is not None:
-        payload["before"] = {"command": before.get("command"), "summary": summarise_auto_start(before)}
+        payload["before"] = {"command": before.get("command"), "note": before.get("note"),
+                             "summary": summarise_auto_start(before)}
     write_json(path.with_suffix(".json"), json_safe(payload), indent=1, allow_nan=False)
     return path
