@@ -141,7 +141,8 @@ class ArticulatedIcpConfig:
         :data:`~ancsh.geometry.metrics.AD_THRESHOLD` of the part's diameter away) explains the points too and
         not significantly worse (:data:`~.verdict.AMBIGUITY_Z`); a fit stopped by ``max_iterations`` that explains the
         points and whose last step moved every part by less than the tolerance is ``SUCCESS`` (converged to
-        the noise) rather than ``MAX_ITER``. When no fit explains the points, up to ``candidates`` more of the
+        the noise) rather than ``MAX_ITER``; a chosen fit still moving at the limit first gets
+        ``max_iterations`` more iterations. When no fit explains the points, up to ``candidates`` more of the
         basins the searches left unfinished are finished first (best-scoring first, until one does).
     """
 
@@ -617,15 +618,26 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
                     break
             best = min(range(len(finished)), key=lambda i: (supports[i].score, i))
         final = finished[best]
+        limit = config.max_iterations
+        if config.noise_status and final.status == FitStatus.MAX_ITER:
+            # Still moving at the limit: one more budget of iterations for the chosen fit alone, so that
+            # ``max_iter`` means it really has not converged.
+            hist = list(final.history)
+            e2, st2, n2, _ = run.iterate(final.estimate, len(hist), config.max_iterations, hist)
+            iterations += n2 - len(final.history)
+            if st2 != FitStatus.TOO_FEW_POINTS:
+                sc, ratio, rmse = run.score(e2)
+                finished[best] = final = _Finished(sc, ratio, rmse, e2, st2, hist)
+                supports[best] = judge.support(e2)
+                limit = 2 * config.max_iterations
         est, status = final.estimate, final.status
-        msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+        msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {limit} iterations"
         if config.symmetric_starts:
             msg += f" (best of {len(finished)} symmetric hypotheses by depth support)"
         if config.noise_status and status in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
             h = final.history
             step = _pose_change(h[-2].T_cam_parts, h[-1].T_cam_parts, radii) if len(h) >= 2 else float("inf")
-            status, msg = judge.verdict([f.estimate for f in finished], supports, best, status, msg, step,
-                                        config.max_iterations)
+            status, msg = judge.verdict([f.estimate for f in finished], supports, best, status, msg, step, limit)
     inlier_gate = max(config.gate_end * diagonal, config.gate_floor)
     near, inl = part_evidence(provider, est, points, run.gate(0), inlier_gate)
     weak = unsupported_parts(model, near, inl, inlier_gate)
