@@ -42,7 +42,7 @@ def test_totals_and_report_count_what_the_records_say(tmp_path):
                                    before=before)
     text = path.read_text()
     assert "ancsh bench cad-auto --out r.md" in text and "ancsh bench cad-auto --old" in text
-    assert "| this run | 6 | 2 | 1 | 0 | 3 | 1 of 2 |" in text and "| 3 | 0 | 3 | 0 | 0 | 1 of 1 |" in text
+    assert "| this run | 6 | 2 | 1 | 0 | 3 | 1 of 2 | 1.0 |" in text and "| 3 | 0 | 3 | 0 | 0 | 1 of 1 | 1.0 |" in text
     data = json.loads(path.with_suffix(".json").read_text())
     assert data["summary"]["total"] == s["total"] and data["before"]["summary"]["total"]["wrong_success"] == 3
 

@@ -217,7 +217,8 @@ def summarise_auto_start(results: dict) -> dict:
     cats = sorted({r["category"] for r in recs})
     per_cat = {c: {k: sum(r["outcome"] == k and r["category"] == c for r in recs) for k in OUTCOMES} for c in cats}
     return {"fits": len(recs), "total": total, "per_category": per_cat,
-            "objects": len(results["agreement"]), "agree": sum(results["agreement"].values())}
+            "objects": len(results["agreement"]), "agree": sum(results["agreement"].values()),
+            "median_time_s": float(np.median([r["time_s"] for r in recs])) if recs else float("nan")}
 
 
 def write_auto_start_report(results: dict, path, provenance, *, before: dict | None = None,
@@ -231,13 +232,13 @@ def write_auto_start_report(results: dict, path, provenance, *, before: dict | N
     s = summarise_auto_start(results)
     cfg = results["config"]
     head = ("| run | fits | right | wrong but success | refused (correct) | refused (wrong) | "
-            "objects whose seeds agree |")
-    rule = "| --- | --- | --- | --- | --- | --- | --- |"
+            "objects whose seeds agree | median s per fit |")
+    rule = "| --- | --- | --- | --- | --- | --- | --- | --- |"
 
     def row(label, summ):
         t = summ["total"]
         return (f"| {label} | {summ['fits']} | {t['right']} | {t['wrong_success']} | {t['refused_correct']} | "
-                f"{t['refused_wrong']} | {summ['agree']} of {summ['objects']} |")
+                f"{t['refused_wrong']} | {summ['agree']} of {summ['objects']} | {summ['median_time_s']:.1f} |")
 
     lines = [
         "# `fit-cad` with the automatic start on renders of real objects",
@@ -258,6 +259,14 @@ def write_auto_start_report(results: dict, path, provenance, *, before: dict | N
         f"{100 * cfg['ad_threshold']:.0f}% of the part's diameter. Wrong but success: reported `success`, not "
         "AD-correct. Refused: any other status (correct or wrong by AD). The seeds of an object agree when every seed "
         "gives the same outcome and AD-equal fits.",
+        "",
+        "`fit-cad`'s status (`ArticulatedIcpConfig.instance()`, `docs/json_schema.md`): the sensor noise is estimated "
+        "from the points (1.4826 x the median distance of each point to the plane of its 10 nearest neighbours); a "
+        "point lies on the model within 3 of its standard deviations (at least the solver's convergence tolerance); "
+        "`success` needs 80% of the points on the model and at most 20% of its visible surface unobserved "
+        "(`large_residual` otherwise), no AD-distinct fit among the symmetric starts that explains the points too "
+        "and is not 3 standard errors worse by McNemar's test (`ambiguous` otherwise). No threshold is fitted to "
+        "these objects. Times are wall seconds on a shared machine (other jobs ran beside both runs).",
         "",
         "## Totals",
         "",
