@@ -44,6 +44,8 @@ EXAMPLES = {
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
     "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~30 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
+    "bench cad-auto": "ancsh bench cad-auto --per-category 1 --seeds 0 1   # fit-cad's automatic start: right / "
+                      "wrong but success / refused",
     "evaluate-cad": "ancsh evaluate-cad --quick           # --update-docs rewrites docs/results/cad_fitting.md",
     "serve": "ancsh serve --root frames/ --categories laptop   # then: curl -s localhost:8765/health",
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",

@@ -8,7 +8,9 @@ fits a known URDF model to one depth image by articulated ICP:
 - ``K.json``: ``{"fx", "fy", "cx", "cy", "width", "height"}`` (pixels; OpenCV pinhole, pixel
   centres at integer coordinates).
 - ``INIT.json`` (optional): ``{"T_cam_base": 4x4 rigid matrix, "q": [absolute joint states]}``;
-  ``q`` defaults to the rest state. Without it, :func:`auto_init` tries 8 upright views.
+  ``q`` defaults to the rest state. Without it, :func:`auto_init` tries 8 upright views. The fit is
+  :func:`~ancsh.solvers.icp.depth.fit_depth` with :meth:`ArticulatedIcpConfig.instance`: symmetric starts (parts
+  swapped, half turns) and the status at the sensor noise (``large_residual``, ``ambiguous``).
 - ``--out``: the result as JSON (part poses, joint states, status, their standard deviations:
   ``uncertainty``, see ``docs/json_schema.md``); ``--png``: the fitted
   model drawn over the depth points.
@@ -94,11 +96,9 @@ def run_fit(args) -> int:
     import numpy as np
 
     from ..data.images import read_depth, read_intrinsics
-    from ..data.render import backproject
     from ..data.urdf import load_urdf
     from ..outputs import provenance
-    from ..solvers.types import Observation
-    from ..solvers.icp.articulated import articulated_icp, auto_init
+    from ..solvers.icp.depth import depth_points, fit_depth
 
     if args.png:  # before any work
         check_picture_path(args.png, "--png")
@@ -119,20 +119,12 @@ def run_fit(args) -> int:
         raise ValueError(f"--points: expected a positive number of points, got {args.points}")
     intr = read_intrinsics(args.intrinsics)
     depth = read_depth(args.depth, depth_scale=args.depth_scale, shape=(intr.height, intr.width))
-    mask = depth > 0
-    if args.max_depth is not None:
-        mask &= depth <= args.max_depth
-    if not mask.any():
-        raise ValueError("depth: the image has no valid depth pixel")
-    points = backproject(depth, intr, mask)
-    rng = np.random.default_rng(args.seed)
+    points = depth_points(depth, intr, max_depth=args.max_depth)
     if points.shape[0] < args.points:
         print(f"note: {points.shape[0]} valid pixels, fewer than --points {args.points}: using all of them", file=sys.stderr)
-    if points.shape[0] > args.points:
-        points = points[rng.choice(points.shape[0], args.points, replace=False)]
-    init = load_init(args.init, model) if args.init else auto_init(model, points)
+    init = load_init(args.init, model) if args.init else None
     t0 = time.perf_counter()
-    result = articulated_icp(model, Observation(points), init, rng=rng)
+    result = fit_depth(model, points, points=args.points, rng=args.seed, init=init)
     dt = time.perf_counter() - t0
     q_report = _wrapped_states(model, result.q)
     print(f"{model.name}: {result.status.value} ({result.message}) in {dt:.2f} s, {result.starts} starts, "

@@ -19,6 +19,7 @@ from .rotations import geodesic_angle
 from .transforms import Sim3
 
 __all__ = [
+    "AD_THRESHOLD",
     "ad_error",
     "axis_angle_error_deg",
     "box_iou",
@@ -64,6 +65,11 @@ def joint_state_error(q_est: float, q_gt: float, joint_type: str) -> float:
 def axis_angle_error_deg(u_est, u_gt) -> float:
     """Angle between two joint axes in degrees, in ``[0, 90]`` (``u`` and ``-u`` are one axis)."""
     return float(np.degrees(axis_angle_error(u_est, u_gt)))
+
+
+AD_THRESHOLD = 0.1
+"""The AD criterion's threshold (Michel et al. 2015, the ANCSH paper's AD accuracy): a part pose is correct when its
+:func:`ad_error` is below this fraction of the part's diameter."""
 
 
 def ad_error(points_model, T_est: Sim3, T_gt: Sim3) -> float:

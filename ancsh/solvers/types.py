@@ -308,6 +308,7 @@ class FitStatus(str, Enum):
     NOT_THIS_CATEGORY = "not_this_category"  # the fitted segment does not look like an object of the category
     OUT_OF_VIEW = "out_of_view"  # the segment found without a mask or hint runs out of the image: only part is seen
     JOINT_AT_LIMIT = "joint_at_limit"  # the data put a joint past the category's range (ancsh.solvers.limits)
+    AMBIGUOUS = "ambiguous"  # another, distinct fit explains the points as well (e.g. a symmetric object turned)
 
 
 @dataclass(frozen=True)

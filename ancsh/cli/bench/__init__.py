@@ -27,6 +27,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.scenes",
     "ancsh.cli.bench.mask_refusal",
     "ancsh.cli.bench.latency",
+    "ancsh.cli.bench.cad_auto",
 ]
 
 

@@ -7,12 +7,14 @@ and the solver core's constrained solve in reduced coordinates (object pose + jo
 limits as bounds), with multi-start (:func:`articulated_icp`; the covariance of its fit:
 :func:`icp_uncertainty`). Rigid per-part and whole-object ICP (:func:`per_part_icp`,
 :func:`whole_object_icp`) are the baselines; :mod:`.evaluate` measures all of them with the AD
-metric (``ancsh evaluate-cad``).
+metric (``ancsh evaluate-cad``). :func:`fit_depth` is ``ancsh fit-cad``: with the automatic start, the symmetric
+starts of a near-symmetric model and the status at the sensor noise (:mod:`.verdict`).
 
 Importing this package does not import open3d or CasADi; the first fit does.
 """
 
-from .articulated import ArticulatedIcpConfig, articulated_icp, auto_init, icp_uncertainty
+from .articulated import ArticulatedIcpConfig, articulated_icp, auto_init, icp_uncertainty, symmetric_hypotheses
+from .depth import depth_points, fit_depth
 from .result import CadFitResult, IcpIteration, joint_states_from_part_poses
 from .rigid import RigidIcpConfig, per_part_icp, whole_object_icp
 from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateCorrespondences, TemplateProvider, robust_weights
@@ -29,9 +31,12 @@ __all__ = [
     "TemplateProvider",
     "articulated_icp",
     "auto_init",
+    "depth_points",
+    "fit_depth",
     "icp_uncertainty",
     "joint_states_from_part_poses",
     "per_part_icp",
     "robust_weights",
+    "symmetric_hypotheses",
     "whole_object_icp",
 ]

@@ -35,6 +35,11 @@ Multi-start, in three stages:
    of the points, the next best start from another basin goes through stages 2-3 (at
    most ``candidates`` starts), and the best-scoring result wins.
 
+Then, with ``symmetric_starts``, the turns of the result that a near-symmetric shape allows (its parts
+swapped, half turns) are finished too and the fit the depth supports best is kept; with ``noise_status`` the
+status says whether that fit explains the depth to the sensor noise and whether a distinct fit explains it
+as well (see :class:`ArticulatedIcpConfig`). ``ancsh fit-cad`` uses both (:meth:`ArticulatedIcpConfig.instance`).
+
 Visibility: correspondences are restricted to model surface the camera can see (see
 :meth:`~ancsh.solvers.icp.template.ModelSurface.closest`), so front-face points of a thin
 part are never matched to its back face.
@@ -57,9 +62,10 @@ from .result import CadFitResult, IcpIteration
 from .template import ArticulatedPose, ModelSurface, ModelTemplate, TemplateProvider
 from .reduced import icp_uncertainty, reduced_step
 from .scoring import FitScore, FitScorer
+from .verdict import NoiseJudge
 
-__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init", "icp_uncertainty",
-           "part_evidence", "reduced_step", "unsupported_parts"]
+__all__ = ["ArticulatedIcpConfig", "FitScore", "FitScorer", "MIN_PART_INLIERS", "articulated_icp", "auto_init",
+           "icp_uncertainty", "part_evidence", "reduced_step", "symmetric_hypotheses", "unsupported_parts"]
 
 
 @dataclass(frozen=True)
@@ -122,6 +128,22 @@ class ArticulatedIcpConfig:
     uncertainty : bool
         Compute :attr:`CadFitResult.uncertainty` at the result (:func:`icp_uncertainty`; one more
         closest-point match and a linearisation).
+    symmetric_starts : bool
+        After the search, finish the turns of its result that the model's shape allows as well
+        (:func:`symmetric_hypotheses`: each revolute joint's two parts swapped, 180 degree turns about the
+        model's principal axes) and keep the one the depth supports best (:func:`~.scoring.depth_support`,
+        scored with surface samples drawn from a fixed seed, so the choice does not depend on ``rng``).
+    noise_status : bool
+        Judge the result at the scale of the sensor noise, estimated from the points
+        (:func:`~.scoring.noise_tolerance`): ``LARGE_RESIDUAL`` when fewer than ``accept_inliers`` of the
+        points lie within the tolerance of the model (or more than ``1 - accept_inliers`` of its visible
+        surface is unobserved); ``AMBIGUOUS`` when an AD-distinct fit (another part pose more than
+        :data:`~ancsh.geometry.metrics.AD_THRESHOLD` of the part's diameter away) explains the points too and
+        not significantly worse (:data:`~.verdict.AMBIGUITY_Z`); a fit stopped by ``max_iterations`` that explains the
+        points and whose last step moved every part by less than the tolerance is ``SUCCESS`` (converged to
+        the noise) rather than ``MAX_ITER``; a chosen fit still moving at the limit first gets
+        ``max_iterations`` more iterations. When no fit explains the points, up to ``candidates`` more of the
+        basins the searches left unfinished are finished first (best-scoring first, until one does).
     """
 
     max_iterations: int = 40
@@ -146,6 +168,14 @@ class ArticulatedIcpConfig:
     solver: str = "lsq"
     solver_iterations: int = 8
     uncertainty: bool = True
+    symmetric_starts: bool = False
+    noise_status: bool = False
+
+    @classmethod
+    def instance(cls, **changes) -> "ArticulatedIcpConfig":
+        """The settings of ``ancsh fit-cad``: the exact model of the observed object, so its symmetric starts and
+        the status at the sensor noise are on (``changes`` override any field)."""
+        return cls(**{"symmetric_starts": True, "noise_status": True, **changes})
 
     def __post_init__(self):
         for name in ("max_iterations", "start_iterations", "solver_iterations", "refine_iterations", "candidates"):
@@ -159,7 +189,7 @@ class ArticulatedIcpConfig:
         check_number(self.accept_inliers, "accept_inliers", minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.gate_decay, "gate_decay", minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.point_weight, "point_weight", minimum=0.0)
-        for name in ("point_to_plane", "joint_restarts", "uncertainty"):
+        for name in ("point_to_plane", "joint_restarts", "uncertainty", "symmetric_starts", "noise_status"):
             check_bool(getattr(self, name), name)
         if not self.point_to_plane and self.point_weight == 0:
             raise ValueError("point_weight: must be positive without the point-to-plane term")
@@ -255,8 +285,9 @@ class _Finished:
     history: list
 
 
-def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
-    """Stages 1-3 (see the module docstring) from ``starts``: ``(best finished or None, iterations)``."""
+def _search(run: _Run, model, config, starts, untried: list | None = None) -> tuple[_Finished | None, int]:
+    """Stages 1-3 (see the module docstring) from ``starts``: ``(best finished or None, iterations)``; the
+    candidates left unfinished (best first) are appended to ``untried`` when given."""
     iterations = 0
     candidates = []
     for s in starts:
@@ -270,8 +301,10 @@ def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
     candidates.sort(key=lambda c: (c.score, c.order))
     final = None
     tried: list = []
-    for cand in candidates:
+    for ci, cand in enumerate(candidates):
         if len(tried) >= config.candidates:
+            if untried is not None:
+                untried.extend(candidates[ci:])
             break
         if any(_same_basin(cand.estimate, other, run.diagonal) for other in tried):
             continue  # finishing a start that sits where a tried one sat would end where it ended
@@ -281,6 +314,8 @@ def _search(run: _Run, model, config, starts) -> tuple[_Finished | None, int]:
         if out is not None and (final is None or out.score < final.score):
             final = out
         if final is not None and final.inlier_ratio >= config.accept_inliers:
+            if untried is not None:
+                untried.extend(candidates[ci + 1:])
             break
     return final, max(iterations, 1)
 
@@ -359,6 +394,61 @@ def _starts(model: ArticulatedModel, inits: list, config: ArticulatedIcpConfig, 
             starts.append(ArticulatedPose(T, init.q))
             starts.extend(ArticulatedPose(T, q) for q in joint_qs)
     return starts
+
+
+def _turned(T: Sim3, R: np.ndarray, origin: np.ndarray) -> Sim3:
+    """``T`` turned by ``R`` about the camera-frame point ``origin``."""
+    return Sim3(R @ T.rotation, R @ (T.translation - origin) + origin)
+
+
+def symmetric_hypotheses(model: ArticulatedModel, estimate: ArticulatedPose, diagonal: float) -> list:
+    """The turns of ``estimate`` that a near-symmetric shape allows, joint states kept.
+
+    - for each revolute joint, its two parts swapped: a half turn about the line through the joint's pivot,
+      perpendicular to its axis and halfway between the directions to the two parts' centres (mean of their mesh
+      vertices; a laptop's base where its display was and vice versa);
+    - half turns about the three principal axes of the posed model's mesh vertices, through their mean (a box
+      turned by its symmetry).
+
+    Turns that land in the basin of ``estimate`` or of an earlier turn (in this order) are dropped (deduplicated).
+
+    Parameters
+    ----------
+    model : ArticulatedModel
+    estimate : ArticulatedPose
+    diagonal : float
+        The model's diagonal (metres; the basin test's scale).
+    """
+    parts = estimate.part_poses(model)
+    posed = [T.apply(np.asarray(p.vertices, dtype=np.float64)) for T, p in zip(parts, model.parts)]
+    cloud = np.concatenate(posed)
+    centre = cloud.mean(axis=0)
+    _, vecs = np.linalg.eigh(np.cov((cloud - centre).T))
+    lines = []
+    T = estimate.T_cam_base
+    for k, joint in enumerate(model.joints):
+        if not joint.is_revolute:
+            continue
+        axis_b, pivot_b = model.joint_line_in_base(k, estimate.q)
+        a, o = T.apply_direction(axis_b), T.apply(pivot_b)
+        a = a / np.linalg.norm(a)
+        p, c = model.joint_parts(k)
+        dirs = []
+        for j in (p, c):
+            u = posed[j].mean(axis=0) - o
+            u -= a * (a @ u)
+            dirs.append(u / max(np.linalg.norm(u), 1e-12))
+        b = dirs[0] + dirs[1]
+        if np.linalg.norm(b) < 1e-6:  # the parts opposite each other (flat): turn about the line across them
+            b = np.cross(a, dirs[0])
+        lines.append((o, b / np.linalg.norm(b)))
+    lines += [(centre, vecs[:, i]) for i in range(3)]  # after the swaps: a near-copy of a swap is dropped
+    out: list = []
+    for origin, axis in lines:
+        h = ArticulatedPose(_turned(T, exp_so3(np.pi * axis), origin), estimate.q)
+        if not any(_same_basin(h, other, diagonal) for other in [estimate, *out]):
+            out.append(h)
+    return out
 
 
 def auto_init(model: ArticulatedModel, points_cam, *, azimuths: int = 8, elevation_deg: float = 30.0) -> list:
@@ -461,7 +551,8 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
     center_base = np.mean(np.concatenate([T.apply(p.vertices) for T, p in zip(rest, model.parts)]), axis=0)
 
     starts = _starts(model, inits, config, center_base)
-    final, iterations = _search(run, model, config, starts)
+    untried: list = []  # candidates of the searches left unfinished, for the status at the sensor noise
+    final, iterations = _search(run, model, config, starts, untried)
     if final is None and iterations == 0:
         return failed(FitStatus.TOO_FEW_POINTS,
                       f"no observed point within {run.gate(0):.3g} (model units) of the model at any start "
@@ -477,16 +568,76 @@ def articulated_icp(model: ArticulatedModel, observation, init: ArticulatedPose,
                 dR = exp_so3(rv)
                 T = Sim3(dR @ b.T_cam_base.rotation, dR @ (b.T_cam_base.translation - c) + c)
                 rescue.extend(_starts(model, [ArticulatedPose(T, b.q)], replace(config, orientations=()), center_base))
-        second, used = _search(run, model, config, rescue)
+        second, used = _search(run, model, config, rescue, untried)
         iterations += used
         starts = starts + rescue
         if second is not None and (final is None or second.score < final.score):
             final = second
     if final is None:
         return failed(FitStatus.TOO_FEW_POINTS, "lost every correspondence while iterating")
+    judge = None
+    if config.symmetric_starts or config.noise_status:
+        judge = NoiseJudge(model, points, provider.surface, config.tolerance * diagonal, config.accept_inliers)
+    finished = [final]
+    if config.symmetric_starts:
+        hyps = symmetric_hypotheses(model, final.estimate, diagonal)
+        for h in hyps:
+            hist: list = []
+            e, st, n, _ = run.iterate(h, 0, config.start_iterations, hist)
+            iterations += n
+            if st == FitStatus.TOO_FEW_POINTS:
+                continue
+            out, used = _finish_candidate(run, model, config, _Candidate(run.score(e)[0], 0, e, hist, n))
+            iterations += used
+            if out is not None:
+                finished.append(out)
+        starts = starts + hyps
     est = final.estimate
     status = final.status
     msg = "converged" if final.status == FitStatus.SUCCESS else f"not converged after {config.max_iterations} iterations"
+    if judge is not None:
+        supports = [judge.support(f.estimate) for f in finished]
+        best = min(range(len(finished)), key=lambda i: (supports[i].score, i))  # ties: the search's own result
+        if config.noise_status and not judge.explains(supports[best]):
+            # Nothing found explains the depth: finish further basins the searches left (best first, at most
+            # ``candidates``) until one does.
+            tried = [f.estimate for f in finished]
+            for cand in sorted(untried, key=lambda c: c.score):
+                if len(tried) >= len(finished) + config.candidates:
+                    break
+                if any(_same_basin(cand.estimate, other, diagonal) for other in tried):
+                    continue
+                tried.append(cand.estimate)
+                out, used = _finish_candidate(run, model, config, cand)
+                iterations += used
+                if out is None:
+                    continue
+                finished.append(out)
+                supports.append(judge.support(out.estimate))
+                if judge.explains(supports[-1]):
+                    break
+            best = min(range(len(finished)), key=lambda i: (supports[i].score, i))
+        final = finished[best]
+        limit = config.max_iterations
+        if config.noise_status and final.status == FitStatus.MAX_ITER:
+            # Still moving at the limit: one more budget of iterations for the chosen fit alone, so that
+            # ``max_iter`` means it really has not converged.
+            hist = list(final.history)
+            e2, st2, n2, _ = run.iterate(final.estimate, len(hist), config.max_iterations, hist)
+            iterations += n2 - len(final.history)
+            if st2 != FitStatus.TOO_FEW_POINTS:
+                sc, ratio, rmse = run.score(e2)
+                finished[best] = final = _Finished(sc, ratio, rmse, e2, st2, hist)
+                supports[best] = judge.support(e2)
+                limit = 2 * config.max_iterations
+        est, status = final.estimate, final.status
+        msg = "converged" if status == FitStatus.SUCCESS else f"not converged after {limit} iterations"
+        if config.symmetric_starts:
+            msg += f" (best of {len(finished)} symmetric hypotheses by depth support)"
+        if config.noise_status and status in (FitStatus.SUCCESS, FitStatus.MAX_ITER):
+            h = final.history
+            step = _pose_change(h[-2].T_cam_parts, h[-1].T_cam_parts, radii) if len(h) >= 2 else float("inf")
+            status, msg = judge.verdict([f.estimate for f in finished], supports, best, status, msg, step, limit)
     inlier_gate = max(config.gate_end * diagonal, config.gate_floor)
     near, inl = part_evidence(provider, est, points, run.gate(0), inlier_gate)
     weak = unsupported_parts(model, near, inl, inlier_gate)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..._machine import machine_facts
-from ...geometry.metrics import ad_error, joint_state_error
+from ...geometry.metrics import AD_THRESHOLD, ad_error, joint_state_error
 from ...geometry.rotations import exp_so3
 from ...geometry.transforms import Sim3
 from ...model.articulated import ArticulatedModel, sample_surface
@@ -34,7 +34,6 @@ __all__ = ["EvalConfig", "FrameRecord", "SequenceFrame", "PartPoints", "METHODS"
            "evaluation_objects", "perturbed_init", "render_sequence", "run_evaluation"]
 
 METHODS = ("articulated_icp", "per_part_icp", "whole_object_icp", "per_part_icp_gt_labels")
-AD_THRESHOLD = 0.1
 
 
 @dataclass(frozen=True)
