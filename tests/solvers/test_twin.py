@@ -419,7 +419,11 @@ def test_the_twin_round_trips_through_data_import_and_fit_cad(tmp_path, category
     code = main(["fit-cad", "--urdf", str(urdf), "--depth", str(depth), "--intrinsics", str(K), "--init",
                  str(tmp_path / "twin" / "init.json"), "--points", "800", "--out", str(tmp_path / "fit.json")])
     result = json.loads((tmp_path / "fit.json").read_text())
-    assert result["status"] in ("success", "max_iter") and code == (0 if result["status"] == "success" else 1), result
+    # The twin is the nearest category template reshaped to the fit, not the instance: on this noise-free render the
+    # sensor-noise verdict (solvers/icp/verdict.py) may call its shape difference large_residual. What must hold is
+    # the fit ending at the twin (below) and the exit code following the status.
+    assert result["status"] in ("success", "max_iter", "large_residual"), result
+    assert code == (0 if result["status"] == "success" else 1), (code, result["status"])
     config = ArticulatedIcpConfig()
     gate = max(config.gate_end * object_extent(model, model.rest_states)[1], config.gate_floor)
     for part, T_twin, T_fit in zip(model.parts, model.forward_kinematics(q), result["T_cam_parts"]):
