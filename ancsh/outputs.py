@@ -18,7 +18,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "json_safe", "provenance",
+__all__ = ["RESULTS_ROOT", "DOCS_RESULTS", "fresh_output_dir", "report_path", "file_sha256", "json_safe", "provenance", "without_timings",
            "write_bytes_atomically"]
 
 #: Parent of the fresh output folders (relative to the working directory).
@@ -107,6 +107,21 @@ def json_safe(x):
         return float(x) if np.isfinite(x) else None
     if isinstance(x, np.integer):
         return int(x)
+    return x
+
+
+def without_timings(x, drop=()):
+    """A copy of a result's JSON without what two runs of the same computation may differ in: its timings
+    (``timings_ms``, ``time_ms``) and the durations its notes quote (``"42 ms"`` becomes ``"<time> ms"``); ``drop``
+    names more keys to leave out (e.g. ``"input"``, where the same inputs came by different routes)."""
+    import re
+
+    if isinstance(x, dict):
+        return {k: without_timings(v, drop) for k, v in x.items() if k not in ("timings_ms", "time_ms", *drop)}
+    if isinstance(x, list):
+        return [without_timings(v, drop) for v in x]
+    if isinstance(x, str):
+        return re.sub(r"\d+(\.\d+)? ms", "<time> ms", x)
     return x
 
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import base64
 import json
-import math
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import parse_qs, urlsplit
 
+from ..outputs import json_safe
 from .requests import RequestError
 
 __all__ = ["MAX_BODY_BYTES", "ServiceServer", "make_server"]
@@ -66,7 +66,7 @@ class _Handler(BaseHTTPRequestHandler):
             super().log_message(format, *args)
 
     def _send(self, status: int, data: dict) -> None:
-        payload = (json.dumps(_finite(data), allow_nan=False) + "\n").encode()
+        payload = (json.dumps(json_safe(data), allow_nan=False) + "\n").encode()
         self.send_response(status)
         self.send_header("Content-Type", "application/json")
         self.send_header("Content-Length", str(len(payload)))
@@ -141,17 +141,6 @@ class _Handler(BaseHTTPRequestHandler):
 
     def do_DELETE(self):  # noqa: N802
         self._route("DELETE")
-
-
-def _finite(x):
-    """``x`` with NaN / infinities as ``None`` (strict JSON)."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    return x
 
 
 class ServiceServer(ThreadingHTTPServer):

@@ -114,17 +114,21 @@ class PredictionService:
     def _provider(self, category: str, refine: str | None, seed: int):
         """The provider ``predict_depth`` would make for these options (``refine`` ``None``: the one ``ancsh track``
         makes), loaded once; a 404 for a category without shipped weights."""
-        from ..learned.inference.provider import LearnedProvider
+        from ..learned.inference.predict import make_provider
         from ..learned.network.weights import weights_path
 
-        key = (category, None if refine is None else "network" if refine == "network" else "auto", seed)
+        key = (category, None if refine is None else refine == "network", seed)
         if key not in self._providers:
             if not weights_path(str(category)).is_file():
                 from ..learned.network.weights import missing_weights_error
 
                 raise RequestError(404, f"category: {missing_weights_error(category)}")
-            options = {} if key[1] is None else {"refine": key[1]}
-            self._providers[key] = LearnedProvider(category, seed=seed, device=self.device, **options)
+            if refine is None:
+                from ..learned.inference.provider import LearnedProvider
+
+                self._providers[key] = LearnedProvider(category, seed=seed, device=self.device)
+            else:
+                self._providers[key] = make_provider(category, seed=seed, refine=refine, device=self.device)
             while len(self._providers) > self.max_providers:
                 self._providers.popitem(last=False)
         self._providers.move_to_end(key)

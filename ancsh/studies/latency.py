@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..outputs import without_timings
 from .report import Provenance, write_json, write_text
 
 __all__ = ["STAGES", "first_call", "latency_frames", "measure_cold", "measure_serve", "measure_warm", "measure_workers",
@@ -213,22 +214,10 @@ def measure_serve(frame, *, requests: int = 8) -> dict:
     finally:
         server.shutdown()
         server.server_close()
-    direct = _without_times(predict_depth(depth, intr, category).to_json())
-    same = all(_without_times(a) == direct for a in [first] + answers)
+    direct = without_timings(predict_depth(depth, intr, category).to_json(), drop=("input",))
+    same = all(without_timings(a, drop=("input",)) == direct for a in [first] + answers)
     return {"frame": name, "requests": int(requests), "seconds": seconds, "rps": requests / seconds,
             "same_as_predict": bool(same)}
-
-
-def _without_times(x):
-    import re
-
-    if isinstance(x, dict):
-        return {k: _without_times(v) for k, v in x.items() if k not in ("timings_ms", "time_ms", "input")}
-    if isinstance(x, list):
-        return [_without_times(v) for v in x]
-    if isinstance(x, str):
-        return re.sub(r"\d+(\.\d+)? ms", "<time> ms", x)
-    return x
 
 
 def measure_workers(frames, *, copies: int = 2, workers=(1, 2)) -> list[dict]:

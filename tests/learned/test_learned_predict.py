@@ -15,6 +15,7 @@ from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.learned.inference.predict import depth_to_points, predict_depth, read_depth, read_intrinsics
 from ancsh.learned.training.train import Trainer
 from ancsh.learned.network.weights import export_weights
+from ancsh.outputs import without_timings
 
 
 @pytest.fixture(scope="module")
@@ -238,18 +239,7 @@ def test_a_folder_gives_the_same_files_with_one_and_two_workers(files, rendered,
         results[workers] = {p.name: json.loads(p.read_text()) for p in sorted(out.glob("*.json"))}
     assert sorted(results[1]) == ["f0.json", "f1.json", "f2.json"]
     for name in results[1]:
-        assert _without_times(results[1][name]) == _without_times(results[2][name])
+        assert without_timings(results[1][name]) == without_timings(results[2][name])
     assert main(["predict", "--depth", str(files / "depth.png"), "--intrinsics", str(files / "K.json"), "--category",
                  "laptop", "--workers", "2"]) == 2
     assert "--workers: one image is predicted in one process" in capsys.readouterr().err
-
-
-def _without_times(x):
-    """``x`` without its timings (the one thing two runs of the same prediction may differ in)."""
-    if isinstance(x, dict):
-        return {k: _without_times(v) for k, v in x.items() if k not in ("timings_ms", "time_ms")}
-    if isinstance(x, list):
-        return [_without_times(v) for v in x]
-    if isinstance(x, str):  # the notes say how long a step took
-        return re.sub(r"\d+(\.\d+)? ms", "<time> ms", x)
-    return x

@@ -6,7 +6,6 @@ from __future__ import annotations
 import http.client
 import json
 import os
-import re
 import socket
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -17,19 +16,14 @@ from PIL import Image
 
 from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.learned.inference.predict import predict_depth, read_depth
+from ancsh.outputs import without_timings
 from ancsh.service import PredictionService, ServiceClient, ServiceError, make_server
 from ancsh.service.requests import PathPolicy, RequestError, parse_predict
 
 
 def _without_times(x):
-    """``x`` without its timings (the one thing two runs of the same prediction may differ in)."""
-    if isinstance(x, dict):
-        return {k: _without_times(v) for k, v in x.items() if k not in ("timings_ms", "time_ms", "input")}
-    if isinstance(x, list):
-        return [_without_times(v) for v in x]
-    if isinstance(x, str):  # the notes say how long a step took
-        return re.sub(r"\d+(\.\d+)? ms", "<time> ms", x)
-    return x
+    """``x`` without its timings and its ``input`` block (the same inputs, sent by different routes)."""
+    return without_timings(x, drop=("input",))
 
 
 @pytest.fixture(scope="module")

@@ -49,7 +49,7 @@ from .refine_network import DEFAULT_PASSES
 
 __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MAX_MERGED",
            "MIN_P_OBJECT", "NEAR_CLOSED_DEG",
-           "DepthPrediction", "fit_candidate", "fit_candidate_refinements", "check_confidence", "check_plausibility",
+           "DepthPrediction", "fit_candidate", "make_provider", "fit_candidate_refinements", "check_confidence", "check_plausibility",
            "check_weights_category", "part_quality", "depth_to_points", "draw_prediction", "predict_depth",
            "read_depth", "read_intrinsics", "read_mask"]
 
@@ -295,6 +295,27 @@ def check_weights_category(provider, category: str, weights) -> None:
     provider.check_structure(conv.part_names, conv.joint_types, where=f"weights: category {category}")
 
 
+def make_provider(category: str, *, weights=None, seed: int = 0, refine: str | None = "auto", refiner=None,
+                  device="cpu", refine_passes: int = DEFAULT_PASSES):
+    """The :class:`~ancsh.learned.inference.provider.LearnedProvider` :func:`predict_depth` makes for these options
+    when given none: ``category``'s shipped weights (or ``weights``, checked to be of that category), the refinement
+    network loaded where ``refine="network"``, the category's measured choice otherwise. ``FileNotFoundError``-like
+    errors (:func:`~ancsh.learned.network.weights.missing_weights_error`) for a category without shipped weights."""
+    from .provider import LearnedProvider
+    from ..network.weights import weights_path
+
+    if weights is None and not weights_path(str(category)).is_file():
+        from ..network.weights import missing_weights_error
+
+        raise missing_weights_error(category)
+    provider = LearnedProvider(category if weights is None else weights, seed=seed,
+                               refine="network" if refine == "network" else "auto", refiner=refiner, device=device,
+                               refine_passes=refine_passes)
+    if weights is not None:
+        check_weights_category(provider, category, weights)
+    return provider
+
+
 def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, max_depth: float | None = None,
                   weights=None, provider=None, formulation: str = "exact_reduced", num_points: int = 1024,
                   seed: int = 0, isolate: bool = True, hint=None, refine: str | None = "provider",
@@ -377,8 +398,6 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     """
     from ...data.images import MAX_PLAUSIBLE_DEPTH
     from ...solvers import FORMULATIONS
-    from .provider import LearnedProvider
-    from ..network.weights import weights_path
 
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
@@ -388,15 +407,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         raise ValueError(f"hypotheses: expected a positive integer, got {hypotheses!r}")
     t_start = time.perf_counter()
     if provider is None:
-        if weights is None and not weights_path(str(category)).is_file():
-            from ..network.weights import missing_weights_error
-
-            raise missing_weights_error(category)
-        provider = LearnedProvider(category if weights is None else weights, seed=seed,
-                                   refine="network" if refine == "network" else "auto", refiner=refiner, device=device,
-                                   refine_passes=refine_passes)
-        if weights is not None:
-            check_weights_category(provider, category, weights)
+        provider = make_provider(category, weights=weights, seed=seed, refine=refine, refiner=refiner, device=device,
+                                 refine_passes=refine_passes)
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
