@@ -1,0 +1,638 @@
+"""Every object of a category through a depth sequence: one track per object, with a stable id.
+
+:class:`MultiObjectTracker` steps on whole depth images. Per frame:
+
+1. **Regions.** Each live track's state is predicted one frame ahead (:class:`~ancsh.tracking.state_filter.StateFilter`)
+   and its fitted model posed there; its pixels are the valid pixels whose points lie inside one of its part boxes
+   grown by ``region_margin`` object diagonals, above its support (the lowest box corner along the object's up axis,
+   +y of the NAOCS, plus ``support_clearance``: the table or floor it stands on is not the object). A pixel in two
+   tracks' regions goes to the one it lies deeper inside.
+2. **Measurements.** Each track's :class:`~ancsh.tracking.tracker.CategoryTracker` steps on its region's points
+   (warm fits, the network every ``network_every``-th frame, carried correspondences in between). Every
+   ``verify_every``-th network frame of a track is verified like ``ancsh predict``: the category template posed at
+   the fit is rendered and compared with the depth (:func:`~ancsh.solvers.twin.compare_fit`) and the calibrated
+   ``p_object`` must reach ``min_p_object``; the tracker's own checks (inliers, the category's size range, residual,
+   joint range) run on every frame. An accepted fit is the measurement of the track's filter; a measurement far from
+   the prediction is an outlier (the state coasts, and the tracker restarts warm from the filtered state).
+3. **Detection.** ``ancsh predict``'s object list (:func:`~ancsh.learned.inference.predict.predict_depth`: isolation,
+   every candidate verified), on the depth without the pixels of the tracks measured on this frame, on the first frame, every ``detect_every``-th frame, and every ``redetect_every``-th
+   frame while a track is missing. Detections are associated with tracks by an assignment problem
+   (:func:`~ancsh.tracking.association.associate`: segment overlap and the distance of the root parts, gated);
+   a matched track that is missing or far from its detection is re-initialised from the detection (not from its last
+   state); an unmatched verified detection is a new track (*born*); one mostly inside a live track's pixels is not.
+4. **Ends.** A track without an accepted measurement for more than ``max_misses`` frames ends (short losses --
+   occlusion, a few bad frames -- are bridged by the filter's prediction).
+
+Per track and frame a :class:`TrackRecord`: ``born``, ``tracked``, ``outlier`` (measured, not applied), ``coasting``
+(no acceptable measurement: the prediction), ``reinitialised``; with the filtered state and its standard deviations.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry._checks import check_int, check_number
+from ..geometry.boxes import OrientedBox
+from ..geometry.rotations import axis_angle_matrix, geodesic_angle
+from ..geometry.transforms import Sim3
+from ..solvers.types import FitResult, Observation
+from ..learned.inference.checks import MIN_P_OBJECT_MASKED
+from .association import associate
+from .config import TrackerConfig
+from .state_filter import StateFilter, StateFilterConfig
+
+__all__ = ["MultiFrame", "MultiObjectTracker", "MultiTrackerConfig", "TrackRecord", "filtered_fit"]
+
+
+def _default_tracker() -> TrackerConfig:
+    # the category template's refinement costs seconds at each (re-)initialisation: not carried by default here
+    return TrackerConfig(network_every=3, template_categories=())
+
+
+@dataclass(frozen=True)
+class MultiTrackerConfig:
+    """Settings of :class:`MultiObjectTracker` (module docstring; validated on construction).
+
+    Attributes
+    ----------
+    detect_every : int
+        Frames between detections while every track is measured, ``>= 1``.
+    redetect_every : int
+        Frames between detections while a track is missing, ``>= 1``.
+    max_misses : int
+        A track ends after more frames than this without an accepted measurement, ``>= 0``.
+    max_objects : int or None
+        At most this many live tracks (``None``: every verified object).
+    region_margin : float
+        Growth of each part box for a track's region, object diagonals, ``>= 0``.
+    support_clearance : float
+        Points less than this above the track's support are not its own, object diagonals, ``>= 0``; at most
+        ``max_clearance_m`` metres.
+    max_clearance_m : float
+    same_object_iou : float
+        A detection whose mask overlaps a track's pixels this much (intersection over union) may be that track,
+        ``(0, 1]``.
+    gate_translation : float
+        Or whose root part lies at most this many object diagonals from the track's, ``> 0``.
+    reinit_rotation_deg : float
+        A matched detection whose root rotation differs from the track's by more than this re-initialises it, ``> 0``.
+    reinit_state : float
+        Or whose joint states differ by more than this (radians; metres for prismatic joints), ``> 0``.
+    inside_share : float
+        A detection with at least this share of its pixels in live tracks' regions is no new object, ``(0, 1]``.
+    verify_every : int
+        A track's network frames between verifications (render-and-compare and ``p_object``), ``>= 0`` (0: never).
+    min_p_object : float
+        The verification's bound, in ``[0, 1]``. Default the bound ``predict`` keeps under a user's mask
+        (:data:`~ancsh.learned.inference.checks.MIN_P_OBJECT_MASKED`): a track was verified at its birth, and the
+        check in the loop is for a model that no longer explains the depth (``p_object`` is calibrated on
+        ``predict``'s segments; a track's region is another cut of the pixels).
+    num_points : int
+        Points sampled per track and frame, ``>= 16``.
+    tracker : TrackerConfig
+        Every track's :class:`~ancsh.tracking.tracker.CategoryTracker` (default: the network every 3rd frame, no
+        category template).
+    filter : StateFilterConfig
+    """
+
+    detect_every: int = 60
+    redetect_every: int = 10
+    max_misses: int = 15
+    max_objects: int | None = None
+    region_margin: float = 0.08
+    support_clearance: float = 0.02
+    max_clearance_m: float = 0.008
+    same_object_iou: float = 0.2
+    gate_translation: float = 0.35
+    reinit_rotation_deg: float = 30.0
+    reinit_state: float = np.deg2rad(30.0)
+    inside_share: float = 0.5
+    verify_every: int = 3
+    min_p_object: float = MIN_P_OBJECT_MASKED
+    num_points: int = 1024
+    tracker: TrackerConfig = field(default_factory=_default_tracker)
+    filter: StateFilterConfig = field(default_factory=StateFilterConfig)
+
+    def __post_init__(self):
+        for name, lo in (("detect_every", 1), ("redetect_every", 1), ("max_misses", 0), ("verify_every", 0),
+                         ("num_points", 16)):
+            object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=lo))
+        if self.max_objects is not None:
+            object.__setattr__(self, "max_objects", check_int(self.max_objects, "max_objects", minimum=1))
+        for name in ("region_margin", "support_clearance", "max_clearance_m"):
+            check_number(getattr(self, name), name, minimum=0.0)
+        for name in ("same_object_iou", "inside_share"):
+            check_number(getattr(self, name), name, minimum=0.0, maximum=1.0, lower_open=True)
+        for name in ("gate_translation", "reinit_rotation_deg", "reinit_state"):
+            check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
+        check_number(self.min_p_object, "min_p_object", minimum=0.0, maximum=1.0)
+        if not isinstance(self.tracker, TrackerConfig):
+            raise ValueError(f"tracker: expected a TrackerConfig, got {type(self.tracker).__name__}")
+        if not isinstance(self.filter, StateFilterConfig):
+            raise ValueError(f"filter: expected a StateFilterConfig, got {type(self.filter).__name__}")
+
+
+def filtered_fit(result: FitResult, correspondences, rotation, translation, states) -> FitResult:
+    """``result`` moved to another state of the same fitted model: its root part at ``rotation`` / ``translation``
+    (camera frame, metres) and its joints at ``states`` (relative to rest, radians / metres), every child part
+    turned (revolute) or slid (prismatic) about its fitted joint axis; axes, pivots and boxes move with their parts.
+
+    Parameters
+    ----------
+    result : FitResult
+        A successful fit.
+    correspondences : Correspondences
+        What it was fitted on (its joint tree and types).
+    rotation : (3, 3) float64
+    translation : (3,) float64
+    states : (K,) float64
+    """
+    from ..model.articulated import JointType
+
+    corr = correspondences
+    root = corr.root_part
+    Tr = result.T_cam_npcs[root]
+    C = np.asarray(rotation) @ Tr.rotation.T
+    corrections = {root: (C, np.asarray(translation) - C @ Tr.translation)}  # part -> rigid map (C, d) in the camera
+    axes, pivots = np.array(result.joint_axes_cam, dtype=np.float64), np.array(result.joint_pivots_cam, dtype=np.float64)
+    dq = np.asarray(states, dtype=np.float64) - np.asarray(result.joint_states, dtype=np.float64)
+    for k in corr.topological_joints:
+        p, c = int(corr.joint_parents[k]), int(corr.joint_children[k])
+        Cp, dp = corrections[p]
+        a, o = axes[k], pivots[k]
+        if corr.joint_types[k] == JointType.REVOLUTE:
+            J = axis_angle_matrix(a, float(dq[k]))
+            Jd = o - J @ o
+        else:
+            J, Jd = np.eye(3), dq[k] * a
+        corrections[c] = (Cp @ J, Cp @ Jd + dp)
+        axes[k], pivots[k] = Cp @ a, Cp @ o + dp
+    poses, boxes = [], []
+    for j, T in enumerate(result.T_cam_npcs):
+        Cj, dj = corrections[j]
+        poses.append(Sim3(Cj @ T.rotation, Cj @ T.translation + dj, T.scale))
+        if j < len(result.boxes_cam):
+            b = result.boxes_cam[j]
+            boxes.append(OrientedBox(Cj @ b.center + dj, Cj @ b.rotation, b.extents))
+    return dataclasses.replace(result, T_cam_npcs=tuple(poses), joint_axes_cam=axes, joint_pivots_cam=pivots,
+                               joint_states=np.asarray(states, dtype=np.float64).copy(), boxes_cam=tuple(boxes),
+                               uncertainty=None)
+
+
+@dataclass
+class _Track:
+    """A live track: its tracker, filter and the last accepted fit (the model the filtered state poses)."""
+
+    id: int
+    tracker: object
+    filter: StateFilter
+    result: FitResult
+    correspondences: object
+    born: int
+    diagonal: float
+    mask: np.ndarray | None = None
+    misses: int = 0
+    network_frames: int = 0
+    p_object: float | None = None
+
+    def model(self) -> FitResult:
+        """The fitted model at the filtered state."""
+        f = self.filter
+        return filtered_fit(self.result, self.correspondences, f.R, f.translation, f.joint_states)
+
+
+@dataclass(frozen=True)
+class TrackRecord:
+    """One track on one frame.
+
+    Attributes
+    ----------
+    id : int
+        The track's id (stable over the sequence; never reused).
+    status : str
+        ``born`` (a verified detection started it), ``tracked`` (its measurement applied), ``outlier`` (measured far
+        from the prediction: not applied), ``coasting`` (no acceptable measurement: the prediction),
+        ``reinitialised`` (restarted from a detection).
+    message : str
+    source : str
+        The measurement's correspondences (``network``, ``carried``, ``detection``, ``none``).
+    model : FitResult
+        The fitted model at the filtered state (camera frame).
+    joint_states, joint_states_std : (K,) float64
+        Filtered joint states relative to rest and their standard deviations (radians / metres).
+    measured_states : (K,) float64
+        This frame's measurement (NaN without one).
+    translation_std : (3,) float64
+        Of the root translation (metres).
+    rotation_std : (3,) float64
+        Of the root rotation about each camera axis (radians).
+    pixels : int
+        Pixels of its region this frame.
+    p_object : float or None
+        The last verification's ``p_object``.
+    misses : int
+        Frames in a row without an accepted measurement.
+    """
+
+    id: int
+    status: str
+    message: str
+    source: str
+    model: FitResult
+    joint_states: np.ndarray
+    joint_states_std: np.ndarray
+    measured_states: np.ndarray
+    translation_std: np.ndarray
+    rotation_std: np.ndarray
+    pixels: int
+    p_object: float | None
+    misses: int
+    mask: np.ndarray | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        from ..outputs import json_safe
+
+        m = self.model
+        return json_safe({
+            "id": self.id, "status": self.status, "message": self.message, "source": self.source,
+            "joint_states": self.joint_states.tolist(), "joint_states_std": self.joint_states_std.tolist(),
+            "measured_states": self.measured_states.tolist(),
+            "part_poses": [{"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)}
+                           for T in m.T_cam_npcs],
+            "translation_std": self.translation_std.tolist(), "rotation_std_deg": np.rad2deg(self.rotation_std).tolist(),
+            "joint_axes_cam": np.asarray(m.joint_axes_cam).tolist(), "joint_pivots_cam": np.asarray(m.joint_pivots_cam).tolist(),
+            "pixels": self.pixels, "p_object": self.p_object, "misses": self.misses,
+        })
+
+
+@dataclass(frozen=True)
+class MultiFrame:
+    """The tracker's answer for one frame: every live track's record, the tracks that ended, what ran.
+
+    Attributes
+    ----------
+    index : int
+    tracks : tuple of TrackRecord
+    ended : tuple of int
+        Ids of the tracks that ended on this frame.
+    detected : bool
+        Detection ran on this frame.
+    detections : int
+        Verified objects it found (0 when it did not run).
+    stages_ms : dict
+        Milliseconds of ``regions``, ``measure`` (every track's step), ``verify``, ``detect``.
+    time_s : float
+    """
+
+    index: int
+    tracks: tuple
+    ended: tuple
+    detected: bool
+    detections: int
+    stages_ms: dict
+    time_s: float
+
+    def to_dict(self) -> dict:
+        """One line of ``ancsh track``'s output (``ancsh.track/2``)."""
+        return {"frame": int(self.index), "tracks": [t.to_dict() for t in self.tracks], "ended": list(self.ended),
+                "detected": bool(self.detected), "detections": int(self.detections),
+                "stages_ms": {k: float(v) for k, v in self.stages_ms.items()}, "time_ms": 1e3 * float(self.time_s)}
+
+
+class MultiObjectTracker:
+    """Tracks every object of a category through depth images (module docstring).
+
+    Parameters
+    ----------
+    provider : LearnedProvider
+        The category's network (shared by the detections and every track).
+    intrinsics : Intrinsics
+        Of every frame.
+    category : str
+    config : MultiTrackerConfig, optional
+    seed : int
+        Of the detections (``predict``'s seed), the point samples and the fits.
+    """
+
+    def __init__(self, provider, intrinsics, category: str, config: MultiTrackerConfig | None = None, *, seed: int = 0):
+        from ..data.conventions import convention
+        from ..model.articulated import JointType
+
+        self.provider = provider
+        self.intrinsics = intrinsics
+        self.category = str(category)
+        self.config = MultiTrackerConfig() if config is None else config
+        if not isinstance(self.config, MultiTrackerConfig):
+            raise ValueError(f"config: expected a MultiTrackerConfig, got {type(self.config).__name__}")
+        self.seed = check_int(seed, "seed", minimum=0)
+        conv = convention(self.category)
+        self._joint_types = tuple(JointType(j.type).value for j in conv.joints)
+        self._limits = conv.joint_limits
+        self._tracks: list[_Track] = []
+        self._next_id = 0
+        self._index = 0
+        self._last_detection = None
+        self._plane_rng = np.random.default_rng(self.seed)
+
+    @property
+    def tracks(self) -> tuple:
+        """Ids of the live tracks."""
+        return tuple(t.id for t in self._tracks)
+
+    def step(self, depth) -> MultiFrame:
+        """Track one more depth image ``(H, W)`` (metres, 0 = no measurement)."""
+        t0 = time.perf_counter()
+        depth = np.asarray(depth, dtype=np.float64)
+        if depth.shape != (self.intrinsics.height, self.intrinsics.width):
+            raise ValueError(f"depth: expected ({self.intrinsics.height}, {self.intrinsics.width}) for the intrinsics, "
+                             f"got {depth.shape}")
+        index, self._index = self._index, self._index + 1
+        cfg = self.config
+        stages = {"regions": 0.0, "measure": 0.0, "verify": 0.0, "detect": 0.0}
+        for tr in self._tracks:
+            tr.filter.predict()
+        t = time.perf_counter()
+        regions = self._regions(depth)
+        stages["regions"] = 1e3 * (time.perf_counter() - t)
+        records = {}
+        for tr in self._tracks:
+            records[tr.id] = self._measure(tr, depth, regions[tr.id], index, stages)
+        detected, detections = False, 0
+        missing = any(tr.misses > 0 for tr in self._tracks)
+        since = None if self._last_detection is None else index - self._last_detection
+        if since is None or since >= cfg.detect_every or ((missing or not self._tracks) and since >= cfg.redetect_every):
+            t = time.perf_counter()
+            detections = self._detect(depth, index, regions, records)
+            detected = True
+            self._last_detection = index
+            stages["detect"] = 1e3 * (time.perf_counter() - t)
+        ended = tuple(tr.id for tr in self._tracks if tr.misses > cfg.max_misses)
+        self._tracks = [tr for tr in self._tracks if tr.misses <= cfg.max_misses]
+        live = tuple(records[tr.id] for tr in self._tracks)
+        return MultiFrame(index, live, ended, detected, detections, stages, time.perf_counter() - t0)
+
+    # --- regions -------------------------------------------------------------------------------------------------
+
+    def _regions(self, depth) -> dict:
+        """Each live track's pixels (module docstring, item 1): ``{id: (H, W) bool}``."""
+        from ..data.render import project
+
+        H, W = depth.shape
+        intr = self.intrinsics
+        cfg = self.config
+        best = np.full((H, W), np.inf)
+        owner = np.full((H, W), -1, dtype=np.int64)
+        for n, tr in enumerate(self._tracks):
+            model = tr.model()
+            L = tr.diagonal
+            margin = cfg.region_margin * L
+            boxes = [OrientedBox(b.center, b.rotation, b.extents + 2 * margin) for b in model.boxes_cam]
+            corners = np.concatenate([b.corners() for b in boxes])
+            if np.any(corners[:, 2] <= 1e-3):
+                continue  # behind the camera: nothing to measure
+            uv = project(corners, intr)[0]
+            u0, v0 = (int(max(np.floor(uv[:, i].min()), 0)) for i in (0, 1))
+            u1, v1 = int(min(np.ceil(uv[:, 0].max()) + 1, W)), int(min(np.ceil(uv[:, 1].max()) + 1, H))
+            if u0 >= u1 or v0 >= v1:
+                continue
+            z = depth[v0:v1, u0:u1]
+            vv, uu = np.nonzero(z > 0)
+            if len(vv) == 0:
+                continue
+            d = z[vv, uu]
+            P = np.stack([(uu + u0 - intr.cx) * d / intr.fx, (vv + v0 - intr.cy) * d / intr.fy, d], axis=1)
+            depth_in, in_model = np.full(len(P), np.inf), np.zeros(len(P), dtype=bool)
+            for b, own in zip(boxes, model.boxes_cam):
+                local = np.abs((P - b.center) @ b.rotation)
+                depth_in = np.minimum(depth_in, (local / np.maximum(b.extents / 2, 1e-9)).max(axis=1))
+                in_model |= np.all(local <= own.extents / 2, axis=1)
+            inside = depth_in <= 1.0
+            up = model.T_cam_npcs[self._root(tr)].rotation[:, 1]
+            bottom = float(np.min(np.concatenate([b.corners() for b in model.boxes_cam]) @ up))
+            clearance = min(cfg.support_clearance * L, cfg.max_clearance_m)
+            height = support_height(P[inside], up, bottom, L, self._plane_rng, around=~in_model[inside])
+            keep = inside.copy()
+            keep[inside] = height > clearance
+            rows, cols = vv[keep] + v0, uu[keep] + u0
+            closer = depth_in[keep] < best[rows, cols]
+            best[rows[closer], cols[closer]] = depth_in[keep][closer]
+            owner[rows[closer], cols[closer]] = n
+        return {tr.id: owner == n for n, tr in enumerate(self._tracks)}
+
+    @staticmethod
+    def _root(tr: _Track) -> int:
+        return tr.correspondences.root_part
+
+    # --- measurements --------------------------------------------------------------------------------------------
+
+    def _measure(self, tr: _Track, depth, mask, index: int, stages: dict) -> TrackRecord:
+        """Step the track's tracker on its pixels and filter the fit (module docstring, item 2)."""
+        from ..learned.inference.candidate import depth_to_points
+
+        cfg = self.config
+        t = time.perf_counter()
+        pixels = int(np.count_nonzero(mask))
+        tr.mask = mask
+        K = len(self._joint_types)
+        nan = np.full(K, np.nan)
+        if pixels < cfg.tracker.min_points:
+            tr.misses += 1
+            tr.tracker.reset()
+            stages["measure"] += 1e3 * (time.perf_counter() - t)
+            return self._record(tr, "coasting", f"{pixels} pixels in its region (occluded or out of view)", "none", nan,
+                                pixels)
+        points = depth_to_points(depth, self.intrinsics, mask=mask, num_points=cfg.num_points,
+                                 rng=self.seed + 7919 * index + tr.id)[0]
+        observation = Observation(points)
+        frame = tr.tracker.step(observation)
+        stages["measure"] += 1e3 * (time.perf_counter() - t)
+        if not frame.ok:
+            tr.misses += 1
+            return self._record(tr, "coasting", frame.message, "none", nan, pixels)
+        result = frame.result
+        corr = tr.tracker.correspondences or tr.correspondences
+        if frame.source == "network":
+            tr.network_frames += 1
+            if cfg.verify_every and tr.network_frames % cfg.verify_every == 0:
+                t = time.perf_counter()
+                p = self._p_object(result, corr, depth, mask, points)
+                stages["verify"] += 1e3 * (time.perf_counter() - t)
+                tr.p_object = p
+                if p is not None and p < cfg.min_p_object:
+                    tr.misses += 1
+                    tr.tracker.reset()
+                    return self._record(tr, "coasting", f"verification failed: p_object {p:.2f} below "
+                                        f"{cfg.min_p_object} (render-and-compare of the fit against the depth)",
+                                        frame.source, np.asarray(result.joint_states, dtype=np.float64), pixels)
+        states = np.asarray(result.joint_states, dtype=np.float64)
+        root = corr.root_part
+        T = result.T_cam_npcs[root]
+        update = tr.filter.update(T.rotation, T.translation, states, _std(result))
+        if update.applied:
+            tr.result, tr.correspondences, tr.misses = result, corr, 0
+            status = "tracked"
+            message = ("restarted from the measurement after outliers in a row" if update.restarted else frame.message)
+        else:
+            status = "outlier"
+            message = f"measurement {update.innovation:.1f} sigma from the prediction: not applied"
+            tr.tracker.start_from(observation, filtered_fit(result, corr, tr.filter.R, tr.filter.translation,
+                                                             tr.filter.joint_states), corr)
+        return self._record(tr, status, message, frame.source, states, pixels)
+
+    def _p_object(self, result, corr, depth, mask, points):
+        """``p_object`` of a fit on ``mask`` (render-and-compare, the category's calibration), or ``None``."""
+        from ..learned.inference.candidate import object_evidence
+        from ..learned.inference.predict import part_quality
+
+        quality = part_quality(result, points, corr)
+        return object_evidence(result, corr, depth, self.intrinsics, mask, self.category, quality, self.provider,
+                               points)[1]
+
+    def _record(self, tr: _Track, status, message, source, measured, pixels) -> TrackRecord:
+        f = tr.filter
+        if status in ("coasting", "outlier"):
+            f.coast()
+        return TrackRecord(tr.id, status, message, source, tr.model(), f.joint_states, f.joint_states_std,
+                           np.asarray(measured, dtype=np.float64), f.translation_std, f.rotation_std, pixels, tr.p_object,
+                           tr.misses, tr.mask)
+
+    # --- detection -----------------------------------------------------------------------------------------------
+
+    def _detect(self, depth, index: int, regions: dict, records: dict) -> int:
+        """``predict``'s verified objects, associated with the tracks (module docstring, item 3); new tracks born,
+        matched tracks re-initialised where needed; returns the number of verified detections."""
+        from ..learned.inference.checks import object_diagonal
+        from ..learned.inference.predict import predict_depth
+
+        cfg = self.config
+        rest = depth.copy()  # the measured tracks' pixels are taken: predict looks for the other objects
+        for tr in self._tracks:
+            if tr.misses == 0 and regions.get(tr.id) is not None:
+                rest[regions[tr.id]] = 0.0
+        pred = predict_depth(rest, self.intrinsics, self.category, provider=self.provider, seed=self.seed,
+                             max_objects=cfg.max_objects)
+        found = [o for o in (pred.objects or (pred,)) if o.result.ok and o.correspondences is not None and o.mask is not None]
+        if not found:
+            return 0
+        dets = []
+        for o in found:
+            root = o.correspondences.root_part
+            dets.append((o, o.result.T_cam_npcs[root], object_diagonal(o.result.boxes_cam)))
+        cost = np.full((len(self._tracks), len(dets)), np.inf)
+        for i, tr in enumerate(self._tracks):
+            mask = regions.get(tr.id)
+            T = tr.model().T_cam_npcs[self._root(tr)]
+            for j, (o, Td, L) in enumerate(dets):
+                inter = np.count_nonzero(mask & o.mask) if mask is not None else 0
+                iou = inter / max(np.count_nonzero(mask | o.mask), 1) if mask is not None else 0.0
+                dist = float(np.linalg.norm(Td.translation - T.translation)) / max(L, tr.diagonal)
+                if iou >= cfg.same_object_iou or dist <= cfg.gate_translation:
+                    cost[i, j] = (1.0 - iou) + dist
+        pairs = associate(cost)
+        matched = {j for _, j in pairs}
+        for i, j in pairs:
+            tr, (o, Td, L) = self._tracks[i], dets[j]
+            f = tr.filter
+            far = (np.rad2deg(geodesic_angle(Td.rotation, f.R)) > cfg.reinit_rotation_deg
+                   or np.any(np.abs(np.asarray(o.result.joint_states) - f.joint_states) > cfg.reinit_state))
+            if tr.misses > 0 or far:
+                self._start(tr, o, L)
+                records[tr.id] = self._record(tr, "reinitialised", "re-initialised from a verified detection"
+                                              + (" far from its state" if far and tr.misses == 0 else ""), "detection",
+                                              np.asarray(o.result.joint_states, dtype=np.float64), int(o.mask.sum()))
+        tracked = np.zeros(depth.shape, dtype=bool)
+        for m in regions.values():
+            tracked |= m
+        for j, (o, Td, L) in enumerate(dets):
+            if j in matched:
+                continue
+            if cfg.max_objects is not None and len(self._tracks) >= cfg.max_objects:
+                break
+            if np.count_nonzero(o.mask & tracked) >= cfg.inside_share * max(np.count_nonzero(o.mask), 1):
+                continue  # a piece of an object already tracked
+            tr = _Track(self._next_id, None, None, o.result, o.correspondences, index, L)
+            self._next_id += 1
+            self._start(tr, o, L)
+            self._tracks.append(tr)
+            tracked |= o.mask
+            records[tr.id] = self._record(tr, "born", "a verified detection", "detection",
+                                          np.asarray(o.result.joint_states, dtype=np.float64), int(o.mask.sum()))
+        return len(dets)
+
+    def _start(self, tr: _Track, det, diagonal: float) -> None:
+        """(Re)start ``tr`` from the detection ``det`` (a :class:`~ancsh.learned.inference.predict.DepthPrediction`)."""
+        from .tracker import CategoryTracker
+
+        result, corr = det.result, det.correspondences
+        if tr.tracker is None:
+            tr.tracker = CategoryTracker(self.provider, self.config.tracker, category=self.category,
+                                         rng=self.seed + 104729 * tr.id)
+        tr.tracker.start_from(Observation(det.points_cam), result, corr)
+        tr.filter = StateFilter(self._joint_types, self._limits, self.config.filter)
+        root = corr.root_part
+        T = result.T_cam_npcs[root]
+        tr.filter.update(T.rotation, T.translation, result.joint_states, _std(result))
+        tr.result, tr.correspondences, tr.diagonal = result, corr, float(diagonal)
+        tr.misses, tr.mask = 0, det.mask
+        tr.p_object = det.p_object
+
+
+#: Support planes: candidate planes drawn, the largest tilt from the object's up axis (degrees), the band about the
+#: predicted bottom searched (object diagonals), the inlier distance (object diagonals) and the most points used.
+SUPPORT_HYPOTHESES = 64
+SUPPORT_MAX_TILT_DEG = 25.0
+SUPPORT_BAND = 0.15
+SUPPORT_INLIER = 0.01
+SUPPORT_POINTS = 1500
+
+
+def support_height(points, up, bottom: float, diagonal: float, rng, around=None) -> np.ndarray:
+    """Height (metres) of each of ``points`` (N, 3, camera frame) above the surface a tracked object stands on.
+
+    The surface is the plane with the most points within :data:`SUPPORT_INLIER` object diagonals among
+    :data:`SUPPORT_HYPOTHESES` planes through three points of the band of :data:`SUPPORT_BAND` object diagonals about the
+    predicted ``bottom`` (the lowest box corner along ``up``, metres), tilted at most :data:`SUPPORT_MAX_TILT_DEG` from
+    ``up``, its inliers counted among the band's points ``around`` the object (``(N,)`` bool: outside the fitted part
+    boxes, so that a flat part -- a laptop's base, a closed lid -- is not taken for the table); where the band holds no
+    such plane, the heights are measured from ``bottom`` along ``up``. Fitting the plane
+    to the depth, not to the fit, keeps the floor out of a track whose fit is a few degrees off (a tilted bottom would
+    let the floor in on one side and cut the object on the other)."""
+    up = np.asarray(up, dtype=np.float64)
+    h = points @ up - bottom
+    near = np.abs(h) < SUPPORT_BAND * diagonal
+    band = np.flatnonzero(near if around is None else near & np.asarray(around, dtype=bool))
+    if len(band) < 30:
+        return h
+    if len(band) > SUPPORT_POINTS:
+        band = rng.choice(band, SUPPORT_POINTS, replace=False)
+    Q = points[band]
+    tri = Q[rng.integers(0, len(Q), (SUPPORT_HYPOTHESES, 3))]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-12
+    n = n[ok] / norm[ok, None]
+    n *= np.sign(n @ up)[:, None]
+    flat = n @ up > np.cos(np.deg2rad(SUPPORT_MAX_TILT_DEG))
+    if not flat.any():
+        return h
+    n, p0 = n[flat], tri[ok][flat, 0]
+    e = -np.einsum("ij,ij->i", n, p0)
+    counts = np.count_nonzero(np.abs(Q @ n.T + e) < SUPPORT_INLIER * diagonal, axis=0)
+    best = int(np.argmax(counts))
+    if counts[best] < 0.1 * len(Q):
+        return h
+    inl = Q[np.abs(Q @ n[best] + e[best]) < SUPPORT_INLIER * diagonal]
+    c = inl.mean(axis=0)
+    normal = np.linalg.svd(inl - c, full_matrices=False)[2][-1]  # the least-squares plane of its inliers
+    normal *= np.sign(normal @ up)
+    return (points - c) @ normal
+
+
+def _std(result) -> np.ndarray | None:
+    from .records import joint_state_std
+
+    return joint_state_std(result)
