@@ -50,6 +50,8 @@ EXAMPLES = {
     "serve": "ancsh serve --root frames/ --categories laptop   # then: curl -s localhost:8765/health",
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
     "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
+    "bench track-scenes": "ancsh bench track-scenes --categories laptop --length 20   # multi-object tracking vs "
+                          "per-frame predict, docs/results/track_scenes.md",
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
     "bench twin": "ancsh bench twin --categories laptop --frames 2   # exported fit models against the depth",
     "bench sensor-realism": "ancsh bench sensor-realism --frames 5   # real frames' sensor artefacts against renders",

@@ -12,9 +12,12 @@ states with their standard deviations). :class:`StateFilter` keeps the *filtered
   never below ``*_floor`` squared; the pose's is ``rotation_std`` / ``translation_std`` (the fits report no
   calibrated pose covariance on every frame, and a floor is what keeps a static object still).
 - **Outliers.** A measurement whose normalised innovation (``|innovation| / sqrt(S)``) exceeds ``gate`` on any
-  component is not applied: the state coasts on its prediction and the frame says ``outlier``. After
+  component is not applied: the state coasts on its prediction and the frame says ``outlier`` (the caller may
+  verify it against the depth and :meth:`StateFilter.restart` from it). After
   ``max_outliers`` outliers in a row the measurements are believed (the object did move: a lid opened quickly) and
   the filter restarts from the last one.
+- **Manoeuvres.** A component whose squared normalised innovation exceeds ``adapt`` has its covariance scaled up by
+  the ratio before the update (fading memory), so that a joint that starts to move is followed within a few frames.
 - **Physics.** Joint states are clamped to the category's range (``limits``, relative to rest), the velocity set to
   zero at a bound.
 
@@ -57,15 +60,19 @@ class StateFilterConfig:
         Outliers in a row after which the filter restarts from the measurement, ``>= 1``.
     initial_velocity_std : float
         Standard deviation of the velocities at a (re)start, in each component's unit per frame, ``> 0``.
+    adapt : float
+        A measurement whose squared normalised innovation of a component exceeds this (but passes the gate) scales
+        that component's covariance up by the ratio before it is applied (fading memory: a lid that starts to move is
+        followed within a few frames instead of lagging), ``> 0``.
     coast_damping : float
         Each frame without an applied measurement multiplies the velocities by this, ``[0, 1]`` (a prediction
         over many frames does not run off with one noisy velocity).
     """
 
-    revolute_accel: float = np.deg2rad(0.5)
-    prismatic_accel: float = 0.002
-    rotation_accel: float = np.deg2rad(0.3)
-    translation_accel: float = 0.002
+    revolute_accel: float = np.deg2rad(0.3)
+    prismatic_accel: float = 0.0005
+    rotation_accel: float = np.deg2rad(0.2)
+    translation_accel: float = 0.001
     revolute_floor: float = np.deg2rad(2.0)
     prismatic_floor: float = 0.004
     rotation_std: float = np.deg2rad(3.0)
@@ -73,11 +80,12 @@ class StateFilterConfig:
     gate: float = 4.0
     max_outliers: int = 3
     initial_velocity_std: float = 0.02
+    adapt: float = 9.0
     coast_damping: float = 0.7
 
     def __post_init__(self):
         for name in ("revolute_accel", "prismatic_accel", "rotation_accel", "translation_accel", "revolute_floor",
-                     "prismatic_floor", "rotation_std", "translation_std", "gate", "initial_velocity_std"):
+                     "prismatic_floor", "rotation_std", "translation_std", "gate", "initial_velocity_std", "adapt"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
         object.__setattr__(self, "max_outliers", check_int(self.max_outliers, "max_outliers", minimum=1))
         check_number(self.coast_damping, "coast_damping", minimum=0.0, maximum=1.0)
@@ -198,6 +206,11 @@ class StateFilter:
         self._x[:k, 0] = np.clip(q, lo, hi)
         self._x[:k, 1] = np.where(out, 0.0, self._x[:k, 1])
 
+    def restart(self, rotation, translation, states, std=None) -> None:
+        """Start again from one measurement (the arguments of :meth:`update`): its value, zero velocity."""
+        self._restart(np.asarray(rotation, dtype=np.float64), np.asarray(translation, dtype=np.float64).reshape(3),
+                      np.asarray(states, dtype=np.float64).reshape(self.num_joints), std)
+
     def predict(self) -> None:
         """Move the state one frame ahead (nothing before the first measurement)."""
         if self._x is None:
@@ -239,7 +252,8 @@ class StateFilter:
         S, K = _gain(self._P, r)
         nu = z - self._x[:, 0]
         nu[k + 3:] = z[k + 3:]  # the rotation error's predicted value is zero
-        worst = float(np.max(np.abs(nu) / np.sqrt(S)))
+        nis = nu ** 2 / S
+        worst = float(np.sqrt(np.max(nis)))
         if worst > self.config.gate:
             self.outliers += 1
             if self.outliers >= self.config.max_outliers:
@@ -247,6 +261,10 @@ class StateFilter:
                 return FilterUpdate(True, True, True, worst)
             return FilterUpdate(False, True, False, worst)
         self.outliers = 0
+        grow = np.maximum(1.0, nis / self.config.adapt)  # a component that moves more than its model says: less lag
+        if np.any(grow > 1.0):
+            self._P = self._P * grow[:, None, None]
+            S, K = _gain(self._P, r)
         self._x = self._x + K * nu[:, None]
         self._P = _correct(self._P, K)
         self.R = exp_so3(self._x[k + 3:, 0]) @ self.R

@@ -22,7 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["JsonLinesWriter", "depth_files", "track_depth", "track_files"]
+__all__ = ["JsonLinesWriter", "depth_files", "track_depth", "track_files", "track_files_multi"]
+
+#: The schema of a multi-object track line (:func:`track_files_multi`, ``docs/json_schema.md``).
+MULTI_SCHEMA = "ancsh.track/2"
 
 _SUFFIXES = (".png", ".npy")
 
@@ -146,6 +149,33 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
             rec = track_depth(depth, intrinsics, tracker, i, mask=mask, category=category, isolate=isolate,
                               max_depth=max_depth, num_points=num_points, seed=seed)
             rec["file"] = path.name
+        records.append(rec)
+        if writer is not None:
+            writer.write(rec)
+        if progress is not None:
+            progress(rec)
+    return records
+
+
+def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, progress=None) -> list[dict]:
+    """Track every object of the category through depth frames (a
+    :class:`~ancsh.tracking.multi.MultiObjectTracker`); one record per frame (``ancsh.track/2``: every live track's id,
+    status, filtered pose and joint states), written at once when ``writer`` is given. A frame that cannot be read, or
+    whose size differs from the intrinsics, is a record with an ``error`` and no tracks (the tracker is not stepped).
+    """
+    from ..data.images import read_depth
+
+    records = []
+    for i, path in enumerate(files):
+        path = Path(path)
+        try:
+            depth = read_depth(path, argument=f"frame {i}", shape=(intrinsics.height, intrinsics.width))
+        except (ValueError, FileNotFoundError, OSError) as exc:
+            rec = {"schema": MULTI_SCHEMA, "frame": i, "file": path.name, "tracks": [], "ended": [], "detected": False,
+                   "detections": 0, "stages_ms": {}, "time_ms": 0.0, "error": f"unreadable frame: {exc}"}
+        else:
+            rec = {"schema": MULTI_SCHEMA, **tracker.step(depth).to_dict()}
+            rec["frame"], rec["file"] = i, path.name
         records.append(rec)
         if writer is not None:
             writer.write(rec)

@@ -21,6 +21,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.gpu_check:register_bench",
     "ancsh.cli.bench.scaling:register_bench",
     "ancsh.cli.bench.tracking",
+    "ancsh.cli.bench.track_scenes",
     "ancsh.cli.bench.real_frames",
     "ancsh.cli.bench.twin",
     "ancsh.cli.bench.sensor_realism",
