@@ -5,8 +5,9 @@ The benchmark of multi-object tracking (``ancsh bench track-scenes``) runs on th
 
 - **Objects**: ``objects`` test instances of the category on one floor, beside or touching each other (the placement
   of :func:`~ancsh.data.scenes.render_scene`'s companions, seen from the first frame's camera); a wall behind them.
-- **Motion**: object 0 is opened and closed (each joint ``q(t) = a + (b - a) (1 - cos(2 pi t / P)) / 2`` over a sub-range
-  ``[a, b]`` of its limits, one period ``P`` over the sequence); the others are static.
+- **Motion**: object 0 is opened and closed (each joint ``q(i) = a + (b - a) (1 - cos(2 pi i / P + phase)) / 2`` on frame
+  ``i``, over a sub-range ``[a, b]`` of its limits, ``P`` = ``period`` frames, default the sequence's length); the
+  others are static.
 - **Camera**: it turns about the vertical axis through the objects' centre by up to ``azimuth_drift_deg`` over the
   sequence (a smooth ease) and moves ``distance_drift`` of its distance closer.
 - **Occluder**: a hand-sized box (``OCCLUDER_SIZE_M``) crosses the view in front of the objects during the middle
@@ -54,6 +55,8 @@ class SceneSequenceConfig:
         Share of the sequence the occluder takes to cross, ``(0, 1]``.
     opening_share : float
         Smallest share of a moving joint's limits it sweeps, ``(0, 1]``.
+    period : int or None
+        Frames of one open/close cycle of object 0 (default: ``length``), ``>= 2``.
     seed : int
     """
 
@@ -66,6 +69,7 @@ class SceneSequenceConfig:
     distance_drift: float = 0.15
     occluder_share: float = 0.3
     opening_share: float = 0.5
+    period: int | None = None
     seed: int = 0
 
     def __post_init__(self):
@@ -74,6 +78,8 @@ class SceneSequenceConfig:
             raise ValueError(f"objects: expected 0 to 3 objects, got {self.objects}")
         object.__setattr__(self, "length", check_int(self.length, "length", minimum=2))
         object.__setattr__(self, "seed", check_int(self.seed, "seed", minimum=0))
+        if self.period is not None:
+            object.__setattr__(self, "period", check_int(self.period, "period", minimum=2))
         if self.translucent is not None:
             if self.objects == 0:
                 raise ValueError("translucent: a sequence without objects has no translucent one")
@@ -213,12 +219,14 @@ class _Scene:
         T_cam0_camt = Sim3(Rz, position)
         return T_cam0_camt.inverse()
 
-    def states(self, k: int, t: float) -> np.ndarray:
+    def states(self, k: int, i: int) -> np.ndarray:
+        """Absolute joint states of object ``k`` on frame ``i``."""
         q = self.objects[k]["q"]
         if k != 0 or self.sweep is None:
             return q
         a, b, phase = self.sweep
-        return a + (b - a) * (1.0 - np.cos(2 * np.pi * t + phase)) / 2.0
+        period = self.config.period or self.config.length
+        return a + (b - a) * (1.0 - np.cos(2 * np.pi * i / period + phase)) / 2.0
 
     def frame(self, i: int) -> SequenceFrame:
         from ..geometry.transforms import Sim3
@@ -233,7 +241,7 @@ class _Scene:
         views, poses, states = [], [], []
         for k, o in enumerate(self.objects):
             T = C @ o["T_cam_base"]
-            q = self.states(k, t)
+            q = self.states(k, i)
             views.append(o["renderer"].render(q, T, intr))
             poses.append(T)
             states.append(q)

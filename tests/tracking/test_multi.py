@@ -214,7 +214,8 @@ def test_scene_sequence_truth_moves_as_planned():
 # --------------------------------------------------------------------------------------------
 
 def test_multi_object_tracker_follows_two_laptops_with_stable_ids():
-    """Scenario: two laptops, a moving camera, sensor noise, no occluder, 10 frames: each laptop gets its own track,
+    """Scenario: two laptops (one opening at the benchmark's pace: a cycle in 90 frames), a moving camera, sensor
+    noise, no occluder, 10 frames: each laptop gets its own track,
     kept with the same id (no identity switch) on every frame it is matched, its median rotation error below 10 deg;
     no track lies on pixels that are no object; the JSON line is plain."""
     from ancsh.data.scene_sequences import SceneSequenceConfig, render_scene_sequence
@@ -222,7 +223,7 @@ def test_multi_object_tracker_follows_two_laptops_with_stable_ids():
     from ancsh.studies.stress_scenes import _errors, match_objects
     from ancsh.tracking.multi import MultiObjectTracker, MultiTrackerConfig
 
-    cfg = SceneSequenceConfig("laptop", objects=2, length=10, occluder=False, seed=0)
+    cfg = SceneSequenceConfig("laptop", objects=2, length=10, occluder=False, period=90, seed=0)
     provider = make_provider("laptop")
     tracker = None
     ids, rots = {0: [], 1: []}, {0: [], 1: []}
