@@ -38,6 +38,8 @@ def register(sub) -> None:
     p.add_argument("--detect-every", type=positive_int, default=None,
                    help="frames between detections (predict's object list) while every track is measured "
                         "(default: MultiTrackerConfig.detect_every)")
+    p.add_argument("--png-dir", default=None, help="every object: a picture of each frame (the depth with every "
+                   "track's boxes, id and opening) and states.png (each track's joint states over time) in this folder")
     p.add_argument("--mask-dir", default=None, help="object masks named like the frames (skip isolation; one object)")
     p.add_argument("--no-isolate", dest="isolate", action="store_false", help="use every valid pixel (no isolation)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore pixels deeper than this (metres)")
@@ -85,9 +87,9 @@ def run(args) -> int:
         if args.refine_network:
             settings["refine_network"] = True
         multi = not args.single and args.mask_dir is None and args.isolate
-        if not multi and (args.max_objects is not None or args.detect_every is not None):
-            raise ValueError("--max-objects / --detect-every: for every object of the category (without --single, "
-                             "--mask-dir or --no-isolate)")
+        if not multi and (args.max_objects is not None or args.detect_every is not None or args.png_dir is not None):
+            raise ValueError("--max-objects / --detect-every / --png-dir: for every object of the category (without "
+                             "--single, --mask-dir or --no-isolate)")
         if multi:
             return _run_multi(args, files, intrinsics, provider, settings)
         tracker = CategoryTracker(provider, TrackerConfig(network_every=args.network_every, **settings), category=category,
@@ -137,8 +139,20 @@ def _run_multi(args, files, intrinsics, provider, settings: dict) -> int:
             print(f"{rec['frame']:5d} {rec['file']}: {tracks or rec.get('error') or 'no object'} {rec['time_ms']:.0f} ms"
                   + (f"  (ended {rec['ended']})" if rec["ended"] else ""), flush=True)
 
+    on_frame, png = None, Path(args.png_dir) if args.png_dir else None
+    if png is not None:
+        from ..tracking.pictures import draw_states, draw_tracks
+
+        png.mkdir(parents=True, exist_ok=True)
+        types = tracker.joint_types
+
+        def on_frame(i, depth, stepped):
+            draw_tracks(depth, intrinsics, stepped, png / f"{Path(files[i]).stem}.png", types)
+
     with JsonLinesWriter(out) as writer:
-        records = track_files_multi(files, intrinsics, tracker, writer, progress=show)
+        records = track_files_multi(files, intrinsics, tracker, writer, progress=show, on_frame=on_frame)
+    if png is not None:
+        print(f"wrote {len(records)} pictures and {draw_states(records, png / 'states.png', types)}", file=sys.stderr)
     ids = {t["id"] for r in records for t in r["tracks"]}
     print(f"wrote {out}: {len(records)} frames, {len(ids)} track(s)", file=sys.stderr)
     return 0 if ids else 1

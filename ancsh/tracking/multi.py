@@ -346,6 +346,11 @@ class MultiObjectTracker:
         self._plane_rng = np.random.default_rng(self.seed)
 
     @property
+    def joint_types(self) -> tuple:
+        """``"revolute"`` / ``"prismatic"`` per joint of the category."""
+        return self._joint_types
+
+    @property
     def tracks(self) -> tuple:
         """Ids of the live tracks."""
         return tuple(t.id for t in self._tracks)

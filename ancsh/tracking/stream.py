@@ -157,11 +157,13 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
     return records
 
 
-def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, progress=None) -> list[dict]:
+def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, progress=None,
+                      on_frame=None) -> list[dict]:
     """Track every object of the category through depth frames (a
     :class:`~ancsh.tracking.multi.MultiObjectTracker`); one record per frame (``ancsh.track/2``: every live track's id,
     status, filtered pose and joint states), written at once when ``writer`` is given. A frame that cannot be read, or
     whose size differs from the intrinsics, is a record with an ``error`` and no tracks (the tracker is not stepped).
+    ``on_frame(index, depth, MultiFrame)`` is called after each stepped frame (pictures).
     """
     from ..data.images import read_depth
 
@@ -174,8 +176,11 @@ def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None
             rec = {"schema": MULTI_SCHEMA, "frame": i, "file": path.name, "tracks": [], "ended": [], "detected": False,
                    "detections": 0, "stages_ms": {}, "time_ms": 0.0, "error": f"unreadable frame: {exc}"}
         else:
-            rec = {"schema": MULTI_SCHEMA, **tracker.step(depth).to_dict()}
+            stepped = tracker.step(depth)
+            rec = {"schema": MULTI_SCHEMA, **stepped.to_dict()}
             rec["frame"], rec["file"] = i, path.name
+            if on_frame is not None:
+                on_frame(i, depth, stepped)
         records.append(rec)
         if writer is not None:
             writer.write(rec)

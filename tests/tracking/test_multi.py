@@ -256,3 +256,32 @@ def test_multi_object_tracker_refuses_bad_input():
     tracker = MultiObjectTracker(object(), Intrinsics.kinect(64, 48), "laptop")
     with pytest.raises(ValueError, match="depth"):
         tracker.step(np.zeros((10, 10)))
+
+
+def test_track_command_follows_every_object_and_writes_schema_2(tmp_path, capsys):
+    """Scenario: ``ancsh track --category laptop`` on a folder of six frames of two laptops (one of them garbage):
+    one ``ancsh.track/2`` line a frame, the garbage frame an ``error`` with no tracks, two track ids, a picture of each
+    stepped frame and the states plot; options for every object are refused with ``--single``."""
+    from ancsh.cli import main
+    from ancsh.data.scene_sequences import SceneSequenceConfig, render_scene_sequence
+
+    folder = tmp_path / "depth"
+    folder.mkdir()
+    for f in render_scene_sequence(SceneSequenceConfig("laptop", objects=2, length=6, occluder=False, period=90), 2):
+        np.save(folder / f"frame_{f.index}.npy", f.depth)
+        intrinsics = f.intrinsics
+    (folder / "frame_3.npy").write_bytes(b"garbage")
+    K = tmp_path / "K.json"
+    K.write_text(json.dumps(intrinsics.to_json()))
+    out = tmp_path / "tracks.jsonl"
+    assert main(["track", "--depth", str(folder), "--intrinsics", str(K), "--category", "laptop", "--out", str(out),
+                 "--quiet", "--png-dir", str(tmp_path / "png")]) == 0
+    assert sorted(p.name for p in (tmp_path / "png").iterdir()) == [f"frame_{i}.png" for i in (0, 1, 2, 4, 5)] + ["states.png"]
+    lines = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["frame"] for r in lines] == list(range(6)) and all(r["schema"] == "ancsh.track/2" for r in lines)
+    assert "unreadable frame" in lines[3]["error"] and lines[3]["tracks"] == []
+    assert len({t["id"] for r in lines for t in r["tracks"]}) == 2
+    assert lines[0]["detected"] and all(len(t["joint_states"]) == 1 for r in lines for t in r["tracks"])
+    assert main(["track", "--depth", str(folder), "--intrinsics", str(K), "--category", "laptop", "--single",
+                 "--max-objects", "2", "--out", str(tmp_path / "other.jsonl")]) == 2
+    assert "--max-objects / --detect-every / --png-dir" in capsys.readouterr().err
