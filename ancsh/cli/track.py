@@ -139,19 +139,22 @@ def _run_multi(args, files, intrinsics, provider, settings: dict) -> int:
             print(f"{rec['frame']:5d} {rec['file']}: {tracks or rec.get('error') or 'no object'} {rec['time_ms']:.0f} ms"
                   + (f"  (ended {rec['ended']})" if rec["ended"] else ""), flush=True)
 
-    on_frame, png = None, Path(args.png_dir) if args.png_dir else None
+    png = Path(args.png_dir) if args.png_dir else None
+    types = tracker.joint_types
     if png is not None:
-        from ..tracking.pictures import draw_states, draw_tracks
-
         png.mkdir(parents=True, exist_ok=True)
-        types = tracker.joint_types
 
-        def on_frame(i, depth, stepped):
-            draw_tracks(depth, intrinsics, stepped, png / f"{Path(files[i]).stem}.png", types)
+    def on_frame(i, depth, stepped):
+        from ..tracking.pictures import draw_tracks
+
+        draw_tracks(depth, intrinsics, stepped, png / f"{Path(files[i]).stem}.png", types)
 
     with JsonLinesWriter(out) as writer:
-        records = track_files_multi(files, intrinsics, tracker, writer, progress=show, on_frame=on_frame)
+        records = track_files_multi(files, intrinsics, tracker, writer, progress=show,
+                                    on_frame=on_frame if png is not None else None)
     if png is not None:
+        from ..tracking.pictures import draw_states
+
         print(f"wrote {len(records)} pictures and {draw_states(records, png / 'states.png', types)}", file=sys.stderr)
     ids = {t["id"] for r in records for t in r["tracks"]}
     print(f"wrote {out}: {len(records)} frames, {len(ids)} track(s)", file=sys.stderr)

@@ -39,14 +39,14 @@ import numpy as np
 
 from ..geometry._checks import check_int, check_number
 from ..geometry.boxes import OrientedBox
-from ..geometry.rotations import axis_angle_matrix, geodesic_angle
-from ..geometry.transforms import Sim3
+from ..geometry.rotations import geodesic_angle
 from ..solvers.types import FitResult, Observation
 from .association import associate
 from .config import TrackerConfig
-from .state_filter import StateFilter, StateFilterConfig
+from .regions import support_height
+from .state_filter import StateFilter, StateFilterConfig, filtered_fit
 
-__all__ = ["MultiFrame", "MultiObjectTracker", "MultiTrackerConfig", "TrackRecord", "filtered_fit"]
+__all__ = ["MultiFrame", "MultiObjectTracker", "MultiTrackerConfig", "TrackRecord", "filtered_fit", "support_height"]
 
 
 def _default_tracker() -> TrackerConfig:
@@ -140,53 +140,6 @@ class MultiTrackerConfig:
             raise ValueError(f"tracker: expected a TrackerConfig, got {type(self.tracker).__name__}")
         if not isinstance(self.filter, StateFilterConfig):
             raise ValueError(f"filter: expected a StateFilterConfig, got {type(self.filter).__name__}")
-
-
-def filtered_fit(result: FitResult, correspondences, rotation, translation, states) -> FitResult:
-    """``result`` moved to another state of the same fitted model: its root part at ``rotation`` / ``translation``
-    (camera frame, metres) and its joints at ``states`` (relative to rest, radians / metres), every child part
-    turned (revolute) or slid (prismatic) about its fitted joint axis; axes, pivots and boxes move with their parts.
-
-    Parameters
-    ----------
-    result : FitResult
-        A successful fit.
-    correspondences : Correspondences
-        What it was fitted on (its joint tree and types).
-    rotation : (3, 3) float64
-    translation : (3,) float64
-    states : (K,) float64
-    """
-    from ..model.articulated import JointType
-
-    corr = correspondences
-    root = corr.root_part
-    Tr = result.T_cam_npcs[root]
-    C = np.asarray(rotation) @ Tr.rotation.T
-    corrections = {root: (C, np.asarray(translation) - C @ Tr.translation)}  # part -> rigid map (C, d) in the camera
-    axes, pivots = np.array(result.joint_axes_cam, dtype=np.float64), np.array(result.joint_pivots_cam, dtype=np.float64)
-    dq = np.asarray(states, dtype=np.float64) - np.asarray(result.joint_states, dtype=np.float64)
-    for k in corr.topological_joints:
-        p, c = int(corr.joint_parents[k]), int(corr.joint_children[k])
-        Cp, dp = corrections[p]
-        a, o = axes[k], pivots[k]
-        if corr.joint_types[k] == JointType.REVOLUTE:
-            J = axis_angle_matrix(a, float(dq[k]))
-            Jd = o - J @ o
-        else:
-            J, Jd = np.eye(3), dq[k] * a
-        corrections[c] = (Cp @ J, Cp @ Jd + dp)
-        axes[k], pivots[k] = Cp @ a, Cp @ o + dp
-    poses, boxes = [], []
-    for j, T in enumerate(result.T_cam_npcs):
-        Cj, dj = corrections[j]
-        poses.append(Sim3(Cj @ T.rotation, Cj @ T.translation + dj, T.scale))
-        if j < len(result.boxes_cam):
-            b = result.boxes_cam[j]
-            boxes.append(OrientedBox(Cj @ b.center + dj, Cj @ b.rotation, b.extents))
-    return dataclasses.replace(result, T_cam_npcs=tuple(poses), joint_axes_cam=axes, joint_pivots_cam=pivots,
-                               joint_states=np.asarray(states, dtype=np.float64).copy(), boxes_cam=tuple(boxes),
-                               uncertainty=None)
 
 
 @dataclass
@@ -690,63 +643,6 @@ class _Remembering:
 
     def __getattr__(self, name):
         return getattr(self._wrapped, name)
-
-
-#: Support planes: candidate planes drawn, the largest tilt from the object's up axis (degrees), the band about the
-#: predicted bottom searched (object diagonals), the inlier distance (object diagonals) and the most points used.
-SUPPORT_HYPOTHESES = 64
-SUPPORT_MAX_TILT_DEG = 25.0
-SUPPORT_BAND = 0.15
-SUPPORT_INLIER = 0.01
-SUPPORT_POINTS = 1500
-
-
-def support_height(points, up, bottom: float, diagonal: float, rng, around=None) -> np.ndarray:
-    """Height (metres) of each of ``points`` (N, 3, camera frame) above the surface a tracked object stands on.
-
-    The surface is the lowest of the planes with at least half the most points within :data:`SUPPORT_INLIER` object
-    diagonals among
-    :data:`SUPPORT_HYPOTHESES` planes through three points of the band of :data:`SUPPORT_BAND` object diagonals about the
-    predicted ``bottom`` (the lowest box corner along ``up``, metres), tilted at most :data:`SUPPORT_MAX_TILT_DEG` from
-    ``up``, its inliers counted among the band's points ``around`` the object (``(N,)`` bool: outside the fitted part
-    boxes, so that a flat part -- a laptop's base, a closed lid -- is not taken for the table); where the band holds no
-    such plane, the heights are measured from ``bottom`` along ``up``. Fitting the plane
-    to the depth, not to the fit, keeps the floor out of a track whose fit is a few degrees off (a tilted bottom would
-    let the floor in on one side and cut the object on the other)."""
-    up = np.asarray(up, dtype=np.float64)
-    h = points @ up - bottom
-    near = np.abs(h) < SUPPORT_BAND * diagonal
-    band = np.flatnonzero(near if around is None else near & np.asarray(around, dtype=bool))
-    if len(band) < 30:
-        return h
-    if len(band) > SUPPORT_POINTS:
-        band = rng.choice(band, SUPPORT_POINTS, replace=False)
-    Q = points[band]
-    tri = Q[rng.integers(0, len(Q), (SUPPORT_HYPOTHESES, 3))]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norm = np.linalg.norm(n, axis=1)
-    ok = norm > 1e-12
-    n = n[ok] / norm[ok, None]
-    n *= np.sign(n @ up)[:, None]
-    flat = n @ up > np.cos(np.deg2rad(SUPPORT_MAX_TILT_DEG))
-    if not flat.any():
-        return h
-    n, p0 = n[flat], tri[ok][flat, 0]
-    e = -np.einsum("ij,ij->i", n, p0)
-    counts = np.count_nonzero(np.abs(Q @ n.T + e) < SUPPORT_INLIER * diagonal, axis=0)
-    if counts.max() < 0.1 * len(Q):
-        return h
-    # the lowest of the well-supported planes: a flat part of the object (a laptop's base, a closed lid) lies above
-    # the table it stands on
-    c = Q.mean(axis=0)
-    level = -(e + n @ c)  # each plane's height at the band's centre along its normal (~ up)
-    strong = np.flatnonzero(counts >= 0.5 * counts.max())
-    best = int(strong[np.argmin(level[strong])])
-    inl = Q[np.abs(Q @ n[best] + e[best]) < SUPPORT_INLIER * diagonal]
-    c = inl.mean(axis=0)
-    normal = np.linalg.svd(inl - c, full_matrices=False)[2][-1]  # the least-squares plane of its inliers
-    normal *= np.sign(normal @ up)
-    return (points - c) @ normal
 
 
 def _std(result) -> np.ndarray | None:

@@ -21,19 +21,23 @@ states with their standard deviations). :class:`StateFilter` keeps the *filtered
 - **Physics.** Joint states are clamped to the category's range (``limits``, relative to rest), the velocity set to
   zero at a bound.
 
-The filter knows nothing of pixels; :mod:`ancsh.tracking.multi` gives it one measurement a frame per track.
+The filter knows nothing of pixels; :mod:`ancsh.tracking.multi` gives it one measurement a frame per track, and
+:func:`filtered_fit` poses a track's fitted model at the filtered state.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..geometry._checks import check_int, check_number
-from ..geometry.rotations import exp_so3, log_so3
+from ..geometry.boxes import OrientedBox
+from ..geometry.rotations import axis_angle_matrix, exp_so3, log_so3
+from ..geometry.transforms import Sim3
 
-__all__ = ["FilterUpdate", "StateFilter", "StateFilterConfig"]
+__all__ = ["FilterUpdate", "StateFilter", "StateFilterConfig", "filtered_fit"]
 
 
 @dataclass(frozen=True)
@@ -298,3 +302,50 @@ class StateFilter:
         """(3,) standard deviation of the root rotation's error about each camera axis (radians)."""
         k = self.num_joints
         return np.sqrt(self._P[k + 3:, 0, 0])
+
+
+def filtered_fit(result, correspondences, rotation, translation, states):
+    """``result`` moved to another state of the same fitted model: its root part at ``rotation`` / ``translation``
+    (camera frame, metres) and its joints at ``states`` (relative to rest, radians / metres), every child part
+    turned (revolute) or slid (prismatic) about its fitted joint axis; axes, pivots and boxes move with their parts.
+
+    Parameters
+    ----------
+    result : FitResult
+        A successful fit.
+    correspondences : Correspondences
+        What it was fitted on (its joint tree and types).
+    rotation : (3, 3) float64
+    translation : (3,) float64
+    states : (K,) float64
+    """
+    from ..model.articulated import JointType
+
+    corr = correspondences
+    root = corr.root_part
+    Tr = result.T_cam_npcs[root]
+    C = np.asarray(rotation) @ Tr.rotation.T
+    corrections = {root: (C, np.asarray(translation) - C @ Tr.translation)}  # part -> rigid map (C, d) in the camera
+    axes, pivots = np.array(result.joint_axes_cam, dtype=np.float64), np.array(result.joint_pivots_cam, dtype=np.float64)
+    dq = np.asarray(states, dtype=np.float64) - np.asarray(result.joint_states, dtype=np.float64)
+    for k in corr.topological_joints:
+        p, c = int(corr.joint_parents[k]), int(corr.joint_children[k])
+        Cp, dp = corrections[p]
+        a, o = axes[k], pivots[k]
+        if corr.joint_types[k] == JointType.REVOLUTE:
+            J = axis_angle_matrix(a, float(dq[k]))
+            Jd = o - J @ o
+        else:
+            J, Jd = np.eye(3), dq[k] * a
+        corrections[c] = (Cp @ J, Cp @ Jd + dp)
+        axes[k], pivots[k] = Cp @ a, Cp @ o + dp
+    poses, boxes = [], []
+    for j, T in enumerate(result.T_cam_npcs):
+        Cj, dj = corrections[j]
+        poses.append(Sim3(Cj @ T.rotation, Cj @ T.translation + dj, T.scale))
+        if j < len(result.boxes_cam):
+            b = result.boxes_cam[j]
+            boxes.append(OrientedBox(Cj @ b.center + dj, Cj @ b.rotation, b.extents))
+    return dataclasses.replace(result, T_cam_npcs=tuple(poses), joint_axes_cam=axes, joint_pivots_cam=pivots,
+                               joint_states=np.asarray(states, dtype=np.float64).copy(), boxes_cam=tuple(boxes),
+                               uncertainty=None)
