@@ -11,7 +11,8 @@
    (warm fits, the network every ``network_every``-th frame, carried correspondences in between). Every
    ``verify_every``-th network frame of a track is verified: the category template posed at the fit is rendered and
    compared with the depth (:func:`~ancsh.solvers.twin.compare_fit`); it must explain ``min_explained`` of the
-   region's depth and see through at most ``max_see_through`` (``p_object`` is reported); the tracker's own checks (inliers, the category's size range, residual,
+   region's depth and see through at most ``max_see_through`` (``p_object`` is reported), else the track is not
+   measured again before a fresh detection (on the next frame) re-initialises it; the tracker's own checks (inliers, the category's size range, residual,
    joint range) run on every frame. An accepted fit is the measurement of the track's filter; a measurement far from
    the prediction is an outlier (the state coasts, and the tracker restarts warm from the filtered state).
 3. **Detection.** ``ancsh predict``'s object list (:func:`~ancsh.learned.inference.predict.predict_depth`: isolation,
@@ -157,6 +158,7 @@ class _Track:
     misses: int = 0
     network_frames: int = 0
     p_object: float | None = None
+    suspect: bool = False  # its model failed the verification: only a detection restarts it
 
     def model(self) -> FitResult:
         """The fitted model at the filtered state."""
@@ -297,6 +299,7 @@ class MultiObjectTracker:
         self._index = 0
         self._last_detection = None
         self._plane_rng = np.random.default_rng(self.seed)
+        self._detect_now = False  # a verification failed: detect on the next frame
 
     @property
     def joint_types(self) -> tuple:
@@ -329,7 +332,9 @@ class MultiObjectTracker:
         detected, detections = False, 0
         missing = any(tr.misses > 0 for tr in self._tracks)
         since = None if self._last_detection is None else index - self._last_detection
-        if since is None or since >= cfg.detect_every or ((missing or not self._tracks) and since >= cfg.redetect_every):
+        if since is None or since >= cfg.detect_every or self._detect_now or (
+                (missing or not self._tracks) and since >= cfg.redetect_every):
+            self._detect_now = False
             t = time.perf_counter()
             detections = self._detect(depth, index, regions, records)
             detected = True
@@ -406,6 +411,10 @@ class MultiObjectTracker:
         tr.mask = mask
         K = len(self._joint_types)
         nan = np.full(K, np.nan)
+        if tr.suspect:
+            tr.misses += 1
+            return self._record(tr, "coasting", "its model failed the verification: waiting for a fresh detection",
+                                "none", nan, pixels)
         if pixels < cfg.tracker.min_points:
             tr.misses += 1
             tr.tracker.reset()
@@ -433,10 +442,13 @@ class MultiObjectTracker:
                                                or comparison.see_through > cfg.max_see_through):
                     tr.misses += 1
                     tr.tracker.reset()
+                    tr.suspect = True  # not measured again before a fresh detection re-initialises it
+                    self._detect_now = True
                     return self._record(tr, "coasting", f"verification failed: the fitted model explains "
                                         f"{comparison.explained:.2f} of the region's depth (at least {cfg.min_explained}), "
-                                        f"{comparison.see_through:.2f} seen through (at most {cfg.max_see_through})",
-                                        frame.source, np.asarray(result.joint_states, dtype=np.float64), pixels)
+                                        f"{comparison.see_through:.2f} seen through (at most {cfg.max_see_through}); "
+                                        "waiting for a fresh detection", frame.source,
+                                        np.asarray(result.joint_states, dtype=np.float64), pixels)
         states = np.asarray(result.joint_states, dtype=np.float64)
         root = corr.root_part
         T = result.T_cam_npcs[root]
@@ -621,7 +633,7 @@ class MultiObjectTracker:
         T = result.T_cam_npcs[root]
         tr.filter.update(T.rotation, T.translation, result.joint_states, _std(result))
         tr.result, tr.correspondences, tr.diagonal = result, corr, float(diagonal)
-        tr.misses, tr.mask = 0, det.mask
+        tr.misses, tr.mask, tr.suspect = 0, det.mask, False
         tr.p_object = det.p_object
 
 
