@@ -50,6 +50,10 @@ from .state_filter import StateFilter, StateFilterConfig, filtered_fit
 __all__ = ["MultiFrame", "MultiObjectTracker", "MultiTrackerConfig", "TrackRecord", "filtered_fit", "support_height"]
 
 
+#: The regions' tests run on every this-many-th pixel of each row and column (:meth:`MultiObjectTracker._regions`).
+REGION_STRIDE = 2
+
+
 def _default_tracker() -> TrackerConfig:
     # the category template's refinement costs seconds at each (re-)initialisation: not carried by default here
     return TrackerConfig(network_every=3, template_categories=())
@@ -349,14 +353,17 @@ class MultiObjectTracker:
     # --- regions -------------------------------------------------------------------------------------------------
 
     def _regions(self, depth) -> dict:
-        """Each live track's pixels (module docstring, item 1): ``{id: (H, W) bool}``."""
+        """Each live track's pixels (module docstring, item 1): ``{id: (H, W) bool}``. The tests run on every
+        :data:`REGION_STRIDE`-th pixel of each row and column; each pixel with depth takes its block's verdict."""
         from ..data.render import project
 
         H, W = depth.shape
         intr = self.intrinsics
         cfg = self.config
-        best = np.full((H, W), np.inf)
-        owner = np.full((H, W), -1, dtype=np.int64)
+        k = REGION_STRIDE
+        coarse = depth[::k, ::k]
+        best = np.full(coarse.shape, np.inf)
+        owner = np.full(coarse.shape, -1, dtype=np.int64)
         for n, tr in enumerate(self._tracks):
             # where the object was last measured (the filter's output lags a moving part), else the prediction
             model = tr.result if tr.misses == 0 else tr.model()
@@ -366,17 +373,18 @@ class MultiObjectTracker:
             corners = np.concatenate([b.corners() for b in boxes])
             if np.any(corners[:, 2] <= 1e-3):
                 continue  # behind the camera: nothing to measure
-            uv = project(corners, intr)[0]
+            uv = project(corners, intr)[0] / k
             u0, v0 = (int(max(np.floor(uv[:, i].min()), 0)) for i in (0, 1))
-            u1, v1 = int(min(np.ceil(uv[:, 0].max()) + 1, W)), int(min(np.ceil(uv[:, 1].max()) + 1, H))
+            u1 = int(min(np.ceil(uv[:, 0].max()) + 1, coarse.shape[1]))
+            v1 = int(min(np.ceil(uv[:, 1].max()) + 1, coarse.shape[0]))
             if u0 >= u1 or v0 >= v1:
                 continue
-            z = depth[v0:v1, u0:u1]
+            z = coarse[v0:v1, u0:u1]
             vv, uu = np.nonzero(z > 0)
             if len(vv) == 0:
                 continue
             d = z[vv, uu]
-            P = np.stack([(uu + u0 - intr.cx) * d / intr.fx, (vv + v0 - intr.cy) * d / intr.fy, d], axis=1)
+            P = np.stack([((uu + u0) * k - intr.cx) * d / intr.fx, ((vv + v0) * k - intr.cy) * d / intr.fy, d], axis=1)
             depth_in, in_model = np.full(len(P), np.inf), np.zeros(len(P), dtype=bool)
             for b, own in zip(boxes, model.boxes_cam):
                 local = np.abs((P - b.center) @ b.rotation)
@@ -393,7 +401,9 @@ class MultiObjectTracker:
             closer = depth_in[keep] < best[rows, cols]
             best[rows[closer], cols[closer]] = depth_in[keep][closer]
             owner[rows[closer], cols[closer]] = n
-        return {tr.id: owner == n for n, tr in enumerate(self._tracks)}
+        full = np.repeat(np.repeat(owner, k, axis=0), k, axis=1)[:H, :W]
+        full = np.where(depth > 0, full, -1)
+        return {tr.id: full == n for n, tr in enumerate(self._tracks)}
 
     @staticmethod
     def _root(tr: _Track) -> int:

@@ -73,7 +73,7 @@ class StateFilterConfig:
         over many frames does not run off with one noisy velocity).
     """
 
-    revolute_accel: float = np.deg2rad(0.3)
+    revolute_accel: float = np.deg2rad(1.0)
     prismatic_accel: float = 0.0005
     rotation_accel: float = np.deg2rad(0.2)
     translation_accel: float = 0.001
