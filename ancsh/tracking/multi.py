@@ -13,8 +13,12 @@
    compared with the depth (:func:`~ancsh.solvers.twin.compare_fit`); it must explain ``min_explained`` of the
    region's depth and see through at most ``max_see_through`` (``p_object`` is reported), else the track is not
    measured again before a fresh detection (on the next frame) re-initialises it; the tracker's own checks (inliers, the category's size range, residual,
-   joint range) run on every frame. An accepted fit is the measurement of the track's filter; a measurement far from
-   the prediction is an outlier (the state coasts, and the tracker restarts warm from the filtered state).
+   joint range) run on every frame, and a fit whose object is more than ``max_size_change`` times larger or smaller
+   than at the track's start is no measurement of it. An accepted fit is the measurement of the track's filter; a
+   measurement far from the prediction is checked against the depth: where the category template posed at it
+   explains the region better than at the prediction (explained less seen-through share, at least
+   ``min_explained - max_see_through``) the filter restarts from it, else it is an outlier (the state coasts, and the
+   tracker restarts warm from the filtered state).
 3. **Detection.** ``ancsh predict``'s object list (:func:`~ancsh.learned.inference.predict.predict_depth`: isolation,
    every candidate verified), on the depth without the pixels of the tracks measured on this frame, on the first frame, every ``detect_every``-th frame, and every ``redetect_every``-th
    frame while a track is missing. Detections are associated with tracks by an assignment problem
@@ -90,6 +94,9 @@ class MultiTrackerConfig:
         Or whose joint states differ by more than this (radians; metres for prismatic joints), ``> 0``.
     inside_share : float
         A detection with at least this share of its pixels in live tracks' regions is no new object, ``(0, 1]``.
+    max_size_change : float
+        A fit whose object diagonal differs from the one at the track's (re)start by more than this factor (either way)
+        is no measurement of it (objects do not grow: a track on a wall or a table would), ``> 1``.
     verify_every : int
         A track's network frames between verifications (render-and-compare and ``p_object``), ``>= 0`` (0: never).
     min_explained, max_see_through : float
@@ -120,6 +127,7 @@ class MultiTrackerConfig:
     reinit_rotation_deg: float = 30.0
     reinit_state: float = np.deg2rad(30.0)
     inside_share: float = 0.5
+    max_size_change: float = 1.4
     verify_every: int = 3
     min_explained: float = 0.4
     max_see_through: float = 0.6
@@ -137,6 +145,7 @@ class MultiTrackerConfig:
             check_number(getattr(self, name), name, minimum=0.0)
         for name in ("same_object_iou", "inside_share"):
             check_number(getattr(self, name), name, minimum=0.0, maximum=1.0, lower_open=True)
+        check_number(self.max_size_change, "max_size_change", minimum=1.0, lower_open=True)
         for name in ("gate_translation", "reinit_rotation_deg", "reinit_state"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
         for name in ("min_explained", "max_see_through"):
@@ -414,6 +423,7 @@ class MultiObjectTracker:
     def _measure(self, tr: _Track, depth, mask, index: int, stages: dict) -> TrackRecord:
         """Step the track's tracker on its pixels and filter the fit (module docstring, item 2)."""
         from ..learned.inference.candidate import depth_to_points
+        from ..learned.inference.checks import object_diagonal
 
         cfg = self.config
         t = time.perf_counter()
@@ -441,6 +451,13 @@ class MultiObjectTracker:
             return self._record(tr, "coasting", frame.message, "none", nan, pixels)
         result = frame.result
         corr = tr.tracker.correspondences or tr.correspondences
+        size = object_diagonal(result.boxes_cam) / tr.diagonal
+        if not 1.0 / cfg.max_size_change <= size <= cfg.max_size_change:
+            tr.misses += 1
+            tr.tracker.reset()
+            return self._record(tr, "coasting", f"the fit is {size:.2f} times the object's size at its detection "
+                                f"(at most {cfg.max_size_change} either way): not this object", frame.source,
+                                np.asarray(result.joint_states, dtype=np.float64), pixels)
         if frame.source == "network":
             tr.network_frames += 1
             if cfg.verify_every and tr.network_frames % cfg.verify_every == 0:
@@ -468,7 +485,7 @@ class MultiObjectTracker:
             predicted = tr.model()
             new, old = (self._explained(r, c, depth, mask) for r, c in ((result, corr), (predicted, tr.correspondences)))
             stages["verify"] += 1e3 * (time.perf_counter() - t)
-            if new is not None and (old is None or new >= old):
+            if new is not None and new >= cfg.min_explained - cfg.max_see_through and (old is None or new >= old):
                 tr.filter.restart(T.rotation, T.translation, states, _std(result))
                 tr.result, tr.correspondences, tr.misses = result, corr, 0
                 return self._record(tr, "tracked", f"measurement {update.innovation:.1f} sigma from the prediction, "
