@@ -92,6 +92,15 @@ def _lost_record(index: int, path: Path, message: str, num_joints: int) -> dict:
             "joint_states": [None] * num_joints, "joint_states_std": None, "part_poses": [], "iterations": 0, "time_ms": 0.0}
 
 
+def _emit(rec: dict, records: list, writer, progress) -> None:
+    """Keep a frame's record, write it (``writer``) and show it (``progress``)."""
+    records.append(rec)
+    if writer is not None:
+        writer.write(rec)
+    if progress is not None:
+        progress(rec)
+
+
 def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, category: str | None = None,
                 mask_dir=None, isolate: bool = True, max_depth: float | None = None, num_points: int = 1024, seed: int = 0,
                 num_joints: int = 0, progress=None) -> list[dict]:
@@ -149,11 +158,7 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
             rec = track_depth(depth, intrinsics, tracker, i, mask=mask, category=category, isolate=isolate,
                               max_depth=max_depth, num_points=num_points, seed=seed)
             rec["file"] = path.name
-        records.append(rec)
-        if writer is not None:
-            writer.write(rec)
-        if progress is not None:
-            progress(rec)
+        _emit(rec, records, writer, progress)
     return records
 
 
@@ -181,11 +186,7 @@ def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None
             rec["frame"], rec["file"] = i, path.name
             if on_frame is not None:
                 on_frame(i, depth, stepped)
-        records.append(rec)
-        if writer is not None:
-            writer.write(rec)
-        if progress is not None:
-            progress(rec)
+        _emit(rec, records, writer, progress)
     return records
 
 
