@@ -37,6 +37,7 @@ from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .fit_result import closed_form_costs, fit_result, postprocess
 from .formulations import FORMULATIONS, FitConfig, Formulation, has_limits
+from .stages import StageClock
 from .terms import (
     CanonicalParameters, DataTerm, JointLimitTerm, PreviousSolution, ProgramInputs, ProgramStart, TemporalPriorTerm,
     TermWeights,
@@ -95,6 +96,15 @@ def fit(
     ValueError
         For bad arguments: wrong types, mismatched point counts, unknown formulation/solver.
     """
+    clock = StageClock()  # records the stages inside ancsh.solvers.stages.record_stages (else idle)
+    try:
+        return _fit(clock, observation, correspondences, formulation, solver, config, rng, warm_start, previous)
+    finally:
+        clock.close()
+
+
+def _fit(clock, observation, correspondences, formulation, solver, config, rng, warm_start, previous) -> FitResult:
+    """:func:`fit` (same arguments) with its stage clock."""
     start = time.perf_counter()
     if not isinstance(observation, Observation):
         raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
@@ -129,7 +139,8 @@ def fit(
         if len(previous.joint_states) != correspondences.num_joints:
             raise ValueError(f"previous.joint_states: expected {correspondences.num_joints} states, "
                              f"got {len(previous.joint_states)}")
-    fitter = _Fit(observation, correspondences, form, solver, config, rng, start)
+    clock.mark("validate")
+    fitter = _Fit(observation, correspondences, form, solver, config, rng, start, clock)
     fitter.warm_start, fitter.previous = warm_start, previous
     result = fitter.run()
     if not (result.ok and has_limits(config, correspondences)):
@@ -137,11 +148,13 @@ def fit(
     from .limits import check_joint_range
 
     bounded = JointLimitTerm in form.term_classes or form.parameterisation == "reduced"
-    return check_joint_range(
+    checked = check_joint_range(
         result, correspondences.joint_limits, [t.value == "revolute" for t in correspondences.joint_types],
         bounded=bounded, unbounded=lambda: fit(observation, correspondences, formulation, solver,
                                                replace(config, enforce_limits=False), 0, warm_start=result,
                                                previous=previous))
+    clock.mark("limits")
+    return checked
 
 
 class _FitFailure(Exception):
@@ -171,8 +184,9 @@ class _SolveRun:
 class _Fit:
     """One call of :func:`fit` (keeps the per-frame arrays together)."""
 
-    def __init__(self, obs, corr, form, solver, config, rng, start):
+    def __init__(self, obs, corr, form, solver, config, rng, start, clock: StageClock | None = None):
         self.corr, self.form, self.solver, self.config, self.rng, self.start = corr, form, solver, config, rng, start
+        self.clock = StageClock() if clock is None else clock
         self.points = obs.points_cam
         self.npcs = corr.npcs
         self.labels = corr.part_labels
@@ -188,6 +202,7 @@ class _Fit:
         )
         self.warm_start: FitResult | None = None
         self.previous: PreviousSolution | None = None
+        self.clock.mark("setup")
 
     def run(self) -> FitResult:
         """The fit's result; every failure raised below (:class:`_FitFailure`) becomes a status here."""
@@ -210,20 +225,28 @@ class _Fit:
                 FitStatus.TOO_FEW_POINTS,
                 f"part(s) {short.tolist()} have fewer than {_MIN_POINTS} points (counts {counts[short].tolist()})",
             )
+        clock = self.clock
         if self.warm_start is not None:
             poses, inliers = self._warm_poses(active)
+            clock.mark("ransac")
         else:
             poses, inliers = self._initial_poses(active)
+            clock.mark("ransac")
             if self.config.scale_estimator != "umeyama":
                 poses = [self._rescale(j, T, inliers) for j, T in enumerate(poses)]
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
+        clock.mark("rescale")
         if self.form.parameterisation is None:
             moments = self._moments(inliers, self.weights, L)
+            clock.mark("moments")
             costs = closed_form_costs(self.structure, self.canonical, poses, L, moments)
+            clock.mark("extract")
             uncertainty = self._uncertainty(poses, None, inliers, self.weights, moments, L)
+            clock.mark("covariance")
             return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, costs,
                                 self.canonical, uncertainty)
         run = self._start_solve(poses, L)
+        clock.mark("program")
         inliers = self._solve_loop(run, inliers, L)
         return self._extract(run, inliers, L)
 
@@ -321,7 +344,7 @@ class _Fit:
         """
         from .backends import SolverOptions, solve
 
-        cfg = self.config
+        cfg, clock = self.config, self.clock
         prog = run.program
         opts = SolverOptions(cfg.max_iterations, cfg.tol)
         weights = self.weights.copy()
@@ -329,9 +352,13 @@ class _Fit:
         for rescore in range(cfg.rescore_rounds + 1):
             for _ in range(rounds):
                 run.weights, run.moments = weights, self._moments(inliers, weights, L)
+                clock.mark("moments")
                 inputs = ProgramInputs(L, self.canonical, run.start, run.moments, self.term_weights, self.previous)
                 run.p = prog.pack(inputs)
+                clock.mark("pack")
                 run.outcome = solve(self.solver, prog, run.p, run.x, run.bounds, opts)
+                clock.mark("solve")
+                clock.solver(run.outcome.timings)
                 run.iterations += run.outcome.iterations
                 if run.outcome.status != FitStatus.SUCCESS:
                     return inliers
@@ -360,7 +387,9 @@ class _Fit:
         canonical = self.canonical
         if solution.canonical_offsets is not None:  # report joints with the adjusted canonical parameters
             canonical = canonical.with_offsets(solution.canonical_offsets)
+        self.clock.mark("extract")
         uncertainty = self._uncertainty(solved, solution, inliers, run.weights, run.moments, L)
+        self.clock.mark("covariance")
         return self._finish(solved, inliers, L, outcome.status, outcome.message, run.iterations, costs, canonical,
                             uncertainty)
 
@@ -470,7 +499,9 @@ class _Fit:
 
     # -- the result ---------------------------------------------------------------------------
     def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical, uncertainty=None) -> FitResult:
-        return fit_result(
+        result = fit_result(
             self.structure, self.corr, poses, inliers, L, canonical, self._limits(), formulation=self.form.name,
             solver=self.solver, status=status, message=message, iterations=iterations, costs=costs,
             uncertainty=uncertainty, box_extents=self.config.box_extents, time_s=time.perf_counter() - self.start)
+        self.clock.mark("result")
+        return result
