@@ -148,11 +148,12 @@ def _fit(clock, observation, correspondences, formulation, solver, config, rng, 
     from .limits import check_joint_range
 
     bounded = JointLimitTerm in form.term_classes or form.parameterisation == "reduced"
+    # The unbounded refit only says where the data put the states: no covariance for it.
     checked = check_joint_range(
         result, correspondences.joint_limits, [t.value == "revolute" for t in correspondences.joint_types],
         bounded=bounded, unbounded=lambda: fit(observation, correspondences, formulation, solver,
-                                               replace(config, enforce_limits=False), 0, warm_start=result,
-                                               previous=previous))
+                                               replace(config, enforce_limits=False, uncertainty=False), 0,
+                                               warm_start=result, previous=previous))
     clock.mark("limits")
     return checked
 
@@ -461,13 +462,10 @@ class _Fit:
         return prog.initial_x(states)
 
     def _moments(self, inliers: np.ndarray, weights: np.ndarray, L: float) -> tuple:
-        from .terms import part_moments
+        from .terms import parts_moments
 
-        out = []
-        for j in range(self.M):
-            sel = inliers & (self.labels == j) & (weights > 0)
-            out.append(part_moments(self.points[sel], self.npcs[sel], weights[sel], L))
-        return tuple(out)
+        sel = inliers & (weights > 0)
+        return parts_moments(self.points[sel], self.npcs[sel], self.labels[sel], weights[sel], self.M, L)
 
     def _point_distances(self, poses: list) -> np.ndarray:
         d = np.empty(self.N)
