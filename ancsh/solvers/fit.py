@@ -158,6 +158,34 @@ def _fit(clock, observation, correspondences, formulation, solver, config, rng, 
     return checked
 
 
+_PROGRAMS: dict = {}
+
+
+def _cached_program(structure, form: Formulation, config: FitConfig, corr: Correspondences, temporal: bool,
+                    covariance: bool):
+    """The program of a solve (``covariance=False``: the formulation's terms for ``config`` and ``corr``, with the
+    temporal prior when ``temporal``) or of its covariance (``covariance=True``: the same with the scale a variable),
+    memoised per call signature (building the key re-validated a ``FitConfig`` and hashed the terms on every fit).
+    The terms depend on ``corr`` only through :func:`has_limits`, which the memo's key holds.
+    """
+    memo = (structure, form.name, config, has_limits(config, corr), temporal, covariance)
+    prog = _PROGRAMS.get(memo)
+    if prog is not None:
+        return prog
+    from .program import ProgramKey, get_program
+
+    cfg = replace(config, optimize_scale=True) if covariance else config
+    terms = form.terms(cfg, corr) + ((TemporalPriorTerm,) if temporal else ())
+    key = ProgramKey(structure, form.parameterisation, bool(cfg.optimize_scale), terms,
+                     free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
+                     npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias)
+    prog = get_program(key)
+    if len(_PROGRAMS) > 256:  # a bound for long-lived processes trying many configurations
+        _PROGRAMS.clear()
+    _PROGRAMS[memo] = prog
+    return prog
+
+
 class _FitFailure(Exception):
     """Raised inside :class:`_Fit` when the data cannot be fitted; :meth:`_Fit.run` turns it into
     a failed :class:`FitResult` (the one failure path)."""
@@ -323,16 +351,8 @@ class _Fit:
         """The formulation's program, its start (per-part poses moved onto the joints for
         ``exact_maximal``) and bounds."""
         from .backends import Bounds
-        from .program import ProgramKey, get_program
 
-        cfg = self.config
-        key = ProgramKey(
-            self.structure, self.form.parameterisation, bool(cfg.optimize_scale),
-            self.form.terms(cfg, self.corr) + ((TemporalPriorTerm,) if self.previous is not None else ()),
-            free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
-            npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias,
-        )
-        prog = get_program(key)
+        prog = _cached_program(self.structure, self.form, self.config, self.corr, self.previous is not None, False)
         limits = self._limits()
         if self.form.name == "exact_maximal" and self.K:
             poses = self._onto_joints(poses, L, limits)
@@ -406,15 +426,10 @@ class _Fit:
         from .program import ProgramKey, get_program
         from .uncertainty import effective_points, fit_covariance
 
-        cfg = self.config
         if solution is None:
-            key = ProgramKey(self.structure, "maximal", True, (DataTerm,))
+            prog = get_program(ProgramKey(self.structure, "maximal", True, (DataTerm,)))
         else:
-            key = ProgramKey(self.structure, self.form.parameterisation, True,
-                             self.form.terms(replace(cfg, optimize_scale=True), self.corr),
-                             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
-                             npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias)
-        prog = get_program(key)
+            prog = _cached_program(self.structure, self.form, self.config, self.corr, False, True)
         states = offsets = bias = None
         if solution is not None:
             states = solution.joint_states if prog.has_joint_states else None
