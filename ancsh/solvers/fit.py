@@ -262,7 +262,7 @@ class _Fit:
             poses, inliers = self._initial_poses(active)
             clock.mark("ransac")
             if self.config.scale_estimator != "umeyama":
-                poses = [self._rescale(j, T, inliers) for j, T in enumerate(poses)]
+                poses = self._rescale(poses, inliers)
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
         clock.mark("rescale")
         if self.form.parameterisation is None:
@@ -328,23 +328,27 @@ class _Fit:
                 inliers |= sel
         return poses, inliers
 
-    def _rescale(self, j: int, T: Sim3, inliers: np.ndarray) -> Sim3:
-        """``T`` with the RMS-spread-ratio (``symmetric``) or reverse-regression (``reverse``) scale of
-        part ``j``'s inliers and the matching translation."""
-        sel = inliers & (self.labels == j)
-        w = self.weights[sel] / self.weights[sel].sum()
-        p, c = self.points[sel], self.npcs[sel]
-        pbar, cbar = w @ p, w @ c
-        var_p = float(w @ np.sum((p - pbar) ** 2, axis=1))
-        var_c = float(w @ np.sum((c - cbar) ** 2, axis=1))
-        if not var_c > 0 or not var_p > 0:
-            return T
-        s = np.sqrt(var_p / var_c)
-        if self.config.scale_estimator == "reverse":
-            cov = float(np.sum(((p - pbar) * w[:, None]).T @ (c - cbar) * T.rotation))  # tr(R^T cov(p, c))
-            # = s_sym^2 / s_umeyama; capped at 2 s_sym (correlation below 0.5: no usable match)
-            s = var_p / max(cov, 0.5 * np.sqrt(var_p * var_c))
-        return Sim3.unchecked(T.rotation, pbar - s * (T.rotation @ cbar), s)
+    def _rescale(self, poses: list, inliers: np.ndarray) -> list:
+        """``poses`` with the RMS-spread-ratio (``symmetric``) or reverse-regression (``reverse``) scale of each
+        part's inliers and the matching translation (all parts in one pass; a part without spread keeps its pose)."""
+        lab, w = self.labels[inliers], self.weights[inliers]
+        p, c = self.points[inliers], self.npcs[inliers]
+        W = np.zeros((self.M, len(lab)))
+        W[lab, np.arange(len(lab))] = w
+        W /= W.sum(axis=1, keepdims=True)  # (M, n): each part's normalised weights
+        pbar, cbar = W @ p, W @ c
+        dp, dc = p - pbar[lab], c - cbar[lab]
+        var_p, var_c = W @ np.sum(dp * dp, axis=1), W @ np.sum(dc * dc, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.sqrt(var_p / var_c)
+            if self.config.scale_estimator == "reverse":
+                R = np.stack([T.rotation for T in poses])
+                cross = (W[:, :, None] * dp).transpose(0, 2, 1) @ dc  # (M, 3, 3): sum w (p - pbar)(c - cbar)^T
+                cov = np.sum(cross * R, axis=(1, 2))  # tr(R^T cov(p, c))
+                # = s_sym^2 / s_umeyama; capped at 2 s_sym (correlation below 0.5: no usable match)
+                s = var_p / np.maximum(cov, 0.5 * np.sqrt(var_p * var_c))
+        return [T if not (var_c[j] > 0 and var_p[j] > 0) else
+                Sim3.unchecked(T.rotation, pbar[j] - s[j] * (T.rotation @ cbar[j]), s[j]) for j, T in enumerate(poses)]
 
     # -- program solve --------------------------------------------------------------------------
     def _start_solve(self, poses: list, L: float) -> _SolveRun:
