@@ -25,13 +25,25 @@ def postprocess(structure: KinematicStructure, poses: list, canonical: Canonical
 def max_violation(structure: KinematicStructure, poses: list, canonical: CanonicalParameters, L: float,
                   limits: np.ndarray) -> float:
     """Largest exact-joint or joint-limit violation of the part poses (object-normalised units, radians)."""
-    from .program import ProgramKey, get_program
-
-    prog = get_program(ProgramKey(structure, "maximal", False, (ExactJointTerm,) + ((JointLimitTerm,) if structure.num_joints else ())))
+    prog = _violation_program(structure)
     p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_npcs=tuple(poses))))
     g = np.asarray(prog.constraints(prog.initial_x(), p)).ravel()
     lo, hi = prog.constraint_bounds(limits)
     return float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
+
+
+_VIOLATION_PROGRAMS: dict = {}
+
+
+def _violation_program(structure: KinematicStructure):
+    """The maximal program of the exact joints and the limits of ``structure`` (memoised: its key is built once)."""
+    prog = _VIOLATION_PROGRAMS.get(structure)
+    if prog is None:
+        from .program import ProgramKey, get_program
+
+        terms = (ExactJointTerm,) + ((JointLimitTerm,) if structure.num_joints else ())
+        prog = _VIOLATION_PROGRAMS[structure] = get_program(ProgramKey(structure, "maximal", False, terms))
+    return prog
 
 
 def closed_form_costs(structure: KinematicStructure, canonical: CanonicalParameters, poses: list, L: float,
