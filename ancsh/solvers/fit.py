@@ -2,7 +2,7 @@
 
 :func:`fit` is the one entry point::
 
-    result = fit(observation, correspondences, formulation="exact_reduced", solver="ipopt",
+    result = fit(observation, correspondences, formulation="exact_reduced", solver="lm",
                  config=FitConfig(), rng=0)
 
 Every formulation shares the same pipeline:

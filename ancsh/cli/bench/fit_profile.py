@@ -18,7 +18,7 @@ def register(sub) -> None:
     p.add_argument("--categories", default=None, help="comma-separated categories (default: all eight)")
     p.add_argument("--level", default="realistic", help="corruption preset (default realistic)")
     p.add_argument("--methods", default=None,
-                   help="comma-separated formulation/backend pairs (default exact_reduced/ipopt,exact_reduced/lm)")
+                   help="comma-separated formulation/backend pairs (default exact_reduced/lm,exact_reduced/ipopt)")
     p.add_argument("--repeats", type=positive_int, default=3, help="timed fits per frame and method, the median kept (default 3)")
     p.add_argument("--no-official", action="store_true", help="do not time the official scheme beside them")
     p.add_argument("--seed", type=non_negative_int, default=0, help="ancsh bench fit's seed (default 0)")
