@@ -222,21 +222,31 @@ def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptio
         g = J.T @ r
         at_bound = ((x <= lbx) & (g > 0)) | ((x >= ubx) & (g < 0))
         free = ~at_bound
-        if np.max(np.abs(g[free]), initial=0.0) <= tol * max(1.0, cost):
+        every = not at_bound.any()  # the usual case: no index copies
+        g_free = g if every else g[free]
+        if np.max(np.abs(g_free), initial=0.0) <= tol * max(1.0, cost):
             return outcome(x, FitStatus.SUCCESS, f"lm: gradient below tolerance after {it - 1} iterations", it - 1)
         t = time.perf_counter()
-        A = J[:, free].T @ J[:, free]
-        D = np.diag(np.maximum(np.diag(A), 1e-12))
+        J_free = J if every else J[:, free]
+        A = J_free.T @ J_free
+        diag = np.diag_indices_from(A)
+        D = np.maximum(A[diag], 1e-12)  # the damping's scale, diag(J^T J)
         spent["lm.linear"] += time.perf_counter() - t
         while True:
-            step = np.zeros_like(x)
             t = time.perf_counter()
+            damped = A.copy()
+            damped[diag] += lam * D
             try:
-                step[free] = np.linalg.solve(A + lam * D, -g[free])
+                solved = np.linalg.solve(damped, -g_free)
             except np.linalg.LinAlgError:
                 return outcome(x, FitStatus.NUMERICAL_FAILURE, "lm: singular normal equations", it)
+            if every:
+                step = solved
+            else:
+                step = np.zeros_like(x)
+                step[free] = solved
             spent["lm.linear"] += time.perf_counter() - t
-            x_new = np.clip(x + step, lbx, ubx)
+            x_new = np.minimum(np.maximum(x + step, lbx), ubx)
             r_new, J_new = evaluate(x_new)
             cost_new = float(r_new @ r_new)
             h = x_new - x
@@ -249,7 +259,7 @@ def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptio
             lam *= nu
             nu *= 2.0
             if lam > 1e12:
-                gmax = float(np.max(np.abs(g[free]), initial=0.0))
+                gmax = float(np.max(np.abs(g_free), initial=0.0))
                 return outcome(
                     x, FitStatus.NUMERICAL_FAILURE,
                     f"lm: stalled after {it} iterations (no decrease; projected gradient {gmax:.3g} above the tolerance)", it,

@@ -338,7 +338,7 @@ class _Fit:
         W /= W.sum(axis=1, keepdims=True)  # (M, n): each part's normalised weights
         pbar, cbar = W @ p, W @ c
         dp, dc = p - pbar[lab], c - cbar[lab]
-        var_p, var_c = W @ np.sum(dp * dp, axis=1), W @ np.sum(dc * dc, axis=1)
+        var_p, var_c = W @ np.einsum("ij,ij->i", dp, dp), W @ np.einsum("ij,ij->i", dc, dc)
         with np.errstate(divide="ignore", invalid="ignore"):
             s = np.sqrt(var_p / var_c)
             if self.config.scale_estimator == "reverse":

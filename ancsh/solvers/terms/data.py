@@ -92,7 +92,7 @@ def parts_moments(points_cam, npcs, labels, weights, num_parts: int, L: float) -
     xw = W[:, :, None] * x  # (M, n, 4)
     Mx = xw.transpose(0, 2, 1) @ x  # (M, 4, 4)
     C = xw.transpose(0, 2, 1) @ pc  # (M, 4, 3)
-    P = W @ np.sum(pc * pc, axis=1)  # (M,)
+    P = W @ np.einsum("ij,ij->i", pc, pc)  # (M,)
     lam, V = np.linalg.eigh(Mx)
     keep = lam > 1e-12 * np.maximum(lam.max(axis=1, keepdims=True), 1e-300)
     root = np.where(keep, np.sqrt(np.where(keep, lam, 1.0)), 0.0)
