@@ -17,6 +17,7 @@ def test_profile_command_writes_the_stages_and_the_ratio(tmp_path, capsys):
     assert "`ancsh bench fit-profile --frames 1 --categories laptop --repeats 2 --out " in text
     assert "| laptop | exact_reduced/ipopt | 100% |" in text and "| laptop | exact_reduced/lm | 100% |" in text
     assert "total for 1000x" in text and "ipopt.internal" in text and "lm.evaluate" in text
+    assert "`ancsh bench fit --frames 1 --levels realistic --categories laptop`" in text
     payload = json.loads(out.with_suffix(".json").read_text())
     rows = {r["method"]: r for r in payload["rows"]}
     for m, r in rows.items():
