@@ -66,7 +66,10 @@ def amodal_box(corr: Correspondences, j: int, T: Sim3, inliers: np.ndarray, box_
         extents = 2.0 * np.max(np.abs(corr.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
         if box_extents == "unit_diagonal":
             extents = unit_diagonal(extents)
-    return OrientedBox(T.translation, T.rotation, T.scale * extents)
+    extents = T.scale * np.asarray(extents, dtype=np.float64)
+    if np.any(extents < 0):  # the validating constructor names the problem
+        return OrientedBox(T.translation, T.rotation, extents)
+    return OrientedBox.unchecked(T.translation, T.rotation, extents)  # T: a fit's pose, a rotation by construction
 
 
 def fit_result(structure: KinematicStructure, corr: Correspondences, poses: list, inliers: np.ndarray, L: float,
