@@ -64,10 +64,13 @@ def test_record_stages_splits_a_fit(fit_case, solver):
     assert r.ok and times.calls == 1
     assert set(times.seconds) <= set(FIT_STAGES) and {"ransac", "solve", "covariance", "result"} <= set(times.seconds)
     assert all(v >= 0 for v in times.seconds.values())
-    assert sum(times.seconds.values()) <= r.time_s + 1e-3
+    # structural, not timing: the stages before the result's assembly lie inside the fit's own clock (time_s), the
+    # backend's parts inside the solve stage
+    assert sum(v for k, v in times.seconds.items() if k not in ("validate", "result", "limits")) <= r.time_s
     timed = {k for k in times.solver if not k.endswith(".iterations")}
     assert timed and timed <= set(SOLVER_STAGES) and times.solver[f"{solver}.iterations"] == r.iterations
-    assert sum(times.solver[k] for k in timed) == pytest.approx(times.seconds["solve"], rel=0.5)
+    assert all(times.solver[k] >= 0 for k in timed if k != "ipopt.internal")
+    assert sum(times.solver[k] for k in timed) <= times.seconds["solve"]
     with record_stages() as again:
         pass
     assert again.calls == 0  # nothing recorded outside a fit, nothing after the context

@@ -22,7 +22,7 @@ def test_profile_command_writes_the_stages_and_the_ratio(tmp_path, capsys):
     rows = {r["method"]: r for r in payload["rows"]}
     for m, r in rows.items():
         assert {"ransac", "solve", "covariance", "result"} <= set(r["stages_ms"])
-        assert 0 < sum(r["stages_ms"].values()) < 3 * r["total_ms"]  # medians of the stages: near the total
+        assert 0 < sum(r["stages_ms"].values()) < 10 * r["total_ms"]  # medians of the stages: of the order of the total
         assert r["ratio"] == pytest.approx(r["official_ms"] / r["total_ms"])
     assert rows["exact_reduced/ipopt"]["solver_ms"]["ipopt.iterations"] >= 1
     assert rows["exact_reduced/lm"]["solver_ms"]["lm.iterations"] >= 1
