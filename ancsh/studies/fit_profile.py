@@ -218,7 +218,7 @@ def write_profile_report(result: dict, path, provenance: Provenance) -> dict:
         f"{cfg['seed']}: the corrupted correspondences and RANSAC seeds of `ancsh bench fit --frames "
         f"{cfg['frames_per_category']} --levels {cfg['level']} --categories {','.join(result['categories'])}"
         f"{'' if cfg['seed'] == 0 else ' --seed ' + str(cfg['seed'])}` (its frame seeds count over the categories "
-        "in this order). Methods: {', '.join(methods)} (default "
+        f"in this order). Methods: {', '.join(methods)} (default "
         f"`FitConfig`). Each fits every frame {cfg['repeats']} times with its stages recorded "
         "(`ancsh.solvers.stages.record_stages`): total = the frame's median call, a stage = its median over the "
         "frame's calls, both averaged over frames. Milliseconds per fit. The machine is shared: absolute times move with its load, compare "

@@ -18,6 +18,7 @@ def test_profile_command_writes_the_stages_and_the_ratio(tmp_path, capsys):
     assert "| laptop | exact_reduced/ipopt | 100% |" in text and "| laptop | exact_reduced/lm | 100% |" in text
     assert "total for 1000x" in text and "ipopt.internal" in text and "lm.evaluate" in text
     assert "`ancsh bench fit --frames 1 --levels realistic --categories laptop`" in text
+    assert "Methods: exact_reduced/lm, exact_reduced/ipopt (default" in text
     payload = json.loads(out.with_suffix(".json").read_text())
     rows = {r["method"]: r for r in payload["rows"]}
     for m, r in rows.items():
