@@ -42,6 +42,8 @@ EXAMPLES = {
     "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
     "bench gpu-check": "ancsh bench gpu-check --device cuda   # on a machine with a GPU: CUDA against the CPU",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
+    "bench fit-profile": "ancsh bench fit-profile --frames 2 --categories laptop --repeats 1   # one exact fit's "
+                         "stages, beside the official scheme",
     "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~30 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "bench cad-auto": "ancsh bench cad-auto --per-category 1 --seeds 0 1   # fit-cad's automatic start: right / "

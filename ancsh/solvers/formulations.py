@@ -3,8 +3,9 @@
 
 Formulations: ``per_part`` (Umeyama + RANSAC), ``soft`` (paper Sec. 4.3: data + lambda soft joint energies),
 ``exact_maximal`` (every part SE(3)+scale with exact joint equalities and limit inequalities, IPOPT),
-``exact_reduced`` (object pose + joint states, joints exact by construction, limits as bounds; IPOPT, least squares
-or the projected Levenberg-Marquardt ``lm``).
+``exact_reduced`` (object pose + joint states, joints exact by construction, limits as bounds; the projected
+Levenberg-Marquardt ``lm`` by default -- the same solutions as IPOPT on the benchmark's frames, without IPOPT's fixed
+cost of about a millisecond per solve (``docs/results/fit_profile.md``) -- or IPOPT, or scipy least squares).
 """
 
 from __future__ import annotations
@@ -235,7 +236,7 @@ FORMULATIONS: dict[str, Formulation] = {
             (DataTerm, ExactJointTerm, ExactCommonScaleTerm, JointLimitTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
         Formulation(
-            "exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced",
+            "exact_reduced", "object pose + joint states, joints exact by construction", ("lm", "ipopt", "lsq"), "reduced",
             (DataTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
     )

@@ -106,3 +106,23 @@ def test_exact_config_reaches_the_exact_methods_only(tmp_path, capsys):
         capsys.readouterr()
         assert main(["bench", "fit", "--quick", "--exact-config", bad, "--out", str(tmp_path / "x.md")]) == 2
         assert why in capsys.readouterr().err
+
+
+def test_speed_section_gives_mean_and_median_ratios_per_category():
+    from ancsh.studies.fit.speed import speed_by_category, speed_lines
+
+    recs = [{"category": c, "level": "realistic", "method": m, "time_ms": t}
+            for c, times in (("oven", {"official": [100.0, 300.0, 200.0], "exact_reduced/lm": [1.0, 1.0, 4.0]}),
+                             ("box", {"exact_reduced/lm": [2.0]}))
+            for m, ts in times.items() for t in ts]
+    report = {"records": recs + [dict(recs[0], level="none", time_ms=1e6)],
+              "methods": ["exact_reduced/lm", "official"]}
+    rows = speed_by_category(report, "realistic")
+    assert [(r["category"], r["method"]) for r in rows] == [("box", "exact_reduced/lm"), ("oven", "exact_reduced/lm")]
+    box, oven = rows
+    assert "ratio_mean" not in box and box["ms_mean"] == 2.0
+    assert oven["ms_mean"] == 2.0 and oven["ms_median"] == 1.0 and oven["frames"] == 3
+    assert oven["ratio_mean"] == pytest.approx(100.0) and oven["ratio_median"] == pytest.approx(200.0)
+    text = "\n".join(speed_lines(report, "realistic"))
+    assert "## Speed per category (`realistic`)" in text and "| oven | exact_reduced/lm | 3 | 2.00 | 1.00 | 200.0 | 100 | 200 |" in text
+    assert speed_lines({"records": [], "methods": []}, "realistic") == []

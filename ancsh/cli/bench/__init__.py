@@ -14,6 +14,7 @@ import importlib
 BENCH_MODULES = [
     "ancsh.cli.bench.render:register_bench",
     "ancsh.cli.bench.fit",
+    "ancsh.cli.bench.fit_profile",
     "ancsh.cli.bench.learned",
     "ancsh.cli.bench.uncertainty",
     "ancsh.cli.bench.refinement",

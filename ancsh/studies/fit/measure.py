@@ -48,7 +48,7 @@ THIN_PARTS = {"eyeglasses": ("left_temple", "right_temple"), "laptop": ("display
 
 # Formulation names the headline ratios use, in order of preference.
 _PER_PART = ("per_part/umeyama", "per_part")
-_EXACT = ("exact_reduced/ipopt", "exact_reduced/lsq", "exact_reduced/lm", "exact_maximal/ipopt", "exact_reduced",
+_EXACT = ("exact_reduced/lm", "exact_reduced/ipopt", "exact_reduced/lsq", "exact_maximal/ipopt", "exact_reduced",
           "exact_maximal")
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..report import write_json, write_text
 from .measure import _EXACT, _PER_PART, THIN_PARTS, _mean
+from .speed import speed_by_category, speed_lines
 
 __all__ = ["headline", "overall", "summarize", "write_report"]
 
@@ -276,6 +277,7 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> d
         lines.append(f"Thin parts: {head['per_part']} {head['thin_per_part_rot_deg']:.2f} deg, "
                      f"{head['exact']} {head['thin_exact_rot_deg']:.2f} deg.")
     lines += _translation_note(report, head["level"])
+    lines += speed_lines(report, head["level"])
     lines += ["", "## Overall, per level and method", "",
               "Means over all parts (or joints) of all categories' frames that succeeded; thin = eyeglass temples "
               "and laptop display; revolute state error in degrees.", ""]
@@ -320,6 +322,7 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> d
             "command": command, "generated": when, "config": cfg, "methods": report["methods"],
             "frame_source": report["frame_source"], "headline": head,
             "overall": {level: overall(report, level) for level in cfg["levels"]}, "summary": rows,
+            "speed": speed_by_category(report, head["level"]),
         }
         write_json(out_json, _compact(payload), separators=(",", ":"), default=_json_default)
     return head
