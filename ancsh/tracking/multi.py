@@ -14,7 +14,7 @@
    region's depth and see through at most ``max_see_through`` (``p_object`` is reported), else the track is not
    measured again before a fresh detection (on the next frame) re-initialises it; the tracker's own checks (inliers, the category's size range, residual,
    joint range) run on every frame, and a fit whose object is more than ``max_size_change`` times larger or smaller
-   than at the track's start is no measurement of it. An accepted fit is the measurement of the track's filter; a
+   than the track's size so far is no measurement of it. An accepted fit is the measurement of the track's filter; a
    measurement far from the prediction is checked against the depth: where the category template posed at it
    explains the region better than at the prediction (explained less seen-through share, at least
    ``min_explained - max_see_through``) the filter restarts from it, else it is an outlier (the state coasts, and the
@@ -54,6 +54,10 @@ from .state_filter import StateFilter, StateFilterConfig, filtered_fit
 __all__ = ["MultiFrame", "MultiObjectTracker", "MultiTrackerConfig", "TrackRecord", "filtered_fit", "support_height"]
 
 
+#: A track's size reference keeps this share of itself at each applied measurement (the rest is the measurement's
+#: object diagonal): the tracker's first-stage fits may measure an object larger or smaller than its detection's
+#: refined fit did, steadily; a fit that runs away from it frame by frame is refused.
+SIZE_MEMORY = 0.8
 #: The regions' tests run on every this-many-th pixel of each row and column (:meth:`MultiObjectTracker._regions`).
 REGION_STRIDE = 2
 
@@ -95,8 +99,9 @@ class MultiTrackerConfig:
     inside_share : float
         A detection with at least this share of its pixels in live tracks' regions is no new object, ``(0, 1]``.
     max_size_change : float
-        A fit whose object diagonal differs from the one at the track's (re)start by more than this factor (either way)
-        is no measurement of it (objects do not grow: a track on a wall or a table would), ``> 1``.
+        A fit whose object diagonal differs from the track's size so far (its detection's, then a running mean of its
+        measurements, :data:`SIZE_MEMORY`) by more than this factor (either way) is no measurement of it (objects do
+        not grow: a track on a wall or a table would), ``> 1``.
     verify_every : int
         A track's network frames between verifications (render-and-compare and ``p_object``), ``>= 0`` (0: never).
     min_explained, max_see_through : float
@@ -119,7 +124,7 @@ class MultiTrackerConfig:
     redetect_every: int = 10
     max_misses: int = 15
     max_objects: int | None = None
-    region_margin: float = 0.15
+    region_margin: float = 0.08
     support_clearance: float = 0.02
     max_clearance_m: float = 0.008
     same_object_iou: float = 0.2
@@ -172,6 +177,7 @@ class _Track:
     network_frames: int = 0
     p_object: float | None = None
     suspect: bool = False  # its model failed the verification: only a detection restarts it
+    size: float = 0.0  # the object's diagonal so far (metres): its detection's, then a running mean of measurements
 
     def model(self) -> FitResult:
         """The fitted model at the filtered state."""
@@ -451,11 +457,12 @@ class MultiObjectTracker:
             return self._record(tr, "coasting", frame.message, "none", nan, pixels)
         result = frame.result
         corr = tr.tracker.correspondences or tr.correspondences
-        size = object_diagonal(result.boxes_cam) / tr.diagonal
+        measured_size = object_diagonal(result.boxes_cam)
+        size = measured_size / tr.size
         if not 1.0 / cfg.max_size_change <= size <= cfg.max_size_change:
             tr.misses += 1
             tr.tracker.reset()
-            return self._record(tr, "coasting", f"the fit is {size:.2f} times the object's size at its detection "
+            return self._record(tr, "coasting", f"the fit is {size:.2f} times the object's size so far "
                                 f"(at most {cfg.max_size_change} either way): not this object", frame.source,
                                 np.asarray(result.joint_states, dtype=np.float64), pixels)
         if frame.source == "network":
@@ -495,6 +502,7 @@ class MultiObjectTracker:
             return self._record(tr, "outlier", f"measurement {update.innovation:.1f} sigma from the prediction, and the "
                                 "prediction explains the depth better: not applied", frame.source, states, pixels)
         tr.result, tr.correspondences, tr.misses = result, corr, 0
+        tr.size = (1.0 - SIZE_MEMORY) * measured_size + SIZE_MEMORY * tr.size
         message = "restarted from the measurement after outliers in a row" if update.restarted else frame.message
         return self._record(tr, "tracked", message, frame.source, states, pixels)
 
@@ -659,7 +667,7 @@ class MultiObjectTracker:
         root = corr.root_part
         T = result.T_cam_npcs[root]
         tr.filter.update(T.rotation, T.translation, result.joint_states, _std(result))
-        tr.result, tr.correspondences, tr.diagonal = result, corr, float(diagonal)
+        tr.result, tr.correspondences, tr.diagonal, tr.size = result, corr, float(diagonal), float(diagonal)
         tr.misses, tr.mask, tr.suspect = 0, det.mask, False
         tr.p_object = det.p_object
 
