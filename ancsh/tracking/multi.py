@@ -124,7 +124,7 @@ class MultiTrackerConfig:
     redetect_every: int = 10
     max_misses: int = 15
     max_objects: int | None = None
-    region_margin: float = 0.08
+    region_margin: float = 0.15
     support_clearance: float = 0.02
     max_clearance_m: float = 0.008
     same_object_iou: float = 0.2
