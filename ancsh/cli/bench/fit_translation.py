@@ -98,6 +98,8 @@ def fit_config_defaults(defaults: dict):
 
     class _Defaults:
         paper = staticmethod(FitConfig.paper)
+        previous = staticmethod(FitConfig.previous)
+        with_objective = staticmethod(FitConfig.with_objective)
 
         def __new__(cls, **kw):
             return FitConfig(**{**defaults, **kw})
