@@ -92,7 +92,8 @@ _NETWORKS = ("150 test frames a category (`ancsh evaluate`'s, seed 0), the shipp
 
 #: The default objective by the provider of the correspondences (``"any"``: ``FitConfig()``, whatever made them;
 #: ``"learned"``: the shipped networks' fits, :meth:`ancsh.learned.inference.provider.LearnedProvider.fit_config`, used
-#: by ``ancsh predict``, ``evaluate``, ``track``, ``calibrate``, the twin and the service) and their category (``"*"``:
+#: by ``ancsh predict``, ``evaluate``, ``track``, ``calibrate``, the twin and the service; ``"tracked"``: a tracker's
+#: fits of a provider without its own, :func:`ancsh.tracking.config.with_provider_fit`) and their category (``"*"``:
 #: any other) -- the one place the choice is written (issue 63), each entry with its figures.
 #: :meth:`FitConfig.default_for` reads it.
 DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
@@ -103,8 +104,8 @@ DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
             "2.06 / 0.0060, 2.38 / 0.0068; seed 1 1.87 / 0.0038, 2.07 / 0.0058, 2.35 / 0.0065. Below the official "
             "scheme in rotation and translation on 19 of 19 parts at both seeds (previous: 13 and 17 of 19), below "
             "the previous objective in translation on every part (paired: by 2.7 to 13 standard errors) and in "
-            "rotation on every part but the laptop's two, within noise there (-0.01 to +0.07 deg); 1.2x the previous objective's mean time (21.5 against 18.3 ms), official 80x "
-            "slower. Chosen at seed 0 over npcs_bias_weight 0.005 / 0.01 / 0.02 x naocs_prior_weight 0.01 / 0.03 / "
+            "rotation on every part but the laptop's two, within noise there (-0.01 to +0.07 deg); 1.2-1.3x the previous objective's mean time (21.5 against 18.3 ms; 15.6 against 11.7 "
+            "in the bench fit run at seed 0), the official scheme 75-80x slower. Chosen at seed 0 over npcs_bias_weight 0.005 / 0.01 / 0.02 x naocs_prior_weight 0.01 / 0.03 / "
             "0.1 (20 frames a category; the nearest rival, 0.02 / 0.1, also 19 of 19 at 60 frames but higher "
             "means, 1.88 / 0.0044), confirmed at seed 1. The same for every category: no category measured better "
             "with another entry.")),
@@ -140,6 +141,15 @@ DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
         "*": ObjectiveChoice(PREVIOUS_OBJECTIVE, (
             "A network of another category: as the shipped networks, whose fits the NPCS biases cost rotation on five "
             "categories of eight (by 3 to 8 standard errors) and improve on none beyond noise in both errors.")),
+    },
+    "tracked": {
+        "*": ObjectiveChoice(PREVIOUS_OBJECTIVE, (
+            "The fits of `ancsh.tracking.CategoryTracker` (warm fits under a temporal prior, carried and fused "
+            "correspondences) of a provider without its own (`TrackerConfig.fit` None; a learned provider's is "
+            "`learned`): the NPCS biases are not measured on sequences, and with them the tracker's checks on the "
+            "synthetic oracle sequences of `tests/tracking/test_tracking.py` fail (2026-12-07: a tracked laptop "
+            "frame at 1.69 deg against the 1.5 bound, a carried frame at 5.4 deg against 5, a warm fit re-initialised "
+            "for too few inliers); the previous objective is kept until a tracking benchmark measures them.")),
     },
 }
 
@@ -348,12 +358,13 @@ class FitConfig:
         return cls(**values)
 
 
-def provider_fit_config(provider, **overrides) -> FitConfig:
+def provider_fit_config(provider, *, fallback: str = "any", **overrides) -> FitConfig:
     """The :class:`FitConfig` of ``provider``'s fits: its ``fit_config(**overrides)`` where it has one (a
     :class:`~ancsh.learned.inference.provider.LearnedProvider`: its category's default objective for the shipped
-    networks, :data:`DEFAULT_OBJECTIVES` ``["learned"]``), else ``FitConfig(**overrides)``."""
+    networks, :data:`DEFAULT_OBJECTIVES` ``["learned"]``), else ``FitConfig.default_for(fallback, **overrides)``
+    (``"any"``: ``FitConfig()``; the tracker passes ``"tracked"``)."""
     make = getattr(provider, "fit_config", None)
-    return make(**overrides) if callable(make) else FitConfig(**overrides)
+    return make(**overrides) if callable(make) else FitConfig.default_for(fallback, **overrides)
 
 
 def _positive(value) -> bool:

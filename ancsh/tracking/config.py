@@ -144,7 +144,8 @@ class TrackerConfig:
     fit : FitConfig or None
         Settings of every fit (RANSAC settings apply to the cold ones). ``None`` (default): the provider's
         (:func:`with_provider_fit`: a learned provider's :meth:`~ancsh.learned.inference.provider.LearnedProvider.fit_config`,
-        the default objective of its category's shipped network; else ``FitConfig()``).
+        the default objective of its category's shipped network; else the ``"tracked"`` entry of
+        :data:`ancsh.solvers.formulations.DEFAULT_OBJECTIVES`).
     """
 
     network_every: int = 1
@@ -206,5 +207,5 @@ class TrackerConfig:
 def with_provider_fit(config: TrackerConfig, provider) -> TrackerConfig:
     """``config`` with its :attr:`TrackerConfig.fit` resolved for ``provider`` where it is ``None``: the provider's
     ``fit_config()`` (a :class:`~ancsh.learned.inference.provider.LearnedProvider`: its category's default objective,
-    :data:`ancsh.solvers.formulations.DEFAULT_OBJECTIVES`), else ``FitConfig()``."""
-    return config if config.fit is not None else replace(config, fit=provider_fit_config(provider))
+    :data:`ancsh.solvers.formulations.DEFAULT_OBJECTIVES` ``["learned"]``), else that table's ``["tracked"]`` entry."""
+    return config if config.fit is not None else replace(config, fit=provider_fit_config(provider, fallback="tracked"))

@@ -83,3 +83,17 @@ def test_a_providers_fit_config_is_its_own_where_it_has_one():
 
     assert provider_fit_config(object(), box_extents="unit_diagonal") == FitConfig(box_extents="unit_diagonal")
     assert provider_fit_config(Learned(), tol=1e-9) == FitConfig.default_for("learned", "laptop", tol=1e-9)
+
+
+def test_the_tracker_resolves_its_fits_config_from_the_provider_or_the_tracked_entry():
+    from ancsh.tracking.config import TrackerConfig, with_provider_fit
+
+    class Learned:
+        def fit_config(self, **overrides):
+            return FitConfig.default_for("learned", "laptop", **overrides)
+
+    assert TrackerConfig().fit is None
+    assert with_provider_fit(TrackerConfig(), object()).fit == FitConfig.default_for("tracked")
+    assert with_provider_fit(TrackerConfig(), Learned()).fit == FitConfig.default_for("learned", "laptop")
+    mine = FitConfig(tol=1e-9)
+    assert with_provider_fit(TrackerConfig(fit=mine), Learned()).fit is mine  # a given config is kept
