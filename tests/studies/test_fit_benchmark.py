@@ -150,6 +150,8 @@ def test_the_verdict_needs_its_frames_and_every_part_below_in_rotation_and_trans
     assert worse["is_verdict"] and not worse["met"] and worse["below"] == 0
     assert "NOT met" in bench.verdict_line(worse)
     assert bench.verdict({"records": [], "methods": []}) is None
+    changed = dict(_verdict_records(bench.VERDICT_FRAMES), config={"exact_config": [["npcs_bias_weight", 0.02]]})
+    assert not bench.verdict(changed)["is_verdict"] and "--exact-config" in bench.verdict_line(bench.verdict(changed))
 
 
 def test_the_full_run_has_the_verdicts_frames_and_the_previous_objective_method():

@@ -187,7 +187,7 @@ def verdict(report: dict, *, quick: bool = False) -> dict | None:
 
     Returns ``None`` when the records lack either method at that level. Otherwise ``{"level", "method", "reference",
     "previous" (the previous objective's method, or None), "frames" (per category), "is_verdict" (at least
-    :data:`VERDICT_FRAMES` frames a category and not ``quick``), "parts": [{"category", "part", "rot_deg", "trans"
+    :data:`VERDICT_FRAMES` frames a category, not ``quick`` and no ``exact_config``), "exact_config" (bool), "parts": [{"category", "part", "rot_deg", "trans"
     (each ``{method: mean}``), "below" (the default's rotation and translation below the reference's)}], "below",
     "parts_total", "met" (below on every part), "speed": {category or "all": {"ms": {method: mean ms},
     "official_over_default", "default_over_previous"}}}``; the records' exact methods use ``--exact-config`` when the
@@ -220,11 +220,13 @@ def verdict(report: dict, *, quick: bool = False) -> dict | None:
                 "default_over_previous": ms[method] / ms[previous] if previous else float("nan")}
 
     frames = {c: len({r["frame"] for r in at if r["category"] == c and r["method"] == method}) for c in cats}
+    changed = bool(report.get("config", {}).get("exact_config"))  # --exact-config: not the default fit
     below = sum(r["below"] for r in parts)
     failed = {m: sum(not r["ok"] for r in at if r["method"] == m) for m in shown}
     return {
         "level": level, "method": method, "reference": ref, "previous": previous, "frames": frames, "quick": bool(quick),
-        "is_verdict": bool(not quick and frames and min(frames.values()) >= VERDICT_FRAMES),
+        "exact_config": changed,
+        "is_verdict": bool(not quick and not changed and frames and min(frames.values()) >= VERDICT_FRAMES),
         "parts": parts, "below": int(below), "parts_total": len(parts), "met": bool(parts and below == len(parts)),
         "failed": failed, "speed": {**{c: speed([r for r in at if r["category"] == c]) for c in cats}, "all": speed(at)},
     }
@@ -239,8 +241,10 @@ def verdict_line(v: dict | None) -> str:
     result = (f"{v['method']} below {v['reference']} in rotation and translation on {v['below']} of "
               f"{v['parts_total']} parts ({', '.join(v['frames'])}; {n} frames a category, {v['level']})")
     if not v["is_verdict"]:
-        return (f"NOT THE VERDICT ({n} frames a category{', --quick' if v['quick'] else ''}; the verdict "
-                f"needs at least {VERDICT_FRAMES} frames a category and no --quick: `ancsh bench fit`): {result}.")
+        why = f"{n} frames a category" + (", --quick" if v["quick"] else "") + (
+            ", --exact-config: not the default fit" if v.get("exact_config") else "")
+        return (f"NOT THE VERDICT ({why}; the verdict needs at least {VERDICT_FRAMES} frames a category, the default "
+                f"fit and no --quick: `ancsh bench fit`): {result}.")
     return f"Verdict: {'met' if v['met'] else 'NOT met'}: {result}."
 
 
