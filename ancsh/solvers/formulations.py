@@ -20,8 +20,8 @@ from .terms import (
 )
 from .types import Correspondences
 
-__all__ = ["DEFAULT_OBJECTIVE", "DEFAULT_OBJECTIVES", "FIT_ROBUST_KERNELS", "FORMULATIONS", "NPCS_BIAS_OBJECTIVE", "OBJECTIVES",
-           "PREVIOUS_OBJECTIVE", "SCALE_ESTIMATORS", "FitConfig", "Formulation", "Objective", "ObjectiveChoice",
+__all__ = ["DEFAULT_OBJECTIVE", "DEFAULT_OBJECTIVES", "FIT_ROBUST_KERNELS", "FORMULATIONS", "NPCS_BIAS_OBJECTIVE",
+           "OBJECTIVES", "PREVIOUS_OBJECTIVE", "SCALE_ESTIMATORS", "FitConfig", "Formulation", "Objective", "ObjectiveChoice",
            "default_objective", "has_limits", "provider_fit_config"]
 
 SCALE_ESTIMATORS = ("umeyama", "symmetric", "reverse")
@@ -86,9 +86,12 @@ class ObjectiveChoice:
 _BENCH_FIT = ("`ancsh bench fit --frames 60 --categories box,drawer,eyeglasses,laptop,microwave,oven,safe,washing_machine "
               "--levels realistic --methods exact_reduced/ipopt,exact_reduced/ipopt:previous,official --seed S`")
 _NETWORKS = ("150 test frames a category (`ancsh evaluate`'s, seed 0), the shipped network's output fitted by "
-             "`exact_reduced` with each objective, mean rotation (deg) / translation (object units) per part, "
-             "previous -> npcs_bias (2026-12-07; `docs/results/fit_translation.md` measured the same on the networks of "
-             "2026-12-05): ")
+             "`exact_reduced` with each objective (`ancsh evaluate --category C --frames 150 --formulations "
+             "exact_reduced` against `python -m ancsh.cli.bench.fit_translation evaluate-with '{\"npcs_bias_weight\": "
+             "0.01, \"npcs_scale_bias\": true, \"npcs_stretch_bias\": true, \"naocs_prior_weight\": 0.03}' evaluate "
+             "...`: the same frames, network output and RANSAC seeds), mean rotation (deg) / translation (object "
+             "units) per part, previous -> npcs_bias, paired differences +- their standard errors (2026-12-07; "
+             "`docs/results/fit_translation.md` measured the same on the networks of 2026-12-05): ")
 
 #: The default objective by the provider of the correspondences (``"any"``: ``FitConfig()``, whatever made them;
 #: ``"learned"``: the shipped networks' fits, :meth:`ancsh.learned.inference.provider.LearnedProvider.fit_config`, used
@@ -104,11 +107,12 @@ DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
             "2.06 / 0.0060, 2.38 / 0.0068; seed 1 1.87 / 0.0038, 2.07 / 0.0058, 2.35 / 0.0065. Below the official "
             "scheme in rotation and translation on 19 of 19 parts at both seeds (previous: 13 and 17 of 19), below "
             "the previous objective in translation on every part (paired: by 2.7 to 13 standard errors) and in "
-            "rotation on every part but the laptop's two, within noise there (-0.01 to +0.07 deg); 1.2-1.3x the previous objective's mean time (21.5 against 18.3 ms; 15.6 against 11.7 "
-            "in the bench fit run at seed 0), the official scheme 75-80x slower. Chosen at seed 0 over npcs_bias_weight 0.005 / 0.01 / 0.02 x naocs_prior_weight 0.01 / 0.03 / "
-            "0.1 (20 frames a category; the nearest rival, 0.02 / 0.1, also 19 of 19 at 60 frames but higher "
-            "means, 1.88 / 0.0044), confirmed at seed 1. The same for every category: no category measured better "
-            "with another entry.")),
+            "rotation on every part but the laptop's two, within noise there (-0.01 to +0.07 deg); 1.2-1.3x the "
+            "previous objective's mean time (21.5 against 18.3 ms; 15.6 against 11.7 in the bench fit run at seed "
+            "0), the official scheme 75-80x slower. Chosen at seed 0 over npcs_bias_weight 0.005 / 0.01 / 0.02 x "
+            "naocs_prior_weight 0.01 / 0.03 / 0.1 (20 frames a category; the nearest rival, 0.02 / 0.1, also 19 of "
+            "19 at 60 frames but higher means, 1.88 / 0.0044), confirmed at seed 1. The same for every category: no "
+            "category measured better with another entry.")),
     },
     "learned": {
         "laptop": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
@@ -275,7 +279,8 @@ class FitConfig:
     def __post_init__(self):
         # the bias switches left to the default follow the switch they refine (module constant DEFAULT_OBJECTIVE)
         if self.npcs_scale_bias is None:
-            object.__setattr__(self, "npcs_scale_bias", DEFAULT_OBJECTIVE.npcs_scale_bias and _positive(self.npcs_bias_weight))
+            on = DEFAULT_OBJECTIVE.npcs_scale_bias and _positive(self.npcs_bias_weight)
+            object.__setattr__(self, "npcs_scale_bias", on)
         if self.npcs_stretch_bias is None:
             object.__setattr__(self, "npcs_stretch_bias", DEFAULT_OBJECTIVE.npcs_stretch_bias and self.npcs_scale_bias is True)
         for name in ("ransac", "optimize_scale", "enforce_limits", "uncertainty", "npcs_scale_bias", "npcs_stretch_bias"):
@@ -320,7 +325,8 @@ class FitConfig:
     @classmethod
     def previous(cls, **overrides) -> "FitConfig":
         """The defaults with the objective before issue 63, :data:`PREVIOUS_OBJECTIVE` (canonical parameters
-        free under prior 0.1, no NPCS biases), for comparison (``ancsh bench fit``'s ``exact_reduced/ipopt:previous``)."""
+        free under prior 0.1, no NPCS biases), for comparison (``ancsh bench fit``'s
+        ``exact_reduced/ipopt:previous``); the shipped networks' fits keep it (:data:`DEFAULT_OBJECTIVES`)."""
         return cls.with_objective(PREVIOUS_OBJECTIVE, **overrides)
 
     @classmethod
