@@ -42,6 +42,8 @@ EXAMPLES = {
     "bench scaling": "ancsh bench scaling --out docs/results/scaling.md   # local processes vs Ray, 1 and 2 workers",
     "bench gpu-check": "ancsh bench gpu-check --device cuda   # on a machine with a GPU: CUDA against the CPU",
     "bench fit": "ancsh bench fit --quick               # writes a fresh ancsh_results/bench-fit-<time>/",
+    "bench fit-profile": "ancsh bench fit-profile --frames 2 --categories laptop --repeats 1   # one exact fit's "
+                         "stages, beside the official scheme",
     "bench uncertainty": "ancsh bench uncertainty --frames 150 --update-docs --install   # ~30 CPU-minutes",
     "fit-cad": "ancsh fit-cad --urdf mobility.urdf --depth D.png --intrinsics K.json --out fit.json --png fit.png",
     "bench cad-auto": "ancsh bench cad-auto --per-category 1 --seeds 0 1   # fit-cad's automatic start: right / "
@@ -50,6 +52,8 @@ EXAMPLES = {
     "serve": "ancsh serve --root frames/ --categories laptop   # then: curl -s localhost:8765/health",
     "track": "ancsh track --depth frames/ --intrinsics K.json --category laptop -k 3 --out track.jsonl",
     "bench tracking": "ancsh bench tracking --update-docs   # tracking vs per-frame fitting, docs/results/tracking.md",
+    "bench track-scenes": "ancsh bench track-scenes --categories laptop --length 20   # multi-object tracking vs "
+                          "per-frame predict, docs/results/track_scenes.md",
     "bench real-frames": "ancsh bench real-frames --update-docs   # ../shared/data/real_frames, docs/results/real_frames.md",
     "bench twin": "ancsh bench twin --categories laptop --frames 2   # exported fit models against the depth",
     "bench sensor-realism": "ancsh bench sensor-realism --frames 5   # real frames' sensor artefacts against renders",

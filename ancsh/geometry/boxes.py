@@ -47,6 +47,18 @@ class OrientedBox:
             object.__setattr__(self, name, value)
 
     @classmethod
+    def unchecked(cls, center, rotation, extents) -> "OrientedBox":
+        """Build without validation, for hot loops whose values are valid by construction (a fit's boxes from its
+        part poses): ``center`` ``(3,)``, ``rotation`` ``(3, 3)`` a rotation, ``extents`` ``(3,)`` non-negative; not
+        checked. The arrays are copied and made read-only, as by the validating constructor."""
+        self = object.__new__(cls)
+        for name, value in (("center", center), ("rotation", rotation), ("extents", extents)):
+            value = np.array(value, dtype=np.float64)
+            value.flags.writeable = False
+            object.__setattr__(self, name, value)
+        return self
+
+    @classmethod
     def axis_aligned(cls, lower, upper) -> "OrientedBox":
         lo = as_array(lower, "lower", (3,))
         hi = as_array(upper, "upper", (3,))

@@ -108,8 +108,9 @@ def umeyama_batch(src, dst, weights=None, *, with_scale: bool = True, rank_tol: 
         total = weights.sum(axis=1)
         enough = np.count_nonzero(weights, axis=1) >= 3
         w = weights / np.where(total > 0, total, 1.0)[:, None]
-    mu_s = np.einsum("hk,hki->hi", w, src)
-    mu_d = np.einsum("hk,hki->hi", w, dst)
+    wr = w[:, None, :]  # (H, 1, k): the weighted sums as batched products (cheaper than einsum at these sizes)
+    mu_s = (wr @ src)[:, 0]
+    mu_d = (wr @ dst)[:, 0]
     xs = src - mu_s[:, None, :]
     xd = dst - mu_d[:, None, :]
     sigma = (xd * w[:, :, None]).transpose(0, 2, 1) @ xs  # (H, 3, 3) cross-covariances
@@ -118,12 +119,12 @@ def umeyama_batch(src, dst, weights=None, *, with_scale: bool = True, rank_tol: 
     S[np.linalg.det(U) * np.linalg.det(Vt) < 0, 2] = -1.0  # reflection correction
     R = (U * S[:, None, :]) @ Vt
     if with_scale:
-        var_s = np.einsum("hk,hki,hki->h", w, xs, xs)
+        var_s = (wr @ np.einsum("hki,hki->hk", xs, xs)[:, :, None])[:, 0, 0]
         with np.errstate(divide="ignore", invalid="ignore"):
             s = np.sum(d * S, axis=1) / var_s
     else:
         s = np.ones(H)
-    t = mu_d - s[:, None] * np.einsum("hij,hj->hi", R, mu_s)
+    t = mu_d - s[:, None] * (R @ mu_s[:, :, None])[:, :, 0]
     valid = enough & (d[:, 1] > rank_tol * d[:, 0]) & np.isfinite(s) & (s > 0)
     return R, t, s, valid
 

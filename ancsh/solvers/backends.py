@@ -12,6 +12,7 @@ A failed solve is reported in :class:`SolveOutcome`, never raised.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -69,12 +70,16 @@ class SolveOutcome:
     iterations : int
         Iterations of the backend (IPOPT's ``iter_count``; ``least_squares``' Jacobian
         evaluations, one per iteration; the projected LM's outer iterations).
+    timings : dict of str to float
+        The backend's own breakdown of its call, seconds (keys of
+        :data:`ancsh.solvers.stages.SOLVER_STAGES`) and ``"<backend>.iterations"``; empty where it keeps none.
     """
 
     x: np.ndarray
     status: FitStatus
     message: str
     iterations: int
+    timings: dict = field(default_factory=dict)
 
 
 _IPOPT_STATUS = {
@@ -107,17 +112,26 @@ def _ipopt_options(opts: SolverOptions) -> dict:
 def solve_ipopt(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
     """IPOPT on the program's NLP (the solver object is cached on the program)."""
     solver = prog.nlpsol(_ipopt_options(opts))
+    t0 = time.perf_counter()
     try:
         sol = solver(x0=x0, p=p, lbx=bounds.lbx, ubx=bounds.ubx, lbg=bounds.lbg, ubg=bounds.ubg)
     except RuntimeError as exc:  # evaluation errors (NaN/inf) surface as RuntimeError in CasADi
         return SolveOutcome(np.asarray(x0, dtype=float), FitStatus.NUMERICAL_FAILURE, f"ipopt: {exc}", 0)
+    wall = time.perf_counter() - t0
     stats = solver.stats()
     text = str(stats.get("return_status", "unknown"))
     x = np.asarray(sol["x"]).ravel()
     status = _IPOPT_STATUS.get(text, FitStatus.SUCCESS if stats.get("success") else FitStatus.NUMERICAL_FAILURE)
     if not np.all(np.isfinite(x)):
         status = FitStatus.NUMERICAL_FAILURE
-    return SolveOutcome(x, status, f"ipopt: {text}", int(stats.get("iter_count", 0)))
+    iterations = int(stats.get("iter_count", 0))
+    timings = {f"ipopt.{k}": float(stats.get(f"t_wall_{k}", 0.0)) for k in _IPOPT_CALLBACKS}
+    timings["ipopt.internal"] = wall - sum(timings.values())
+    timings["ipopt.iterations"] = float(iterations)
+    return SolveOutcome(x, status, f"ipopt: {text}", iterations, timings)
+
+
+_IPOPT_CALLBACKS = ("nlp_f", "nlp_grad_f", "nlp_g", "nlp_jac_g", "nlp_hess_l")
 
 
 def solve_lsq(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptions) -> SolveOutcome:
@@ -183,31 +197,56 @@ def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptio
     ubx = np.asarray(bounds.ubx, dtype=float)
     x = np.clip(np.asarray(x0, dtype=float), lbx, ubx)
     tol = max(float(opts.tol), np.finfo(float).eps)
+    t_start = time.perf_counter()
+    spent = {"lm.evaluate": 0.0, "lm.linear": 0.0}
 
     def evaluate(x):
+        t = time.perf_counter()
         r, J = prog.residual_jacobian(x, p)
-        return np.asarray(r).ravel(), np.asarray(J)
+        out = np.asarray(r).ravel(), np.asarray(J)
+        spent["lm.evaluate"] += time.perf_counter() - t
+        return out
+
+    def outcome(x, status, message, iterations):
+        timings = dict(spent)
+        timings["lm.python"] = time.perf_counter() - t_start - spent["lm.evaluate"] - spent["lm.linear"]
+        timings["lm.iterations"] = float(iterations)
+        return SolveOutcome(x, status, message, iterations, timings)
 
     r, J = evaluate(x)
     cost = float(r @ r)
     if not np.isfinite(cost):
-        return SolveOutcome(x, FitStatus.NUMERICAL_FAILURE, "lm: non-finite residual at the start", 0)
+        return outcome(x, FitStatus.NUMERICAL_FAILURE, "lm: non-finite residual at the start", 0)
     lam, nu = 1e-3, 2.0  # damping (relative to diag(J^T J)) and its growth factor (Nielsen's rule)
     for it in range(1, int(opts.max_iterations) + 1):
         g = J.T @ r
         at_bound = ((x <= lbx) & (g > 0)) | ((x >= ubx) & (g < 0))
         free = ~at_bound
-        if np.max(np.abs(g[free]), initial=0.0) <= tol * max(1.0, cost):
-            return SolveOutcome(x, FitStatus.SUCCESS, f"lm: gradient below tolerance after {it - 1} iterations", it - 1)
-        A = J[:, free].T @ J[:, free]
-        D = np.diag(np.maximum(np.diag(A), 1e-12))
+        every = not at_bound.any()  # the usual case: no index copies
+        g_free = g if every else g[free]
+        if np.max(np.abs(g_free), initial=0.0) <= tol * max(1.0, cost):
+            return outcome(x, FitStatus.SUCCESS, f"lm: gradient below tolerance after {it - 1} iterations", it - 1)
+        t = time.perf_counter()
+        J_free = J if every else J[:, free]
+        A = J_free.T @ J_free
+        diag = np.diag_indices_from(A)
+        D = np.maximum(A[diag], 1e-12)  # the damping's scale, diag(J^T J)
+        spent["lm.linear"] += time.perf_counter() - t
         while True:
-            step = np.zeros_like(x)
+            t = time.perf_counter()
+            damped = A.copy()
+            damped[diag] += lam * D
             try:
-                step[free] = np.linalg.solve(A + lam * D, -g[free])
+                solved = np.linalg.solve(damped, -g_free)
             except np.linalg.LinAlgError:
-                return SolveOutcome(x, FitStatus.NUMERICAL_FAILURE, "lm: singular normal equations", it)
-            x_new = np.clip(x + step, lbx, ubx)
+                return outcome(x, FitStatus.NUMERICAL_FAILURE, "lm: singular normal equations", it)
+            if every:
+                step = solved
+            else:
+                step = np.zeros_like(x)
+                step[free] = solved
+            spent["lm.linear"] += time.perf_counter() - t
+            x_new = np.minimum(np.maximum(x + step, lbx), ubx)
             r_new, J_new = evaluate(x_new)
             cost_new = float(r_new @ r_new)
             h = x_new - x
@@ -220,8 +259,8 @@ def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptio
             lam *= nu
             nu *= 2.0
             if lam > 1e12:
-                gmax = float(np.max(np.abs(g[free]), initial=0.0))
-                return SolveOutcome(
+                gmax = float(np.max(np.abs(g_free), initial=0.0))
+                return outcome(
                     x, FitStatus.NUMERICAL_FAILURE,
                     f"lm: stalled after {it} iterations (no decrease; projected gradient {gmax:.3g} above the tolerance)", it,
                 )
@@ -229,8 +268,8 @@ def solve_lm(prog: Program, p: np.ndarray, x0, bounds: Bounds, opts: SolverOptio
         small_decrease = cost - cost_new <= tol * cost
         x, r, J, cost = x_new, r_new, J_new, cost_new
         if small_step or small_decrease:
-            return SolveOutcome(x, FitStatus.SUCCESS, f"lm: converged after {it} iterations", it)
-    return SolveOutcome(x, FitStatus.MAX_ITER, f"lm: iteration limit {opts.max_iterations} reached", int(opts.max_iterations))
+            return outcome(x, FitStatus.SUCCESS, f"lm: converged after {it} iterations", it)
+    return outcome(x, FitStatus.MAX_ITER, f"lm: iteration limit {opts.max_iterations} reached", int(opts.max_iterations))
 
 
 BACKENDS = {"ipopt": solve_ipopt, "lsq": solve_lsq, "lm": solve_lm}

@@ -2,7 +2,7 @@
 
 :func:`fit` is the one entry point::
 
-    result = fit(observation, correspondences, formulation="exact_reduced", solver="ipopt",
+    result = fit(observation, correspondences, formulation="exact_reduced", solver="lm",
                  config=FitConfig(), rng=0)
 
 Every formulation shares the same pipeline:
@@ -37,6 +37,7 @@ from ..geometry.transforms import Sim3
 from ..geometry.umeyama import umeyama
 from .fit_result import closed_form_costs, fit_result, postprocess
 from .formulations import FORMULATIONS, FitConfig, Formulation, has_limits
+from .stages import StageClock
 from .terms import (
     CanonicalParameters, DataTerm, JointLimitTerm, PreviousSolution, ProgramInputs, ProgramStart, TemporalPriorTerm,
     TermWeights,
@@ -95,6 +96,15 @@ def fit(
     ValueError
         For bad arguments: wrong types, mismatched point counts, unknown formulation/solver.
     """
+    clock = StageClock()  # records the stages inside ancsh.solvers.stages.record_stages (else idle)
+    try:
+        return _fit(clock, observation, correspondences, formulation, solver, config, rng, warm_start, previous)
+    finally:
+        clock.close()
+
+
+def _fit(clock, observation, correspondences, formulation, solver, config, rng, warm_start, previous) -> FitResult:
+    """:func:`fit` (same arguments) with its stage clock."""
     start = time.perf_counter()
     if not isinstance(observation, Observation):
         raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
@@ -129,7 +139,8 @@ def fit(
         if len(previous.joint_states) != correspondences.num_joints:
             raise ValueError(f"previous.joint_states: expected {correspondences.num_joints} states, "
                              f"got {len(previous.joint_states)}")
-    fitter = _Fit(observation, correspondences, form, solver, config, rng, start)
+    clock.mark("validate")
+    fitter = _Fit(observation, correspondences, form, solver, config, rng, start, clock)
     fitter.warm_start, fitter.previous = warm_start, previous
     result = fitter.run()
     if not (result.ok and has_limits(config, correspondences)):
@@ -137,11 +148,42 @@ def fit(
     from .limits import check_joint_range
 
     bounded = JointLimitTerm in form.term_classes or form.parameterisation == "reduced"
-    return check_joint_range(
+    # The unbounded refit only says where the data put the states: no covariance for it.
+    checked = check_joint_range(
         result, correspondences.joint_limits, [t.value == "revolute" for t in correspondences.joint_types],
         bounded=bounded, unbounded=lambda: fit(observation, correspondences, formulation, solver,
-                                               replace(config, enforce_limits=False), 0, warm_start=result,
-                                               previous=previous))
+                                               replace(config, enforce_limits=False, uncertainty=False), 0,
+                                               warm_start=result, previous=previous))
+    clock.mark("limits")
+    return checked
+
+
+_PROGRAMS: dict = {}
+
+
+def _cached_program(structure, form: Formulation, config: FitConfig, corr: Correspondences, temporal: bool,
+                    covariance: bool):
+    """The program of a solve (``covariance=False``: the formulation's terms for ``config`` and ``corr``, with the
+    temporal prior when ``temporal``) or of its covariance (``covariance=True``: the same with the scale a variable),
+    memoised per call signature (building the key re-validated a ``FitConfig`` and hashed the terms on every fit).
+    The terms depend on ``corr`` only through :func:`has_limits`, which the memo's key holds.
+    """
+    memo = (structure, form.name, config, has_limits(config, corr), temporal, covariance)
+    prog = _PROGRAMS.get(memo)
+    if prog is not None:
+        return prog
+    from .program import ProgramKey, get_program
+
+    cfg = replace(config, optimize_scale=True) if covariance else config
+    terms = form.terms(cfg, corr) + ((TemporalPriorTerm,) if temporal else ())
+    key = ProgramKey(structure, form.parameterisation, bool(cfg.optimize_scale), terms,
+                     free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
+                     npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias)
+    prog = get_program(key)
+    if len(_PROGRAMS) > 256:  # a bound for long-lived processes trying many configurations
+        _PROGRAMS.clear()
+    _PROGRAMS[memo] = prog
+    return prog
 
 
 class _FitFailure(Exception):
@@ -171,8 +213,9 @@ class _SolveRun:
 class _Fit:
     """One call of :func:`fit` (keeps the per-frame arrays together)."""
 
-    def __init__(self, obs, corr, form, solver, config, rng, start):
+    def __init__(self, obs, corr, form, solver, config, rng, start, clock: StageClock | None = None):
         self.corr, self.form, self.solver, self.config, self.rng, self.start = corr, form, solver, config, rng, start
+        self.clock = StageClock() if clock is None else clock
         self.points = obs.points_cam
         self.npcs = corr.npcs
         self.labels = corr.part_labels
@@ -188,6 +231,7 @@ class _Fit:
         )
         self.warm_start: FitResult | None = None
         self.previous: PreviousSolution | None = None
+        self.clock.mark("setup")
 
     def run(self) -> FitResult:
         """The fit's result; every failure raised below (:class:`_FitFailure`) becomes a status here."""
@@ -210,20 +254,28 @@ class _Fit:
                 FitStatus.TOO_FEW_POINTS,
                 f"part(s) {short.tolist()} have fewer than {_MIN_POINTS} points (counts {counts[short].tolist()})",
             )
+        clock = self.clock
         if self.warm_start is not None:
             poses, inliers = self._warm_poses(active)
+            clock.mark("ransac")
         else:
             poses, inliers = self._initial_poses(active)
+            clock.mark("ransac")
             if self.config.scale_estimator != "umeyama":
-                poses = [self._rescale(j, T, inliers) for j, T in enumerate(poses)]
+                poses = self._rescale(poses, inliers)
         L = float(np.median([T.scale / g for T, g in zip(poses, self.corr.npcs_scale)]))
+        clock.mark("rescale")
         if self.form.parameterisation is None:
             moments = self._moments(inliers, self.weights, L)
+            clock.mark("moments")
             costs = closed_form_costs(self.structure, self.canonical, poses, L, moments)
+            clock.mark("extract")
             uncertainty = self._uncertainty(poses, None, inliers, self.weights, moments, L)
+            clock.mark("covariance")
             return self._finish(poses, inliers, L, FitStatus.SUCCESS, "per-part Umeyama on RANSAC inliers", 0, costs,
                                 self.canonical, uncertainty)
         run = self._start_solve(poses, L)
+        clock.mark("program")
         inliers = self._solve_loop(run, inliers, L)
         return self._extract(run, inliers, L)
 
@@ -276,39 +328,35 @@ class _Fit:
                 inliers |= sel
         return poses, inliers
 
-    def _rescale(self, j: int, T: Sim3, inliers: np.ndarray) -> Sim3:
-        """``T`` with the RMS-spread-ratio (``symmetric``) or reverse-regression (``reverse``) scale of
-        part ``j``'s inliers and the matching translation."""
-        sel = inliers & (self.labels == j)
-        w = self.weights[sel] / self.weights[sel].sum()
-        p, c = self.points[sel], self.npcs[sel]
-        pbar, cbar = w @ p, w @ c
-        var_p = float(w @ np.sum((p - pbar) ** 2, axis=1))
-        var_c = float(w @ np.sum((c - cbar) ** 2, axis=1))
-        if not var_c > 0 or not var_p > 0:
-            return T
-        s = np.sqrt(var_p / var_c)
-        if self.config.scale_estimator == "reverse":
-            cov = float(np.sum(((p - pbar) * w[:, None]).T @ (c - cbar) * T.rotation))  # tr(R^T cov(p, c))
-            # = s_sym^2 / s_umeyama; capped at 2 s_sym (correlation below 0.5: no usable match)
-            s = var_p / max(cov, 0.5 * np.sqrt(var_p * var_c))
-        return Sim3.unchecked(T.rotation, pbar - s * (T.rotation @ cbar), s)
+    def _rescale(self, poses: list, inliers: np.ndarray) -> list:
+        """``poses`` with the RMS-spread-ratio (``symmetric``) or reverse-regression (``reverse``) scale of each
+        part's inliers and the matching translation (all parts in one pass; a part without spread keeps its pose)."""
+        lab, w = self.labels[inliers], self.weights[inliers]
+        p, c = self.points[inliers], self.npcs[inliers]
+        W = np.zeros((self.M, len(lab)))
+        W[lab, np.arange(len(lab))] = w
+        W /= W.sum(axis=1, keepdims=True)  # (M, n): each part's normalised weights
+        pbar, cbar = W @ p, W @ c
+        dp, dc = p - pbar[lab], c - cbar[lab]
+        var_p, var_c = W @ np.einsum("ij,ij->i", dp, dp), W @ np.einsum("ij,ij->i", dc, dc)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.sqrt(var_p / var_c)
+            if self.config.scale_estimator == "reverse":
+                R = np.stack([T.rotation for T in poses])
+                cross = (W[:, :, None] * dp).transpose(0, 2, 1) @ dc  # (M, 3, 3): sum w (p - pbar)(c - cbar)^T
+                cov = np.sum(cross * R, axis=(1, 2))  # tr(R^T cov(p, c))
+                # = s_sym^2 / s_umeyama; capped at 2 s_sym (correlation below 0.5: no usable match)
+                s = var_p / np.maximum(cov, 0.5 * np.sqrt(var_p * var_c))
+        return [T if not (var_c[j] > 0 and var_p[j] > 0) else
+                Sim3.unchecked(T.rotation, pbar[j] - s[j] * (T.rotation @ cbar[j]), s[j]) for j, T in enumerate(poses)]
 
     # -- program solve --------------------------------------------------------------------------
     def _start_solve(self, poses: list, L: float) -> _SolveRun:
         """The formulation's program, its start (per-part poses moved onto the joints for
         ``exact_maximal``) and bounds."""
         from .backends import Bounds
-        from .program import ProgramKey, get_program
 
-        cfg = self.config
-        key = ProgramKey(
-            self.structure, self.form.parameterisation, bool(cfg.optimize_scale),
-            self.form.terms(cfg, self.corr) + ((TemporalPriorTerm,) if self.previous is not None else ()),
-            free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
-            npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias,
-        )
-        prog = get_program(key)
+        prog = _cached_program(self.structure, self.form, self.config, self.corr, self.previous is not None, False)
         limits = self._limits()
         if self.form.name == "exact_maximal" and self.K:
             poses = self._onto_joints(poses, L, limits)
@@ -321,7 +369,7 @@ class _Fit:
         """
         from .backends import SolverOptions, solve
 
-        cfg = self.config
+        cfg, clock = self.config, self.clock
         prog = run.program
         opts = SolverOptions(cfg.max_iterations, cfg.tol)
         weights = self.weights.copy()
@@ -329,9 +377,13 @@ class _Fit:
         for rescore in range(cfg.rescore_rounds + 1):
             for _ in range(rounds):
                 run.weights, run.moments = weights, self._moments(inliers, weights, L)
+                clock.mark("moments")
                 inputs = ProgramInputs(L, self.canonical, run.start, run.moments, self.term_weights, self.previous)
                 run.p = prog.pack(inputs)
+                clock.mark("pack")
                 run.outcome = solve(self.solver, prog, run.p, run.x, run.bounds, opts)
+                clock.mark("solve")
+                clock.solver(run.outcome.timings)
                 run.iterations += run.outcome.iterations
                 if run.outcome.status != FitStatus.SUCCESS:
                     return inliers
@@ -360,7 +412,9 @@ class _Fit:
         canonical = self.canonical
         if solution.canonical_offsets is not None:  # report joints with the adjusted canonical parameters
             canonical = canonical.with_offsets(solution.canonical_offsets)
+        self.clock.mark("extract")
         uncertainty = self._uncertainty(solved, solution, inliers, run.weights, run.moments, L)
+        self.clock.mark("covariance")
         return self._finish(solved, inliers, L, outcome.status, outcome.message, run.iterations, costs, canonical,
                             uncertainty)
 
@@ -376,15 +430,10 @@ class _Fit:
         from .program import ProgramKey, get_program
         from .uncertainty import effective_points, fit_covariance
 
-        cfg = self.config
         if solution is None:
-            key = ProgramKey(self.structure, "maximal", True, (DataTerm,))
+            prog = get_program(ProgramKey(self.structure, "maximal", True, (DataTerm,)))
         else:
-            key = ProgramKey(self.structure, self.form.parameterisation, True,
-                             self.form.terms(replace(cfg, optimize_scale=True), self.corr),
-                             free_canonical=cfg.naocs_prior_weight > 0, npcs_bias=cfg.npcs_bias_weight > 0,
-                             npcs_scale_bias=cfg.npcs_scale_bias, npcs_stretch_bias=cfg.npcs_stretch_bias)
-        prog = get_program(key)
+            prog = _cached_program(self.structure, self.form, self.config, self.corr, False, True)
         states = offsets = bias = None
         if solution is not None:
             states = solution.joint_states if prog.has_joint_states else None
@@ -432,13 +481,10 @@ class _Fit:
         return prog.initial_x(states)
 
     def _moments(self, inliers: np.ndarray, weights: np.ndarray, L: float) -> tuple:
-        from .terms import part_moments
+        from .terms import parts_moments
 
-        out = []
-        for j in range(self.M):
-            sel = inliers & (self.labels == j) & (weights > 0)
-            out.append(part_moments(self.points[sel], self.npcs[sel], weights[sel], L))
-        return tuple(out)
+        sel = inliers & (weights > 0)
+        return parts_moments(self.points[sel], self.npcs[sel], self.labels[sel], weights[sel], self.M, L)
 
     def _point_distances(self, poses: list) -> np.ndarray:
         d = np.empty(self.N)
@@ -470,7 +516,9 @@ class _Fit:
 
     # -- the result ---------------------------------------------------------------------------
     def _finish(self, poses, inliers, L, status, message, iterations, costs: dict, canonical, uncertainty=None) -> FitResult:
-        return fit_result(
+        result = fit_result(
             self.structure, self.corr, poses, inliers, L, canonical, self._limits(), formulation=self.form.name,
             solver=self.solver, status=status, message=message, iterations=iterations, costs=costs,
             uncertainty=uncertainty, box_extents=self.config.box_extents, time_s=time.perf_counter() - self.start)
+        self.clock.mark("result")
+        return result

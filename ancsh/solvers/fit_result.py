@@ -25,13 +25,25 @@ def postprocess(structure: KinematicStructure, poses: list, canonical: Canonical
 def max_violation(structure: KinematicStructure, poses: list, canonical: CanonicalParameters, L: float,
                   limits: np.ndarray) -> float:
     """Largest exact-joint or joint-limit violation of the part poses (object-normalised units, radians)."""
-    from .program import ProgramKey, get_program
-
-    prog = get_program(ProgramKey(structure, "maximal", False, (ExactJointTerm,) + ((JointLimitTerm,) if structure.num_joints else ())))
+    prog = _violation_program(structure)
     p = prog.pack(ProgramInputs(L, canonical, ProgramStart(T_cam_npcs=tuple(poses))))
     g = np.asarray(prog.constraints(prog.initial_x(), p)).ravel()
     lo, hi = prog.constraint_bounds(limits)
     return float(np.max(np.concatenate([[0.0], lo - g, g - hi]))) if g.size else 0.0
+
+
+_VIOLATION_PROGRAMS: dict = {}
+
+
+def _violation_program(structure: KinematicStructure):
+    """The maximal program of the exact joints and the limits of ``structure`` (memoised: its key is built once)."""
+    prog = _VIOLATION_PROGRAMS.get(structure)
+    if prog is None:
+        from .program import ProgramKey, get_program
+
+        terms = (ExactJointTerm,) + ((JointLimitTerm,) if structure.num_joints else ())
+        prog = _VIOLATION_PROGRAMS[structure] = get_program(ProgramKey(structure, "maximal", False, terms))
+    return prog
 
 
 def closed_form_costs(structure: KinematicStructure, canonical: CanonicalParameters, poses: list, L: float,
@@ -54,7 +66,10 @@ def amodal_box(corr: Correspondences, j: int, T: Sim3, inliers: np.ndarray, box_
         extents = 2.0 * np.max(np.abs(corr.npcs[sel]), axis=0)  # NOCS: symmetric about the NPCS origin
         if box_extents == "unit_diagonal":
             extents = unit_diagonal(extents)
-    return OrientedBox(T.translation, T.rotation, T.scale * extents)
+    extents = T.scale * np.asarray(extents, dtype=np.float64)
+    if np.any(extents < 0):  # the validating constructor names the problem
+        return OrientedBox(T.translation, T.rotation, extents)
+    return OrientedBox.unchecked(T.translation, T.rotation, extents)  # T: a fit's pose, a rotation by construction
 
 
 def fit_result(structure: KinematicStructure, corr: Correspondences, poses: list, inliers: np.ndarray, L: float,

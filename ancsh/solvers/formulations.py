@@ -3,8 +3,9 @@
 
 Formulations: ``per_part`` (Umeyama + RANSAC), ``soft`` (paper Sec. 4.3: data + lambda soft joint energies),
 ``exact_maximal`` (every part SE(3)+scale with exact joint equalities and limit inequalities, IPOPT),
-``exact_reduced`` (object pose + joint states, joints exact by construction, limits as bounds; IPOPT, least squares
-or the projected Levenberg-Marquardt ``lm``).
+``exact_reduced`` (object pose + joint states, joints exact by construction, limits as bounds; the projected
+Levenberg-Marquardt ``lm`` by default -- the same solutions as IPOPT on the benchmark's frames, without IPOPT's fixed
+cost of about a millisecond per solve (``docs/results/fit_profile.md``) -- or IPOPT, or scipy least squares).
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ class ObjectiveChoice:
 
 
 _BENCH_FIT = ("`ancsh bench fit --frames 60 --categories box,drawer,eyeglasses,laptop,microwave,oven,safe,washing_machine "
-              "--levels realistic --methods exact_reduced/ipopt,exact_reduced/ipopt:previous,official --seed S`")
+              "--levels realistic --methods exact_reduced/lm,exact_reduced/lm:previous,official --seed S`")
 _NETWORKS = ("150 test frames a category (`ancsh evaluate`'s, seed 0), the shipped network's output fitted by "
              "`exact_reduced` with each objective (`ancsh evaluate --category C --frames 150 --formulations "
              "exact_reduced` against `python -m ancsh.cli.bench.fit_translation evaluate-with '{\"npcs_bias_weight\": "
@@ -107,11 +108,12 @@ DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
             "2.06 / 0.0060, 2.38 / 0.0068; seed 1 1.87 / 0.0038, 2.07 / 0.0058, 2.35 / 0.0065. Below the official "
             "scheme in rotation and translation on 19 of 19 parts at both seeds (previous: 13 and 17 of 19), below "
             "the previous objective in translation on every part (paired: by 2.7 to 13 standard errors) and in "
-            "rotation on every part but the laptop's two, within noise there (-0.01 to +0.07 deg); 1.2-1.3x the "
-            "previous objective's mean time (21.5 against 18.3 ms; 15.6 against 11.7 in the bench fit run at seed "
-            "0), the official scheme 75-80x slower. Chosen at seed 0 over npcs_bias_weight 0.005 / 0.01 / 0.02 x "
-            "naocs_prior_weight 0.01 / 0.03 / 0.1 (20 frames a category; the nearest rival, 0.02 / 0.1, also 19 of "
-            "19 at 60 frames but higher means, 1.88 / 0.0044), confirmed at seed 1. The same for every category: no "
+            "rotation on every part but the laptop's two, within noise there (-0.01 to +0.07 deg). With the "
+            "default backend `lm` 1.05x the previous objective's mean time (10.6 against 10.1 ms; IPOPT, measured "
+            "first, gives the same errors to 6e-4 deg at 1.2-1.3x), the official scheme about 150x slower. Chosen at "
+            "seed 0 over npcs_bias_weight 0.005 / 0.01 / 0.02 x naocs_prior_weight 0.01 / 0.03 / 0.1 (20 frames a "
+            "category; the nearest rival, 0.02 / 0.1, also 19 of 19 at 60 frames but higher means, 1.88 / 0.0044), "
+            "confirmed at seed 1. The same for every category: no "
             "category measured better with another entry.")),
     },
     "learned": {
@@ -326,7 +328,7 @@ class FitConfig:
     def previous(cls, **overrides) -> "FitConfig":
         """The defaults with the objective before issue 63, :data:`PREVIOUS_OBJECTIVE` (canonical parameters
         free under prior 0.1, no NPCS biases), for comparison (``ancsh bench fit``'s
-        ``exact_reduced/ipopt:previous``); the shipped networks' fits keep it (:data:`DEFAULT_OBJECTIVES`)."""
+        ``exact_reduced/lm:previous``); the shipped networks' fits keep it (:data:`DEFAULT_OBJECTIVES`)."""
         return cls.with_objective(PREVIOUS_OBJECTIVE, **overrides)
 
     @classmethod
@@ -439,7 +441,7 @@ FORMULATIONS: dict[str, Formulation] = {
             (DataTerm, ExactJointTerm, ExactCommonScaleTerm, JointLimitTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
         Formulation(
-            "exact_reduced", "object pose + joint states, joints exact by construction", ("ipopt", "lsq", "lm"), "reduced",
+            "exact_reduced", "object pose + joint states, joints exact by construction", ("lm", "ipopt", "lsq"), "reduced",
             (DataTerm, CanonicalPriorTerm, NpcsBiasPriorTerm),
         ),
     )

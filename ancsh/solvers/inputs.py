@@ -322,7 +322,11 @@ def perpendiculars(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def canonical_parameter_values(canonical: CanonicalParameters) -> dict:
     """Named values of the canonical parameters used by :class:`Context` (``Gs``, ``Gt``, ``u``, ``q``,
-    ``a``, ``b``, ``state_ref``)."""
+    ``a``, ``b``, ``state_ref``): a new dict each call, its values computed once per ``canonical`` (a fit packs
+    them five times; the parameters are not to be changed in place)."""
+    cached = canonical.__dict__.get("_values")
+    if cached is not None:
+        return dict(cached)
     v = {}
     for j in range(len(canonical.npcs_scale)):
         v[f"Gs{j}"] = canonical.npcs_scale[j]
@@ -332,4 +336,5 @@ def canonical_parameter_values(canonical: CanonicalParameters) -> dict:
         a, b = perpendiculars(u)
         v[f"u{k}"], v[f"q{k}"], v[f"a{k}"], v[f"b{k}"] = u, canonical.joint_pivots_naocs[k], a, b
         v[f"state_ref{k}"] = canonical.state_reference[k]
-    return v
+    object.__setattr__(canonical, "_values", v)  # frozen dataclass: a private memo beside the fields
+    return dict(v)

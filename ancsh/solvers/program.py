@@ -55,11 +55,63 @@ from .terms import (
 )
 
 __all__ = [
-    "PARAMETERISATIONS", "DataBlock", "Program", "ProgramKey", "PostProcess", "Solution", "get_program", "postprocess_function",
-    "program_build_count",
+    "PARAMETERISATIONS", "DataBlock", "NumpyFunction", "Program", "ProgramKey", "PostProcess", "Solution", "get_program",
+    "postprocess_function", "program_build_count",
 ]
 
 PARAMETERISATIONS = ("maximal", "reduced")
+
+
+class NumpyFunction:
+    """A CasADi Function evaluated through numpy buffers: dense float64 arrays in and out.
+
+    Calling a ``casadi.Function`` with numpy arrays converts every argument and result to a ``DM``
+    (about 75 us per call for the programs here); evaluating through its ``buffer()`` costs about
+    3 us, so a fit's dozens of calls stop dominating it. Buffers are per thread (cached programs are
+    shared across threads).
+
+    Call with the Function's inputs in order (anything ``numpy.ravel`` turns into the input's number of
+    elements, column-major for matrices); returns one array per output: ``(m,)`` for a column vector,
+    ``(m, n)`` for a matrix (a tuple when there are several outputs, the array itself when one).
+    ``function`` is the wrapped Function (its outputs made dense).
+    """
+
+    def __init__(self, function: ca.Function):
+        if not _all_dense(function):
+            ins = function.mx_in()
+            outs = [ca.densify(o) for o in function.call(ins)]
+            function = ca.Function(function.name(), ins, outs, function.name_in(), function.name_out())
+        self.function = function
+        self._sizes_in = [int(function.nnz_in(i)) for i in range(function.n_in())]
+        self._shapes_out = [tuple(function.size_out(i)) for i in range(function.n_out())]
+        self._local = threading.local()
+
+    def _buffers(self):
+        b = getattr(self._local, "buffers", None)
+        if b is None:
+            buf, trigger = self.function.buffer()
+            args = [np.zeros(n) for n in self._sizes_in]
+            res = [np.zeros((m, n)) if n == 1 else np.zeros((n, m)) for m, n in self._shapes_out]  # column-major
+            for i, a in enumerate(args):
+                buf.set_arg(i, memoryview(a))
+            for i, a in enumerate(res):
+                buf.set_res(i, memoryview(a))
+            b = self._local.buffers = (buf, trigger, args, res)
+        return b
+
+    def __call__(self, *inputs):
+        if len(inputs) != len(self._sizes_in):
+            raise ValueError(f"{self.function.name()}: expected {len(self._sizes_in)} inputs, got {len(inputs)}")
+        _, trigger, args, res = self._buffers()
+        for a, v in zip(args, inputs):
+            a[:] = np.ravel(v)
+        trigger()
+        out = [r.ravel().copy() if r.shape[1] == 1 else r.T.copy() for r in res]
+        return out[0] if len(out) == 1 else tuple(out)
+
+
+def _all_dense(function: ca.Function) -> bool:
+    return all(function.sparsity_out(i).is_dense() for i in range(function.n_out()))
 
 
 @dataclass(frozen=True)
@@ -302,19 +354,20 @@ class Program:
         self.num_residuals = int(r.numel())
         self.num_constraints = int(g.numel())
         self._r, self._g, self._p = r, g, p
-        self.residual = ca.Function("residual", [x, p], [r], ["x", "p"], ["r"])
+        # Functions of (x, p), evaluated through numpy buffers (NumpyFunction; .function is the CasADi Function).
+        fn = lambda name, outs, names: NumpyFunction(  # noqa: E731
+            ca.Function(name, [x, p], [ca.densify(o) for o in outs], ["x", "p"], names))
+        self.residual = fn("residual", [r], ["r"])
         J = ca.densify(ca.jacobian(r, x))
-        self.jacobian = ca.Function("jacobian", [x, p], [J], ["x", "p"], ["J"])
-        self.residual_jacobian = ca.Function("residual_jacobian", [x, p], [r, J], ["x", "p"], ["r", "J"])
-        self.term_costs = ca.Function("term_costs", [x, p], [ca.vertcat(*[ca.sumsqr(c) for c in costs]) if costs else ca.SX(0, 1)])
-        self.constraints = ca.Function("constraints", [x, p], [g], ["x", "p"], ["g"])
-        self.constraint_jacobian = ca.Function(
-            "constraint_jacobian", [x, p], [ca.densify(ca.jacobian(g, x))], ["x", "p"], ["Jg"]
-        )
+        self.jacobian = fn("jacobian", [J], ["J"])
+        self.residual_jacobian = fn("residual_jacobian", [r, J], ["r", "J"])
+        self.term_costs = fn("term_costs", [ca.vertcat(*[ca.sumsqr(c) for c in costs]) if costs else ca.SX(0, 1)], ["costs"])
+        self.constraints = fn("constraints", [g], ["g"])
+        self.constraint_jacobian = fn("constraint_jacobian", [ca.densify(ca.jacobian(g, x))], ["Jg"])
         pose_out = []
         for P in poses:
             pose_out += [ca.vec(P.R), P.t, P.s]
-        self.poses = ca.Function("poses", [x, p], [ca.vertcat(*pose_out)], ["x", "p"], ["poses"])
+        self.poses = fn("poses", [ca.vertcat(*pose_out)], ["poses"])
         self._outputs = ca.vertcat(*pose_out, outputs)
         self._linearisation = None
         self._nlpsols: dict = {}
@@ -394,20 +447,12 @@ class Program:
                 eq = self._g[: self.num_equalities]
                 out = [self._r, ca.densify(ca.jacobian(self._r, self.x)), ca.densify(ca.jacobian(eq, self.x)),
                        self._outputs, ca.densify(ca.jacobian(self._outputs, self.x))]
-                self._linearisation = ca.Function("linearisation", [self.x, self._p], out)
+                self._linearisation = NumpyFunction(ca.Function("linearisation", [self.x, self._p],
+                                                                [ca.densify(o) for o in out]))
                 _count_build("output_jacobian")
-        f = self._linearisation
-        # Evaluated into numpy buffers: converting dense DM results costs more than evaluating them.
-        buf, trigger = f.buffer()
-        args = [np.ascontiguousarray(x, dtype=np.float64).ravel(), np.ascontiguousarray(p, dtype=np.float64).ravel()]
-        for i, a in enumerate(args):
-            buf.set_arg(i, memoryview(a))
-        res = [np.zeros(f.size_out(i)[::-1]) for i in range(f.n_out())]  # column-major storage, transposed below
-        for i, a in enumerate(res):
-            buf.set_res(i, memoryview(a))
-        trigger()
-        r, J, Jg, out, G = (a.T for a in res)
-        return r.ravel(), J, Jg, out.ravel(), G
+        r, J, Jg, out, G = self._linearisation(x, p)
+        return r, J.reshape(self.num_residuals, self.num_x), Jg.reshape(self.num_equalities, self.num_x), out, \
+            G.reshape(-1, self.num_x)
 
     def output_jacobian(self, x, p) -> tuple[np.ndarray, np.ndarray]:
         """The reported quantities at ``x`` and their Jacobian with respect to ``x``.
@@ -486,7 +531,7 @@ class Program:
 
     def unpack_poses(self, x, p) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """``[(R (3, 3), t (3,), s), ...]`` per part at ``x``."""
-        v = np.asarray(self.poses(x, p)).ravel()
+        v = self.poses(x, p)
         out = []
         for j in range(self.key.structure.num_parts):
             b = v[13 * j : 13 * (j + 1)]
@@ -543,12 +588,8 @@ class PostProcess:
             [np.concatenate([T.rotation.ravel(order="F"), T.translation, [T.scale]]) for T in T_cam_npcs]
         )
         axes, pivots, states = self.function(pose_vector, self.params.pack(canonical_parameter_values(canonical)))
-        k = int(np.asarray(states).size)
-        return (
-            np.asarray(axes).reshape(k, 3),
-            np.asarray(pivots).reshape(k, 3),
-            np.asarray(states).reshape(k),
-        )
+        k = int(states.size)
+        return axes.reshape(k, 3), pivots.reshape(k, 3), states.reshape(k)
 
 
 def _joint_expressions(ctx: Context) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -593,10 +634,10 @@ def postprocess_function(structure: KinematicStructure) -> PostProcess:
             poses.append(PoseExpr(ca.reshape(v[:9], 3, 3), v[9:12], v[12]))
         ctx = Context(structure, params, poses)
         axes, pivots, states = _joint_expressions(ctx)
-        f = ca.Function(
-            "postprocess", [ca.vertcat(*pose_syms), params.vector()], [axes, pivots, states],
+        f = NumpyFunction(ca.Function(
+            "postprocess", [ca.vertcat(*pose_syms), params.vector()], [ca.densify(o) for o in (axes, pivots, states)],
             ["poses", "p"], ["axes", "pivots", "states"],
-        )
+        ))
         f = PostProcess(f, params)
         _POST_CACHE[structure] = f
         _count_build("postprocess")

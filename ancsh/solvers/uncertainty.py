@@ -344,12 +344,12 @@ def _null_space(A: np.ndarray, n: int) -> np.ndarray:
 
 
 def _rotation_rows(G_vecR: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Jacobian ``(3, n)`` of the camera-frame tangent ``phi`` from that of ``vec(R)`` ``(9, n)`` (column-major):
-    ``dR = [phi] R`` -> ``[phi] = dR R^T``."""
-    n = G_vecR.shape[1]
-    dR = G_vecR.T.reshape(n, 3, 3).transpose(0, 2, 1)  # column-major vec -> (n, 3, 3)
-    W = dR @ R.T
-    return 0.5 * np.stack([W[:, 2, 1] - W[:, 1, 2], W[:, 0, 2] - W[:, 2, 0], W[:, 1, 0] - W[:, 0, 1]])
+    """Jacobians ``(B, 3, n)`` of the camera-frame tangents ``phi`` of ``B`` rotations ``R`` ``(B, 3, 3)`` from those
+    of their ``vec(R)`` ``(B, 9, n)`` (column-major): ``dR = [phi] R`` -> ``[phi] = dR R^T``."""
+    B, _, n = G_vecR.shape
+    dR = G_vecR.transpose(0, 2, 1).reshape(B, n, 3, 3).transpose(0, 1, 3, 2)  # column-major vec -> (B, n, 3, 3)
+    W = dR @ R[:, None].transpose(0, 1, 3, 2)
+    return 0.5 * np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0], W[..., 1, 0] - W[..., 0, 1]], axis=1)
 
 
 def fit_covariance(program, x, p, points, *, equality_constraints: bool = True) -> FitUncertainty:
@@ -419,13 +419,10 @@ def fit_covariance(program, x, p, points, *, equality_constraints: bool = True) 
     null = Z @ V[:, ~good]
 
     # -- propagate to the reported quantities ----------------------------------------------------
-    rows = []
-    for j in range(M + 1):  # parts, then the object pose
-        b = 13 * j
-        R = out[b : b + 9].reshape(3, 3, order="F")
-        rows += [_rotation_rows(G[b : b + 9], R), G[b + 9 : b + 13]]
-    rows.append(G[13 * (M + 1) :])  # axes (3K), pivots (3K), states (K)
-    Gq = np.concatenate(rows)
+    poses = G[: 13 * (M + 1)].reshape(M + 1, 13, n)  # parts, then the object pose: vec(R), t, s rows
+    R = out[: 13 * (M + 1)].reshape(M + 1, 13)[:, :9].reshape(M + 1, 3, 3).transpose(0, 2, 1)  # column-major vec
+    Gq = np.concatenate([np.concatenate([_rotation_rows(poses[:, :9], R), poses[:, 9:]], axis=1).reshape(-1, n),
+                         G[13 * (M + 1) :]])  # axes (3K), pivots (3K), states (K)
     A = Gq @ Z @ Hinv  # reported quantities per unit of the reduced gradient
     B = Z.T
     status, message = "ok", f"Gauss-Newton covariance over {free} free variables, {observed:.0f} residual components"
@@ -450,13 +447,16 @@ def _blocks(cov: np.ndarray, leak: np.ndarray, M: int, K: int) -> tuple:
         cov[leak, :] = 0.0
         cov[:, leak] = 0.0
         cov[leak, leak] = np.inf
-    parts = np.stack([cov[7 * j : 7 * j + 7, 7 * j : 7 * j + 7] for j in range(M)])
     o = 7 * M
-    obj = cov[o : o + 7, o : o + 7]
     a0, p0, s0 = o + 7, o + 7 + 3 * K, o + 7 + 6 * K
-    axes = np.stack([cov[a0 + 3 * k : a0 + 3 * k + 3, a0 + 3 * k : a0 + 3 * k + 3] for k in range(K)]) if K else np.zeros((0, 3, 3))
-    piv = np.stack([cov[p0 + 3 * k : p0 + 3 * k + 3, p0 + 3 * k : p0 + 3 * k + 3] for k in range(K)]) if K else np.zeros((0, 3, 3))
-    return parts, obj, cov[s0 : s0 + K, s0 : s0 + K], axes, piv
+    return _diagonal_blocks(cov, 0, M, 7), cov[o : o + 7, o : o + 7], cov[s0 : s0 + K, s0 : s0 + K], \
+        _diagonal_blocks(cov, a0, K, 3), _diagonal_blocks(cov, p0, K, 3)
+
+
+def _diagonal_blocks(cov: np.ndarray, start: int, count: int, size: int) -> np.ndarray:
+    """``(count, size, size)``: the diagonal blocks of ``cov`` from row/column ``start`` on."""
+    idx = start + size * np.arange(count)[:, None] + np.arange(size)
+    return cov[idx[:, :, None], idx[:, None, :]]
 
 
 def effective_points(weights) -> float:

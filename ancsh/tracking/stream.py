@@ -22,7 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["JsonLinesWriter", "depth_files", "track_depth", "track_files"]
+__all__ = ["JsonLinesWriter", "depth_files", "track_depth", "track_files", "track_files_multi"]
+
+#: The schema of a multi-object track line (:func:`track_files_multi`, ``docs/json_schema.md``).
+MULTI_SCHEMA = "ancsh.track/2"
 
 _SUFFIXES = (".png", ".npy")
 
@@ -89,6 +92,15 @@ def _lost_record(index: int, path: Path, message: str, num_joints: int) -> dict:
             "joint_states": [None] * num_joints, "joint_states_std": None, "part_poses": [], "iterations": 0, "time_ms": 0.0}
 
 
+def _emit(rec: dict, records: list, writer, progress) -> None:
+    """Keep a frame's record, write it (``writer``) and show it (``progress``)."""
+    records.append(rec)
+    if writer is not None:
+        writer.write(rec)
+    if progress is not None:
+        progress(rec)
+
+
 def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, category: str | None = None,
                 mask_dir=None, isolate: bool = True, max_depth: float | None = None, num_points: int = 1024, seed: int = 0,
                 num_joints: int = 0, progress=None) -> list[dict]:
@@ -146,11 +158,35 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
             rec = track_depth(depth, intrinsics, tracker, i, mask=mask, category=category, isolate=isolate,
                               max_depth=max_depth, num_points=num_points, seed=seed)
             rec["file"] = path.name
-        records.append(rec)
-        if writer is not None:
-            writer.write(rec)
-        if progress is not None:
-            progress(rec)
+        _emit(rec, records, writer, progress)
+    return records
+
+
+def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, progress=None,
+                      on_frame=None) -> list[dict]:
+    """Track every object of the category through depth frames (a
+    :class:`~ancsh.tracking.multi.MultiObjectTracker`); one record per frame (``ancsh.track/2``: every live track's id,
+    status, filtered pose and joint states), written at once when ``writer`` is given. A frame that cannot be read, or
+    whose size differs from the intrinsics, is a record with an ``error`` and no tracks (the tracker is not stepped).
+    ``on_frame(index, depth, MultiFrame)`` is called after each stepped frame (pictures).
+    """
+    from ..data.images import read_depth
+
+    records = []
+    for i, path in enumerate(files):
+        path = Path(path)
+        try:
+            depth = read_depth(path, argument=f"frame {i}", shape=(intrinsics.height, intrinsics.width))
+        except (ValueError, FileNotFoundError, OSError) as exc:
+            rec = {"schema": MULTI_SCHEMA, "frame": i, "file": path.name, "tracks": [], "ended": [], "detected": False,
+                   "detections": 0, "stages_ms": {}, "time_ms": 0.0, "error": f"unreadable frame: {exc}"}
+        else:
+            stepped = tracker.step(depth)
+            rec = {"schema": MULTI_SCHEMA, **stepped.to_dict()}
+            rec["frame"], rec["file"] = i, path.name
+            if on_frame is not None:
+                on_frame(i, depth, stepped)
+        _emit(rec, records, writer, progress)
     return records
 
 

@@ -141,6 +141,25 @@ class CategoryTracker:
         self._track = None
         self._template = None
 
+    @property
+    def correspondences(self):
+        """The correspondences of the last accepted fit (the network's or carried ones; ``None`` before a fit, after a
+        loss, or while a category template is carried)."""
+        return None if self._track is None else self._track.correspondences
+
+    def start_from(self, observation: Observation, result: FitResult, correspondences) -> None:
+        """Carry ``result`` (a successful fit of ``observation`` on ``correspondences``, e.g. a verified detection of
+        ``ancsh predict``, or a filtered state) to the next frame as if this tracker had made it on a network frame:
+        the next frame starts warm from it. A carried category template is dropped."""
+        if not isinstance(observation, Observation):
+            raise ValueError(f"observation: expected an Observation, got {type(observation).__name__}")
+        if not isinstance(result, FitResult) or not result.ok:
+            raise ValueError("result: expected a successful FitResult")
+        self._template = None
+        self._track = None
+        self._started = True
+        self._advance(observation, result, correspondences, True, refined=False)
+
     def step(self, observation: Observation) -> TrackedFrame:
         """Track one more frame (see the module docstring)."""
         if not isinstance(observation, Observation):

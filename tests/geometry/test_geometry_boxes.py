@@ -87,3 +87,17 @@ def test_unit_diagonal_scales_each_box_to_a_unit_diagonal_and_keeps_its_proporti
     np.testing.assert_allclose(out[:4] * np.linalg.norm(ext[:4], axis=1, keepdims=True), ext[:4], atol=1e-12)
     np.testing.assert_array_equal(out[4], 0.0)  # a degenerate box is left as it is
     np.testing.assert_allclose(unit_diagonal(ext[0]), out[0], atol=0)
+
+
+def test_unchecked_box_equals_the_validated_one_and_is_frozen():
+    from ancsh.geometry.rotations import random_rotation
+
+    rng = np.random.default_rng(5)
+    c, R, e = rng.normal(size=3), random_rotation(rng), rng.uniform(0.1, 1.0, 3)
+    a, b = OrientedBox(c, R, e), OrientedBox.unchecked(c, R, e)
+    for name in ("center", "rotation", "extents"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert not getattr(b, name).flags.writeable
+    np.testing.assert_array_equal(a.corners(), b.corners())
+    e[0] = 9.0
+    assert b.extents[0] != 9.0  # copied

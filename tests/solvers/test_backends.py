@@ -72,3 +72,26 @@ def test_lsq_iterations_count_iterations_not_function_evaluations():
     out = solve_lsq(prog, None, np.zeros(2), Bounds(np.full(2, -np.inf), np.full(2, np.inf)), SolverOptions(100, 1e-12))
     ref = least_squares(fun, np.zeros(2), jac=jac, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=100)
     assert out.iterations == ref.njev and ref.njev <= ref.nfev
+
+
+@pytest.mark.parametrize("seed, num_parts, joint_types, tree", [
+    (31, 2, "revolute", False), (32, 3, None, False), (33, 4, None, True), (34, 3, "prismatic", False),
+    (35, 4, "revolute", True)])
+def test_default_lm_agrees_with_ipopt_on_seeded_random_objects(fit_case, seed, num_parts, joint_types, tree):
+    """The default exact fit (``exact_reduced`` with ``lm``) ends where IPOPT ends, RANSAC, limits and covariance
+    included: NPCS-noisy correspondences of random objects, revolute, prismatic and mixed joints, chains and trees."""
+    from ancsh.solvers import FORMULATIONS
+
+    assert FORMULATIONS["exact_reduced"].solvers[0] == "lm"
+    case = fit_case(seed, num_parts=num_parts, joint_types=joint_types, tree=tree, npcs_noise=0.02)
+    a = fit(case.observation, case.correspondences, "exact_reduced", "ipopt", rng=seed)
+    b = fit(case.observation, case.correspondences, rng=seed)
+    assert b.solver == "lm" and a.ok and b.ok, (a.message, b.message)
+    for Ta, Tb in zip(a.T_cam_npcs, b.T_cam_npcs):
+        np.testing.assert_allclose(Tb.rotation, Ta.rotation, atol=1e-6)
+        np.testing.assert_allclose(Tb.translation, Ta.translation, atol=1e-6 * case.gt.T_cam_naocs.scale)
+        assert Tb.scale == pytest.approx(Ta.scale, rel=1e-6)
+    np.testing.assert_allclose(b.joint_states, a.joint_states, atol=1e-6)
+    np.testing.assert_array_equal(b.inliers, a.inliers)
+    np.testing.assert_allclose(b.uncertainty.rotation_rms_rad, a.uncertainty.rotation_rms_rad, rtol=1e-4)
+    assert sum(b.cost_per_term.values()) <= sum(a.cost_per_term.values()) * (1 + 1e-9) + 1e-15

@@ -490,3 +490,37 @@ def test_unit_diagonal_boxes_undo_the_inflation_by_npcs_noise(fit_case):
         truth = OrientedBox(T_gt.translation, T_gt.rotation, T_gt.scale * np.asarray(true_extents[j]))
         assert abs(np.linalg.norm(a.extents / T.scale) - 1.0) > 0.01  # off the unit diagonal as measured
         assert box_iou(b, truth) > box_iou(a, truth)
+
+
+@pytest.mark.parametrize("estimator", ["symmetric", "reverse"])
+def test_rescale_of_all_parts_at_once_matches_each_part_on_its_own(fit_case, estimator):
+    """The initial scales of every part in one pass (``_Fit._rescale``) are the one-part formulas: the RMS spread
+    ratio, or the reverse regression ``var(p) / tr(R^T cov(p, c))`` capped at twice it; the translation re-centred."""
+    import sys
+
+    from ancsh.geometry.rotations import axis_angle_matrix
+    from ancsh.geometry.transforms import Sim3
+
+    fit_module = sys.modules["ancsh.solvers.fit"]
+    case = fit_case(5, num_parts=3, npcs_noise=0.03)
+    corr = case.correspondences
+    rng = np.random.default_rng(4)
+    corr = corr.with_weights(rng.uniform(0.2, 1.0, corr.num_points))
+    inliers = rng.random(corr.num_points) < 0.8
+    run = fit_module._Fit(case.observation, corr, FORMULATIONS["exact_reduced"], "lm",
+                          FitConfig(scale_estimator=estimator), rng, 0.0)
+    poses = [Sim3(axis_angle_matrix(rng.normal(size=3), 0.1) @ T.rotation, T.translation, T.scale)
+             for T in case.gt.T_cam_npcs]
+    for j, (T, got) in enumerate(zip(poses, run._rescale(poses, inliers))):
+        sel = inliers & (corr.part_labels == j)
+        w = corr.weights[sel] / corr.weights[sel].sum()
+        p, c = case.observation.points_cam[sel], corr.npcs[sel]
+        pbar, cbar = w @ p, w @ c
+        var_p, var_c = w @ np.sum((p - pbar) ** 2, axis=1), w @ np.sum((c - cbar) ** 2, axis=1)
+        s = np.sqrt(var_p / var_c)
+        if estimator == "reverse":
+            cov = np.trace(T.rotation.T @ (((p - pbar) * w[:, None]).T @ (c - cbar)))
+            s = var_p / max(cov, 0.5 * np.sqrt(var_p * var_c))
+        assert got.scale == pytest.approx(s, rel=1e-12)
+        np.testing.assert_allclose(got.rotation, T.rotation)
+        np.testing.assert_allclose(got.translation, pbar - s * T.rotation @ cbar, atol=1e-12)

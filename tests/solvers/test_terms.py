@@ -286,3 +286,31 @@ def test_constant_velocity_prediction_continues_a_constant_motion():
     assert PreviousSolution.constant_velocity(a, None) is a
     with pytest.raises(ValueError, match="damping"):
         PreviousSolution.constant_velocity(a, b, damping=2.0)
+
+
+def test_parts_moments_equal_part_moments_one_part_at_a_time():
+    """The batched moments (every part in one pass, zero weights leaving points out) are each part's own."""
+    from ancsh.solvers.terms import parts_moments
+
+    rng = np.random.default_rng(11)
+    n = 300
+    labels = rng.integers(0, 3, n)
+    c = rng.uniform(-0.5, 0.5, (n, 3))
+    p = c @ rng.normal(size=(3, 3)) + rng.normal(scale=0.01, size=(n, 3))
+    w = rng.random(n) * (rng.random(n) > 0.2)
+    batched = parts_moments(p, c, labels, w, 3, 0.8)
+    for j, m in enumerate(batched):
+        sel = (labels == j) & (w > 0)
+        ref = part_moments(p[sel], c[sel], w[sel], 0.8)
+        for a, b in ((m.Lm @ m.Lm.T, ref.Lm @ ref.Lm.T), (m.B @ m.Lm.T, ref.B @ ref.Lm.T), (m.cbar, ref.cbar),
+                     (m.pbar, ref.pbar), (m.sqrt_c0, ref.sqrt_c0)):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+    # one part's moments by definition: M = mean(w x x^T), C = mean(w x p'^T), x = [c - cbar, 1]
+    sel = labels == 1
+    wn = w[sel] / w[sel].sum()
+    x = np.c_[c[sel] - wn @ c[sel], np.ones(sel.sum())]
+    pc = p[sel] - wn @ p[sel]
+    m = batched[1]
+    np.testing.assert_allclose(m.Lm @ m.Lm.T, (x * wn[:, None]).T @ x, atol=1e-14)
+    np.testing.assert_allclose(m.B @ m.Lm.T, pc.T @ (x * wn[:, None]), atol=1e-14)
+    np.testing.assert_allclose(m.sqrt_c0**2 * 0.8**2 + np.sum(m.B * m.B), wn @ np.sum(pc * pc, axis=1), rtol=1e-12)

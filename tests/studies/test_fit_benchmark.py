@@ -158,3 +158,27 @@ def test_the_full_run_has_the_verdicts_frames_and_the_previous_objective_method(
     assert bench.FULL.frames_per_category >= bench.VERDICT_FRAMES and bench.QUICK.frames_per_category < bench.VERDICT_FRAMES
     names = [m.name for m in bench.available_methods(bench.BenchConfig(categories=("laptop",)))]
     assert bench.DEFAULT_METHOD in names and bench.PREVIOUS_METHOD in names
+    from ancsh.solvers.fit import FORMULATIONS
+
+    assert bench.DEFAULT_METHOD == f"exact_reduced/{FORMULATIONS['exact_reduced'].solvers[0]}"  # fit's own default
+    assert bench.PREVIOUS_METHOD == f"{bench.DEFAULT_METHOD}:previous"
+
+
+def test_speed_section_gives_mean_and_median_ratios_per_category():
+    from ancsh.studies.fit.speed import speed_by_category, speed_lines
+
+    recs = [{"category": c, "level": "realistic", "method": m, "time_ms": t}
+            for c, times in (("oven", {"official": [100.0, 300.0, 200.0], "exact_reduced/lm": [1.0, 1.0, 4.0]}),
+                             ("box", {"exact_reduced/lm": [2.0]}))
+            for m, ts in times.items() for t in ts]
+    report = {"records": recs + [dict(recs[0], level="none", time_ms=1e6)],
+              "methods": ["exact_reduced/lm", "official"]}
+    rows = speed_by_category(report, "realistic")
+    assert [(r["category"], r["method"]) for r in rows] == [("box", "exact_reduced/lm"), ("oven", "exact_reduced/lm")]
+    box, oven = rows
+    assert "ratio_mean" not in box and box["ms_mean"] == 2.0
+    assert oven["ms_mean"] == 2.0 and oven["ms_median"] == 1.0 and oven["frames"] == 3
+    assert oven["ratio_mean"] == pytest.approx(100.0) and oven["ratio_median"] == pytest.approx(200.0)
+    text = "\n".join(speed_lines(report, "realistic"))
+    assert "## Speed per category (`realistic`)" in text and "| oven | exact_reduced/lm | 3 | 2.00 | 1.00 | 200.0 | 100 | 200 |" in text
+    assert speed_lines({"records": [], "methods": []}, "realistic") == []

@@ -14,6 +14,7 @@ import importlib
 BENCH_MODULES = [
     "ancsh.cli.bench.render:register_bench",
     "ancsh.cli.bench.fit",
+    "ancsh.cli.bench.fit_profile",
     "ancsh.cli.bench.learned",
     "ancsh.cli.bench.uncertainty",
     "ancsh.cli.bench.refinement",
@@ -21,6 +22,7 @@ BENCH_MODULES = [
     "ancsh.cli.bench.gpu_check:register_bench",
     "ancsh.cli.bench.scaling:register_bench",
     "ancsh.cli.bench.tracking",
+    "ancsh.cli.bench.track_scenes",
     "ancsh.cli.bench.real_frames",
     "ancsh.cli.bench.twin",
     "ancsh.cli.bench.sensor_realism",

@@ -22,7 +22,7 @@ from ...data.render import Intrinsics
 from .checks import MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
-__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate",
+__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
            "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty"]
 
 
@@ -276,7 +276,7 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
     comparison, p_object, t_rc = None, None, 0.0
     if result.ok and mask is not None:
         t0 = time.perf_counter()
-        comparison, p_object = _object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
+        comparison, p_object = object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
         t_rc = time.perf_counter() - t0
     if object_gate:
         result = check_confidence(result, p_object, min_p_object)
@@ -286,7 +286,7 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 
-def _object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
+def object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
     """Render-and-compare of the fit (:func:`ancsh.solvers.twin.compare_fit`) and the calibrated
     P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
     import json

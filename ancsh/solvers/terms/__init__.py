@@ -56,7 +56,7 @@ from .context import (
     stretch_sx,  # noqa: F401
     vee_sx,  # noqa: F401
 )
-from .data import DataTerm, PointToPlaneTerm, part_moments, plane_moments
+from .data import DataTerm, PointToPlaneTerm, part_moments, parts_moments, plane_moments
 from .joints import ExactJointTerm, JointLimitTerm, SoftJointTerm
 from .priors import CanonicalPriorTerm, NpcsBiasPriorTerm, TemporalPriorTerm
 from .scale import CommonScaleTerm, ExactCommonScaleTerm
@@ -87,6 +87,7 @@ __all__ = [
     "exp_so3_sx",
     "joint_state_expr",
     "part_moments",
+    "parts_moments",
     "plane_moments",
     "register_term",
 ]

@@ -61,25 +61,46 @@ def part_moments(points_cam, npcs, weights, L: float) -> PartMoments:
     L : float
         Object scale (metres) used to normalise the residual.
     """
-    w = weights / weights.sum()
-    cbar = w @ npcs
-    pbar = w @ points_cam
-    x = np.empty((len(w), 4))
-    x[:, :3] = npcs - cbar
+    weights = np.asarray(weights, dtype=np.float64)
+    return parts_moments(points_cam, npcs, np.zeros(len(weights), dtype=np.intp), weights, 1, L)[0]
+
+
+def parts_moments(points_cam, npcs, labels, weights, num_parts: int, L: float) -> tuple:
+    """:func:`part_moments` of every part at once: ``(num_parts,)`` :class:`PartMoments`.
+
+    Parameters
+    ----------
+    points_cam, npcs : (n, 3) float64
+        Camera-frame points (metres) and their NPCS coordinates.
+    labels : (n,) int
+        Part of each point, in ``0 .. num_parts - 1``.
+    weights : (n,) float64
+        Non-negative weights (0 leaves a point out); every part needs a positive sum.
+    num_parts : int
+    L : float
+        Object scale (metres) used to normalise the residual.
+    """
+    n = len(labels)
+    W = np.zeros((num_parts, n))
+    W[labels, np.arange(n)] = weights
+    W /= W.sum(axis=1, keepdims=True)  # (M, n): each part's normalised weights
+    cbar, pbar = W @ npcs, W @ points_cam  # (M, 3)
+    x = np.empty((n, 4))
+    x[:, :3] = npcs - cbar[labels]
     x[:, 3] = 1.0
-    pc = points_cam - pbar
-    xw = x * w[:, None]
-    M = xw.T @ x
-    C = xw.T @ pc  # (4, 3)
-    P = float(np.sum(w * np.einsum("ij,ij->i", pc, pc)))
-    lam, V = np.linalg.eigh(M)
-    keep = lam > 1e-12 * max(lam.max(), 1e-300)
+    pc = points_cam - pbar[labels]
+    xw = W[:, :, None] * x  # (M, n, 4)
+    Mx = xw.transpose(0, 2, 1) @ x  # (M, 4, 4)
+    C = xw.transpose(0, 2, 1) @ pc  # (M, 4, 3)
+    P = W @ np.einsum("ij,ij->i", pc, pc)  # (M,)
+    lam, V = np.linalg.eigh(Mx)
+    keep = lam > 1e-12 * np.maximum(lam.max(axis=1, keepdims=True), 1e-300)
     root = np.where(keep, np.sqrt(np.where(keep, lam, 1.0)), 0.0)
     inv_root = np.where(keep, 1.0 / np.where(keep, root, 1.0), 0.0)
-    Lm = V * root
-    B = (C.T @ V) * inv_root
-    c0 = max(P - float(np.sum(B * B)), 0.0) / L**2
-    return PartMoments(Lm, B, np.sqrt(c0), cbar, pbar)
+    Lm = V * root[:, None, :]
+    B = (C.transpose(0, 2, 1) @ V) * inv_root[:, None, :]
+    sqrt_c0 = np.sqrt(np.maximum(P - np.sum(B * B, axis=(1, 2)), 0.0) / L**2)
+    return tuple(PartMoments(Lm[j], B[j], float(sqrt_c0[j]), cbar[j], pbar[j]) for j in range(num_parts))
 
 
 @register_term

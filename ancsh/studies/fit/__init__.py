@@ -1,7 +1,7 @@
 """``ancsh bench fit``: every fitting formulation and the official baseline, side by side.
 
 :mod:`.measure` renders the frames, corrupts their correspondences and fits every method (records);
-:mod:`.report` writes ``fit_benchmark.md`` / ``.json`` from them. The command's arguments are in
+:mod:`.report` writes ``fit_benchmark.md`` / ``.json`` from them (:mod:`.speed`: its speed section). The command's arguments are in
 :mod:`ancsh.cli.bench.fit`."""
 
 from __future__ import annotations

@@ -10,8 +10,9 @@ Methods
 -------
 - every (formulation, backend) pair of the solver core's ``FORMULATIONS`` registry
   (``ancsh.solvers.fit``), named ``formulation/backend``, with the default ``FitConfig``;
-  ``exact_reduced/ipopt`` is the fit a user gets (``fit``'s default formulation and backend; :data:`DEFAULT_METHOD`);
-- ``exact_reduced/ipopt:previous`` (:data:`PREVIOUS_METHOD`): the same with the default objective before issue 63,
+  ``exact_reduced/<its first backend>`` is the fit a user gets (``fit``'s default formulation and backend;
+  :data:`DEFAULT_METHOD`);
+- :data:`PREVIOUS_METHOD` (``<that method>:previous``): the same with the default objective before issue 63,
   ``FitConfig.previous()`` (:data:`ancsh.solvers.formulations.PREVIOUS_OBJECTIVE`), for comparison;
 - ``official``: the official ANCSH pairwise scheme (:mod:`ancsh.solvers.official`);
 - ``gt_refit`` (a reference, not a method): the *best achievable* fit of the noisy
@@ -49,17 +50,24 @@ __all__ = ["BenchConfig", "BenchFrame", "DEFAULT_METHOD", "Method", "PREVIOUS_ME
 # Thin parts of the issue's target (category -> part names).
 THIN_PARTS = {"eyeglasses": ("left_temple", "right_temple"), "laptop": ("display",)}
 
+def _default_method() -> str:
+    """``fit``'s default formulation and its first (default) backend, as a method name."""
+    from ...solvers.formulations import FORMULATIONS
+
+    return f"exact_reduced/{FORMULATIONS['exact_reduced'].solvers[0]}"
+
+
 #: The method a user gets (``fit``'s default formulation and backend, the default ``FitConfig``): the verdict's.
-DEFAULT_METHOD = "exact_reduced/ipopt"
+DEFAULT_METHOD = _default_method()
 #: The same fit with the default objective before issue 63 (``FitConfig.previous()``).
-PREVIOUS_METHOD = "exact_reduced/ipopt:previous"
+PREVIOUS_METHOD = f"{DEFAULT_METHOD}:previous"
 #: The verdict (the default fit against the official scheme on every part) needs at least this many frames a category
 #: at ``realistic``: with fewer, parts whose errors differ by less than their standard error decide it by chance.
 VERDICT_FRAMES = 60
 
 # Formulation names the headline ratios use, in order of preference.
 _PER_PART = ("per_part/umeyama", "per_part")
-_EXACT = ("exact_reduced/ipopt", "exact_reduced/lsq", "exact_reduced/lm", "exact_maximal/ipopt", "exact_reduced",
+_EXACT = ("exact_reduced/lm", "exact_reduced/ipopt", "exact_reduced/lsq", "exact_maximal/ipopt", "exact_reduced",
           "exact_maximal")
 
 

@@ -12,6 +12,7 @@ import numpy as np
 from ...solvers.formulations import DEFAULT_OBJECTIVE
 from ..report import write_json, write_text
 from .measure import _EXACT, _PER_PART, DEFAULT_METHOD, PREVIOUS_METHOD, THIN_PARTS, VERDICT_FRAMES, _mean
+from .speed import speed_by_category, speed_lines
 
 __all__ = ["headline", "overall", "summarize", "verdict", "verdict_line", "write_report"]
 
@@ -394,6 +395,7 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "", quic
                      f"{head['exact']} {head['thin_exact_rot_deg']:.2f} deg.")
     lines += _verdict_section(head["verdict"], cfg.get("exact_config") or ())
     lines += _translation_note(report, head["level"])
+    lines += speed_lines(report, head["level"])
     lines += ["", "## Overall, per level and method", "",
               "Means over all parts (or joints) of all categories' frames that succeeded; thin = eyeglass temples "
               "and laptop display; revolute state error in degrees.", ""]
@@ -438,6 +440,7 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "", quic
             "command": command, "generated": when, "config": cfg, "methods": report["methods"],
             "frame_source": report["frame_source"], "headline": head,
             "overall": {level: overall(report, level) for level in cfg["levels"]}, "summary": rows,
+            "speed": speed_by_category(report, head["level"]),
         }
         write_json(out_json, _compact(payload), separators=(",", ":"), default=_json_default)
     return head
