@@ -73,6 +73,7 @@ def run(args) -> int:
     from ..data.show import draw_fit, save_figure
     from ..evaluation import evaluate_fit
     from ..solvers import Observation, fit
+    from ..solvers.formulations import provider_fit_config
 
     categories = PAPER_CATEGORIES if args.categories == "all" else tuple(c.strip() for c in args.categories.split(","))
     unknown = [c for c in categories if c not in CATEGORIES]
@@ -98,7 +99,7 @@ def run(args) -> int:
               f"correspondences: {label} ({1e3 * t_corr:.0f} ms)")
         records = {}
         for name, formulation in methods:
-            result = fit(obs, corr, formulation, rng=args.seed)
+            result = fit(obs, corr, formulation, config=provider_fit_config(provider), rng=args.seed)
             records[name] = (result, evaluate_fit(result, frame.gt, frame.part_names, frame.joint_names))
             print(f"   {name:16s} status {result.status.value:8s} {1e3 * result.time_s:6.1f} ms")
         print(f"   {'part':14s}" + "".join(f" | {n:^28s}" for n, _ in methods))

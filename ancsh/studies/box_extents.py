@@ -22,7 +22,7 @@ def measure(categories, frames: int, *, seed: int = 0, progress=None) -> dict:
     from ..evaluation import evaluate_fit
     from ..learned.inference.provider import LearnedProvider
     from ..learned.network.weights import weights_path
-    from ..solvers import FitConfig, fit
+    from ..solvers import fit
     from ..solvers.types import Observation
 
     out = {}
@@ -36,7 +36,7 @@ def measure(categories, frames: int, *, seed: int = 0, progress=None) -> dict:
             corr = provider.correspond(obs)
             rec["parts"] = list(fr.part_names)
             for setting in SETTINGS:
-                r = fit(obs, corr, "exact_reduced", config=FitConfig(box_extents=setting), rng=int(seed) + i)
+                r = fit(obs, corr, "exact_reduced", config=provider.fit_config(box_extents=setting), rng=int(seed) + i)
                 if not r.ok:
                     rec["failed"][setting] += 1
                     continue

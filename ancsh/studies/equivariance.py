@@ -103,6 +103,7 @@ def measure_roll_gain(frames, provider_of, *, angle_rad: float, seed: int = 0) -
     from scipy.spatial.transform import Rotation
 
     from ..solvers.types import Observation
+    from ..solvers.formulations import provider_fit_config
     from .table1 import fit_method
 
     gains, skipped = [], 0
@@ -113,7 +114,8 @@ def measure_roll_gain(frames, provider_of, *, angle_rad: float, seed: int = 0) -
         fits = []
         for pts in (fr.points, rolled):
             obs = Observation(pts)
-            fits.append(fit_method("exact_reduced", obs, provider.correspond(obs), rng=seed + i))
+            fits.append(fit_method("exact_reduced", obs, provider.correspond(obs), rng=seed + i,
+                                   config=provider_fit_config(provider)))
         if not all(f.ok for f in fits):
             skipped += 1
             continue

@@ -45,9 +45,10 @@ def _methods(variant: str) -> dict:
     from ..solvers.fit import FitConfig, fit
     from ..solvers.official import OfficialSettings, fit_official
 
+    # The page was measured before issue 63: its "default" is FitConfig.previous() (NAOCS prior 0.1, no NPCS biases).
     def exact(**kw):
         kw.setdefault("scale_estimator", "symmetric")  # the default when this ran
-        c = FitConfig(**kw)
+        c = FitConfig.previous(**kw)
         return lambda obs, corr, rng, clean: fit(obs, corr, "exact_reduced", "lm", config=c, rng=rng)
 
     def per_part(**kw):
@@ -56,7 +57,7 @@ def _methods(variant: str) -> dict:
         return lambda obs, corr, rng, clean: fit(obs, corr, "per_part", config=c, rng=rng)
 
     def gt_refit(scale_estimator):
-        c = FitConfig(ransac=False, scale_estimator=scale_estimator)
+        c = FitConfig.previous(ransac=False, scale_estimator=scale_estimator)
         return lambda obs, corr, rng, clean: fit(obs, corr.with_weights(clean.astype(float)), "exact_reduced", "lm",
                                                  config=c, rng=rng)
 

@@ -70,7 +70,7 @@ def compare_prediction(device, *, category: str = "laptop", frame: int = 0) -> d
         t0 = time.perf_counter()
         inference = provider.infer(obs)
         network_s = time.perf_counter() - t0
-        result = fit(obs, inference.correspondences, "exact_reduced", rng=0)
+        result = fit(obs, inference.correspondences, "exact_reduced", config=provider.fit_config(), rng=0)
         out[name] = (inference, result, network_s)
     (ia, ra, ta), (ib, rb, tb) = out["cpu"], out["device"]
     rot = [float(np.degrees(rotation_angle(Ta.rotation.T @ Tb.rotation))) for Ta, Tb in zip(ra.T_cam_npcs, rb.T_cam_npcs)]

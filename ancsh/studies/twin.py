@@ -131,11 +131,12 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
     choices = [(1, 0)] + ([(int(candidates), 0)] if candidates > 1 else []) + ([(int(candidates), int(align))] if align else [])
     from ..solvers import FitConfig
 
-    config = FitConfig(box_extents=box_extents)
+    oracle_config = FitConfig(box_extents=box_extents)  # the learned fits: the network's objective (fit_config)
     records = []
     for cat in categories:
         gen = FrameGenerator(GenerationConfig(category=cat, split="test", seed=int(seed)))
         learned = LearnedProvider(cat, seed=int(seed))
+        learned_config = learned.fit_config(box_extents=box_extents)
         library = load_template_library(cat)
         providers = [n for n in PROVIDERS if n != "learned+network" or weights_path(cat, "refine").is_file()]
         for i in range(int(frames)):
@@ -146,8 +147,9 @@ def measure_twin(categories, *, frames: int = 20, seed: int = 0, progress: bool 
             for name in providers:
                 if name == "oracle":
                     corr = OracleProvider(fr, "none", rng=int(seed) + i).correspond(Observation(fr.points))
+                    config = oracle_config
                 else:
-                    corr = learned_corr
+                    corr, config = learned_corr, learned_config
                 refine = (partial(_refinement, learned, refine=_REFINES[name], rng=int(seed) + i, config=config)
                           if name in _REFINES else None)
                 for rec in twin_frame(fr, corr, library, seed=int(seed) + i, config=config, candidates=choices,

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..solvers.fit import fit
 from ..solvers.types import FitResult, FitStatus, Observation
-from .config import TrackerConfig
+from .config import TrackerConfig, with_provider_fit
 
 __all__ = ["check_fit", "cold_fit", "fit_frame"]
 
@@ -55,6 +55,7 @@ def fit_frame(provider, observation: Observation, config: TrackerConfig, categor
 def cold_fit(provider, observation: Observation, config: TrackerConfig, category: str | None, rng):
     """:func:`fit_frame` and whether its result rests on the refinement network's correspondences:
     ``(FitResult, Correspondences or None, refined)``."""
+    config = with_provider_fit(config, provider)  # TrackerConfig.fit None: the provider's FitConfig
     if observation.num_points < config.min_points:
         return FitResult.failure(FitStatus.TOO_FEW_POINTS, f"{observation.num_points} points, at least {config.min_points} "
                                  "are needed for a fit", formulation=config.formulation, solver="none",

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 from ..geometry._checks import check_bool, check_choice, check_int, check_number
 from ..solvers.fit import FORMULATIONS, FitConfig
+from ..solvers.formulations import provider_fit_config
 from .instance import InstanceTrackerConfig
 
-__all__ = ["TrackerConfig"]
+__all__ = ["TrackerConfig", "with_provider_fit"]
 
 
 @dataclass(frozen=True)
@@ -140,8 +141,11 @@ class TrackerConfig:
     max_relative_residual : float
         A part whose median point-to-fit distance exceeds this many object diagonals makes a fit
         implausible (``large_residual``), ``> 0``.
-    fit : FitConfig
-        Settings of every fit (RANSAC settings apply to the cold ones).
+    fit : FitConfig or None
+        Settings of every fit (RANSAC settings apply to the cold ones). ``None`` (default): the provider's
+        (:func:`with_provider_fit`: a learned provider's :meth:`~ancsh.learned.inference.provider.LearnedProvider.fit_config`,
+        the default objective of its category's shipped network; else the ``"tracked"`` entry of
+        :data:`ancsh.solvers.formulations.DEFAULT_OBJECTIVES`).
     """
 
     network_every: int = 1
@@ -166,7 +170,7 @@ class TrackerConfig:
     refine_network: bool = False
     min_points: int = 100
     max_relative_residual: float = 0.1
-    fit: FitConfig = field(default_factory=FitConfig)
+    fit: FitConfig | None = None
 
     def __post_init__(self):
         for name, lo in (("network_every", 1), ("carried_iterations", 1), ("min_points", 3), ("warm_rescore_rounds", 0)):
@@ -188,8 +192,8 @@ class TrackerConfig:
         check_choice(self.predict_from, "predict_from", ("network", "frames"))
         for name in ("carried_gate", "max_relative_residual"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
-        if not isinstance(self.fit, FitConfig):
-            raise ValueError(f"fit: expected a FitConfig, got {type(self.fit).__name__}")
+        if self.fit is not None and not isinstance(self.fit, FitConfig):
+            raise ValueError(f"fit: expected a FitConfig or None, got {type(self.fit).__name__}")
         if isinstance(self.template_categories, str) or not all(isinstance(c, str) for c in self.template_categories):
             raise ValueError(f"template_categories: expected a tuple of category names, got {self.template_categories!r}")
         object.__setattr__(self, "template_categories", tuple(self.template_categories))
@@ -198,3 +202,10 @@ class TrackerConfig:
             object.__setattr__(self, "template_icp", InstanceTrackerConfig(reinitialise=False))
         elif not isinstance(self.template_icp, InstanceTrackerConfig):
             raise ValueError(f"template_icp: expected an InstanceTrackerConfig, got {type(self.template_icp).__name__}")
+
+
+def with_provider_fit(config: TrackerConfig, provider) -> TrackerConfig:
+    """``config`` with its :attr:`TrackerConfig.fit` resolved for ``provider`` where it is ``None``: the provider's
+    ``fit_config()`` (a :class:`~ancsh.learned.inference.provider.LearnedProvider`: its category's default objective,
+    :data:`ancsh.solvers.formulations.DEFAULT_OBJECTIVES` ``["learned"]``), else that table's ``["tracked"]`` entry."""
+    return config if config.fit is not None else replace(config, fit=provider_fit_config(provider, fallback="tracked"))

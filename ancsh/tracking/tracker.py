@@ -63,7 +63,7 @@ from ..solvers.fit import FitConfig, fit
 from ..solvers.terms import PreviousSolution
 from ..solvers.types import FitResult, FitStatus, Observation
 from .cold_fit import check_fit, cold_fit, fit_frame
-from .config import TrackerConfig
+from .config import TrackerConfig, with_provider_fit
 from .fusion import fitted_canonical, fused_canonical, predicted_fit, previous_solution, recentred
 from .instance import InstanceTracker
 from .records import TrackedFrame, TrackStatus, joint_state_std
@@ -119,6 +119,7 @@ class CategoryTracker:
         self.config = TrackerConfig() if config is None else config
         if not isinstance(self.config, TrackerConfig):
             raise ValueError(f"config: expected a TrackerConfig, got {type(self.config).__name__}")
+        self.config = with_provider_fit(self.config, provider)  # its fits' FitConfig: the provider's by default
         if self.config.refine_network and getattr(provider, "refine_option", None) != "network":
             raise ValueError("config.refine_network: the provider has no refinement network (LearnedProvider(..., "
                              "refine='network'))")

@@ -243,3 +243,28 @@ def test_a_folder_gives_the_same_files_with_one_and_two_workers(files, rendered,
     assert main(["predict", "--depth", str(files / "depth.png"), "--intrinsics", str(files / "K.json"), "--category",
                  "laptop", "--workers", "2"]) == 2
     assert "--workers: one image is predicted in one process" in capsys.readouterr().err
+
+
+def test_predict_fits_with_the_shipped_networks_default_objective(rendered, monkeypatch):
+    """Issue 63: every fit of ``ancsh predict`` -- the first stage and the refinement network's -- uses the objective
+    that ``DEFAULT_OBJECTIVES["learned"]`` names for the category (``LearnedProvider.fit_config``), not the plain
+    ``FitConfig()`` default; the figures behind both are in the table."""
+    import ancsh.solvers
+    from ancsh.learned.inference.provider import LearnedProvider
+    from ancsh.solvers import FitConfig
+    from ancsh.solvers.formulations import DEFAULT_OBJECTIVES
+
+    chosen = DEFAULT_OBJECTIVES["learned"]["laptop"].objective
+    assert LearnedProvider("laptop").fit_config() == FitConfig.default_for("learned", "laptop")
+    assert LearnedProvider("laptop").fit_config().objective is chosen
+    frame, depth = rendered
+    seen = []
+    real_fit = ancsh.solvers.fit
+
+    def spy(observation, correspondences, formulation="exact_reduced", solver=None, config=None, *args, **kwargs):
+        seen.append(config)
+        return real_fit(observation, correspondences, formulation, solver, config, *args, **kwargs)
+
+    monkeypatch.setattr(ancsh.solvers, "fit", spy)
+    assert predict_depth(depth, frame.intrinsics, "laptop", refine="network").to_json()["ok"]
+    assert len(seen) >= 2 and all(c is not None and c.objective is chosen for c in seen), seen

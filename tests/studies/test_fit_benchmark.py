@@ -90,8 +90,8 @@ def test_exact_config_reaches_the_exact_methods_only(tmp_path, capsys):
                                methods=("per_part/umeyama", "exact_reduced/lm"))
     from dataclasses import replace
 
-    biased = replace(config, exact_config={"npcs_bias_weight": 0.01, "npcs_scale_bias": True})
-    assert biased.exact_config == (("npcs_bias_weight", 0.01), ("npcs_scale_bias", True))
+    biased = replace(config, exact_config={"npcs_bias_weight": 0.02, "npcs_scale_bias": False})  # not the default's
+    assert biased.exact_config == (("npcs_bias_weight", 0.02), ("npcs_scale_bias", False))
     frames = bench.load_frames(config)
     plain_recs = bench.run_benchmark(config, frames=frames)["records"]
     biased_recs = bench.run_benchmark(biased, frames=frames)["records"]
@@ -100,12 +100,68 @@ def test_exact_config_reaches_the_exact_methods_only(tmp_path, capsys):
     assert by(plain_recs, "exact_reduced/lm") != by(biased_recs, "exact_reduced/lm")
     out = tmp_path / "fit.md"
     assert main(["bench", "fit", "--frames", "1", "--categories", "laptop", "--levels", "realistic", "--methods",
-                 "exact_reduced/lm", "--exact-config", '{"npcs_bias_weight": 0.01}', "--out", str(out)]) == 0
-    assert """--exact-config '{"npcs_bias_weight": 0.01}'""" in out.read_text()
+                 "exact_reduced/lm", "--exact-config", '{"npcs_bias_weight": 0.02}', "--out", str(out)]) == 0
+    assert """--exact-config '{"npcs_bias_weight": 0.02}'""" in out.read_text()
     for bad, why in (("[1]", "expected a JSON object"), ("{x", "not JSON"), ('{"bogus": 1}', "exact_config")):
         capsys.readouterr()
         assert main(["bench", "fit", "--quick", "--exact-config", bad, "--out", str(tmp_path / "x.md")]) == 2
         assert why in capsys.readouterr().err
+
+
+def test_quick_says_it_is_not_the_verdict_in_the_page_and_on_stdout(tmp_path, capsys):
+    """Issue 63: ``--quick`` stays quick and marks itself as not the verdict (the page's head and stdout); the per-part
+    table of the default fit against the official scheme is there, with the previous objective beside it."""
+    from ancsh.cli import main
+
+    out = tmp_path / "fit.md"
+    assert main(["bench", "fit", "--quick", "--frames", "1", "--categories", "laptop", "--methods",
+                 f"{bench.DEFAULT_METHOD},{bench.PREVIOUS_METHOD},official", "--official-hypotheses", "20",
+                 "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    head = out.read_text().split("## Targets")[0]
+    assert "NOT THE VERDICT" in head and "--quick" in head and "NOT THE VERDICT" in stdout
+    text = out.read_text()
+    assert "## The default fit against the official scheme, per part" in text
+    assert "| laptop | base |" in text and "| laptop | display |" in text
+    assert "rot previous" in text and "official / default" in text
+
+
+def _verdict_records(frames, default_rot=2.0):
+    recs = []
+    for f in range(frames):
+        for method, rot, trans, ms in ((bench.DEFAULT_METHOD, default_rot, 0.004, 10.0),
+                                       (bench.PREVIOUS_METHOD, 2.2, 0.006, 8.0), ("official", 2.5, 0.005, 1000.0)):
+            recs.append({"method": method, "level": "realistic", "ok": True, "category": "laptop", "frame": f,
+                         "time_ms": ms, "parts": [{"name": "base", "trans": trans, "rot_deg": rot},
+                                                  {"name": "display", "trans": trans, "rot_deg": rot}]})
+    return {"records": recs, "methods": [bench.DEFAULT_METHOD, bench.PREVIOUS_METHOD, "official"]}
+
+
+def test_the_verdict_needs_its_frames_and_every_part_below_in_rotation_and_translation():
+    v = bench.verdict(_verdict_records(bench.VERDICT_FRAMES))
+    assert v["is_verdict"] and v["met"] and (v["below"], v["parts_total"]) == (2, 2)
+    assert v["speed"]["all"]["official_over_default"] == pytest.approx(100.0)
+    assert v["speed"]["all"]["default_over_previous"] == pytest.approx(1.25)
+    assert bench.verdict_line(v).startswith("Verdict: met")
+    assert not bench.verdict(_verdict_records(bench.VERDICT_FRAMES), quick=True)["is_verdict"]
+    few = bench.verdict(_verdict_records(bench.VERDICT_FRAMES - 1))
+    assert not few["is_verdict"] and bench.verdict_line(few).startswith("NOT THE VERDICT")
+    worse = bench.verdict(_verdict_records(bench.VERDICT_FRAMES, default_rot=2.6))  # rotation above the official's
+    assert worse["is_verdict"] and not worse["met"] and worse["below"] == 0
+    assert "NOT met" in bench.verdict_line(worse)
+    assert bench.verdict({"records": [], "methods": []}) is None
+    changed = dict(_verdict_records(bench.VERDICT_FRAMES), config={"exact_config": [["npcs_bias_weight", 0.02]]})
+    assert not bench.verdict(changed)["is_verdict"] and "--exact-config" in bench.verdict_line(bench.verdict(changed))
+
+
+def test_the_full_run_has_the_verdicts_frames_and_the_previous_objective_method():
+    assert bench.FULL.frames_per_category >= bench.VERDICT_FRAMES and bench.QUICK.frames_per_category < bench.VERDICT_FRAMES
+    names = [m.name for m in bench.available_methods(bench.BenchConfig(categories=("laptop",)))]
+    assert bench.DEFAULT_METHOD in names and bench.PREVIOUS_METHOD in names
+    from ancsh.solvers.fit import FORMULATIONS
+
+    assert bench.DEFAULT_METHOD == f"exact_reduced/{FORMULATIONS['exact_reduced'].solvers[0]}"  # fit's own default
+    assert bench.PREVIOUS_METHOD == f"{bench.DEFAULT_METHOD}:previous"
 
 
 def test_speed_section_gives_mean_and_median_ratios_per_category():

@@ -64,13 +64,23 @@ def test_evaluate_with_sets_the_fit_defaults_inside_its_block_and_refuses_bad_fi
     from ancsh.cli.bench.fit_translation import fit_config_defaults
     from ancsh.solvers.fit import FitConfig
 
-    with fit_config_defaults({"npcs_bias_weight": 0.01, "npcs_scale_bias": True}):
+    from ancsh.solvers.formulations import DEFAULT_OBJECTIVE
+
+    from ancsh.learned.inference.provider import LearnedProvider
+
+    own = LearnedProvider.fit_config
+    with fit_config_defaults({"npcs_bias_weight": 0.02, "npcs_scale_bias": False}):
         c = ancsh.solvers.FitConfig()
-        assert (c.npcs_bias_weight, c.npcs_scale_bias) == (0.01, True)
+        assert (c.npcs_bias_weight, c.npcs_scale_bias, c.npcs_stretch_bias) == (0.02, False, False)
         assert ancsh.solvers.FitConfig(npcs_bias_weight=0.1).npcs_bias_weight == 0.1  # the caller's field wins
-    assert ancsh.solvers.FitConfig is FitConfig and FitConfig().npcs_bias_weight == 0.0
+        stub = type("Stub", (), {"category": "laptop"})()  # the networks' fits: their objective, then the defaults
+        assert LearnedProvider.fit_config(stub) == FitConfig.default_for("learned", "laptop", npcs_bias_weight=0.02,
+                                                                         npcs_scale_bias=False)
+        assert LearnedProvider.fit_config(stub, npcs_bias_weight=0.1).npcs_bias_weight == 0.1
+    assert ancsh.solvers.FitConfig is FitConfig and LearnedProvider.fit_config is own
+    assert FitConfig().npcs_bias_weight == DEFAULT_OBJECTIVE.npcs_bias_weight
     for bad, says in (("{nope", "not JSON|Expecting"), ("[1]", "JSON object"), ('{"no_such_field": 1}', "no_such_field"),
-                      ('{"npcs_stretch_bias": true}', "needs the NPCS scale biases")):
+                      ('{"npcs_scale_bias": false, "npcs_stretch_bias": true}', "needs the NPCS scale biases")):
         with pytest.raises(SystemExit) as e:
             main(["evaluate-with", bad, "evaluate", "--help"])
         assert e.value.code == 2

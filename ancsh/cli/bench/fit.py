@@ -10,12 +10,16 @@ from .._args import changed_options, fit_config_fields, non_negative_int
 
 def register(sub) -> None:
     """Add ``fit`` to the ``ancsh bench`` sub-commands."""
+    from ...studies.fit.measure import VERDICT_FRAMES
+
     p = sub.add_parser("fit", help="compare every fitting formulation and the official ANCSH scheme")
-    p.add_argument("--quick", action="store_true", help="few frames, two corruption levels (~1-2 min)")
+    p.add_argument("--quick", action="store_true", help="few frames, two corruption levels (~1-2 min); not the verdict "
+                   "(the default fit against the official scheme per part), which needs the full run")
     p.add_argument("--json", action="store_true", help="also write the records as JSON next to the markdown")
     p.add_argument("--out", default=None, help="markdown report path (default: a fresh ancsh_results/bench-fit-<time>/)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/fit_benchmark.md (when --out is not given)")
-    p.add_argument("--frames", type=int, default=None, help="frames per category (default 8; quick 2)")
+    p.add_argument("--frames", type=int, default=None, help=f"frames per category (default {VERDICT_FRAMES}, what the "
+                   "verdict needs at least; quick 2)")
     p.add_argument("--categories", default=None, help="comma-separated categories (default: the paper's five)")
     p.add_argument("--levels", default=None, help="comma-separated corruption presets")
     p.add_argument("--methods", default=None, help="comma-separated method names (default: all)")
@@ -65,8 +69,11 @@ def run(args) -> int:
 
     out_md = report_path(args.out, update_docs=args.update_docs, docs_name="fit_benchmark.md", command="bench-fit")
     out_json = out_md.with_suffix(".json") if args.json else None
-    head = write_report(report, out_md, out_json, command=command)
+    head = write_report(report, out_md, out_json, command=command, quick=args.quick)
     print(f"\nwrote {out_md}" + (f" and {out_json}" if out_json else "") + f" in {time.perf_counter() - t0:.0f} s")
+    from ...studies.fit.report import verdict_line
+
+    print(verdict_line(head["verdict"]))
     for key in ("speedup", "thin_part_reduction", "exact_vs_gt_refit"):
         if key in head:
             print(f"{key}: {head[key]:.3g}")

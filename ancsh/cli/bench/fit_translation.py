@@ -92,12 +92,19 @@ def _ancsh(ancsh_args: list[str]) -> int:
 def fit_config_defaults(defaults: dict):
     """Within the block ``ancsh.solvers.FitConfig(**kw)`` is ``FitConfig(**{**defaults, **kw})``: the fields of
     ``defaults`` (name -> value) become the defaults of every fit that looks ``FitConfig`` up at call time (the
-    ``ancsh`` commands do); restored after."""
+    ``ancsh`` commands do), and of the shipped networks' fits (``LearnedProvider.fit_config``: its objective, then
+    ``defaults``, then the caller's fields); restored after."""
     import ancsh.solvers
+    from ...learned.inference.provider import LearnedProvider
     from ...solvers.fit import FitConfig
+
+    learned = LearnedProvider.fit_config
+    LearnedProvider.fit_config = lambda self, **kw: learned(self, **{**defaults, **kw})
 
     class _Defaults:
         paper = staticmethod(FitConfig.paper)
+        previous = staticmethod(FitConfig.previous)
+        with_objective = staticmethod(FitConfig.with_objective)
 
         def __new__(cls, **kw):
             return FitConfig(**{**defaults, **kw})
@@ -107,6 +114,7 @@ def fit_config_defaults(defaults: dict):
         yield
     finally:
         ancsh.solvers.FitConfig = FitConfig
+        LearnedProvider.fit_config = learned
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -235,7 +235,8 @@ def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulati
     t0 = time.perf_counter()
     corr, raw = infer(provider, obs)
     t_net = time.perf_counter() - t0
-    first = _FirstStage(obs, pts, pixels, valid, corr, raw, fit(obs, corr, formulation, rng=seed), t_bp, t_net)
+    first = _FirstStage(obs, pts, pixels, valid, corr, raw, fit(obs, corr, formulation, config=provider.fit_config(),
+                                                                rng=seed), t_bp, t_net)
     return [_finish_candidate(first, d, intrinsics, mask, category, provider, formulation, seed, refine, object_gate,
                               min_p_object) for refine in refinements]
 

@@ -273,6 +273,14 @@ class LearnedProvider:
         """The network's category (from its training config)."""
         return getattr(self.network.config, "category", None)
 
+    def fit_config(self, **overrides):
+        """The :class:`~ancsh.solvers.fit.FitConfig` of this provider's fits: the defaults with the objective
+        :data:`~ancsh.solvers.formulations.DEFAULT_OBJECTIVES` names for the shipped networks of :attr:`category`
+        (``FitConfig.default_for("learned", category)``), then ``overrides`` (e.g. ``box_extents``)."""
+        from ...solvers.fit import FitConfig
+
+        return FitConfig.default_for("learned", self.category, **overrides)
+
     def refines(self, refine: str | None = "provider") -> bool:
         """Whether :meth:`refine` refines (``refine``: an override of the provider's option, as there)."""
         return self.refine_choice(refine) is not None
@@ -304,8 +312,8 @@ class LearnedProvider:
             Overrides the provider's ``refine`` option (default: use it).
         rng : numpy.random.Generator or int
         config : FitConfig, optional
-            Of the refinement network's fits (give the first fit's, e.g. its ``box_extents``; default: the
-            formulation's). The template refinement (articulated ICP) does not use it.
+            Of the refinement network's fits (give the first fit's, e.g. its ``box_extents``; default:
+            :meth:`fit_config`). The template refinement (articulated ICP) does not use it.
 
         Returns
         -------
@@ -319,7 +327,8 @@ class LearnedProvider:
             from .refine_network import refine_with_network
 
             return refine_with_network(self.refiner, observation, fit, formulation=fit.formulation,
-                                       passes=self.refine_passes, rng=rng, config=config)
+                                       passes=self.refine_passes, rng=rng,
+                                       config=self.fit_config() if config is None else config)
         from ...data.templates import load_template_library
         from ...solvers.icp.category import refine_fit
 

@@ -79,7 +79,7 @@ def refine_with_network(refiner, observation: Observation, fit_result: FitResult
     passes : int
         At most this many passes.
     config : FitConfig, optional
-        Of the refined fits (default: the formulation's).
+        Of the refined fits (default: the refiner's, :meth:`LearnedProvider.fit_config`).
     rng : int or numpy.random.Generator
         Seeds the fits' RANSAC.
     tol_deg : float
@@ -107,7 +107,8 @@ def refine_with_network(refiner, observation: Observation, fit_result: FitResult
     for p in range(int(passes)):
         R_start = result.T_cam_npcs[root].rotation
         inf = refiner.infer(observation, input_rotation=R_start.T)
-        r = fit(observation, inf.correspondences, formulation, config=config, rng=rng)
+        r = fit(observation, inf.correspondences, formulation, config=refiner.fit_config() if config is None else config,
+                rng=rng)
         if not r.ok or not r.T_cam_npcs:
             reason = f"pass {p + 1}: the fit failed ({r.status.value}: {r.message})"
             break

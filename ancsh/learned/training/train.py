@@ -259,13 +259,13 @@ class PoseValidation:
         from ..inference.provider import LearnedProvider
 
         provider = LearnedProvider(network, seed=self.seed)
-        c = network.config
+        c, fit_config = network.config, provider.fit_config()
         rot, axis, state, failures = [], [], [], 0
         for i, (obs, gt) in enumerate(self.frames):
             R_in = None
             if c.is_refiner:  # a first fit that erred by up to refine_perturb_deg
                 R_in = refine_rotations(gt.T_cam_naocs.rotation[None], math.radians(c.refine_perturb_deg), [[self.seed, VAL_STREAM, i]])[0]
-            r = fit(obs, provider.correspond(obs, input_rotation=R_in), self.formulation, rng=self.seed + i)
+            r = fit(obs, provider.correspond(obs, input_rotation=R_in), self.formulation, config=fit_config, rng=self.seed + i)
             ev = evaluate_fit(r, gt)
             if not ev.ok:
                 failures += 1

@@ -6,9 +6,10 @@
 
 from __future__ import annotations
 
-from .measure import (BenchConfig, BenchFrame, Method, QUICK, FULL, THIN_PARTS, available_methods, evaluate_fit,
-                      load_frames, run_benchmark)
-from .report import headline, overall, summarize, write_report
+from .measure import (DEFAULT_METHOD, PREVIOUS_METHOD, VERDICT_FRAMES, BenchConfig, BenchFrame, Method, QUICK, FULL,
+                      THIN_PARTS, available_methods, evaluate_fit, load_frames, run_benchmark)
+from .report import headline, overall, summarize, verdict, verdict_line, write_report
 
-__all__ = ["BenchConfig", "BenchFrame", "Method", "QUICK", "FULL", "THIN_PARTS", "available_methods", "evaluate_fit",
-           "load_frames", "run_benchmark", "headline", "overall", "summarize", "write_report"]
+__all__ = ["BenchConfig", "BenchFrame", "DEFAULT_METHOD", "Method", "PREVIOUS_METHOD", "QUICK", "FULL", "THIN_PARTS",
+           "VERDICT_FRAMES", "available_methods", "evaluate_fit", "load_frames", "run_benchmark", "headline", "overall",
+           "summarize", "verdict", "verdict_line", "write_report"]

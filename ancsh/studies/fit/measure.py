@@ -10,6 +10,10 @@ Methods
 -------
 - every (formulation, backend) pair of the solver core's ``FORMULATIONS`` registry
   (``ancsh.solvers.fit``), named ``formulation/backend``, with the default ``FitConfig``;
+  ``exact_reduced/<its first backend>`` is the fit a user gets (``fit``'s default formulation and backend;
+  :data:`DEFAULT_METHOD`);
+- :data:`PREVIOUS_METHOD` (``<that method>:previous``): the same with the default objective before issue 63,
+  ``FitConfig.previous()`` (:data:`ancsh.solvers.formulations.PREVIOUS_OBJECTIVE`), for comparison;
 - ``official``: the official ANCSH pairwise scheme (:mod:`ancsh.solvers.official`);
 - ``gt_refit`` (a reference, not a method): the *best achievable* fit of the noisy
   correspondences. Definition: the ``exact_reduced`` formulation without RANSAC and without
@@ -40,11 +44,26 @@ import numpy as np
 
 from ...geometry._checks import check_bool, check_int
 
-__all__ = ["BenchConfig", "BenchFrame", "Method", "QUICK", "FULL", "THIN_PARTS", "available_methods", "evaluate_fit",
-           "load_frames", "run_benchmark"]
+__all__ = ["BenchConfig", "BenchFrame", "DEFAULT_METHOD", "Method", "PREVIOUS_METHOD", "QUICK", "FULL", "THIN_PARTS",
+           "VERDICT_FRAMES", "available_methods", "evaluate_fit", "load_frames", "run_benchmark"]
 
 # Thin parts of the issue's target (category -> part names).
 THIN_PARTS = {"eyeglasses": ("left_temple", "right_temple"), "laptop": ("display",)}
+
+def _default_method() -> str:
+    """``fit``'s default formulation and its first (default) backend, as a method name."""
+    from ...solvers.formulations import FORMULATIONS
+
+    return f"exact_reduced/{FORMULATIONS['exact_reduced'].solvers[0]}"
+
+
+#: The method a user gets (``fit``'s default formulation and backend, the default ``FitConfig``): the verdict's.
+DEFAULT_METHOD = _default_method()
+#: The same fit with the default objective before issue 63 (``FitConfig.previous()``).
+PREVIOUS_METHOD = f"{DEFAULT_METHOD}:previous"
+#: The verdict (the default fit against the official scheme on every part) needs at least this many frames a category
+#: at ``realistic``: with fewer, parts whose errors differ by less than their standard error decide it by chance.
+VERDICT_FRAMES = 60
 
 # Formulation names the headline ratios use, in order of preference.
 _PER_PART = ("per_part/umeyama", "per_part")
@@ -80,7 +99,7 @@ class BenchConfig:
     """
 
     categories: tuple = ()
-    frames_per_category: int = 8
+    frames_per_category: int = VERDICT_FRAMES
     levels: tuple = ("none", "low", "realistic", "high")
     num_points: int = 1024
     seed: int = 0
@@ -114,7 +133,7 @@ class BenchConfig:
                 raise ValueError(f"exact_config: {exc}") from None
 
 
-QUICK = BenchConfig(frames_per_category=2, levels=("none", "realistic"), num_points=512)
+QUICK = BenchConfig(frames_per_category=2, levels=("none", "realistic"), num_points=512)  # not the verdict
 FULL = BenchConfig()
 
 
@@ -230,6 +249,13 @@ def _core_methods(exact_config: tuple = ()) -> list:
                 lambda obs, corr, rng, sample, _n=name, _s=solver, _c=config: fit(obs, corr, formulation=_n, solver=_s,
                                                                                   config=_c, rng=rng),
             ))
+    formulation, solver = DEFAULT_METHOD.split("/")
+    if formulation in FORMULATIONS:
+        previous = FitConfig.previous(**{k: v for k, v in exact_config
+                                         if k not in ("naocs_prior_weight", "npcs_bias_weight", "npcs_scale_bias",
+                                                      "npcs_stretch_bias")})
+        methods.append(Method(PREVIOUS_METHOD, lambda obs, corr, rng, sample, _c=previous: fit(
+            obs, corr, formulation=formulation, solver=solver, config=_c, rng=rng)))
     return methods
 
 

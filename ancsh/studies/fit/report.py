@@ -9,11 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ...solvers.formulations import DEFAULT_OBJECTIVE
 from ..report import write_json, write_text
-from .measure import _EXACT, _PER_PART, THIN_PARTS, _mean
+from .measure import _EXACT, _PER_PART, DEFAULT_METHOD, PREVIOUS_METHOD, THIN_PARTS, VERDICT_FRAMES, _mean
 from .speed import speed_by_category, speed_lines
 
-__all__ = ["headline", "overall", "summarize", "write_report"]
+__all__ = ["headline", "overall", "summarize", "verdict", "verdict_line", "write_report"]
+
+#: The verdict's level and reference method.
+VERDICT_LEVEL = "realistic"
+VERDICT_REFERENCE = "official"
 
 
 def summarize(report: dict) -> list:
@@ -177,6 +182,111 @@ def headline(report: dict) -> dict:
     return out
 
 
+def verdict(report: dict, *, quick: bool = False) -> dict | None:
+    """The default fit (:data:`~ancsh.studies.fit.measure.DEFAULT_METHOD`) against the official scheme per part at
+    ``realistic``: issue 63's target (below in rotation and translation on every part).
+
+    Returns ``None`` when the records lack either method at that level. Otherwise ``{"level", "method", "reference",
+    "previous" (the previous objective's method, or None), "frames" (per category), "is_verdict" (at least
+    :data:`VERDICT_FRAMES` frames a category, not ``quick`` and no ``exact_config``), "exact_config" (bool), "parts": [{"category", "part", "rot_deg", "trans"
+    (each ``{method: mean}``), "below" (the default's rotation and translation below the reference's)}], "below",
+    "parts_total", "met" (below on every part), "speed": {category or "all": {"ms": {method: mean ms},
+    "official_over_default", "default_over_previous"}}}``; the records' exact methods use ``--exact-config`` when the
+    report's config has one (``exact_config``, named in the page).
+    """
+    recs, names = report["records"], report["methods"]
+    level, method, ref = VERDICT_LEVEL, DEFAULT_METHOD, VERDICT_REFERENCE
+    at = [r for r in recs if r["level"] == level]
+    if not any(r["method"] == method for r in at) or not any(r["method"] == ref for r in at):
+        return None
+    previous = PREVIOUS_METHOD if PREVIOUS_METHOD in names and any(r["method"] == PREVIOUS_METHOD for r in at) else None
+    shown = [m for m in (method, previous, ref) if m is not None]
+    cats = list(dict.fromkeys(r["category"] for r in at))
+    parts = []
+    for cat in cats:
+        names_of = list(dict.fromkeys(p["name"] for r in at if r["category"] == cat and r["ok"] for p in r["parts"]))
+        for part in names_of:
+            row = {"category": cat, "part": part, "rot_deg": {}, "trans": {}}
+            for m in shown:
+                sel = [p for r in at if r["method"] == m and r["category"] == cat and r["ok"] for p in r["parts"]
+                       if p["name"] == part]
+                row["rot_deg"][m] = _mean(p["rot_deg"] for p in sel)
+                row["trans"][m] = _mean(p["trans"] for p in sel)
+            row["below"] = bool(row["rot_deg"][method] < row["rot_deg"][ref] and row["trans"][method] < row["trans"][ref])
+            parts.append(row)
+
+    def speed(sel):
+        ms = {m: float(np.mean([r["time_ms"] for r in sel if r["method"] == m])) for m in shown}
+        return {"ms": ms, "official_over_default": ms[ref] / ms[method],
+                "default_over_previous": ms[method] / ms[previous] if previous else float("nan")}
+
+    frames = {c: len({r["frame"] for r in at if r["category"] == c and r["method"] == method}) for c in cats}
+    changed = bool(report.get("config", {}).get("exact_config"))  # --exact-config: not the default fit
+    below = sum(r["below"] for r in parts)
+    failed = {m: sum(not r["ok"] for r in at if r["method"] == m) for m in shown}
+    return {
+        "level": level, "method": method, "reference": ref, "previous": previous, "frames": frames, "quick": bool(quick),
+        "exact_config": changed,
+        "is_verdict": bool(not quick and not changed and frames and min(frames.values()) >= VERDICT_FRAMES),
+        "parts": parts, "below": int(below), "parts_total": len(parts), "met": bool(parts and below == len(parts)),
+        "failed": failed, "speed": {**{c: speed([r for r in at if r["category"] == c]) for c in cats}, "all": speed(at)},
+    }
+
+
+def verdict_line(v: dict | None) -> str:
+    """One line for the page's head and for stdout: the verdict, or why this run is not it."""
+    if v is None:
+        return (f"No verdict: the run lacks {DEFAULT_METHOD} or {VERDICT_REFERENCE} at {VERDICT_LEVEL} (the verdict: "
+                f"`ancsh bench fit`, at least {VERDICT_FRAMES} frames a category).")
+    n = min(v["frames"].values())
+    result = (f"{v['method']} below {v['reference']} in rotation and translation on {v['below']} of "
+              f"{v['parts_total']} parts ({', '.join(v['frames'])}; {n} frames a category, {v['level']})")
+    if not v["is_verdict"]:
+        why = f"{n} frames a category" + (", --quick" if v["quick"] else "") + (
+            ", --exact-config: not the default fit" if v.get("exact_config") else "")
+        return (f"NOT THE VERDICT ({why}; the verdict needs at least {VERDICT_FRAMES} frames a category, the default "
+                f"fit and no --quick: `ancsh bench fit`): {result}.")
+    return f"Verdict: {'met' if v['met'] else 'NOT met'}: {result}."
+
+
+def _verdict_section(v: dict | None, exact_config) -> list:
+    """The page's table of the default fit against the official scheme per part."""
+    lines = ["", "## The default fit against the official scheme, per part", "", verdict_line(v), ""]
+    if v is None:
+        return lines
+    prev = v["previous"]
+    lines += [
+        f"`{v['method']}` is the fit a user gets (`ancsh.solvers.fit` defaults: formulation, backend and "
+        "`FitConfig()`, whose objective is `ancsh.solvers.formulations.DEFAULT_OBJECTIVE`)"
+        + (f", here with `--exact-config` {dict(exact_config)}" if exact_config else "")
+        + (f"; `{prev}` is it with the objective before issue 63 (`FitConfig.previous()`)" if prev else "")
+        + f". Means over the frames each method fitted, at `{v['level']}`; below = the default's rotation **and** "
+        f"translation errors below `{v['reference']}`'s on that part.",
+        "",
+        "| category | part | rot (deg) default | " + ("rot previous | " if prev else "") + "rot official | trans default | "
+        + ("trans previous | " if prev else "") + "trans official | below |",
+        "|---|---|---|" + ("---|" if prev else "") + "---|---|" + ("---|" if prev else "") + "---|---|",
+    ]
+    m, ref = v["method"], v["reference"]
+    for r in v["parts"]:
+        rot = [r["rot_deg"][m]] + ([r["rot_deg"][prev]] if prev else []) + [r["rot_deg"][ref]]
+        tr = [r["trans"][m]] + ([r["trans"][prev]] if prev else []) + [r["trans"][ref]]
+        lines.append(f"| {r['category']} | {r['part']} | " + " | ".join(f"{x:.2f}" for x in rot) + " | "
+                     + " | ".join(f"{x:.4f}" for x in tr) + f" | {'yes' if r['below'] else 'NO'} |")
+    lines += ["", "Speed (mean ms per frame at the same level; official / default = how many times faster the default is"
+              + ("; default / previous = what the objective costs" if prev else "") + "):", "",
+              "| category | default ms | " + ("previous ms | " if prev else "") + "official ms | official / default | "
+              + ("default / previous |" if prev else ""),
+              "|---|---|" + ("---|" if prev else "") + "---|---|" + ("---|" if prev else "")]
+    for c, sp in v["speed"].items():
+        ms = sp["ms"]
+        lines.append(f"| {c} | {ms[m]:.1f} | " + (f"{ms[prev]:.1f} | " if prev else "") + f"{ms[ref]:.1f} | "
+                     f"{sp['official_over_default']:.0f} | " + (f"{sp['default_over_previous']:.2f} |" if prev else ""))
+    if any(v["failed"].values()):
+        lines += ["", "Failed fits (left out of the means): " + ", ".join(f"{k} {n}" for k, n in v["failed"].items()) + "."]
+    return lines
+
+
 # --------------------------------------------------------------------------------------
 # report
 # --------------------------------------------------------------------------------------
@@ -203,8 +313,11 @@ def _translation_note(report: dict, level: str) -> list:
         "by NPCS noise (the official scheme's pairwise-distance ratio likewise); the default `FitConfig` scale is "
         "the reverse regression (camera onto NPCS), which NPCS noise does not shrink. The canonical (NAOCS) "
         "parameters enter the exact fit's joints: taken as exact (`naocs_prior_weight=0`, the paper) their "
-        "noise moves every part, the default prior (0.1) lets the data adjust them. Measured causes, with the "
-        "commands: `docs/results/fit_translation.md`.",
+        "noise moves every part, the default prior "
+        f"({DEFAULT_OBJECTIVE.naocs_prior_weight:g}) lets the data adjust them, and the default NPCS biases "
+        f"(prior {DEFAULT_OBJECTIVE.npcs_bias_weight:g}: a rotation, scale and stretch of each part's NPCS about its "
+        "origin) take up the NPCS warp. Measured causes, with the commands: `docs/results/fit_translation.md`; the "
+        "choice of the default objective: `ancsh.solvers.formulations.DEFAULT_OBJECTIVE`.",
         "",
         f"Mean over all parts at `{level}` (scale: |fitted / true - 1|):",
         "",
@@ -221,10 +334,12 @@ def _translation_note(report: dict, level: str) -> list:
     return lines
 
 
-def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> dict:
-    """Write the markdown report (and a JSON of its numbers: headline, overall and per-category
-    summaries, config); return the headline. The per-frame records stay in ``report``."""
+def write_report(report: dict, out_md, out_json=None, *, command: str = "", quick: bool = False) -> dict:
+    """Write the markdown report (and a JSON of its numbers: headline, verdict, overall and per-category
+    summaries, config); return the headline, with the verdict (:func:`verdict`) under ``"verdict"``. The per-frame
+    records stay in ``report``. ``quick``: the run is ``--quick`` (never the verdict; the page and the verdict say so)."""
     head = headline(report)
+    head["verdict"] = verdict(report, quick=quick)
     rows = summarize(report)
     cfg = report["config"]
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
@@ -233,6 +348,8 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> d
         "",
         f"Generated {when} by `{command or 'ancsh bench fit'}` on {platform.machine()} "
         f"({platform.python_version()}, numpy {np.__version__}).",
+        "",
+        f"**{verdict_line(head['verdict'])}**",
         "",
         f"Frames: {cfg['frames_per_category']} per category, {cfg['num_points']} points, "
         f"source: {', '.join(report['frame_source'])} "
@@ -276,6 +393,7 @@ def write_report(report: dict, out_md, out_json=None, *, command: str = "") -> d
     if "thin_exact_rot_deg" in head:
         lines.append(f"Thin parts: {head['per_part']} {head['thin_per_part_rot_deg']:.2f} deg, "
                      f"{head['exact']} {head['thin_exact_rot_deg']:.2f} deg.")
+    lines += _verdict_section(head["verdict"], cfg.get("exact_config") or ())
     lines += _translation_note(report, head["level"])
     lines += speed_lines(report, head["level"])
     lines += ["", "## Overall, per level and method", "",

@@ -136,6 +136,7 @@ def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", 
     from ...data.dataset import FrameDataset
     from ...geometry.lines import line_distance
     from ...geometry.metrics import axis_angle_error_deg, rotation_error_deg, translation_error
+    from ...solvers.formulations import provider_fit_config
     from ...solvers import Observation, fit
     from ...learned.inference.provider import LearnedProvider
 
@@ -167,7 +168,7 @@ def pipeline(data, weights: str, *, frames: int = 10, formulations=("per_part", 
         axis.append([axis_angle_error_deg(corr.joint_axes_naocs[k], fr.gt.joint_axes_naocs[k]) for k in range(corr.num_joints)])
         for f in formulations:
             t0 = time.perf_counter()
-            r = fit(obs, corr, f)
+            r = fit(obs, corr, f, config=provider_fit_config(provider))
             dt = time.perf_counter() - t0
             if not r.ok:
                 recs[f].append(None)

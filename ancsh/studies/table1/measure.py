@@ -18,7 +18,9 @@ then fit the same network output, so they differ only in how they use it:
 ``soft`` (ANCSH, the paper's combined optimisation)
     Sec. 4.3 soft joint energies, ``FitConfig.paper()``.
 ``exact_reduced`` / ``exact_maximal`` (ANCSH-exact, ours)
-    Joints as exact constraints (IPOPT), default ``FitConfig()``.
+    Joints as exact constraints (IPOPT), the provider's ``FitConfig``
+    (:meth:`~ancsh.learned.inference.provider.LearnedProvider.fit_config`: the shipped networks' default objective,
+    :data:`ancsh.solvers.formulations.DEFAULT_OBJECTIVES`).
 ``network`` (ANCSH-exact + refinement network, ours; only when asked for, ``refine="network"``)
     The ``exact_reduced`` fit refined by the category's refinement network
     (:func:`ancsh.learned.inference.refine_network.refine_with_network`: the points rotated into the fit's
@@ -198,8 +200,13 @@ def per_point_naocs(prediction, corr: Correspondences) -> np.ndarray:
     return prediction.scale[rows, lab, None] * corr.npcs + prediction.translation[rows, lab]
 
 
-def fit_method(key: str, observation: Observation, corr: Correspondences, *, naocs=None, rng=0) -> FitResult:
-    """Fit one :data:`METHODS` entry to the network's correspondences (``naocs``: per-point NAOCS for ``"naocs"``)."""
+def fit_method(key: str, observation: Observation, corr: Correspondences, *, naocs=None, rng=0,
+               config=None) -> FitResult:
+    """Fit one :data:`METHODS` entry to the network's correspondences (``naocs``: per-point NAOCS for ``"naocs"``).
+
+    ``config``: the :class:`~ancsh.solvers.fit.FitConfig` of the methods without the paper's config (the
+    ``exact_*`` rows; give the provider's, :meth:`~ancsh.learned.inference.provider.LearnedProvider.fit_config`);
+    default ``FitConfig()``. The paper's rows use ``FitConfig.paper()``."""
     from ...solvers import FitConfig, fit
 
     if key not in METHODS:
@@ -208,7 +215,7 @@ def fit_method(key: str, observation: Observation, corr: Correspondences, *, nao
         raise ValueError(f"key: {key!r} refines an exact_reduced fit (ancsh.solvers.icp.category.refine_fit, "
                          "ancsh.learned.inference.refine_network.refine_with_network)")
     m = METHODS[key]
-    config = FitConfig.paper() if m.paper_config else FitConfig()
+    config = FitConfig.paper() if m.paper_config else FitConfig() if config is None else config
     if key == "naocs":
         return fit_naocs(observation, corr, naocs=naocs, config=config, rng=rng)
     return fit(observation, corr, m.formulation, config=config, rng=rng)
@@ -317,6 +324,7 @@ class _FrameEvaluator:
                                         refine_passes=refine_passes)
         self.voter = None if direct_weights is None else DirectVotingPredictor(direct_weights, seed=seed, device=device)
         self.seed, self.methods = int(seed), tuple(methods)
+        self.fit_config = self.provider.fit_config()  # the exact rows: the network's default objective
         self.library = None
         if "template" in self.methods:
             from ...data.templates import load_template_library
@@ -346,14 +354,15 @@ class _FrameEvaluator:
         for key in self.methods:
             if key in REFINEMENTS:
                 continue
-            r = fits[key] = fit_method(key, obs, corr, naocs=naocs, rng=self.seed + i)
+            r = fits[key] = fit_method(key, obs, corr, naocs=naocs, rng=self.seed + i, config=self.fit_config)
             ev = evaluate_fit(r, fr.gt, fr.part_names, fr.joint_names).to_dict()
             ev["fit_ms"] = 1e3 * r.time_s
             rec["methods"][key] = ev
         if self.library is not None:
             from ...solvers.icp.category import refine_fit
 
-            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=self.seed + i)
+            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=self.seed + i,
+                                                                                          config=self.fit_config)
             ref = refine_fit(obs, base, corr, self.library, rng=self.seed + i)
             ev = evaluate_fit(ref.result, fr.gt, fr.part_names, fr.joint_names).to_dict()
             ev["fit_ms"] = 1e3 * ref.result.time_s if ref.accepted else 1e3 * (base.time_s + ref.time_s)
@@ -362,7 +371,8 @@ class _FrameEvaluator:
                             "score_refined": ref.score_refined}
             rec["methods"]["template"] = ev
         if "network" in self.methods:
-            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=self.seed + i)
+            base = fits["exact_reduced"] if "exact_reduced" in fits else fit_method("exact_reduced", obs, corr, rng=self.seed + i,
+                                                                                          config=self.fit_config)
             if base.ok:
                 ref = self.provider.refine(obs, corr, base, refine="network", rng=self.seed + i)
                 ev = evaluate_fit(ref.result, fr.gt, fr.part_names, fr.joint_names).to_dict()

@@ -342,7 +342,8 @@ def write_report(evaluation: dict, summary: dict, out_dir, *, command: str, real
         "the per-part median `G_s, G_t`; with per-part `G` it would equal NPCS exactly; no boxes, as in the paper); **ANCSH-soft** = the paper's combined optimisation with soft joint energies (`soft`, "
         "`FitConfig.paper()`, also used for NPCS and NAOCS); **ANCSH-exact** = joints as exact constraints, reduced "
         "(object pose + joint states) and maximal (all part poses + equality constraints) coordinates, IPOPT, "
-        "default `FitConfig()`. The NPCS and NAOCS baselines use the ANCSH network's own heads, not separately "
+        "the shipped networks' default `FitConfig` (`LearnedProvider.fit_config()`, "
+        "`ancsh.solvers.formulations.DEFAULT_OBJECTIVES`). The NPCS and NAOCS baselines use the ANCSH network's own heads, not separately "
         "trained networks. " + ("The paper's rows are its Table 1 (its CAD datasets, not our procedural instances)."
                                 if paper1 else f"The paper has no {category} category, so no paper rows."),
         "",

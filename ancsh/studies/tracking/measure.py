@@ -327,7 +327,7 @@ def run_benchmark(config: BenchConfig, *, progress=None) -> dict:
                 records.append(rec)
     if config.urdf is not None:
         records += _urdf_records(config, say)
-    return {"config": config.to_dict(), "tracker": asdict(tcfg) | {"fit": asdict(tcfg.fit)},
+    return {"config": config.to_dict(), "tracker": asdict(tcfg) | {"fit": None if tcfg.fit is None else asdict(tcfg.fit)},
             "machine": {"start": machine_start, "end": machine_facts()}, "records": records}
 
 

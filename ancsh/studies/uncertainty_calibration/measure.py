@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -149,7 +149,6 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
 
     records, counts = {}, {}
     timing = {p: {"fit_ms": [], "fit_ms_without": [], "covariance_ms": []} for p in config.providers}
-    no_uncertainty = FitConfig(uncertainty=False)
     for cat in config.categories:
         learned = None
         if {"learned", "learned-template", "learned-network"} & set(config.providers):
@@ -182,7 +181,8 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
                         corr, raw = inferred
                     else:
                         corr = OracleProvider(frame.gt, p.split("-", 1)[1], rng, joint_limits=_limits(model)).correspond(obs)
-                    result = fit(obs, corr, config.formulation, rng=i)
+                    fit_config = learned.fit_config() if p.startswith("learned") else FitConfig()  # the default objective
+                    result = fit(obs, corr, config.formulation, config=fit_config, rng=i)
                     if p in ("learned-template", "learned-network") and result.ok:
                         from ...learned.inference.provider import apply_refinement
 
@@ -194,7 +194,7 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
                     if p.startswith("learned"):
                         result = check_plausibility(result, corr.part_labels, cat, part_quality(result, frame.points, corr, raw))
                     if split == "test":
-                        ref = fit(obs, corr, config.formulation, config=no_uncertainty, rng=i)
+                        ref = fit(obs, corr, config.formulation, config=replace(fit_config, uncertainty=False), rng=i)
                         timing[p]["fit_ms"].append(1e3 * result.time_s)
                         timing[p]["fit_ms_without"].append(1e3 * ref.time_s)
                         if result.uncertainty is not None:

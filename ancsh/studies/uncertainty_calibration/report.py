@@ -146,7 +146,8 @@ def write_report(measured: dict, summary: dict, config: CalibrationConfig, out_m
         "",
         f"Frames: per category {config.n_calibration} calibration frames (held-out test instances, frame seed stream "
         f"{config.calibration_seed}) and {config.frames} test frames (seed {config.seed}, the frames of `ancsh evaluate`); "
-        f"formulation `{config.formulation}` with the default `FitConfig`. {_frames_note(config)} Providers: `oracle-realistic` (ground truth "
+        f"formulation `{config.formulation}` with each provider's default objective (the oracle's `FitConfig()`, the "
+        f"networks' `LearnedProvider.fit_config()`: `ancsh.solvers.formulations.DEFAULT_OBJECTIVES`). {_frames_note(config)} Providers: `oracle-realistic` (ground truth "
         "corrupted by the `realistic` preset) and `learned` (shipped weights, with the plausibility checks of "
         "`ancsh predict`). Each error is normalised by its predicted covariance (squared Mahalanobis distance, "
         "see `ancsh/studies/uncertainty_calibration.py`); `1σ` / `2σ`: the share of test errors inside the region of "
