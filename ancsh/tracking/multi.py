@@ -302,6 +302,8 @@ class MultiObjectTracker:
         from ..data.conventions import convention
         from ..model.articulated import JointType
 
+        if not hasattr(provider, "correspond"):
+            raise ValueError(f"provider: expected a correspondence provider (with .correspond), got {type(provider).__name__}")
         self.provider = provider
         self._provider = _Remembering(provider)  # the tracks' provider: keeps its last inference for verification
         self.intrinsics = intrinsics

@@ -253,7 +253,11 @@ def test_multi_object_tracker_refuses_bad_input():
         MultiTrackerConfig(detect_every=0)
     with pytest.raises(ValueError, match="same_object_iou"):
         MultiTrackerConfig(same_object_iou=1.5)
-    tracker = MultiObjectTracker(object(), Intrinsics.kinect(64, 48), "laptop")
+    with pytest.raises(ValueError, match="provider"):
+        MultiObjectTracker(object(), Intrinsics.kinect(64, 48), "laptop")
+    from ancsh.learned.inference.predict import make_provider
+
+    tracker = MultiObjectTracker(make_provider("laptop"), Intrinsics.kinect(64, 48), "laptop")
     with pytest.raises(ValueError, match="depth"):
         tracker.step(np.zeros((10, 10)))
 
