@@ -48,6 +48,7 @@ from ..geometry.rotations import geodesic_angle
 from ..solvers.types import FitResult, Observation
 from .association import associate
 from .config import TrackerConfig
+from .records import MultiFrame, TrackRecord
 from .regions import support_height
 from .state_filter import StateFilter, StateFilterConfig, filtered_fit
 
@@ -92,6 +93,9 @@ class MultiTrackerConfig:
         ``(0, 1]``.
     gate_translation : float
         Or whose root part lies at most this many object diagonals from the track's, ``> 0``.
+    max_translation : float
+        And never one whose root part lies more than this many object diagonals from the track's (a touching neighbour
+        of the same category is about one diagonal away), ``> 0``.
     reinit_rotation_deg : float
         A matched detection whose root rotation differs from the track's by more than this re-initialises it, ``> 0``.
     reinit_state : float
@@ -129,6 +133,7 @@ class MultiTrackerConfig:
     max_clearance_m: float = 0.008
     same_object_iou: float = 0.2
     gate_translation: float = 0.2
+    max_translation: float = 0.5
     reinit_rotation_deg: float = 30.0
     reinit_state: float = np.deg2rad(30.0)
     inside_share: float = 0.5
@@ -151,7 +156,7 @@ class MultiTrackerConfig:
         for name in ("same_object_iou", "inside_share"):
             check_number(getattr(self, name), name, minimum=0.0, maximum=1.0, lower_open=True)
         check_number(self.max_size_change, "max_size_change", minimum=1.0, lower_open=True)
-        for name in ("gate_translation", "reinit_rotation_deg", "reinit_state"):
+        for name in ("gate_translation", "max_translation", "reinit_rotation_deg", "reinit_state"):
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
         for name in ("min_explained", "max_see_through"):
             check_number(getattr(self, name), name, minimum=0.0, maximum=1.0)
@@ -183,104 +188,6 @@ class _Track:
         """The fitted model at the filtered state."""
         f = self.filter
         return filtered_fit(self.result, self.correspondences, f.R, f.translation, f.joint_states)
-
-
-@dataclass(frozen=True)
-class TrackRecord:
-    """One track on one frame.
-
-    Attributes
-    ----------
-    id : int
-        The track's id (stable over the sequence; never reused).
-    status : str
-        ``born`` (a verified detection started it), ``tracked`` (its measurement applied), ``outlier`` (measured far
-        from the prediction: not applied), ``coasting`` (no acceptable measurement: the prediction),
-        ``reinitialised`` (restarted from a detection).
-    message : str
-    source : str
-        The measurement's correspondences (``network``, ``carried``, ``detection``, ``none``).
-    model : FitResult
-        The fitted model at the filtered state (camera frame).
-    joint_states, joint_states_std : (K,) float64
-        Filtered joint states relative to rest and their standard deviations (radians / metres).
-    measured_states : (K,) float64
-        This frame's measurement (NaN without one).
-    translation_std : (3,) float64
-        Of the root translation (metres).
-    rotation_std : (3,) float64
-        Of the root rotation about each camera axis (radians).
-    pixels : int
-        Pixels of its region this frame.
-    p_object : float or None
-        The last verification's ``p_object``.
-    misses : int
-        Frames in a row without an accepted measurement.
-    """
-
-    id: int
-    status: str
-    message: str
-    source: str
-    model: FitResult
-    joint_states: np.ndarray
-    joint_states_std: np.ndarray
-    measured_states: np.ndarray
-    translation_std: np.ndarray
-    rotation_std: np.ndarray
-    pixels: int
-    p_object: float | None
-    misses: int
-    mask: np.ndarray | None = field(default=None, repr=False)
-
-    def to_dict(self) -> dict:
-        from ..outputs import json_safe
-
-        m = self.model
-        return json_safe({
-            "id": self.id, "status": self.status, "message": self.message, "source": self.source,
-            "joint_states": self.joint_states.tolist(), "joint_states_std": self.joint_states_std.tolist(),
-            "measured_states": self.measured_states.tolist(),
-            "part_poses": [{"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)}
-                           for T in m.T_cam_npcs],
-            "translation_std": self.translation_std.tolist(), "rotation_std_deg": np.rad2deg(self.rotation_std).tolist(),
-            "joint_axes_cam": np.asarray(m.joint_axes_cam).tolist(), "joint_pivots_cam": np.asarray(m.joint_pivots_cam).tolist(),
-            "pixels": self.pixels, "p_object": self.p_object, "misses": self.misses,
-        })
-
-
-@dataclass(frozen=True)
-class MultiFrame:
-    """The tracker's answer for one frame: every live track's record, the tracks that ended, what ran.
-
-    Attributes
-    ----------
-    index : int
-    tracks : tuple of TrackRecord
-    ended : tuple of int
-        Ids of the tracks that ended on this frame.
-    detected : bool
-        Detection ran on this frame.
-    detections : int
-        Verified objects it found (0 when it did not run).
-    stages_ms : dict
-        Milliseconds of ``regions``, ``measure`` (every track's step), ``verify``, ``detect``.
-    time_s : float
-    """
-
-    index: int
-    tracks: tuple
-    ended: tuple
-    detected: bool
-    detections: int
-    stages_ms: dict
-    time_s: float
-
-    def to_dict(self) -> dict:
-        """One line of ``ancsh track``'s output (``ancsh.track/2``)."""
-        return {"frame": int(self.index), "tracks": [t.to_dict() for t in self.tracks], "ended": list(self.ended),
-                "detected": bool(self.detected), "detections": int(self.detections),
-                "stages_ms": {k: float(v) for k, v in self.stages_ms.items()}, "time_ms": 1e3 * float(self.time_s)}
 
 
 class MultiObjectTracker:
@@ -573,7 +480,7 @@ class MultiObjectTracker:
                 inter = np.count_nonzero(mask & o.mask) if mask is not None else 0
                 iou = inter / max(np.count_nonzero(mask | o.mask), 1) if mask is not None else 0.0
                 dist = float(np.linalg.norm(Td.translation - T.translation)) / max(L, tr.diagonal)
-                if iou >= cfg.same_object_iou or dist <= cfg.gate_translation:
+                if dist <= cfg.max_translation and (iou >= cfg.same_object_iou or dist <= cfg.gate_translation):
                     cost[i, j] = (1.0 - iou) + dist
         pairs = associate(cost)
         matched = {j for _, j in pairs}
@@ -616,12 +523,19 @@ class MultiObjectTracker:
 
     def _missing_track_at(self, det, regions: dict, paired: set):
         """The missing track (not paired with a detection this frame) on whose predicted pixels ``det`` lies (at least
-        ``same_object_iou`` of the detection's mask), the most overlapped one; ``None`` if none."""
+        ``same_object_iou`` of the detection's mask) with its root part within ``max_translation`` object diagonals,
+        the most overlapped one; ``None`` if none."""
+        from ..learned.inference.checks import object_diagonal
+
         best, best_share = None, self.config.same_object_iou
         n = max(int(np.count_nonzero(det.mask)), 1)
+        root = det.result.T_cam_npcs[det.correspondences.root_part].translation
         for i, tr in enumerate(self._tracks):
             region = regions.get(tr.id)
             if i in paired or tr.misses == 0 or region is None:
+                continue
+            L = max(object_diagonal(det.result.boxes_cam), tr.diagonal)
+            if np.linalg.norm(root - tr.model().T_cam_npcs[self._root(tr)].translation) > self.config.max_translation * L:
                 continue
             share = np.count_nonzero(region & det.mask) / n
             if share >= best_share:

@@ -1,9 +1,11 @@
 """What a tracker reports per frame: :class:`TrackStatus` and :class:`TrackedFrame`, shared by the category tracker
-(:mod:`ancsh.tracking.tracker`) and the instance tracker (:mod:`ancsh.tracking.instance`)."""
+(:mod:`ancsh.tracking.tracker`) and the instance tracker (:mod:`ancsh.tracking.instance`); :class:`TrackRecord` (one
+track on one frame) and :class:`MultiFrame` (every track on one frame) of the multi-object tracker
+(:mod:`ancsh.tracking.multi`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
@@ -89,3 +91,101 @@ def joint_state_std(result) -> np.ndarray | None:
     if cov is None:
         return None
     return np.sqrt(np.clip(np.diag(np.asarray(cov, dtype=np.float64)), 0.0, None))
+
+
+@dataclass(frozen=True)
+class TrackRecord:
+    """One track on one frame.
+
+    Attributes
+    ----------
+    id : int
+        The track's id (stable over the sequence; never reused).
+    status : str
+        ``born`` (a verified detection started it), ``tracked`` (its measurement applied), ``outlier`` (measured far
+        from the prediction: not applied), ``coasting`` (no acceptable measurement: the prediction),
+        ``reinitialised`` (restarted from a detection).
+    message : str
+    source : str
+        The measurement's correspondences (``network``, ``carried``, ``detection``, ``none``).
+    model : FitResult
+        The fitted model at the filtered state (camera frame).
+    joint_states, joint_states_std : (K,) float64
+        Filtered joint states relative to rest and their standard deviations (radians / metres).
+    measured_states : (K,) float64
+        This frame's measurement (NaN without one).
+    translation_std : (3,) float64
+        Of the root translation (metres).
+    rotation_std : (3,) float64
+        Of the root rotation about each camera axis (radians).
+    pixels : int
+        Pixels of its region this frame.
+    p_object : float or None
+        The last verification's ``p_object``.
+    misses : int
+        Frames in a row without an accepted measurement.
+    """
+
+    id: int
+    status: str
+    message: str
+    source: str
+    model: object  # FitResult
+    joint_states: np.ndarray
+    joint_states_std: np.ndarray
+    measured_states: np.ndarray
+    translation_std: np.ndarray
+    rotation_std: np.ndarray
+    pixels: int
+    p_object: float | None
+    misses: int
+    mask: np.ndarray | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        from ..outputs import json_safe
+
+        m = self.model
+        return json_safe({
+            "id": self.id, "status": self.status, "message": self.message, "source": self.source,
+            "joint_states": self.joint_states.tolist(), "joint_states_std": self.joint_states_std.tolist(),
+            "measured_states": self.measured_states.tolist(),
+            "part_poses": [{"rotation": T.rotation.tolist(), "translation": T.translation.tolist(), "scale": float(T.scale)}
+                           for T in m.T_cam_npcs],
+            "translation_std": self.translation_std.tolist(), "rotation_std_deg": np.rad2deg(self.rotation_std).tolist(),
+            "joint_axes_cam": np.asarray(m.joint_axes_cam).tolist(), "joint_pivots_cam": np.asarray(m.joint_pivots_cam).tolist(),
+            "pixels": self.pixels, "p_object": self.p_object, "misses": self.misses,
+        })
+
+
+@dataclass(frozen=True)
+class MultiFrame:
+    """The tracker's answer for one frame: every live track's record, the tracks that ended, what ran.
+
+    Attributes
+    ----------
+    index : int
+    tracks : tuple of TrackRecord
+    ended : tuple of int
+        Ids of the tracks that ended on this frame.
+    detected : bool
+        Detection ran on this frame.
+    detections : int
+        Verified objects it found (0 when it did not run).
+    stages_ms : dict
+        Milliseconds of ``regions``, ``measure`` (every track's step), ``verify``, ``detect``.
+    time_s : float
+    """
+
+    index: int
+    tracks: tuple
+    ended: tuple
+    detected: bool
+    detections: int
+    stages_ms: dict
+    time_s: float
+
+    def to_dict(self) -> dict:
+        """One line of ``ancsh track``'s output (``ancsh.track/2``)."""
+        return {"frame": int(self.index), "tracks": [t.to_dict() for t in self.tracks], "ended": list(self.ended),
+                "detected": bool(self.detected), "detections": int(self.detections),
+                "stages_ms": {k: float(v) for k, v in self.stages_ms.items()}, "time_ms": 1e3 * float(self.time_s)}
