@@ -47,3 +47,11 @@ def test_a_new_track_after_the_old_one_ended_is_a_fragment_not_a_switch():
               for i, (r, live) in enumerate(zip(rows, [[0], [], [2]]))]
     o = summarise({"category": "laptop", "sequence": "pair", "frames": frames, "track_s": 0.1, "stage_ms": {}})["objects"][0]
     assert o["switches"] == 0 and o["fragments"] == 1 and o["tracks"] == 2
+
+
+def test_a_track_matched_to_two_objects_is_counted():
+    a, b = _row(5), dict(_row(5), object=1)
+    frames = [{"frame": 0, "objects": [a, dict(_row(None), object=1)], "false_track": 0, "false_predict": 0, "live": [5]},
+              {"frame": 1, "objects": [_row(None), b], "false_track": 0, "false_predict": 0, "live": [5]}]
+    s = summarise({"category": "laptop", "sequence": "pair", "frames": frames, "track_s": 0.1, "stage_ms": {}})
+    assert s["wandering"] == 1
