@@ -3,26 +3,29 @@
 :class:`MultiObjectTracker` steps on whole depth images. Per frame:
 
 1. **Regions.** Each live track's fitted model is posed where it was last measured (after a frame without a
-   measurement: at its state predicted by the :class:`~ancsh.tracking.state_filter.StateFilter`); its pixels are the valid pixels whose points lie inside one of its part boxes
-   grown by ``region_margin`` object diagonals, above its support (the lowest box corner along the object's up axis,
-   +y of the NAOCS, plus ``support_clearance``: the table or floor it stands on is not the object). A pixel in two
-   tracks' regions goes to the one it lies deeper inside.
+   measurement: at its state predicted by the :class:`~ancsh.tracking.state_filter.StateFilter`); its pixels are the
+   valid pixels whose points lie inside one of its part boxes grown by ``region_margin`` object diagonals, at least
+   ``support_clearance`` above the surface it stands on (the lowest well-supported plane of the depth under it,
+   :func:`~ancsh.tracking.regions.support_height`: the table or floor is not the object). A pixel in two tracks'
+   regions goes to the one it lies deeper inside.
 2. **Measurements.** Each track's :class:`~ancsh.tracking.tracker.CategoryTracker` steps on its region's points
    (warm fits, the network every ``network_every``-th frame, carried correspondences in between). Every
    ``verify_every``-th network frame of a track is verified: the category template posed at the fit is rendered and
    compared with the depth (:func:`~ancsh.solvers.twin.compare_fit`); it must explain ``min_explained`` of the
    region's depth and see through at most ``max_see_through`` (``p_object`` is reported), else the track is not
-   measured again before a fresh detection (on the next frame) re-initialises it; the tracker's own checks (inliers, the category's size range, residual,
-   joint range) run on every frame, and a fit whose object is more than ``max_size_change`` times larger or smaller
-   than the track's size so far is no measurement of it. An accepted fit is the measurement of the track's filter; a
-   measurement far from the prediction is checked against the depth: where the category template posed at it
+   measured again before a fresh detection (on the next frame) re-initialises it; the tracker's own checks (inliers,
+   the category's size range, residual, joint range) run on every frame, and a fit whose object is more than
+   ``max_size_change`` times larger or smaller than the track's size so far is no measurement of it. An accepted fit
+   is the measurement of the track's filter; a measurement far from the prediction is checked against the depth: where the category template posed at it
    explains the region better than at the prediction (explained less seen-through share, at least
    ``min_explained - max_see_through``) the filter restarts from it, else it is an outlier (the state coasts, and the
    tracker restarts warm from the filtered state).
 3. **Detection.** ``ancsh predict``'s object list (:func:`~ancsh.learned.inference.predict.predict_depth`: isolation,
-   every candidate verified), on the depth without the pixels of the tracks measured on this frame, on the first frame, every ``detect_every``-th frame, and every ``redetect_every``-th
-   frame while a track is missing. Detections are associated with tracks by an assignment problem
-   (:func:`~ancsh.tracking.association.associate`: segment overlap and the distance of the root parts, gated);
+   every candidate verified), on the depth without the pixels of the tracks measured on this frame: on the first
+   frame, every ``detect_every``-th frame, every ``redetect_every``-th frame while a track is missing, and after a
+   failed verification. Detections are associated with tracks by an assignment problem
+   (:func:`~ancsh.tracking.association.associate`: segment overlap and the distance of the root parts, gated; never
+   farther than ``max_translation`` object diagonals);
    a matched track that is missing or far from its detection is re-initialised from the detection (not from its last
    state); an unmatched verified detection is a new track (*born*); one mostly inside a live track's pixels is not.
    An unpaired detection on a missing track's predicted pixels re-initialises that track.
@@ -210,7 +213,8 @@ class MultiObjectTracker:
         from ..model.articulated import JointType
 
         if not hasattr(provider, "correspond"):
-            raise ValueError(f"provider: expected a correspondence provider (with .correspond), got {type(provider).__name__}")
+            raise ValueError("provider: expected a correspondence provider (with .correspond), got "
+                             f"{type(provider).__name__}")
         self.provider = provider
         self._provider = _Remembering(provider)  # the tracks' provider: keeps its last inference for verification
         self.intrinsics = intrinsics
@@ -405,7 +409,8 @@ class MultiObjectTracker:
                 tr.filter.restart(T.rotation, T.translation, states, _std(result))
                 tr.result, tr.correspondences, tr.misses = result, corr, 0
                 return self._record(tr, "tracked", f"measurement {update.innovation:.1f} sigma from the prediction, "
-                                    f"verified: it explains the depth better ({new:.2f} against {old if old is not None else float('nan'):.2f}); "
+                                    f"verified: it explains the depth better ({new:.2f} against "
+                                    f"{old if old is not None else float('nan'):.2f}); "
                                     "the state restarts from it", frame.source, states, pixels)
             tr.tracker.start_from(observation, dataclasses.replace(predicted, inliers=result.inliers), corr)
             return self._record(tr, "outlier", f"measurement {update.innovation:.1f} sigma from the prediction, and the "
