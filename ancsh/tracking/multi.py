@@ -16,10 +16,10 @@
    measured again before a fresh detection (on the next frame) re-initialises it; the tracker's own checks (inliers,
    the category's size range, residual, joint range) run on every frame, and a fit whose object is more than
    ``max_size_change`` times larger or smaller than the track's size so far is no measurement of it. An accepted fit
-   is the measurement of the track's filter; a measurement far from the prediction is checked against the depth: where the category template posed at it
-   explains the region better than at the prediction (explained less seen-through share, at least
-   ``min_explained - max_see_through``) the filter restarts from it, else it is an outlier (the state coasts, and the
-   tracker restarts warm from the filtered state).
+   is the measurement of the track's filter; a measurement far from the prediction is checked against the depth:
+   where the category template posed at it explains the region better than at the prediction (explained less
+   seen-through share, at least ``min_explained - max_see_through``) the filter restarts from it, else it is an
+   outlier (the state coasts, and the tracker restarts warm from the filtered state).
 3. **Detection.** ``ancsh predict``'s object list (:func:`~ancsh.learned.inference.predict.predict_depth`: isolation,
    every candidate verified), on the depth without the pixels of the tracks measured on this frame: on the first
    frame, every ``detect_every``-th frame, every ``redetect_every``-th frame while a track is missing, and after a
