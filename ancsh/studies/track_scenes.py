@@ -43,13 +43,6 @@ SEQUENCES = {
 MEASURED = ("born", "tracked", "reinitialised")
 
 
-def _errors(model, gt) -> tuple:
-    from .stress_scenes import _errors as errors
-
-    rot, state, unit = errors(model, gt)
-    return rot, state, unit
-
-
 def _states_deg(states, unit) -> np.ndarray:
     s = np.asarray(states, dtype=np.float64)
     return s if unit == "m" else np.rad2deg(s)
@@ -61,7 +54,7 @@ def run_sequence(provider, category: str, name: str, length: int, seed: int, ind
     from ..data.scene_sequences import SceneSequenceConfig, render_scene_sequence
     from ..learned.inference.predict import predict_depth
     from ..tracking.multi import MultiObjectTracker
-    from .stress_scenes import MIN_VISIBLE_PIXELS, match_objects
+    from .stress_scenes import MIN_VISIBLE_PIXELS, _errors, match_objects
 
     cfg = SceneSequenceConfig(category, length=length, seed=seed, **SEQUENCES[name])
     tracker = None
@@ -78,19 +71,13 @@ def run_sequence(provider, category: str, name: str, length: int, seed: int, ind
         measured = [t for t in out.tracks if t.status in MEASURED]
         rec = {"frame": f.index, "objects": [], "false_track": 0, "false_predict": 0, "time_ms": 1e3 * out.time_s,
                "live": [int(t.id) for t in out.tracks]}
-        if visibles:
-            matched, unmatched, _ = match_objects([t.mask for t in measured], [True] * len(measured), visibles)
-        else:
-            matched, unmatched = {}, list(range(len(measured)))
+        matched, unmatched, _ = match_objects([t.mask for t in measured], [True] * len(measured), visibles)
         rec["false_track"] = len(unmatched)
         pred_objs = []
         if baseline:
             pred = predict_depth(f.depth, f.intrinsics, category, provider=provider, seed=seed)
             pred_objs = [o for o in (pred.objects or (pred,)) if o.result.ok and o.mask is not None]
-        if visibles:
-            pm, pun, _ = match_objects([o.mask for o in pred_objs], [True] * len(pred_objs), visibles)
-        else:
-            pm, pun = {}, list(range(len(pred_objs)))
+        pm, pun, _ = match_objects([o.mask for o in pred_objs], [True] * len(pred_objs), visibles)
         rec["false_predict"] = len(pun)
         for k, o in enumerate(f.objects):
             r = {"object": k, "visible": int(np.count_nonzero(o.visible)) >= MIN_VISIBLE_PIXELS, "moving": bool(o.moving),
