@@ -424,16 +424,10 @@ class MultiObjectTracker:
         """Share of ``mask``'s depth that the category template posed at ``result`` explains, less the share it says
         is seen through (render-and-compare, :func:`~ancsh.solvers.twin.compare_fit`); ``None`` where it cannot
         render."""
-        from ..data.templates import load_template_library
-        from ..solvers.twin import compare_fit
+        from ..learned.inference.candidate import template_comparison
 
-        try:
-            comparison, _ = compare_fit(result, corr, load_template_library(self.category), depth, self.intrinsics, mask)
-        except ValueError:
-            return None
-        if comparison is None:
-            return None
-        return float(comparison.explained) - float(comparison.see_through)
+        comparison = template_comparison(result, corr, depth, self.intrinsics, mask, self.category)
+        return None if comparison is None else float(comparison.explained) - float(comparison.see_through)
 
     def _evidence(self, result, corr, depth, mask, points):
         """Render-and-compare of a network frame's fit on ``mask`` and its ``p_object`` (the category's calibration, the

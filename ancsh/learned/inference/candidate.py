@@ -22,7 +22,7 @@ from ...data.render import Intrinsics
 from .checks import MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
-__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
+__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence", "template_comparison",
            "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty"]
 
 
@@ -286,22 +286,30 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 
+def template_comparison(result, corr, depth, intrinsics, mask, category):
+    """The category template posed at the fit, rendered and compared with ``depth`` on ``mask``
+    (:func:`ancsh.solvers.twin.compare_fit`): a :class:`~ancsh.solvers.render_compare.DepthComparison`, or ``None``
+    for a category without templates, an empty mask, or a fit without the joints or boxes a template needs."""
+    from ...data.procedural import CATEGORY_INFO
+    from ...data.templates import load_template_library
+    from ...solvers.twin import compare_fit
+
+    if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
+        return None
+    try:
+        return compare_fit(result, corr, load_template_library(category), depth, intrinsics, mask)[0]
+    except ValueError:  # a fit without the joints or boxes a template needs
+        return None
+
+
 def object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
     """Render-and-compare of the fit (:func:`ancsh.solvers.twin.compare_fit`) and the calibrated
     P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
     import json
 
-    from ...data.procedural import CATEGORY_INFO
-    from ...data.templates import load_template_library
-    from ...solvers.twin import compare_fit
     from .confidence import OBJECT_FEATURES, object_calibration_path, object_features, probability_good
 
-    if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
-        return None, None
-    try:
-        comparison, _ = compare_fit(result, corr, load_template_library(category), depth, intrinsics, mask)
-    except ValueError:  # a fit without the joints or boxes a template needs
-        return None, None
+    comparison = template_comparison(result, corr, depth, intrinsics, mask, category)
     if comparison is None:
         return None, None
     path = object_calibration_path(category)
