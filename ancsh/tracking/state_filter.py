@@ -182,20 +182,6 @@ class StateFilter:
     def num_joints(self) -> int:
         return len(self.joint_types)
 
-    def _restart(self, rotation, translation, states, std) -> None:
-        k = self.num_joints
-        c = self.config
-        r = self._variances(std)
-        self._x = np.zeros((k + 6, 2))
-        self._x[:k, 0] = states
-        self._x[k:k + 3, 0] = translation
-        self._P = np.zeros((k + 6, 2, 2))
-        self._P[:, 0, 0] = r
-        self._P[:, 1, 1] = c.initial_velocity_std ** 2
-        self.R = np.asarray(rotation, dtype=np.float64).copy()
-        self.outliers = 0
-        self._clamp()
-
     def _variances(self, std) -> np.ndarray:
         k, c = self.num_joints, self.config
         s = np.full(k, np.nan) if std is None else np.asarray(std, dtype=np.float64).reshape(k)
@@ -212,8 +198,21 @@ class StateFilter:
 
     def restart(self, rotation, translation, states, std=None) -> None:
         """Start again from one measurement (the arguments of :meth:`update`): its value, zero velocity."""
-        self._restart(np.asarray(rotation, dtype=np.float64), np.asarray(translation, dtype=np.float64).reshape(3),
-                      np.asarray(states, dtype=np.float64).reshape(self.num_joints), std)
+        states = np.asarray(states, dtype=np.float64).reshape(self.num_joints)
+        translation = np.asarray(translation, dtype=np.float64).reshape(3)
+        k = self.num_joints
+        c = self.config
+        r = self._variances(std)
+        self._x = np.zeros((k + 6, 2))
+        self._x[:k, 0] = states
+        self._x[k:k + 3, 0] = translation
+        self._P = np.zeros((k + 6, 2, 2))
+        self._P[:, 0, 0] = r
+        self._P[:, 1, 1] = c.initial_velocity_std ** 2
+        self.R = np.asarray(rotation, dtype=np.float64).copy()
+        self.outliers = 0
+        self._clamp()
+
 
     def predict(self) -> None:
         """Move the state one frame ahead (nothing before the first measurement)."""
@@ -248,20 +247,19 @@ class StateFilter:
         states = np.asarray(states, dtype=np.float64).reshape(self.num_joints)
         translation = np.asarray(translation, dtype=np.float64).reshape(3)
         if self._x is None:
-            self._restart(rotation, translation, states, std)
+            self.restart(rotation, translation, states, std)
             return FilterUpdate(True, False, True, float("nan"))
         k = self.num_joints
         z = np.concatenate([states, translation, log_so3(np.asarray(rotation) @ self.R.T)])
         r = self._variances(std)
         S, K = _gain(self._P, r)
-        nu = z - self._x[:, 0]
-        nu[k + 3:] = z[k + 3:]  # the rotation error's predicted value is zero
+        nu = z - self._x[:, 0]  # the rotation error's predicted value is zero (folded into R by predict)
         nis = nu ** 2 / S
         worst = float(np.sqrt(np.max(nis)))
         if worst > self.config.gate:
             self.outliers += 1
             if self.outliers >= self.config.max_outliers:
-                self._restart(rotation, translation, states, std)
+                self.restart(rotation, translation, states, std)
                 return FilterUpdate(True, True, True, worst)
             return FilterUpdate(False, True, False, worst)
         self.outliers = 0
