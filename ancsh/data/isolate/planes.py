@@ -76,10 +76,15 @@ def grid_normals(P: np.ndarray, gv: np.ndarray, right: np.ndarray, down: np.ndar
 
 
 def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_ok: np.ndarray, right: np.ndarray,
-                    down: np.ndarray, lo: float, hi: float, rng) -> tuple[list, np.ndarray, int]:
+                    down: np.ndarray, lo: float, hi: float, rng, tolerance=None) -> tuple[list, np.ndarray, int]:
     """The support planes of the grid: RANSAC planes (at most :data:`MAX_PLANES`) whose connected pieces, after an
     opening, are wider than the category's largest size ``hi`` times ``SIZE_FACTOR``, or wider than a typical one
     (``sqrt(lo hi)``, metres) and running out of the view; then the rounded edges where two supports meet.
+
+    ``P`` are the grid points (camera frame, metres; the smoothed ones of :func:`~.noise.smooth_grid` in
+    :func:`~.proposals.isolate_object`); a point is on a plane within :data:`PLANE_THRESHOLD_M` (at least 2 % of
+    ``lo``) or, where larger, its ``tolerance`` (``(h, w)`` metres: :func:`~.noise.plane_tolerance`, the noise at its
+    depth), and near a support for its corner within :data:`CORNER_MARGIN_M` or that tolerance.
 
     Returns ``(supports, support, planes)``: the support ``(h, w)`` bool after each removal (the candidates' depths
     of plane removal), the last support, and how many planes were removed."""
@@ -88,7 +93,9 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
     support = np.zeros(gv.shape, dtype=bool)
     tried = np.zeros(gv.shape, dtype=bool)  # planes that were no support: kept, but not searched again
     planes = 0
-    thresh = max(PLANE_THRESHOLD_M, 0.02 * lo)
+    base = max(PLANE_THRESHOLD_M, 0.02 * lo)
+    thresh = np.full(gv.size, base) if tolerance is None else np.maximum(np.ravel(tolerance), base)
+    corner = np.maximum(CORNER_MARGIN_M, thresh.reshape(gv.shape))
     typical = np.sqrt(lo * hi)
     idx = np.flatnonzero(gv.ravel())
     flat = P.reshape(-1, 3)
@@ -100,9 +107,9 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
         if free.size < 50:
             break
         sample = free if free.size <= RANSAC_POINTS else rng.choice(free, RANSAC_POINTS, replace=False)
-        n_plane, e = ransac_plane(flat[sample], thresh, rng)  # the sample's plane, then its inliers among all free
-        inl = np.flatnonzero(np.abs(flat[free] @ n_plane + e) < thresh)  # pixels, refitted
-        inl = refine_plane(flat[free], inl, thresh)
+        n_plane, e = ransac_plane(flat[sample], thresh[sample], rng)  # the sample's plane, then its inliers among
+        inl = np.flatnonzero(np.abs(flat[free] @ n_plane + e) < thresh[free])  # all free pixels, refitted
+        inl = refine_plane(flat[free], inl, thresh[free])
         if inl.size < max(50, MIN_PLANE_FRACTION * idx.size):
             break
         on = np.zeros(gv.size, dtype=bool)
@@ -142,7 +149,7 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
             supports.append(support.copy())
             # near the plane and beside its removed pieces: the whole plane runs through other things too
             beside = binary_dilation(support & ~before, structure=disk(CORNER_REACH))
-            near.append(beside & (np.abs((P - centre) @ normal) < CORNER_MARGIN_M))
+            near.append(beside & (np.abs((P - centre) @ normal) < corner))
         planes += int(removed)
     # where two supports meet (a stair's nosing, a table's edge against a wall) the surface is neither
     # plane: pixels near two of them are support too, so that objects standing there come apart
@@ -150,9 +157,9 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
         supports[k] = supports[k] | (gv & (np.sum(near[: k + 1], axis=0) >= 2))
     return supports, support, planes
 
-def ransac_plane(points: np.ndarray, thresh: float, rng) -> tuple[np.ndarray, float]:
+def ransac_plane(points: np.ndarray, thresh, rng) -> tuple[np.ndarray, float]:
     """The plane ``n . x + e = 0`` (unit ``n``) through three of ``points`` (N, 3) with the most points within
-    ``thresh`` metres, of :data:`RANSAC_ITERATIONS` random triples (all scored at once)."""
+    ``thresh`` metres (a number, or one per point), of :data:`RANSAC_ITERATIONS` random triples (all scored at once)."""
     triples = points[rng.integers(0, len(points), (RANSAC_ITERATIONS, 3))]
     n = np.cross(triples[:, 1] - triples[:, 0], triples[:, 2] - triples[:, 0])
     length = np.linalg.norm(n, axis=1)
@@ -161,13 +168,14 @@ def ransac_plane(points: np.ndarray, thresh: float, rng) -> tuple[np.ndarray, fl
         return np.array([0.0, 0.0, 1.0]), -float(points[0, 2])
     n = n[good] / length[good, None]
     e = -np.einsum("ij,ij->i", n, triples[good, 0])
-    counts = np.count_nonzero(np.abs(points @ n.T + e) < thresh, axis=0)
+    counts = np.count_nonzero(np.abs(points @ n.T + e) < np.reshape(thresh, (-1, 1)), axis=0)
     best = int(np.argmax(counts))
     return n[best], float(e[best])
 
 
-def refine_plane(points: np.ndarray, inliers: np.ndarray, thresh: float, rounds: int = 3) -> np.ndarray:
-    """Least-squares refits of a RANSAC plane to its inliers (stable against the random sample)."""
+def refine_plane(points: np.ndarray, inliers: np.ndarray, thresh, rounds: int = 3) -> np.ndarray:
+    """Least-squares refits of a RANSAC plane to its inliers (stable against the random sample); ``thresh``: metres, a
+    number or one per point."""
     for _ in range(rounds):
         if inliers.size < 3:
             break

@@ -11,7 +11,8 @@ import numpy as np
 from ..render import Intrinsics, valid_depth_pixels
 from .grid import SIZE_FACTOR, components, extent, fits, same_segment, size_range
 from .hints import ObjectHint, check_hint_inside, hinted_order
-from .planes import grid_normals, remove_supports
+from .noise import plane_points
+from .planes import PLANE_THRESHOLD_M, grid_normals, remove_supports
 
 __all__ = ["Cluster", "Isolation", "isolate_object"]
 
@@ -167,8 +168,12 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     jump = JUMP_SPACINGS * s * g / min(intrinsics.fx, intrinsics.fy) + JUMP_NOISE_M  # per grid pixel (metres)
     right = gv[:, :-1] & gv[:, 1:] & (np.abs(g[:, :-1] - g[:, 1:]) < np.minimum(jump[:, :-1], jump[:, 1:]))
     down = gv[:-1, :] & gv[1:, :] & (np.abs(g[:-1, :] - g[1:, :]) < np.minimum(jump[:-1, :], jump[1:, :]))
-    normals, normal_ok = grid_normals(P, gv, right, down)
-    supports, support, planes = remove_supports(P, gv, normals, normal_ok, right, down, lo, hi, rng)
+    # where the sensor's noise is larger than a plane's tolerance (far from the camera raw normals scatter too widely
+    # for any plane to hold together), planes are searched on points averaged over their surface's neighbours,
+    # within the noise measured at their depth
+    Q, tolerance = plane_points(P, gv, jump, max(PLANE_THRESHOLD_M, 0.02 * lo))
+    normals, normal_ok = grid_normals(Q, gv, right, down)
+    supports, support, planes = remove_supports(Q, gv, normals, normal_ok, right, down, lo, hi, rng, tolerance)
     # --- candidate segments at every depth of plane removal --------------------------------------------
     # (a plane removed late may take an object's face with it: a lid leaning on a stair's riser)
     levels = supports or [support]
