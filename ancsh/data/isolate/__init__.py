@@ -23,8 +23,12 @@ network and fit, :func:`ancsh.learned.inference.predict.predict_depth`) may veri
 choose, and, when it rejects every one, join two that touch into one more candidate (:func:`merged_candidate`: an
 object that plane removal cut in two). A mask given by the user always wins over this (``ancsh predict --mask``).
 
+Far from the camera a sensor's noise outgrows a plane's tolerance: where the noise measured in the image at a pixel's
+depth does, planes are searched on points averaged over their surface's neighbours, within that noise
+(:mod:`.noise`; without it, objects 4-5 m away came back as one segment with the floor).
+
 Modules: :mod:`.proposals` (:func:`isolate_object`, :class:`Isolation`: the grid, segments and ranking), :mod:`.planes`
-(support planes), :mod:`.hints` (:class:`ObjectHint`), :mod:`.verification` (the checks and joins a verifier applies to
+(support planes), :mod:`.noise` (the noise and the smoothed points planes are searched on), :mod:`.hints` (:class:`ObjectHint`), :mod:`.verification` (the checks and joins a verifier applies to
 the candidates) and :mod:`.grid` (shared helpers and the category's size range); the names below are importable from
 here.
 """
