@@ -1,5 +1,5 @@
 """Sensor noise on isolation's grid: the points averaged over their neighbours on the same surface, and how far a
-plane's inliers may lie from it at each depth (:func:`smooth_grid`, :func:`plane_tolerance`).
+plane's inliers may lie from it at each depth (:func:`smooth_grid`, :func:`noise_sigma`, :func:`plane_points`).
 
 A depth sensor's noise grows with distance (about quadratically for structured light and stereo: a few millimetres at
 1 m, centimetres at 4-5 m). Normals from neighbours a few grid spacings apart, and a plane's inliers within a fixed

@@ -81,10 +81,11 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
     opening, are wider than the category's largest size ``hi`` times ``SIZE_FACTOR``, or wider than a typical one
     (``sqrt(lo hi)``, metres) and running out of the view; then the rounded edges where two supports meet.
 
-    ``P`` are the grid points (camera frame, metres; the smoothed ones of :func:`~.noise.smooth_grid` in
-    :func:`~.proposals.isolate_object`); a point is on a plane within :data:`PLANE_THRESHOLD_M` (at least 2 % of
-    ``lo``) or, where larger, its ``tolerance`` (``(h, w)`` metres: :func:`~.noise.plane_tolerance`, the noise at its
-    depth), and near a support for its corner within :data:`CORNER_MARGIN_M` or that tolerance.
+    ``P`` are the grid points (camera frame, metres; in :func:`~.proposals.isolate_object` those of
+    :func:`~.noise.plane_points`: smoothed where the sensor's noise calls for it); a point is on a plane within
+    :data:`PLANE_THRESHOLD_M` (at least 2 % of ``lo``) or, where larger, its ``tolerance`` (``(h, w)`` metres, from the
+    same function: the noise at its depth), and near a support for its corner within :data:`CORNER_MARGIN_M` or that
+    tolerance.
 
     Returns ``(supports, support, planes)``: the support ``(h, w)`` bool after each removal (the candidates' depths
     of plane removal), the last support, and how many planes were removed."""
