@@ -7,7 +7,8 @@ import numpy as np
 
 from .grid import DISK, SIZE_FACTOR, components, disk, extent, principal_axes
 
-__all__ = ["grid_normals", "ransac_plane", "refine_plane", "remove_supports", "runs_out", "view_border"]
+__all__ = ["grid_normals", "plane_threshold", "ransac_plane", "refine_plane", "remove_supports", "runs_out",
+           "view_border"]
 
 #: Plane inlier distance (metres; at least 2 % of the category's smallest size).
 PLANE_THRESHOLD_M = 0.012
@@ -52,6 +53,12 @@ DEAD_BAND_SHARE = 0.1
 BAND_END_PIXELS = 12
 
 
+def plane_threshold(lo: float) -> float:
+    """A point's largest distance from a plane it is on without noise to allow for (metres): :data:`PLANE_THRESHOLD_M`,
+    at least 2 % of the category's smallest size ``lo``."""
+    return max(PLANE_THRESHOLD_M, 0.02 * lo)
+
+
 def grid_normals(P: np.ndarray, gv: np.ndarray, right: np.ndarray, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Surface normals ``(h, w, 3)`` of the grid points ``P`` (camera frame, metres) from the grid neighbours
     :data:`NORMAL_SPAN` pixels away on each side, where the pixels between are joined (``right``, ``down``: neighbours
@@ -83,7 +90,7 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
 
     ``P`` are the grid points (camera frame, metres; in :func:`~.proposals.isolate_object` those of
     :func:`~.noise.plane_points`: smoothed where the sensor's noise calls for it); a point is on a plane within
-    :data:`PLANE_THRESHOLD_M` (at least 2 % of ``lo``) or, where larger, its ``tolerance`` (``(h, w)`` metres, from the
+    :func:`plane_threshold` or, where larger, its ``tolerance`` (``(h, w)`` metres, from the
     same function: the noise at its depth), and near a support for its corner within :data:`CORNER_MARGIN_M` or that
     tolerance.
 
@@ -94,7 +101,7 @@ def remove_supports(P: np.ndarray, gv: np.ndarray, normals: np.ndarray, normal_o
     support = np.zeros(gv.shape, dtype=bool)
     tried = np.zeros(gv.shape, dtype=bool)  # planes that were no support: kept, but not searched again
     planes = 0
-    base = max(PLANE_THRESHOLD_M, 0.02 * lo)
+    base = plane_threshold(lo)
     thresh = np.full(gv.size, base) if tolerance is None else np.maximum(np.ravel(tolerance), base)
     corner = np.maximum(CORNER_MARGIN_M, thresh.reshape(gv.shape))
     typical = np.sqrt(lo * hi)

@@ -12,7 +12,7 @@ from ..render import Intrinsics, valid_depth_pixels
 from .grid import SIZE_FACTOR, components, extent, fits, same_segment, size_range
 from .hints import ObjectHint, check_hint_inside, hinted_order
 from .noise import plane_points
-from .planes import PLANE_THRESHOLD_M, grid_normals, remove_supports
+from .planes import grid_normals, plane_threshold, remove_supports
 
 __all__ = ["Cluster", "Isolation", "isolate_object"]
 
@@ -171,7 +171,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     # where the sensor's noise is larger than a plane's tolerance (far from the camera raw normals scatter too widely
     # for any plane to hold together), planes are searched on points averaged over their surface's neighbours,
     # within the noise measured at their depth
-    Q, tolerance = plane_points(P, gv, jump, max(PLANE_THRESHOLD_M, 0.02 * lo))
+    Q, tolerance = plane_points(P, gv, jump, plane_threshold(lo))
     normals, normal_ok = grid_normals(Q, gv, right, down)
     supports, support, planes = remove_supports(Q, gv, normals, normal_ok, right, down, lo, hi, rng, tolerance)
     # --- candidate segments at every depth of plane removal --------------------------------------------
