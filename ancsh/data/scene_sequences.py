@@ -231,7 +231,7 @@ class _Scene:
     def frame(self, i: int) -> SequenceFrame:
         from ..geometry.transforms import Sim3
         from .noise import apply_noise
-        from .scenes import TRANSLUCENT_KEEP, _blobs, _truth
+        from .scenes import TRANSLUCENT_KEEP, _blobs, _truth, nearest_surface
 
         cfg = self.config
         t = i / max(cfg.length - 1, 1)
@@ -257,10 +257,7 @@ class _Scene:
                 x = self.occluder_side * (2 * s - 1) * half_width
                 T_occ = Sim3(C.rotation, C.apply((c + np.array([x, 0.0, 0.0]))[None])[0])
                 depths.append(self.occluder.render(np.zeros(0), T_occ, intr).depth)
-        stack = np.stack([np.where(d > 0, d, np.inf) for d in depths])
-        depth = stack.min(axis=0)
-        nearest = np.where(np.isfinite(depth), np.argmin(stack, axis=0), -1)
-        depth = np.where(np.isfinite(depth), depth, 0.0)
+        depth, nearest = nearest_surface(depths)
         occluded = (nearest == len(depths) - 1) if occluder_on else np.zeros(depth.shape, dtype=bool)
         seen = [nearest == k for k in range(len(views))]
         if cfg.translucent is not None:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SceneFrame", "SceneObject", "clutter_model", "curtain_mesh", "render_scene"]
+__all__ = ["SceneFrame", "SceneObject", "clutter_model", "curtain_mesh", "nearest_surface", "render_scene"]
 
 #: Companions (more objects of the category, :func:`render_scene`) stand this far beside the frame's object (a share
 #: of its size), or touch it (``TOUCHING_SHARE`` of them).
@@ -144,6 +144,26 @@ class SceneObject:
     placement: str = "frame"
 
 
+def nearest_surface(depths) -> tuple[np.ndarray, np.ndarray]:
+    """Composite depth images of separately rendered things into what one sensor sees.
+
+    Parameters
+    ----------
+    depths : sequence of (H, W) float64
+        Metres, 0 where a thing covers no pixel.
+
+    Returns
+    -------
+    (depth, nearest) : ((H, W) float64, (H, W) int64)
+        The nearest surface at each pixel (metres, 0 where none), and the index in ``depths`` of the thing it belongs to
+        (-1 where none).
+    """
+    stack = np.stack([np.where(np.asarray(d) > 0, d, np.inf) for d in depths])
+    depth = stack.min(axis=0)
+    seen = np.isfinite(depth)
+    return np.where(seen, depth, 0.0), np.where(seen, np.argmin(stack, axis=0), -1)
+
+
 def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool | None = None, companions: int = 0,
                  translucent: int | None = None, pixel_scale: int = 1) -> SceneFrame:
     """Test frame ``index`` of ``gen`` (a :class:`~ancsh.data.generate.FrameGenerator`) in a scene (module docstring).
@@ -250,12 +270,9 @@ def render_scene(gen, index: int, rng, *, with_object: bool = True, stairs: bool
         mesh.apply_transform(to_base)
         surroundings = ArticulatedModel((Part("surroundings", mesh),), (), name="surroundings")
         views.append(ModelRenderer(surroundings).render(np.zeros(0), T_cam_base, frame.intrinsics).depth)
-    stack = np.stack([np.where(v > 0, v, np.inf) for v in views])
-    depth = stack.min(axis=0)
-    nearest = np.where(np.isfinite(depth), np.argmin(stack, axis=0), -1)
+    depth, nearest = nearest_surface(views)
     first_clutter = len(views) - len(clutter_pieces)
     clutter = np.where(nearest >= first_clutter, nearest - first_clutter, -1)
-    depth = np.where(np.isfinite(depth), depth, 0.0)
     objects = []
     for k, view in enumerate(object_views):
         seen = nearest == k

@@ -9,6 +9,7 @@ from ancsh.data.isolate import isolate_object
 from ancsh.data.isolate.noise import noise_sigma, plane_points, smooth_grid
 from ancsh.data.noise import DepthNoise, apply_noise
 from ancsh.data.render import Intrinsics, ModelRenderer, look_at
+from ancsh.data.scenes import nearest_surface
 from ancsh.model.articulated import ArticulatedModel, Part
 
 
@@ -63,10 +64,8 @@ def _far_cabinet(distance, noise):
     T_cam_world = look_at([0.0, 0.45 * distance, distance], [0.0, 0.3, 0.0], [0, 1, 0])
     views = [ModelRenderer(ArticulatedModel((Part(n, m),), (), name=n)).render(np.zeros(0), T_cam_world, intr)
              for n, m in (("cabinet", cabinet), ("floor", floor))]
-    stack = np.stack([np.where(v.depth > 0, v.depth, np.inf) for v in views])
-    depth = stack.min(axis=0)
-    is_cabinet = np.isfinite(depth) & (np.argmin(stack, axis=0) == 0)
-    depth[~np.isfinite(depth)] = 0.0
+    depth, nearest = nearest_surface([v.depth for v in views])
+    is_cabinet = nearest == 0
     if noise:
         depth = apply_noise(depth, DepthNoise(), np.random.default_rng(7))
     return depth, intr, is_cabinet & (depth > 0)

@@ -10,6 +10,7 @@ from ancsh.data.isolate import isolate_object
 from ancsh.data.isolate.planes import view_border
 from ancsh.data.procedural import load_instance
 from ancsh.data.render import Intrinsics, ModelRenderer, look_at
+from ancsh.data.scenes import nearest_surface
 from ancsh.learned.inference.predict import MAX_VERIFIED
 from ancsh.model.articulated import ArticulatedModel, Part
 
@@ -38,10 +39,8 @@ def stairs_scene(eye, *, opening_deg=110.0, dead_band=10, sigma=4.0):
     intr = Intrinsics.kinect(1280, 720)
     views = [ModelRenderer(box).render(np.array([np.radians(opening_deg)]), T_cam_world, intr),
              ModelRenderer(stairs).render(np.zeros(0), T_cam_world, intr)]
-    stack = np.stack([np.where(v.depth > 0, v.depth, np.inf) for v in views])
-    depth = stack.min(axis=0)
-    is_box = np.isfinite(depth) & (np.argmin(stack, axis=0) == 0)
-    depth[~np.isfinite(depth)] = 0.0
+    depth, nearest = nearest_surface([v.depth for v in views])
+    is_box = nearest == 0
     depth[:, :dead_band] = 0.0  # a depth sensor's dead band along the left edge
     return _smoothed(depth, sigma) if sigma else depth, intr, is_box & (depth > 0)
 

@@ -53,3 +53,13 @@ def test_clutter_pixels_are_labelled_with_the_piece_they_show(gen):
             labelled = scene.clutter >= 0
             assert np.all(scene.depth[labelled] > 0)
     assert found
+
+
+def test_the_nearest_surface_is_seen_and_labelled_with_its_thing():
+    from ancsh.data.scenes import nearest_surface
+
+    a = np.array([[1.0, 0.0, 2.0], [0.0, 0.0, 3.0]])
+    b = np.array([[1.5, 0.7, 1.0], [0.0, 0.0, 3.0]])
+    depth, nearest = nearest_surface([a, b])
+    assert np.array_equal(depth, [[1.0, 0.7, 1.0], [0.0, 0.0, 3.0]])
+    assert np.array_equal(nearest, [[0, 1, 1], [-1, -1, 0]])  # a tie goes to the first

@@ -13,6 +13,7 @@ from ancsh.cli import main
 from ancsh.data.isolate import ObjectHint, isolate_object, parse_hint
 from ancsh.data.procedural import CATEGORY_INFO, load_instance
 from ancsh.data.render import Intrinsics, ModelRenderer, look_at
+from ancsh.data.scenes import nearest_surface
 from ancsh.geometry.transforms import Sim3
 from ancsh.learned.inference.predict import MIN_POINTS, predict_depth, read_depth
 from ancsh.learned.inference.provider import LearnedProvider
@@ -36,11 +37,7 @@ def table_scene():
     views = [ModelRenderer(laptop).render(q, T_cam_world, intr),
              ModelRenderer(table).render(np.zeros(0), T_cam_world @ Sim3(np.eye(3), [0, ymin - 0.015, -0.1]), intr),
              ModelRenderer(bottle).render(np.zeros(0), T_cam_world @ Sim3(np.eye(3), [0.45, ymin + 0.12, -0.05]), intr)]
-    stack = np.stack([np.where(v.depth > 0, v.depth, np.inf) for v in views])
-    source = np.argmin(stack, axis=0)
-    depth = stack.min(axis=0)
-    source[~np.isfinite(depth)] = -1
-    depth[~np.isfinite(depth)] = 0.0
+    depth, source = nearest_surface([v.depth for v in views])
     return depth, intr, source, q
 
 
