@@ -143,6 +143,9 @@ def register(sub) -> None:
     c.add_argument("--scenes", type=non_negative_int, default=0,
                    help="with --object only (an error without it): also this many rendered scenes, their candidate segments "
                    "isolated without a mask (the object's against the rest; default 0)")
+    c.add_argument("--evidence", type=Path, metavar="NPZ",
+                   help="with --object only: fit the model on the examples a run wrote (its <category>_object_evidence.npz) "
+                   "instead of fitting frames again (--frames and --scenes are then not used)")
     c.add_argument("--no-progress", action="store_true")
     c.set_defaults(func=run_calibrate)
     register_weights(sub)
@@ -373,6 +376,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if args.scenes and not args.object:  # before any work: p_good's examples hold their scenes already
         raise ValueError(f"--scenes: only with --object (p_object's scenes); p_good's examples include stress scenes "
                          f"already (one frame in eight of --frames), got --scenes {args.scenes} without --object")
+    if args.evidence is not None and not args.object:
+        raise ValueError(f"--evidence: only with --object (p_object's examples), got --evidence {args.evidence}")
     if not args.object and args.frames < MIN_FRAMES:  # before any work, whether or not --install is given
         raise ValueError(f"--frames: a p_good calibration needs at least {MIN_FRAMES} frames (half fit it, half check "
                          f"it, each half with {MIN_FRAMES_PER_OUTCOME} good and bad fits), got --frames {args.frames}")
@@ -416,6 +421,7 @@ def _calibrate_output(args: argparse.Namespace) -> tuple:
     parts = ["calibrate", "--category", args.category] + (["--object"] if args.object else []) + ["--frames", str(args.frames)]
     parts += ["--seed", str(args.seed)] if args.seed != 7 else []
     parts += ["--scenes", str(args.scenes)] if args.object and args.scenes else []
+    parts += ["--evidence", str(args.evidence)] if getattr(args, "evidence", None) is not None else []
     parts += output_flags(args.out, update_docs=args.update_docs)
     parts += ["--install"] if args.install else []
     return out, _command(parts)
@@ -450,27 +456,52 @@ def _run_calibrate_object(args: argparse.Namespace) -> int:
     from ..learned.inference.predict import MIN_P_OBJECT
     from ..learned.network.weights import weights_path
     from ..outputs import file_sha256
-    from ..studies.object_evidence import collect_object_evidence, fit_object_calibrator, measure, write_object_report
+    from ..learned.inference.confidence import object_model
+    from ..studies.object_evidence import (collect_object_evidence, fit_object_calibrator, is_scene_source, load_evidence,
+                                           measure, save_evidence, write_object_report)
 
     if args.frames < 8:
         raise ValueError(f"--frames: expected at least 8 frames with --object, got {args.frames}")
-    data = collect_object_evidence(args.category, args.frames, seed=args.seed, progress=not args.no_progress,
-                                   scenes=args.scenes)
+    if args.evidence is not None:
+        try:
+            data = load_evidence(args.evidence)
+        except ValueError as e:
+            raise ValueError(f"--{e}") from None
+        frames = len(np.unique(data["frame"]))
+        if args.install and frames < MIN_INSTALL_FRAMES:
+            raise ValueError(f"--install: --evidence {args.evidence} holds {frames} frames; installing needs at least "
+                             f"{MIN_INSTALL_FRAMES} (half fit it, half check it)")
+    else:
+        data = collect_object_evidence(args.category, args.frames, seed=args.seed, progress=not args.no_progress,
+                                       scenes=args.scenes)
     half = data["frame"] % 2 == 0  # a frame's fits (one per refinement) on one side
-    calibration = fit_object_calibrator(data["X"][half], data["is_object"][half])
+    masked = ~np.array([is_scene_source(s) for s in data["source"]], dtype=bool)
+    calibration = fit_object_calibrator(data["X"][half & masked], data["is_object"][half & masked])
     calibration["weights_sha256"] = file_sha256(weights_path(args.category))
     calibration["refinements"] = data["refinements"]
-    source = [s for s, h in zip(data["source"], half) if not h]
-    refinement = [r for r, h in zip(data["refinement"], half) if not h]
-    check = measure(calibration, data["X"][~half], data["is_object"][~half], source, MIN_P_OBJECT, refinement)
+    if not masked.all():  # scenes: a second model for the segments found without a mask, on every example
+        segments = fit_object_calibrator(data["X"][half], data["is_object"][half])
+        calibration["segments"] = {k: segments[k] for k in ("mean", "scale", "coef", "intercept", "frames", "object_rate")}
+
+    def checked(model, rows):
+        source = [s for s, r in zip(data["source"], rows) if r]
+        refinement = [r for r, k in zip(data["refinement"], rows) if k]
+        return measure(model, data["X"][rows], data["is_object"][rows], source, MIN_P_OBJECT, refinement)
+
+    check = checked(calibration, ~half & masked)
+    check_segments = checked(object_model(calibration, segmented=True), ~half) if "segments" in calibration else None
     installed = _installed_object_calibration(args.category, calibration["weights_sha256"])
-    before = None if installed is None else measure(installed, data["X"][~half], data["is_object"][~half], source,
-                                                     MIN_P_OBJECT, refinement)
+    before = None if installed is None else checked(installed, ~half & masked)
     out, command = _calibrate_output(args)
     paths = write_object_report(args.category, calibration, check, data, out, command=command, threshold=MIN_P_OBJECT,
-                                installed=before)
+                                installed=before, check_segments=check_segments)
+    if args.evidence is None:  # the examples, to fit the model again without the frames (--evidence)
+        save_evidence(data, Path(out) / f"{args.category}_object_evidence.npz")
     print(f"{args.category}: {100 * check['_all']['true_accept']:.0f}% of its objects accepted, "
-          f"{100 * check['_all']['false_accept']:.0f}% of other things; wrote {paths['md']}")
+          f"{100 * check['_all']['false_accept']:.0f}% of other things" + (
+              "" if check_segments is None else f"; segments found without a mask: "
+              f"{100 * check_segments['_all']['true_accept']:.0f}% of the objects accepted, "
+              f"{100 * check_segments['_all']['false_accept']:.0f}% of the rest") + f"; wrote {paths['md']}")
     _install_calibration(args, paths["json"], object_calibration_path(args.category))
     return 0
 

@@ -17,6 +17,11 @@ renders its depth from the input camera with the project's renderer (:class:`anc
 - **median residual**: the median of ``|observed - model|`` over the object's pixels where both have depth;
 - the per-pixel residual map ``observed - model`` (metres, NaN where either has no depth).
 
+:func:`aligned_comparison` measures the same after moving the model along the camera's depth axis onto the object's
+pixels (by the median residual there): a category fit places the part boxes' unseen sides by the category's
+proportions, so a right fit of an instance deeper or shallower than those can stand a few centimetres before or
+behind the surface it was fitted to, and the comparison above then calls the whole front see-through.
+
 The tolerance grows with depth (:data:`ABS_TOLERANCE_M` plus :data:`REL_TOLERANCE` of the depth):
 sensor noise and a template that is not the instance.
 """
@@ -27,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ABS_TOLERANCE_M", "REL_TOLERANCE", "DepthComparison", "compare_depth", "crop_intrinsics",
-           "mask_window", "occluding_pixels"]
+__all__ = ["ABS_TOLERANCE_M", "REL_TOLERANCE", "DepthComparison", "aligned_comparison", "compare_depth",
+           "crop_intrinsics", "mask_window", "occluding_pixels"]
 
 #: Depth agreement tolerance: this many metres plus :data:`REL_TOLERANCE` times the depth.
 ABS_TOLERANCE_M = 0.015
@@ -56,6 +61,9 @@ class DepthComparison:
         The model's pixels with a measurement.
     residual : (H, W) float64
         ``observed - model`` in metres; NaN where either has no depth.
+    shift_m : float
+        Metres the model was moved along the camera's depth axis before comparing (:func:`aligned_comparison`;
+        positive: away from the camera); 0 for :func:`compare_depth`.
     """
 
     explained: float
@@ -65,11 +73,12 @@ class DepthComparison:
     model_pixels: int
     residual: np.ndarray
     hidden: float = float("nan")
+    shift_m: float = 0.0
 
     def to_dict(self) -> dict:
         return {"explained": self.explained, "see_through": self.see_through, "hidden": self.hidden,
                 "median_abs_residual_m": self.median_abs_residual_m, "object_pixels": self.object_pixels,
-                "model_pixels": self.model_pixels}
+                "model_pixels": self.model_pixels, "shift_m": self.shift_m}
 
 
 def compare_depth(model_depth, observed_depth, object_mask) -> DepthComparison:
@@ -91,15 +100,66 @@ def compare_depth(model_depth, observed_depth, object_mask) -> DepthComparison:
     both = has_m & has_o
     residual = np.full(o.shape, np.nan)
     residual[both] = o[both] - m[both]
-    tol = ABS_TOLERANCE_M + REL_TOLERANCE * np.where(has_o, o, m)
-    obj = mask & has_o
+    return _measured(residual, o, mask, 0.0)
+
+
+def _measured(residual, o, mask, shift_m: float) -> DepthComparison:
+    """:class:`DepthComparison` of a residual map ``observed - model`` (NaN where either has no depth), the observed
+    depth ``o`` and the object's pixels ``mask`` (one shape)."""
+    both = np.isfinite(residual)
+    tol = ABS_TOLERANCE_M + REL_TOLERANCE * o
+    obj = mask & (o > 0)
     n_obj, n_model = int(np.count_nonzero(obj)), int(np.count_nonzero(both))
-    explained = float(np.count_nonzero(obj & both & (np.abs(o - m) <= tol)) / n_obj) if n_obj else float("nan")
-    see_through = float(np.count_nonzero(both & (o - m > tol)) / n_model) if n_model else float("nan")
-    hidden = float(np.count_nonzero(both & (m - o > tol)) / n_model) if n_model else float("nan")
+    r = np.where(both, residual, 0.0)
+    explained = float(np.count_nonzero(obj & both & (np.abs(r) <= tol)) / n_obj) if n_obj else float("nan")
+    see_through = float(np.count_nonzero(both & (r > tol)) / n_model) if n_model else float("nan")
+    hidden = float(np.count_nonzero(both & (-r > tol)) / n_model) if n_model else float("nan")
     on_obj = obj & both
     med = float(np.median(np.abs(residual[on_obj]))) if on_obj.any() else float("nan")
-    return DepthComparison(explained, see_through, med, n_obj, n_model, residual, hidden)
+    return DepthComparison(explained, see_through, med, n_obj, n_model, residual, hidden, float(shift_m))
+
+
+def aligned_comparison(comparison: DepthComparison, depth, object_mask, max_shift_m: float) -> DepthComparison:
+    """``comparison`` measured again with the model moved along the camera's depth axis by the median of ``observed -
+    model`` on the object's pixels, clipped to ``max_shift_m`` either way (module docstring); its
+    :attr:`~DepthComparison.shift_m` is the move. Unchanged when no object pixel has model depth.
+
+    Parameters
+    ----------
+    comparison : DepthComparison
+        Made by :func:`ancsh.solvers.twin.compare_fit` with this ``object_mask`` (its residual map covers
+        :func:`mask_window` of the mask).
+    depth : (H, W) float64
+        The observed depth (metres, 0 = no measurement).
+    object_mask : (H, W) bool
+    max_shift_m : float
+        The largest move (metres, >= 0).
+    """
+    if not np.isfinite(max_shift_m) or max_shift_m < 0:
+        raise ValueError(f"max_shift_m: expected a non-negative number of metres, got {max_shift_m!r}")
+    o, mask, residual = _window(comparison, depth, object_mask)
+    on = mask & (o > 0) & np.isfinite(residual)  # empty for an empty mask
+    if not on.any():
+        return comparison
+    shift = float(np.clip(np.median(residual[on]), -max_shift_m, max_shift_m))
+    return _measured(residual - shift, o, mask, shift)
+
+
+def _window(comparison: DepthComparison, depth, object_mask) -> tuple:
+    """``(observed depth, object mask, comparison's residual map)`` in the window :func:`mask_window` of ``object_mask``
+    that the map covers (empty arrays for an empty mask); a clear error when the shapes disagree."""
+    mask = np.asarray(object_mask, dtype=bool)
+    d = np.asarray(depth, dtype=np.float64)
+    if mask.shape != d.shape:
+        raise ValueError(f"depth, object_mask: expected one shape, got {d.shape}, {mask.shape}")
+    if not mask.any():
+        return np.zeros((0, 0)), np.zeros((0, 0), dtype=bool), np.zeros((0, 0))
+    u0, v0, u1, v1 = mask_window(mask)
+    residual = comparison.residual
+    if residual.shape != (v1 - v0, u1 - u0):
+        raise ValueError(f"comparison: its residual map {residual.shape} does not cover the mask's window "
+                         f"{(v1 - v0, u1 - u0)}; compare with this object_mask")
+    return d[v0:v1, u0:u1], mask[v0:v1, u0:u1], residual
 
 
 def crop_intrinsics(intrinsics, box):
@@ -136,24 +196,17 @@ def occluding_pixels(comparison: DepthComparison, depth, object_mask) -> np.ndar
     object_mask : (H, W) bool
     """
     mask = np.asarray(object_mask, dtype=bool)
-    d = np.asarray(depth, dtype=np.float64)
-    if mask.shape != d.shape:
-        raise ValueError(f"depth, object_mask: expected one shape, got {d.shape}, {mask.shape}")
     out = np.zeros(mask.shape, dtype=bool)
+    o, inside, residual = _window(comparison, depth, mask)
     if not mask.any():
         return out
-    u0, v0, u1, v1 = mask_window(mask)
-    residual = comparison.residual
-    if residual.shape != (v1 - v0, u1 - u0):
-        raise ValueError(f"comparison: its residual map {residual.shape} does not cover the mask's window "
-                         f"{(v1 - v0, u1 - u0)}; compare with this object_mask")
-    o = d[v0:v1, u0:u1]
-    inside = mask[v0:v1, u0:u1] & np.isfinite(residual)
+    inside = inside & np.isfinite(residual)
     if not inside.any():
         return out
     offset = float(np.median(residual[inside]))  # a model fitted a little behind (or before) its points throughout
     with np.errstate(invalid="ignore"):
         nearer = residual - min(offset, 0.0) < -(ABS_TOLERANCE_M + REL_TOLERANCE * o)
+    u0, v0, u1, v1 = mask_window(mask)
     out[v0:v1, u0:u1] = nearer & inside
     return out
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..learned.inference.checks import MIN_P_OBJECT
 from .report import Provenance, write_json, write_text
 
 __all__ = ["THRESHOLDS", "measure_mask_refusal", "write_mask_refusal_report"]
@@ -79,7 +80,7 @@ def write_mask_refusal_report(results: dict, path, provenance: Provenance, *, ch
              "Study: `ancsh.studies.mask_refusal`", "",
              __doc__.split("\n\n", 1)[1].strip().replace("\n", " "), "",
              f"`ancsh predict` with a mask or hint refuses below **{chosen}** (`MIN_P_OBJECT_MASKED`); without one, "
-             "below 0.5. Cells: share of correct fits refused / share of other things refused (fits tried: objects, "
+             f"below {MIN_P_OBJECT} (`MIN_P_OBJECT`, by the calibration's segment model). Cells: share of correct fits refused / share of other things refused (fits tried: objects, "
              "others).", "",
              "| category | fits (objects, others) | " + " | ".join(f"< {t}" for t in THRESHOLDS) + " |",
              "|---|---|" + "---|" * len(THRESHOLDS)]

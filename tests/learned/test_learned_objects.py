@@ -52,28 +52,33 @@ def test_mask_run_length_code_round_trips(seed):
 
 
 @pytest.fixture(scope="module")
-def box_pair():
-    """A rendered scene of two boxes side by side (noisy depth) and the shipped box network's prediction."""
+def pair():
+    """A rendered scene of two laptops side by side (noisy depth) and the shipped laptop network's prediction."""
     from ancsh.data.generate import FrameGenerator, GenerationConfig
     from ancsh.data.noise import DepthNoise, apply_noise
     from ancsh.data.scenes import render_scene
     from ancsh.learned.inference.predict import predict_depth
     from ancsh.learned.inference.provider import LearnedProvider
 
-    gen = FrameGenerator(GenerationConfig(category="box", split="test", seed=0))
-    scene = render_scene(gen, 0, np.random.default_rng([0, 0, 5]), companions=1)
-    depth = apply_noise(scene.depth, DepthNoise(), np.random.default_rng([0, 0, 6]))
-    provider = LearnedProvider("box", refine="auto")
-    return scene, depth, provider, predict_depth(depth, scene.intrinsics, "box", provider=provider, seed=0)
+    gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
+    scene = render_scene(gen, 2, np.random.default_rng([0, 2, 5]), companions=1)
+    depth = apply_noise(scene.depth, DepthNoise(), np.random.default_rng([0, 2, 6]))
+    provider = LearnedProvider("laptop", refine="auto")
+    return scene, depth, provider, predict_depth(depth, scene.intrinsics, "laptop", provider=provider, seed=0)
 
 
-def test_predict_returns_every_object_once_with_disjoint_masks_and_the_json_lists_them(box_pair):
+def test_predict_returns_every_object_once_with_disjoint_masks_and_the_json_lists_them(pair):
     from ancsh.learned.inference.predict import predict_depth
 
-    scene, depth, provider, pred = box_pair
+    scene, depth, provider, pred = pair
     assert len(scene.objects) == 2 and all(o.visible.any() for o in scene.objects)
     objects = pred.objects
-    assert len(objects) >= 2 and all(o.result.ok for o in objects)  # the scene's two boxes: two objects
+    assert len(objects) >= 2 and all(o.result.ok for o in objects)  # the scene's two laptops: two objects
+    matched = {int(np.argmax([np.count_nonzero(o.mask & v.visible) / np.count_nonzero(o.mask | v.visible)
+                              for v in scene.objects])) for o in objects}
+    assert matched == {0, 1}  # each laptop once: not a piece of one or of the floor as the second
+    for o in objects:  # each object is one of the laptops (IoU >= 0.5 with its visible pixels)
+        assert max(np.count_nonzero(o.mask & v.visible) / np.count_nonzero(o.mask | v.visible) for v in scene.objects) >= 0.5
     assert [o.object_id for o in objects] == list(range(len(objects))) and objects[0].result is pred.result
     for i in range(len(objects)):
         for j in range(i + 1, len(objects)):
@@ -86,21 +91,21 @@ def test_predict_returns_every_object_once_with_disjoint_masks_and_the_json_list
         assert rec["consensus"]["hypotheses"] == 3 and rec["consensus"]["passed"] >= 2
         assert len(rec["consensus"]["state_std"]) == 1
     assert all(r["status"] != "success" for r in data["rejected"])
-    one = predict_depth(depth, scene.intrinsics, "box", provider=provider, seed=0, max_objects=1)
+    one = predict_depth(depth, scene.intrinsics, "laptop", provider=provider, seed=0, max_objects=1)
     assert len(one.objects) == 1 and one.object_id == 0
     with pytest.raises(ValueError, match="max_objects"):
-        predict_depth(depth, scene.intrinsics, "box", provider=provider, max_objects=0)
+        predict_depth(depth, scene.intrinsics, "laptop", provider=provider, max_objects=0)
     with pytest.raises(ValueError, match="hypotheses"):
-        predict_depth(depth, scene.intrinsics, "box", provider=provider, hypotheses=0)
+        predict_depth(depth, scene.intrinsics, "laptop", provider=provider, hypotheses=0)
 
 
-def test_no_isolate_runs_the_object_checks(box_pair):
+def test_no_isolate_runs_the_object_checks(pair):
     """Every valid pixel as one object is checked like an isolated segment: render-and-compare and p_object are
-    measured (the whole scene as a box is refused)."""
+    measured (the whole scene as a laptop is refused)."""
     from ancsh.learned.inference.predict import predict_depth
 
-    scene, depth, provider, _ = box_pair
-    pred = predict_depth(depth, scene.intrinsics, "box", provider=provider, isolate=False, hypotheses=1)
+    scene, depth, provider, _ = pair
+    pred = predict_depth(depth, scene.intrinsics, "laptop", provider=provider, isolate=False, hypotheses=1)
     assert not pred.result.ok
     assert pred.mask is not None and pred.mask.sum() == np.count_nonzero(depth > 0)
 
@@ -121,14 +126,14 @@ def test_no_isolate_on_a_real_frame_without_the_object_is_refused_by_its_evidenc
     assert pred.p_object is not None and pred.render_compare is not None
 
 
-def test_a_users_mask_lets_p_object_refuse_only_on_strong_evidence(box_pair):
+def test_a_users_mask_lets_p_object_refuse_only_on_strong_evidence(pair):
     """The same fit is refused at p_object 0.2 without the user's help and kept under a mask; below
     MIN_P_OBJECT_MASKED it is refused either way."""
     import dataclasses
 
     from ancsh.learned.inference.checks import MIN_P_OBJECT, MIN_P_OBJECT_MASKED, check_confidence
 
-    result = box_pair[3].result
+    result = pair[3].result
     assert result.ok and MIN_P_OBJECT_MASKED < 0.2 < MIN_P_OBJECT
     assert check_confidence(result, 0.2).status.value == "not_this_category"
     assert check_confidence(result, 0.2, MIN_P_OBJECT_MASKED).ok
@@ -137,13 +142,13 @@ def test_a_users_mask_lets_p_object_refuse_only_on_strong_evidence(box_pair):
     assert check_confidence(dataclasses.replace(result), None, MIN_P_OBJECT_MASKED).ok
 
 
-def test_the_consensus_answers_with_the_medoid_and_needs_every_hypothesis_when_asked(box_pair):
+def test_the_consensus_answers_with_the_medoid_and_needs_every_hypothesis_when_asked(pair):
     import dataclasses
 
     from ancsh.learned.inference.candidate import consensus
     from ancsh.solvers.types import FitStatus
 
-    pred = box_pair[3]
+    pred = pair[3]
     base = {"result": pred.result, "types": pred.joint_types, "t_bp": 0.001, "t_net": 0.01, "t_compare": 0.002,
             "notes": []}
 

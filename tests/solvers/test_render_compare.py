@@ -5,7 +5,7 @@ import pytest
 
 from ancsh.data.generate import FrameGenerator, GenerationConfig
 from ancsh.learned.inference.predict import predict_depth
-from ancsh.solvers.render_compare import compare_depth, crop_intrinsics, mask_window, occluding_pixels
+from ancsh.solvers.render_compare import aligned_comparison, compare_depth, crop_intrinsics, mask_window, occluding_pixels
 
 
 def test_explained_see_through_and_occlusion_are_told_apart():
@@ -52,6 +52,40 @@ def test_pixels_in_front_of_the_model_are_occluders_measured_from_its_offset():
         occluding_pixels(c, flat, np.roll(mask, 5, axis=1) | np.roll(mask, 12, axis=0))
     with pytest.raises(ValueError, match="depth, object_mask"):
         occluding_pixels(c, flat[:50], mask)
+
+
+def test_an_aligned_comparison_is_the_comparison_of_the_model_moved_along_the_depth_axis():
+    rng = np.random.default_rng(5)
+    H, W = 40, 50
+    mask = np.zeros((H, W), dtype=bool)
+    mask[10:30, 12:40] = True
+    u0, v0, u1, v1 = mask_window(mask)
+    observed = 2.0 + 0.01 * rng.standard_normal((H, W))
+    observed[rng.random((H, W)) < 0.1] = 0.0  # holes
+    model = np.zeros((H, W))
+    model[8:32, 10:42] = 1.9 + 0.01 * rng.standard_normal((24, 32))  # ~10 cm before the surface, a bit wider
+    window = (slice(v0, v1), slice(u0, u1))
+    raw = compare_depth(model[window], observed[window], mask[window])
+    assert raw.see_through > 0.7 and raw.explained < 0.3 and raw.shift_m == 0.0
+    aligned = aligned_comparison(raw, observed, mask, max_shift_m=1.0)
+    on = mask & (observed > 0) & (model > 0)
+    shift = float(np.median((observed - model)[on]))
+    assert aligned.shift_m == pytest.approx(shift) and 0.08 < shift < 0.12
+    moved = compare_depth(np.where(model > 0, model + shift, 0.0)[window], observed[window], mask[window])
+    for field in ("explained", "see_through", "hidden", "median_abs_residual_m", "object_pixels", "model_pixels"):
+        assert getattr(aligned, field) == pytest.approx(getattr(moved, field)), field
+    assert aligned.explained > 0.8 and aligned.to_dict()["shift_m"] == aligned.shift_m
+    clipped = aligned_comparison(raw, observed, mask, max_shift_m=0.02)  # moved at most 2 cm: still mostly before it
+    assert clipped.shift_m == pytest.approx(0.02) and clipped.see_through > 0.5
+    elsewhere = np.zeros((H, W), dtype=bool)
+    elsewhere[0:2, 0:2] = True  # no object pixel with model depth: nothing to align on
+    e0, f0, e1, f1 = mask_window(elsewhere)
+    far = compare_depth(np.zeros((H, W))[f0:f1, e0:e1], observed[f0:f1, e0:e1], elsewhere[f0:f1, e0:e1])
+    assert aligned_comparison(far, observed, elsewhere, max_shift_m=1.0) is far
+    with pytest.raises(ValueError, match="max_shift_m"):
+        aligned_comparison(raw, observed, mask, max_shift_m=-0.1)
+    with pytest.raises(ValueError, match="comparison"):
+        aligned_comparison(raw, observed, elsewhere, max_shift_m=1.0)
 
 
 def test_a_crop_keeps_the_projection():

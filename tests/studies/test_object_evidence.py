@@ -107,6 +107,20 @@ def test_calibrate_object_writes_a_report_and_a_model_predict_can_read(tmp_path,
     for refinement in REFINEMENTS:  # each refinement's fits measured apart
         assert f"\n| {refinement} | " in text
     assert "shipped before: laptop fits accepted" in text  # the shipped model measured on the same check fits
+    evidence = tmp_path / "laptop_object_evidence.npz"  # the examples, to fit the model again without the frames
+    assert main(["calibrate", "--category", "laptop", "--object", "--evidence", str(evidence), "--out",
+                 str(tmp_path / "again"), "--no-progress"]) == 0
+    again = json.loads((tmp_path / "again" / "laptop_object.json").read_text())
+    assert again["coef"] == pytest.approx(cal["coef"]) and again["intercept"] == pytest.approx(cal["intercept"])
+    assert "--evidence" in (tmp_path / "again" / "laptop_object.md").read_text()
+    capsys.readouterr()
+    (tmp_path / "junk.npz").write_text("not an archive")
+    for bad, why in ((tmp_path / "junk.npz", "is not an object evidence file"), (tmp_path / "none.npz", "is not a file")):
+        assert main(["calibrate", "--category", "laptop", "--object", "--evidence", str(bad), "--out",
+                     str(tmp_path / "bad")]) == 2
+        assert "--evidence" in (err := capsys.readouterr().err) and why in err
+    assert main(["calibrate", "--category", "laptop", "--evidence", str(evidence), "--out", str(tmp_path / "bad")]) == 2
+    assert "--evidence: only with --object" in capsys.readouterr().err
     assert main(["calibrate", "--category", "laptop", "--object", "--frames", "5", "--out", str(tmp_path)]) == 2
     assert "--frames: expected at least 8 frames with --object" in capsys.readouterr().err
     assert "rendered scenes" not in text and "in a scene" not in text

@@ -22,7 +22,8 @@ from ...data.render import Intrinsics
 from .checks import MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
-__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence", "template_comparison",
+__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
+           "object_feature_vector", "template_comparison",
            "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty"]
 
 
@@ -92,7 +93,7 @@ def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: floa
 
 def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,
                   object_gate: bool = True, hypotheses: int = CONSENSUS_HYPOTHESES,
-                  min_p_object: float = MIN_P_OBJECT, unanimous: bool = False) -> dict:
+                  min_p_object: float = MIN_P_OBJECT, unanimous: bool = False, segmented: bool = False) -> dict:
     """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit: one candidate segment of
     :func:`~ancsh.learned.inference.predict.predict_depth` (called once with a mask, or per verified candidate without
     one), as the consensus of ``hypotheses`` independent tries (:func:`consensus`; the tries stop once the failures are
@@ -104,7 +105,9 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`); ``min_p_object``: the gate's
     threshold (:data:`~ancsh.learned.inference.checks.MIN_P_OBJECT_MASKED` under the user's mask or hint);
     ``unanimous``: the candidate passes only when every hypothesis does (a segment found without the user's help;
-    else most of them must), and the tries stop at the first failure. The other arguments are
+    else most of them must), and the tries stop at the first failure; ``segmented``: ``mask`` is a segment the
+    isolation found without the user's help, judged by the calibration's segment model
+    (:func:`~ancsh.learned.inference.confidence.object_model`). The other arguments are
     :func:`~ancsh.learned.inference.predict.predict_depth`'s.
 
     Returns a dict: ``result`` (FitResult), ``pts`` ((N, 3) camera frame, metres), ``pixels``, ``valid``, ``labels``,
@@ -120,7 +123,8 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     for h in range(H):
         tries.append(fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points,
                                                hypothesis_seed(seed, h), max_depth, (refine,), why=why,
-                                               object_gate=object_gate, min_p_object=min_p_object)[0])
+                                               object_gate=object_gate, min_p_object=min_p_object,
+                                               segmented=segmented)[0])
         passed = sum(t["result"].ok for t in tries)
         if tries[-1]["valid"] < MIN_POINTS or passed + H - len(tries) < needed:
             break  # nothing to sample again, or the passes needed can no longer come
@@ -200,7 +204,7 @@ def consensus(tries: list, *, needed: int | None = None) -> dict:
 
 def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
                               refinements, *, why=None, object_gate: bool = True,
-                              min_p_object: float = MIN_P_OBJECT) -> list[dict]:
+                              min_p_object: float = MIN_P_OBJECT, segmented: bool = False) -> list[dict]:
     """:func:`fit_candidate` once per option of ``refinements`` (a sequence of ``LearnedProvider.refine`` options),
     sharing what does not depend on it: the points, the network pass and the first-stage fit run once.
 
@@ -238,7 +242,7 @@ def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulati
     first = _FirstStage(obs, pts, pixels, valid, corr, raw, fit(obs, corr, formulation, config=provider.fit_config(),
                                                                 rng=seed), t_bp, t_net)
     return [_finish_candidate(first, d, intrinsics, mask, category, provider, formulation, seed, refine, object_gate,
-                              min_p_object) for refine in refinements]
+                              min_p_object, segmented) for refine in refinements]
 
 
 @dataclass(frozen=True)
@@ -258,7 +262,7 @@ class _FirstStage:
 
 
 def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provider, formulation, seed, refine,
-                      object_gate, min_p_object=MIN_P_OBJECT) -> dict:
+                      object_gate, min_p_object=MIN_P_OBJECT, segmented=False) -> dict:
     """The refinement ``refine`` of the first-stage fit and its checks and evidence: :func:`fit_candidate_refinements`'
     per-option part (``first`` is not changed: every option starts from it)."""
     pts, corr, raw, result = first.pts, first.corr, first.raw, first.result
@@ -276,7 +280,8 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
     comparison, p_object, t_rc = None, None, 0.0
     if result.ok and mask is not None:
         t0 = time.perf_counter()
-        comparison, p_object = object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts)
+        comparison, p_object = object_evidence(result, corr, d, intrinsics, mask, category, quality, provider, pts,
+                                               segmented=segmented)
         t_rc = time.perf_counter() - t0
     if object_gate:
         result = check_confidence(result, p_object, min_p_object)
@@ -302,26 +307,45 @@ def template_comparison(result, corr, depth, intrinsics, mask, category):
         return None
 
 
-def object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points) -> tuple:
+def object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points, *,
+                    segmented: bool = False) -> tuple:
     """Render-and-compare of the fit (:func:`ancsh.solvers.twin.compare_fit`) and the calibrated
-    P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights."""
-    import json
-
-    from .confidence import OBJECT_FEATURES, object_calibration_path, object_features, probability_good
+    P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights (its features:
+    :func:`object_feature_vector`; its model for a segment found without the user's help where ``segmented``:
+    :func:`~ancsh.learned.inference.confidence.object_model`)."""
+    from .confidence import OBJECT_FEATURES, object_calibration_path, object_model, probability_good
 
     comparison = template_comparison(result, corr, depth, intrinsics, mask, category)
     if comparison is None:
         return None, None
-    path = object_calibration_path(category)
-    if not path.is_file():
-        return comparison, None
-    calibration = json.loads(path.read_text())
-    if calibration.get("weights_sha256") != getattr(provider.network, "sha256", None):
+    calibration = _calibration(object_calibration_path(category))
+    if calibration is None or calibration.get("weights_sha256") != getattr(provider.network, "sha256", None):
         return comparison, None
     if calibration.get("features") != list(OBJECT_FEATURES):  # made with other features: recalibrate
         return comparison, None
-    x = object_features(comparison, object_diagonal(result.boxes_cam), quality, category, points)
-    return comparison, probability_good(calibration, x)
+    x = object_feature_vector(result, comparison, depth, mask, quality, category, points)
+    return comparison, probability_good(object_model(calibration, segmented=segmented), x)
+
+
+def object_feature_vector(result, comparison, depth, mask, quality, category, points) -> np.ndarray:
+    """:func:`~ancsh.learned.inference.confidence.object_features` of a fit: its render-and-compare ``comparison`` on
+    ``mask`` of ``depth`` aligned along the depth axis (at most
+    :data:`~ancsh.learned.inference.confidence.ALIGN_SHARE` of the fitted object's diagonal), its size, its per-part
+    ``quality`` and the observed ``points`` (N, 3)."""
+    from ...solvers.render_compare import aligned_comparison
+    from .confidence import ALIGN_SHARE, object_features
+
+    diagonal = object_diagonal(result.boxes_cam)
+    aligned = aligned_comparison(comparison, depth, mask, ALIGN_SHARE * diagonal)
+    return object_features(aligned, diagonal, quality, category, points)
+
+
+def _calibration(path) -> dict | None:
+    """The calibration JSON at ``path``, or ``None`` when there is none (read at each call: a few hundred bytes, and a
+    file rewritten within one clock tick keeps its modification time, so a cache could serve the old one)."""
+    import json
+
+    return json.loads(path.read_text()) if path.is_file() else None
 
 
 def inflate_uncertainty(result, category: str, provider, *, template: bool = False, network: bool = False,
@@ -356,15 +380,10 @@ def inflate_uncertainty(result, category: str, provider, *, template: bool = Fal
 def _p_good(category: str, quality, weights_sha256: str | None) -> float | None:
     """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists and was
     calibrated for these weights (``weights_sha256``); ``None`` otherwise."""
-    import json
-
     from .confidence import calibration_path, fit_features, probability_good
 
-    path = calibration_path(category)
-    if not path.is_file():
-        return None
-    calibration = json.loads(path.read_text())
-    if calibration.get("weights_sha256") != weights_sha256:
+    calibration = _calibration(calibration_path(category))
+    if calibration is None or calibration.get("weights_sha256") != weights_sha256:
         return None  # calibrated on other weights (e.g. before a retraining): its probabilities would be another net's
     return probability_good(calibration, fit_features(quality, category))
 

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FEATURES", "GOOD_ROTATION_DEG", "OBJECT_FEATURES", "calibration_path", "fit_features", "object_calibration_path",
-           "object_features", "probability_good"]
+__all__ = ["ALIGN_SHARE", "FEATURES", "GOOD_ROTATION_DEG", "OBJECT_FEATURES", "calibration_path", "fit_features",
+           "object_calibration_path", "object_features", "object_model", "probability_good"]
 
 FEATURES = ("inlier_ratio_min", "residual_rel_max", "seg_margin_min", "seg_margin_mean", "log_points")
 #: A fit is "good" when every part's rotation error is below this (degrees).
@@ -67,15 +67,30 @@ def probability_good(calibration: dict, x) -> float:
 
 # --- is it the category's object at all? -------------------------------------------------------------
 #: Features of P(the fitted segment is an object of the category) (:mod:`ancsh.studies.object_evidence`):
-#: render-and-compare of the fitted category template (:func:`ancsh.solvers.twin.compare_fit`: the
-#: share of the segment's pixels it explains, the share of its own pixels the sensor sees through, the
-#: median residual relative to the object's size), the fitted object's size against the category's typical
-#: one (log ratio, and its absolute value), the fit's lowest part inlier ratio and mean segmentation margin, and
-#: the share of the points on one plane (a wall, a table top or a face seen head-on explains itself too well).
-OBJECT_FEATURES = ("explained", "see_through", "residual_rel", "log_size_ratio", "abs_log_size_ratio",
+#: render-and-compare of the fitted category template (:func:`ancsh.solvers.twin.compare_fit`), the model moved along
+#: the camera's depth axis onto the segment first (:func:`ancsh.solvers.render_compare.aligned_comparison`, at most
+#: :data:`ALIGN_SHARE` of the object's diagonal): the share of the segment's pixels it explains, the share of its own
+#: pixels the sensor sees through, the median residual relative to the object's size, and the move relative to it;
+#: the fitted object's size against the category's typical one (log ratio, and its absolute value), the fit's lowest
+#: part inlier ratio and mean segmentation margin, and the share of the points on one plane (a wall, a table top or a
+#: face seen head-on explains itself too well).
+OBJECT_FEATURES = ("explained", "see_through", "residual_rel", "shift_rel", "log_size_ratio", "abs_log_size_ratio",
                    "inlier_ratio_min", "seg_margin_mean", "planar_share")
+#: The render-and-compare of ``p_object`` moves the model along the depth axis by at most this share of the fitted
+#: object's diagonal. A category fit places the boxes' unseen sides by the category's proportions: a right fit of a
+#: deep washing machine in a stress scene stood 12 cm (9 % of its diagonal) before its front, 93 % of its pixels
+#: "seen through" (``docs/results/scenes.md``).
+ALIGN_SHARE = 0.25
 #: Points within this share of the object's diagonal (and at least 1 cm) of one plane count for ``planar_share``.
 PLANE_TOLERANCE = 0.02
+
+
+def object_model(calibration: dict, *, segmented: bool) -> dict:
+    """The logistic model of a ``p_object`` calibration that judges a fit (:func:`probability_good` applies it): for a
+    segment the isolation found without the user's help (``segmented``), the calibration's ``"segments"`` model where
+    it has one (fitted on rendered scenes' candidate segments too, :mod:`ancsh.studies.object_evidence`), else its
+    main model (fitted on masked renders: what a user's mask shows)."""
+    return calibration.get("segments") or calibration if segmented else calibration
 
 
 def object_calibration_path(category: str) -> Path:
@@ -103,7 +118,8 @@ def planar_share(points, tolerance: float, rng=0, trials: int = 64) -> float:
 
 
 def object_features(comparison, diagonal: float, quality, category: str, points=None) -> np.ndarray:
-    """``(len(OBJECT_FEATURES),)`` float64 from a :class:`~ancsh.solvers.render_compare.DepthComparison`, the fitted
+    """``(len(OBJECT_FEATURES),)`` float64 from a :class:`~ancsh.solvers.render_compare.DepthComparison` (aligned:
+    :func:`ancsh.solvers.render_compare.aligned_comparison`; its ``shift_m`` gives ``shift_rel``), the fitted
     object's diagonal (metres), the fit's per-part quality (NaN entries count as worst) and the observed points
     ``(N, 3)`` (camera frame, metres; without them ``planar_share`` counts as 1)."""
     from ...data.procedural import CATEGORY_INFO
@@ -116,6 +132,7 @@ def object_features(comparison, diagonal: float, quality, category: str, points=
 
     ratio = float(np.log(max(diagonal, 1e-6) / size))
     flat = 1.0 if points is None else planar_share(points, max(0.01, PLANE_TOLERANCE * diagonal))
+    scale = max(diagonal, 1e-6)
     return np.array([clean(comparison.explained, 0.0), clean(comparison.see_through, 1.0),
-                     min(clean(comparison.median_abs_residual_m, size) / max(diagonal, 1e-6), 1.0), ratio, abs(ratio),
-                     base[0], base[3], flat])
+                     min(clean(comparison.median_abs_residual_m, size) / scale, 1.0),
+                     min(abs(clean(comparison.shift_m, 0.0)) / scale, 1.0), ratio, abs(ratio), base[0], base[3], flat])

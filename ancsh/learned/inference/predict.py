@@ -378,7 +378,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         :data:`~ancsh.learned.inference.candidate.CONSENSUS_HYPOTHESES`): the answer is their consensus
         (:func:`~ancsh.learned.inference.candidate.consensus`), reported in :attr:`DepthPrediction.consensus`. A
         segment found without the user's mask or hint passes only when every hypothesis does; under a mask or hint
-        most of them must. 1: a single try, the answer of one seed. Measured on ``bench scenes`` (seed 0), all /
+        most of them must. 1: a single try, the answer of one seed. Measured on ``bench scenes`` (seed 0; before the
+        noise-aware isolation and ``p_object``'s segment model of issue 59, so the figures are that time's), all /
         most of 3 / one hypothesis: stress scenes 26 / 25 / - of 124 objects right, 6 / 12 / - wrong successes;
         single objects 74 / 83 / 84 of 158 right, 10 / 14 / 16 wrong, 8 / 13 / 14 of 158 empty scenes taken for an
         object: fewer right for fewer false reports, the trade the issue's targets (<= 2 % of each) ask for.
@@ -496,8 +497,10 @@ def _object_prediction(index: int, found: ObjectCandidate, shared: dict, d, *, o
 def _gate(*, user_given: bool) -> dict:
     """:func:`fit_candidate`'s object gate: under the user's mask or hint (``user_given``) ``p_object`` refuses only
     below :data:`MIN_P_OBJECT_MASKED` and most hypotheses must pass; a segment found without help needs
-    :data:`MIN_P_OBJECT` and every hypothesis."""
-    return {"min_p_object": MIN_P_OBJECT_MASKED if user_given else MIN_P_OBJECT, "unanimous": not user_given}
+    :data:`MIN_P_OBJECT` and every hypothesis, and is judged by the calibration's segment model
+    (:func:`~ancsh.learned.inference.confidence.object_model`)."""
+    return {"min_p_object": MIN_P_OBJECT_MASKED if user_given else MIN_P_OBJECT, "unanimous": not user_given,
+            "segmented": not user_given}
 
 
 def _score(attempt) -> float:
