@@ -421,7 +421,7 @@ def _calibrate_output(args: argparse.Namespace) -> tuple:
     parts = ["calibrate", "--category", args.category] + (["--object"] if args.object else []) + ["--frames", str(args.frames)]
     parts += ["--seed", str(args.seed)] if args.seed != 7 else []
     parts += ["--scenes", str(args.scenes)] if args.object and args.scenes else []
-    parts += ["--evidence", str(args.evidence)] if getattr(args, "evidence", None) is not None else []
+    parts += ["--evidence", str(args.evidence)] if args.evidence is not None else []
     parts += output_flags(args.out, update_docs=args.update_docs)
     parts += ["--install"] if args.install else []
     return out, _command(parts)

@@ -137,7 +137,7 @@ def aligned_comparison(comparison: DepthComparison, depth, object_mask, max_shif
     """
     if not np.isfinite(max_shift_m) or max_shift_m < 0:
         raise ValueError(f"max_shift_m: expected a non-negative number of metres, got {max_shift_m!r}")
-    o, mask, residual = _window(comparison, depth, object_mask)
+    o, mask, residual, _ = _window(comparison, depth, object_mask)
     on = mask & (o > 0) & np.isfinite(residual)  # empty for an empty mask
     if not on.any():
         return comparison
@@ -146,20 +146,22 @@ def aligned_comparison(comparison: DepthComparison, depth, object_mask, max_shif
 
 
 def _window(comparison: DepthComparison, depth, object_mask) -> tuple:
-    """``(observed depth, object mask, comparison's residual map)`` in the window :func:`mask_window` of ``object_mask``
-    that the map covers (empty arrays for an empty mask); a clear error when the shapes disagree."""
+    """``(observed depth, object mask, comparison's residual map, (v0, v1, u0, u1) slices)`` in the window
+    :func:`mask_window` of ``object_mask`` that the map covers (empty arrays and slices for an empty mask); a clear
+    error when the shapes disagree."""
     mask = np.asarray(object_mask, dtype=bool)
     d = np.asarray(depth, dtype=np.float64)
     if mask.shape != d.shape:
         raise ValueError(f"depth, object_mask: expected one shape, got {d.shape}, {mask.shape}")
     if not mask.any():
-        return np.zeros((0, 0)), np.zeros((0, 0), dtype=bool), np.zeros((0, 0))
+        return np.zeros((0, 0)), np.zeros((0, 0), dtype=bool), np.zeros((0, 0)), (slice(0, 0), slice(0, 0))
     u0, v0, u1, v1 = mask_window(mask)
     residual = comparison.residual
     if residual.shape != (v1 - v0, u1 - u0):
         raise ValueError(f"comparison: its residual map {residual.shape} does not cover the mask's window "
                          f"{(v1 - v0, u1 - u0)}; compare with this object_mask")
-    return d[v0:v1, u0:u1], mask[v0:v1, u0:u1], residual
+    window = (slice(v0, v1), slice(u0, u1))
+    return d[window], mask[window], residual, window
 
 
 def crop_intrinsics(intrinsics, box):
@@ -197,16 +199,13 @@ def occluding_pixels(comparison: DepthComparison, depth, object_mask) -> np.ndar
     """
     mask = np.asarray(object_mask, dtype=bool)
     out = np.zeros(mask.shape, dtype=bool)
-    o, inside, residual = _window(comparison, depth, mask)
-    if not mask.any():
-        return out
-    inside = inside & np.isfinite(residual)
+    o, inside, residual, window = _window(comparison, depth, mask)
+    inside = inside & np.isfinite(residual)  # empty for an empty mask
     if not inside.any():
         return out
     offset = float(np.median(residual[inside]))  # a model fitted a little behind (or before) its points throughout
     with np.errstate(invalid="ignore"):
         nearer = residual - min(offset, 0.0) < -(ABS_TOLERANCE_M + REL_TOLERANCE * o)
-    u0, v0, u1, v1 = mask_window(mask)
-    out[v0:v1, u0:u1] = nearer & inside
+    out[window] = nearer & inside
     return out
 

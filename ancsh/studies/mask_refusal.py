@@ -80,8 +80,8 @@ def write_mask_refusal_report(results: dict, path, provenance: Provenance, *, ch
              "Study: `ancsh.studies.mask_refusal`", "",
              __doc__.split("\n\n", 1)[1].strip().replace("\n", " "), "",
              f"`ancsh predict` with a mask or hint refuses below **{chosen}** (`MIN_P_OBJECT_MASKED`); without one, "
-             f"below {MIN_P_OBJECT} (`MIN_P_OBJECT`, by the calibration's segment model). Cells: share of correct fits refused / share of other things refused (fits tried: objects, "
-             "others).", "",
+             f"below {MIN_P_OBJECT} (`MIN_P_OBJECT`, by the calibration's segment model). Cells: share of correct fits "
+             "refused / share of other things refused (fits tried: objects, others).", "",
              "| category | fits (objects, others) | " + " | ".join(f"< {t}" for t in THRESHOLDS) + " |",
              "|---|---|" + "---|" * len(THRESHOLDS)]
     pooled = {t: [0.0, 0.0, 0, 0] for t in THRESHOLDS}

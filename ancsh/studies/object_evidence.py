@@ -79,7 +79,7 @@ def available_refinements(category: str) -> tuple[str, ...]:
 def _scene_candidates(depth, intrinsics, visibles, category, provider, seed, refinements=("none",)) -> tuple[list, int]:
     """``([(features, is_object, refinement), ...], failed)`` for the candidates ``ancsh predict`` would verify
     without a mask, each fitted once per refinement of ``refinements``; ``failed`` counts the fits that failed.
-    ``visibles``: the (H, W) bool visible pixels of each object of the scene (one array: one object); a candidate is
+    ``visibles``: the (H, W) bool visible pixels of each object of the scene; a candidate is
     an object when its IoU with one of them reaches :data:`SCENE_OBJECT_IOU`."""
     from ..data.isolate import isolate_object
     from ..learned.inference.predict import MAX_VERIFIED
@@ -88,7 +88,6 @@ def _scene_candidates(depth, intrinsics, visibles, category, provider, seed, ref
     if iso.chosen is None:
         return [], 0
     chosen = [c for c in iso.order if iso.clusters[c].fits_category][:MAX_VERIFIED] or list(iso.order[:1])
-    visibles = [visibles] if isinstance(visibles, np.ndarray) and visibles.ndim == 2 else list(visibles)
     out, failed = [], 0
     for c in chosen:
         mask = iso.mask_of(c)
@@ -210,14 +209,14 @@ def save_evidence(data: dict, path) -> Path:
     fits a model on it again without fitting the frames."""
     import io
 
+    from ..outputs import write_bytes_atomically
+
     buffer = io.BytesIO()
     np.savez_compressed(buffer, X=np.asarray(data["X"], dtype=np.float64), is_object=np.asarray(data["is_object"], bool),
                         frame=np.asarray(data["frame"], dtype=np.int64), source=np.asarray(data["source"], dtype=str),
                         refinement=np.asarray(data["refinement"], dtype=str), features=np.asarray(OBJECT_FEATURES),
                         refinements=np.asarray(data["refinements"], dtype=str),
                         failed=np.asarray(json.dumps(data["failed"], sort_keys=True)))
-    from ..outputs import write_bytes_atomically
-
     write_bytes_atomically(Path(path), buffer.getvalue())
     return Path(path)
 
@@ -320,7 +319,10 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
             " (beside it the model shipped before this run, on the same fits; with the same seed it may have been "
             "fitted on some of them)" if before else "") + ":\n\n" + head + "\n" + rule + "\n" + refinement_table + "\n")
     failed = ", ".join(f"{s} {n}" for s, n in sorted(data["failed"].items())) or "none"
-    coef = ", ".join(f"{f} {c:+.2f}" for f, c in zip(calibration["features"], calibration["coef"]))
+    def coefficients(model):
+        return (", ".join(f"{f} {c:+.2f}" for f, c in zip(calibration["features"], model["coef"]))
+                + f"; intercept {model['intercept']:+.2f}")
+
     segments = ""
     if check_segments is not None:
         seg = calibration["segments"]
@@ -333,9 +335,7 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
             f"{100 * check_segments['_all']['true_accept']:.0f}% of the objects' fits accepted, "
             f"{100 * check_segments['_all']['false_accept']:.0f}% of the rest (AUC {check_segments['_all']['auc']:.3f}).\n\n"
             "| source | object | check fits | mean p_object | accepted |\n|---|---|---|---|---|\n"
-            + source_rows(check_segments) + "\n\nStandardised coefficients: "
-            + ", ".join(f"{f} {c:+.2f}" for f, c in zip(calibration["features"], seg["coef"]))
-            + f"; intercept {seg['intercept']:+.2f}.\n")
+            + source_rows(check_segments) + f"\n\nStandardised coefficients: {coefficients(seg)}.\n")
     write_text(paths["md"], (
         f"# {category}: is it an object of the category? (`p_object`)\n\n"
         f"Command: `{command}`  \nDate: {prov.date}; machine: {prov.machine_text}  \n"
@@ -360,5 +360,5 @@ def write_object_report(category: str, calibration: dict, check: dict, data: dic
             f"{100 * installed['_all']['false_accept']:.0f}%, AUC {installed['_all']['auc']:.3f}" if installed else "")
         + ".\n\n" + refinement_table +
         "| source | object | check fits | mean p_object | accepted |\n|---|---|---|---|---|\n" + rows + "\n\n"
-        f"Standardised coefficients: {coef}; intercept {calibration['intercept']:+.2f}.\n" + segments))
+        f"Standardised coefficients: {coefficients(calibration)}.\n" + segments))
     return paths
