@@ -61,6 +61,7 @@ __all__ = [
     "backproject",
     "look_at",
     "object_extent",
+    "pixels_to_points",
     "project",
     "render_depth",
     "sample_points",
@@ -228,7 +229,7 @@ def backproject(depth, intrinsics: Intrinsics, mask=None) -> np.ndarray:
     """
     d, valid = valid_depth_pixels(depth, intrinsics, mask)
     v, u = np.nonzero(valid)
-    return _pixels_to_points(u, v, d[v, u], intrinsics)
+    return pixels_to_points(u, v, d[v, u], intrinsics)
 
 
 def valid_depth_pixels(depth, intrinsics: Intrinsics, mask=None) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +251,8 @@ def valid_depth_pixels(depth, intrinsics: Intrinsics, mask=None) -> tuple[np.nda
     return d, valid
 
 
-def _pixels_to_points(u, v, z, intr: Intrinsics) -> np.ndarray:
+def pixels_to_points(u, v, z, intr: Intrinsics) -> np.ndarray:
+    """Camera-frame points ``(N, 3)`` (metres) of pixels ``(u, v)`` (columns, rows; ``(N,)`` each) at depths ``z``."""
     z = np.asarray(z, dtype=np.float64)
     return np.stack([(u - intr.cx) / intr.fx * z, (v - intr.cy) / intr.fy * z, z], axis=1)
 
@@ -306,7 +308,7 @@ def sample_points(depth, part_ids, intrinsics: Intrinsics, count: int, rng) -> t
     pick = rng.choice(flat.size, size=int(count), replace=flat.size < count)
     pixels = np.sort(flat[pick])
     v, u = np.divmod(pixels, intrinsics.width)
-    points = _pixels_to_points(u, v, d.ravel()[pixels], intrinsics)
+    points = pixels_to_points(u, v, d.ravel()[pixels], intrinsics)
     return points, ids.ravel()[pixels].astype(np.int64), pixels.astype(np.int64)
 
 

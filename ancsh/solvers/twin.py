@@ -384,20 +384,25 @@ def write_fit_cad_init(path, twin: FittedModel):
 
 
 def compare_fit(fit, corr, templates, depth, intrinsics, object_mask):
-    """:func:`render_fit` in the window around ``object_mask`` (:func:`~ancsh.solvers.render_compare.mask_window`)
-    and :func:`~ancsh.solvers.render_compare.compare_depth` there.
+    """:func:`render_fit` in the window around ``object_mask`` (:func:`~ancsh.solvers.render_compare.mask_window`),
+    with at most :data:`~ancsh.solvers.render_compare.COMPARE_RAYS` rays (a large window at every few pixels, spread
+    back over it), and :func:`~ancsh.solvers.render_compare.compare_depth` there.
 
     Returns
     -------
     (DepthComparison or None, str)
         ``None`` when no template is available; the template's name. The residual map covers the window.
     """
-    from .render_compare import compare_depth, crop_intrinsics, mask_window
+    from .render_compare import (coarse_intrinsics, compare_depth, compare_stride, crop_intrinsics, mask_window,
+                                 upsample_depth)
 
     u0, v0, u1, v1 = mask_window(object_mask)
-    model_depth, name = render_fit(fit, corr, templates, crop_intrinsics(intrinsics, (u0, v0, u1, v1)))
+    stride = compare_stride((u1 - u0) * (v1 - v0))
+    window = crop_intrinsics(intrinsics, (u0, v0, u1, v1))
+    model_depth, name = render_fit(fit, corr, templates, coarse_intrinsics(window, stride))
     if model_depth is None:
         return None, name
+    model_depth = upsample_depth(model_depth, stride, (v1 - v0, u1 - u0))
     return compare_depth(model_depth, np.asarray(depth)[v0:v1, u0:u1], np.asarray(object_mask)[v0:v1, u0:u1]), name
 
 

@@ -70,3 +70,17 @@ def test_a_depth_of_another_size_than_the_intrinsics_is_refused_from_its_header(
         read_depth(npy, shape=(480, 640))
     np.save(npy, np.full((48, 64), 1.5))
     assert read_depth(npy, shape=(48, 64)).shape == (48, 64)
+
+
+def test_mask_bounds_are_the_rows_and_columns_of_its_pixels():
+    from ancsh.data.images import mask_bounds
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        m = np.zeros((37, 53), dtype=bool)
+        m[tuple(rng.integers(0, (37, 53), size=(int(rng.integers(1, 30)), 2)).T)] = True
+        v, u = np.nonzero(m)
+        assert mask_bounds(m) == (v.min(), v.max() + 1, u.min(), u.max() + 1)
+    assert mask_bounds(np.zeros((5, 5), dtype=bool)) is None
+    with pytest.raises(ValueError, match="mask"):
+        mask_bounds(np.zeros(5, dtype=bool))

@@ -101,6 +101,47 @@ def test_a_crop_keeps_the_projection():
     assert project(p, crop)[0] + np.array([box[0], box[1]]) == pytest.approx(project(p, intr)[0])
 
 
+def test_a_coarse_render_sees_block_centres_and_spreads_back_over_the_window():
+    from ancsh.data.render import Intrinsics, project
+    from ancsh.geometry.transforms import Sim3
+    from ancsh.solvers.render_compare import (COMPARE_RAYS, coarse_intrinsics, compare_stride, upsample_depth)
+
+    assert compare_stride(COMPARE_RAYS) == 1 and compare_stride(COMPARE_RAYS + 1) == 2
+    assert compare_stride(9 * COMPARE_RAYS) == 3 and compare_stride(0) == 1
+    with pytest.raises(ValueError, match="rays"):
+        compare_stride(10, rays=0)
+    intr = Intrinsics(fx=600.0, fy=590.0, cx=301.3, cy=243.7, width=641, height=479)
+    for s in (1, 2, 3):
+        coarse = coarse_intrinsics(intr, s)
+        assert (coarse.width, coarse.height) == (-(-641 // s), -(-479 // s))
+        p = np.random.default_rng(s).uniform([-0.2, -0.2, 0.8], [0.2, 0.2, 1.5], size=(20, 3))
+        # a point seen at coarse pixel x is seen at full pixel s x + (s - 1) / 2: the centre of its block
+        assert project(p, coarse)[0] * s + 0.5 * (s - 1) == pytest.approx(project(p, intr)[0])
+        full = upsample_depth(np.arange(coarse.width * coarse.height, dtype=float).reshape(coarse.height, -1), s,
+                              (479, 641))
+        assert full.shape == (479, 641) and full[s * 7 + s - 1, s * 5] == 7 * coarse.width + 5
+    with pytest.raises(ValueError, match="does not cover"):
+        upsample_depth(np.zeros((10, 10)), 2, (30, 20))
+    # the shares of a comparison at a coarse render are the full one's to within the blocks on the silhouette
+    gen = FrameGenerator(GenerationConfig(category="box", split="test", seed=3))
+    frame = gen.frame(0)
+    _, renderer = gen.instance(frame.instance_index)
+    big = Intrinsics(fx=1200.0, fy=1200.0, cx=639.5, cy=479.5, width=1280, height=960)
+    T = Sim3(frame.T_cam_base.rotation, frame.T_cam_base.translation * 0.6)
+    observed = renderer.render(frame.joint_states_abs, T, big).depth
+    mask = observed > 0
+    moved = Sim3(T.rotation, T.translation + np.array([0.01, 0.0, 0.02]))  # a fit 1 cm aside, 2 cm behind
+    exact = compare_depth(renderer.render(frame.joint_states_abs, moved, big).depth, observed, mask)
+    s = compare_stride(int(mask.sum()) * 4)
+    assert s >= 2
+    coarse = renderer.render(frame.joint_states_abs, moved, coarse_intrinsics(big, s))
+    approx = compare_depth(upsample_depth(coarse.depth, s, mask.shape), observed, mask)
+    assert 0.1 < exact.explained < 0.9 and exact.hidden > 0.05  # a comparison with something to measure
+    assert approx.explained == pytest.approx(exact.explained, abs=0.02)
+    assert approx.see_through == pytest.approx(exact.see_through, abs=0.02)
+    assert approx.hidden == pytest.approx(exact.hidden, abs=0.02)
+
+
 def test_a_good_fit_explains_its_object_and_a_displaced_scene_does_not():
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=5))
     frame = gen.frame(0)

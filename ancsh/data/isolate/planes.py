@@ -203,9 +203,11 @@ def runs_out(piece: np.ndarray, on: np.ndarray, border: np.ndarray) -> bool:
     stair's riser seen from above), lie on the view's ``border``."""
     from scipy.ndimage import binary_dilation
 
-    vs, us = np.nonzero(piece)
+    from ..images import mask_bounds
+
+    v0, v1, u0, u1 = mask_bounds(piece)
     r = BAND_END_PIXELS
-    win = (slice(max(0, vs.min() - r), vs.max() + r + 1), slice(max(0, us.min() - r), us.max() + r + 1))
+    win = (slice(max(0, v0 - r), v1 + r), slice(max(0, u0 - r), u1 + r))
     grown = binary_dilation(piece[win], iterations=r, mask=on[win])
     return np.count_nonzero(grown & border[win]) >= BORDER_PIXELS
 

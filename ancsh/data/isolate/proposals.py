@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..images import mask_bounds
 from ..render import Intrinsics, valid_depth_pixels
 from .grid import SIZE_FACTOR, components, extent, fits, same_segment, size_range
 from .hints import ObjectHint, check_hint_inside, hinted_order
@@ -179,13 +180,17 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     levels = supports or [support]
     gi = np.minimum((np.arange(H) + s // 2) // s, g.shape[0] - 1)
     gj = np.minimum((np.arange(W) + s // 2) // s, g.shape[1] - 1)
-    near_d = g[gi[:, None], gj[None, :]]
-    near_jump = jump[gi[:, None], gj[None, :]]
-    agree_depth = valid & (np.abs(d - near_d) < near_jump)
+
+    def nearest(grid):
+        """A grid image at full resolution: each pixel its grid pixel's value (rows, then columns: a fourth of the
+        time of one 2-D fancy index on a 1280 x 720 image)."""
+        return np.take(np.take(grid, gi, axis=0), gj, axis=1)
+
+    agree_depth = valid & (np.abs(d - nearest(g)) < nearest(jump))
 
     def upsample(grid_mask):
         """Full-resolution pixels of a grid segment: their grid pixel is in it and their depth agrees."""
-        return agree_depth & grid_mask[gi[:, None], gj[None, :]]
+        return agree_depth & nearest(grid_mask)
 
     typical = np.sqrt(lo * hi)
     segments, clusters = [], []
@@ -209,7 +214,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     final = np.full(gv.shape, -1, dtype=np.int64)
     for c in sorted(range(len(segments)), key=lambda c: clusters[c].level):
         final[segments[c]] = c
-    near_seg = final[gi[:, None], gj[None, :]]
+    near_seg = nearest(final)
     labelled = agree_depth & (near_seg >= 0)
     labels[labelled] = near_seg[labelled]
     if not clusters:
@@ -225,8 +230,8 @@ def with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, g: np.ndarray, gap
     image at a median depth step below ``gap`` metres (grid depths ``g``): a door ajar, a knob, a drawer front parted
     from the object by a depth jump. ``(h, w)`` bool; just segment ``c`` when nothing is attached."""
     sel = seg == c
-    vs, us = np.nonzero(sel)
-    win = (slice(max(0, vs.min() - 1), vs.max() + 2), slice(max(0, us.min() - 1), us.max() + 2))
+    v0, v1, u0, u1 = mask_bounds(sel)
+    win = (slice(max(0, v0 - 1), v1 + 1), slice(max(0, u0 - 1), u1 + 1))
     sw, gw = seg[win], g[win]
     ks, steps = [], []
     for a, b, da, db in ((sw[:, :-1], sw[:, 1:], gw[:, :-1], gw[:, 1:]), (sw[:-1, :], sw[1:, :], gw[:-1, :], gw[1:, :])):

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..images import mask_bounds
 from ..render import Intrinsics, backproject
 from .grid import extent, fits, same_segment, size_range
 from .proposals import Cluster, Isolation
@@ -62,14 +63,17 @@ def out_of_view(mask, stride: int = 1) -> tuple[bool, float]:
         raise ValueError(f"mask: expected an (H, W) image, got shape {m.shape}")
     if isinstance(stride, bool) or not isinstance(stride, (int, float, np.integer, np.floating)) or int(stride) != stride or stride < 1:
         raise ValueError(f"stride: expected a positive integer, got {stride!r}")
-    outline = m & ~binary_erosion(m, border_value=0)
-    n = int(np.count_nonzero(outline))
-    if n == 0:
+    bounds = mask_bounds(m)
+    if bounds is None:
         return False, float("nan")
+    H, W = m.shape
+    rows = np.arange(max(0, bounds[0] - 1), min(H, bounds[1] + 1))  # the mask's window, one pixel around it
+    cols = np.arange(max(0, bounds[2] - 1), min(W, bounds[3] + 1))
+    mw = m[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+    outline = mw & ~binary_erosion(mw, border_value=0)
+    n = int(np.count_nonzero(outline))
     k = max(OUT_OF_VIEW_PIXELS, 2 * int(stride))
-    edge = np.zeros(m.shape, dtype=bool)
-    edge[:k, :] = edge[-k:, :] = True
-    edge[:, :k] = edge[:, -k:] = True
+    edge = ((rows < k) | (rows >= H - k))[:, None] | ((cols < k) | (cols >= W - k))[None, :]
     share = np.count_nonzero(outline & edge) / n
     return bool(share >= OUT_OF_VIEW_SHARE), float(share)
 
@@ -99,8 +103,8 @@ def behind_surroundings(depth, mask) -> tuple[bool, float, float]:
     if not m.any():
         return False, float("nan"), float("nan")
     r = BACKGROUND_RING
-    vs, us = np.nonzero(m)
-    win = (slice(max(0, vs.min() - 2 * r), vs.max() + 2 * r + 1), slice(max(0, us.min() - 2 * r), us.max() + 2 * r + 1))
+    v0, v1, u0, u1 = mask_bounds(m)
+    win = (slice(max(0, v0 - 2 * r), v1 + 2 * r), slice(max(0, u0 - 2 * r), u1 + 2 * r))
     d, m = d[win], m[win]
     ring = binary_dilation(m, iterations=r) & ~m & (d > 0)
     size = 2 * r + 1

@@ -65,7 +65,7 @@ def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: floa
     ValueError
         When no valid pixel remains.
     """
-    from ...data.render import backproject, valid_depth_pixels
+    from ...data.render import pixels_to_points, valid_depth_pixels
     from ...geometry._checks import check_generator
 
     d, sel = valid_depth_pixels(depth, intrinsics, mask)
@@ -78,17 +78,13 @@ def depth_to_points(depth, intrinsics: Intrinsics, *, mask=None, max_depth: floa
         raise ValueError("depth: no valid pixel after masking (depth > 0"
                          + (", inside the mask" if mask is not None else "")
                          + (f", depth <= {max_depth} m" if max_depth is not None else "") + ")")
-    if num_points is not None:
-        if isinstance(num_points, bool) or int(num_points) != num_points or num_points < 1:
-            raise ValueError(f"num_points: expected a positive integer, got {num_points!r}")
-        if valid > num_points:
-            flat = np.flatnonzero(sel)
-            pick = check_generator(rng).choice(flat, size=int(num_points), replace=False)
-            sel = np.zeros_like(sel)
-            sel.ravel()[pick] = True
-    pts = backproject(d, intrinsics, mask=sel)  # row-major pixel order, as np.nonzero
-    v, u = np.nonzero(sel & (d > 0))
-    return pts, np.stack([u, v], axis=1).astype(np.int64), valid
+    if num_points is not None and (isinstance(num_points, bool) or int(num_points) != num_points or num_points < 1):
+        raise ValueError(f"num_points: expected a positive integer, got {num_points!r}")
+    flat = np.flatnonzero(sel)  # row-major pixel order
+    if num_points is not None and valid > num_points:
+        flat = np.sort(check_generator(rng).choice(flat, size=int(num_points), replace=False))
+    v, u = np.divmod(flat, d.shape[1])
+    return pixels_to_points(u, v, d[v, u], intrinsics), np.stack([u, v], axis=1).astype(np.int64), valid
 
 
 def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine, *, why=None,

@@ -94,8 +94,13 @@ def mask_rle(mask) -> dict:
 
 def mask_bbox(mask) -> list | None:
     """``[u0, v0, u1, v1]`` (pixels, inclusive) around a mask ``(H, W)`` bool; ``None`` when it is empty."""
-    v, u = np.nonzero(np.asarray(mask, dtype=bool))
-    return None if u.size == 0 else [int(u.min()), int(v.min()), int(u.max()), int(v.max())]
+    from ...data.images import mask_bounds
+
+    bounds = mask_bounds(mask)
+    if bounds is None:
+        return None
+    v0, v1, u0, u1 = bounds
+    return [u0, v0, u1 - 1, v1 - 1]
 
 
 def rle_mask(record: dict) -> np.ndarray:

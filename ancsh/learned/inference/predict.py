@@ -525,9 +525,10 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     removal, or those in the box; up to :data:`MAX_VERIFIED`) are fitted. Without one, up to
     :data:`MAX_VERIFIED` candidates whose size fits the category (or the first, when none does) are
     fitted, skipping one that is mostly an object already passed (:func:`~ancsh.learned.inference.objects.same_object`).
-    A segment that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or
-    a curtain seen around nearer things) is no object (``not_this_category``); without a hint, one that runs out of
-    the image (:func:`ancsh.data.isolate.out_of_view`: a sliver of wall or floor at the edge) is ``out_of_view``. When
+    These cheap checks of the segment alone come before the network, and a segment that fails one is not fitted: one
+    that lies behind its surroundings (:func:`ancsh.data.isolate.behind_surroundings`: a wall or a curtain seen around
+    nearer things) is no object (``not_this_category``); without a hint, one that runs out of the image
+    (:func:`ancsh.data.isolate.out_of_view`: a sliver of wall or floor at the edge) is ``out_of_view``. When
     none passes, up to :data:`MAX_MERGED` unions of two fitted candidates that touch in the image
     (:func:`ancsh.data.isolate.merged_candidate`: an object that plane removal cut in two) are fitted and judged
     alike. Every fit that passes is an object (:func:`~ancsh.learned.inference.objects.select_objects`: best supported
@@ -554,21 +555,23 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         """Fit candidate ``c`` of ``isolation`` (its pixels ``mask``) and check it; its attempt and evidence go to
         ``attempts`` / ``verified``."""
         masks[c] = mask
-        # the cheap checks of the segment alone first: one that fails them gets one try (its fit is shown, not kept)
+        # the cheap checks of the segment alone first: one that fails them never reaches the network
         background, jumps, behind = behind_surroundings(d, mask)
         cut, edge_share = out_of_view(mask, isolation.stride) if hint is None else (False, 0.0)
-        a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth, refine,
-                          hypotheses=1 if background or cut else hypotheses, **_gate(user_given=hint is not None))
-        if a["result"].ok:
-            if background:
-                a["result"] = dataclasses.replace(a["result"], status=FitStatus.NOT_THIS_CATEGORY, message=(
-                    f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
-                    f"jumps around it, {100 * jumps:.0f} % of its edge): a background surface, not an object"))
-            elif cut:
-                a["result"] = dataclasses.replace(a["result"], status=FitStatus.OUT_OF_VIEW, message=(
-                    f"check view: the segment runs out of the image ({100 * edge_share:.0f} % of its outline on the "
-                    "image's edge): only part of it is seen, so the fit cannot be checked as a whole object; give a "
-                    "mask or a --pixel / --box hint to fit it anyway"))
+        if background or cut:
+            a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
+                              refine, why="not fitted")
+            status, message = (FitStatus.NOT_THIS_CATEGORY, (
+                f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
+                f"jumps around it, {100 * jumps:.0f} % of its edge): a background surface, not an object; not "
+                "fitted")) if background else (FitStatus.OUT_OF_VIEW, (
+                f"check view: the segment runs out of the image ({100 * edge_share:.0f} % of its outline on the "
+                "image's edge): only part of it is seen, so a fit cannot be checked as a whole object; not fitted: "
+                "give a mask or a --pixel / --box hint to fit it anyway"))
+            a["result"] = dataclasses.replace(a["result"], status=status, message=message)
+        else:
+            a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
+                              refine, hypotheses=hypotheses, **_gate(user_given=hint is not None))
         attempts[c] = a
         verified.append({"segment": int(c), "status": a["result"].status.value, "p_good": a["p_good"],
                          "p_object": a["p_object"], "score": _score(a), "diagonal_m": isolation.clusters[c].diagonal,
