@@ -117,15 +117,16 @@ def _measured(residual, o, mask, shift_m: float) -> DepthComparison:
     """:class:`DepthComparison` of a residual map ``observed - model`` (NaN where either has no depth), the observed
     depth ``o`` and the object's pixels ``mask`` (one shape)."""
     both = np.isfinite(residual)
-    tol = ABS_TOLERANCE_M + REL_TOLERANCE * o
     obj = mask & (o > 0)
-    n_obj, n_model = int(np.count_nonzero(obj)), int(np.count_nonzero(both))
-    r = np.where(both, residual, 0.0)
-    explained = float(np.count_nonzero(obj & both & (np.abs(r) <= tol)) / n_obj) if n_obj else float("nan")
-    see_through = float(np.count_nonzero(both & (r > tol)) / n_model) if n_model else float("nan")
-    hidden = float(np.count_nonzero(both & (-r > tol)) / n_model) if n_model else float("nan")
-    on_obj = obj & both
-    med = float(np.median(np.abs(residual[on_obj]))) if on_obj.any() else float("nan")
+    n_obj = int(np.count_nonzero(obj))
+    r = residual[both]  # the model's pixels with a measurement (the window's other pixels count for n_obj only)
+    tol = ABS_TOLERANCE_M + REL_TOLERANCE * o[both]
+    on_obj = obj[both]
+    n_model = int(r.size)
+    explained = float(np.count_nonzero(on_obj & (np.abs(r) <= tol)) / n_obj) if n_obj else float("nan")
+    see_through = float(np.count_nonzero(r > tol) / n_model) if n_model else float("nan")
+    hidden = float(np.count_nonzero(-r > tol) / n_model) if n_model else float("nan")
+    med = float(np.median(np.abs(r[on_obj]))) if on_obj.any() else float("nan")
     return DepthComparison(explained, see_through, med, n_obj, n_model, residual, hidden, float(shift_m))
 
 

@@ -106,15 +106,15 @@ def planar_share(points, tolerance: float, rng=0, trials: int = 64) -> float:
     if len(p) < 3:
         return 1.0
     rng = np.random.default_rng(rng)
-    best = 0
-    for _ in range(trials):
-        a, b, c = p[rng.choice(len(p), 3, replace=False)]
-        n = np.cross(b - a, c - a)
-        length = np.linalg.norm(n)
-        if length < 1e-12:
-            continue
-        best = max(best, int(np.count_nonzero(np.abs((p - a) @ (n / length)) < tolerance)))
-    return best / len(p)
+    a, b, c = np.moveaxis(p[np.array([rng.choice(len(p), 3, replace=False) for _ in range(trials)])], 1, 0)
+    n = np.cross(b - a, c - a)  # (trials, 3) each: every triple's plane at once
+    length = np.linalg.norm(n, axis=1)
+    ok = length >= 1e-12  # a degenerate triple (collinear points) has no plane
+    if not ok.any():
+        return 0.0
+    n = n[ok] / length[ok, None]
+    distances = np.abs(p @ n.T - np.einsum("ij,ij->i", a[ok], n))  # (N, planes)
+    return int(np.count_nonzero(distances < tolerance, axis=0).max()) / len(p)
 
 
 def object_features(comparison, diagonal: float, quality, category: str, points=None) -> np.ndarray:
