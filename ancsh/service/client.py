@@ -47,10 +47,11 @@ class ServiceClient:
     def __init__(self, url: str = "http://127.0.0.1:8765", *, timeout: float = 120.0):
         self.url, self.timeout = url.rstrip("/"), float(timeout)
 
-    def _call(self, method: str, path: str, body: dict | None = None) -> dict:
-        data = None if body is None else json.dumps(body).encode()
+    def _call(self, method: str, path: str, body: dict | None = None, *, raw: bytes | None = None,
+              content_type: str = "application/json") -> dict:
+        data = raw if raw is not None else None if body is None else json.dumps(body).encode()
         request = urllib.request.Request(self.url + path, data=data, method=method,
-                                         headers={"Content-Type": "application/json"})
+                                         headers={"Content-Type": content_type})
         try:
             with urllib.request.urlopen(request, timeout=self.timeout) as response:
                 return json.loads(response.read())
@@ -93,8 +94,41 @@ class ServiceClient:
         return body
 
     def predict(self, depth, intrinsics, category: str, *, mask=None, **options) -> dict:
-        """``POST /predict``: the result of ``ancsh predict`` (schema ``ancsh.prediction/2``)."""
+        """``POST /predict``: the result of ``ancsh predict`` (schema ``ancsh.prediction/2``). A depth array without
+        a mask travels as the raw ``.npy`` body, the options in the query (no base64, no JSON of the pixels: a
+        fraction of the time for a 1280 x 720 frame); otherwise the JSON body of :meth:`request_body`."""
+        if mask is None and not isinstance(depth, str):
+            query = self.raw_query(intrinsics, category, **options)
+            buffer = io.BytesIO()
+            np.save(buffer, np.asarray(depth, dtype=np.float64), allow_pickle=False)
+            return self._call("POST", "/predict?" + query, raw=buffer.getvalue(), content_type="application/x-npy")
         return self._call("POST", "/predict", self.request_body(depth, intrinsics, category, mask=mask, **options))
+
+    @staticmethod
+    def raw_query(intrinsics, category: str, **options) -> str:
+        """The query of a raw-body request: ``category``, the intrinsics (``fx, fy, cx, cy, width, height``, or
+        ``intrinsics=`` a path string) and the ``options`` (numbers as text, ``pixel`` / ``box`` as comma lists,
+        ``isolate`` as ``true`` / ``false``)."""
+        from urllib.parse import urlencode
+
+        fields = {"category": category}
+        if isinstance(intrinsics, str):
+            fields["intrinsics"] = intrinsics
+        else:
+            data = intrinsics.to_json() if hasattr(intrinsics, "to_json") else dict(intrinsics)
+            fields.update({k: repr(data[k]) if isinstance(data[k], float) else str(data[k])
+                           for k in ("fx", "fy", "cx", "cy", "width", "height")})
+        for key, value in options.items():
+            if value is None:
+                continue
+            if key in ("pixel", "box"):
+                value = ",".join(repr(float(v)) for v in value)
+            elif isinstance(value, bool):
+                value = "true" if value else "false"
+            elif isinstance(value, float):
+                value = repr(value)
+            fields[key] = str(value)
+        return urlencode(fields)
 
     def track(self, session: str, depth, intrinsics, category: str, *, mask=None, reset: bool = False,
               **options) -> dict:

@@ -9,7 +9,6 @@ the server itself keeps serving either way. Bodies need a ``Content-Length`` and
 
 from __future__ import annotations
 
-import base64
 import json
 import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -25,20 +24,27 @@ MAX_BODY_BYTES = 64 * 1024 * 1024
 #: Seconds a connection may stay silent before the server drops it (a client that never sends its body).
 SOCKET_TIMEOUT_S = 30.0
 
-_RAW_TYPES = {"image/png": "depth_png_base64", "application/x-npy": "depth_npy_base64",
-              "application/octet-stream": "depth_npy_base64"}
+_RAW_TYPES = {"image/png": "depth_png_bytes", "application/x-npy": "depth_npy_bytes",
+              "application/octet-stream": "depth_npy_bytes"}
 _QUERY_NUMBERS = {"seed": int, "max_objects": int, "hypotheses": int, "points": int, "max_depth": float,
                   "depth_scale": float}
+#: The intrinsics as query parameters (instead of ``intrinsics=`` a path): all of them or none.
+_QUERY_INTRINSICS = {"fx": float, "fy": float, "cx": float, "cy": float, "width": int, "height": int}
 
 
 def _query_body(query: str, raw: bytes, content_type: str) -> dict:
-    """The JSON body of a raw-image request: the image as base64 under its kind, the query's options typed."""
-    body = {_RAW_TYPES[content_type]: base64.b64encode(raw).decode("ascii")}
+    """The request body of a raw-image request: the image's bytes under its kind (as they came: no base64 round
+    trip), the query's options typed, ``fx, fy, cx, cy, width, height`` gathered into ``intrinsics``."""
+    body = {_RAW_TYPES[content_type]: raw}
+    intrinsics = {}
     for key, values in parse_qs(query, keep_blank_values=True, strict_parsing=False).items():
         if len(values) != 1:
             raise RequestError(400, f"{key}: given {len(values)} times in the query")
         value = values[0]
         try:
+            if key in _QUERY_INTRINSICS:
+                intrinsics[key] = _QUERY_INTRINSICS[key](value)
+                continue
             if key in _QUERY_NUMBERS:
                 value = _QUERY_NUMBERS[key](value)
             elif key in ("pixel", "box"):
@@ -52,6 +58,12 @@ def _query_body(query: str, raw: bytes, content_type: str) -> dict:
         if key == "intrinsics":
             key = "intrinsics_path"
         body[key] = value
+    if intrinsics:
+        missing = [k for k in _QUERY_INTRINSICS if k not in intrinsics]
+        if missing:
+            raise RequestError(400, f"intrinsics: the query gives {', '.join(intrinsics)} but not {', '.join(missing)} "
+                                    "(all of fx, fy, cx, cy, width, height, or intrinsics= a path)")
+        body["intrinsics"] = intrinsics
     return body
 
 

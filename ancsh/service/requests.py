@@ -18,7 +18,9 @@ __all__ = ["MAX_PIXELS", "PathPolicy", "PredictRequest", "RequestError", "TrackR
 #: The largest depth image a request may hold (a 4K frame); larger images are refused before decoding.
 MAX_PIXELS = 3840 * 2160
 REFINE_CHOICES = ("auto", "template", "network", "none")
-_IMAGE_KINDS = ("path", "png_base64", "npy_base64")
+#: Where an image of a request comes from: a path, base64 text in a JSON body, or (``*_bytes``) a raw request body's
+#: bytes as they came (``ancsh.service.http``: no base64 round trip).
+_IMAGE_KINDS = ("path", "png_base64", "npy_base64", "png_bytes", "npy_bytes")
 
 
 class RequestError(ValueError):
@@ -123,6 +125,11 @@ def _image_source(body: dict, name: str, required: bool) -> tuple[str, object] |
 
 
 def _decoded(kind: str, value, field: str) -> bytes:
+    if kind.endswith("_bytes"):
+        if not isinstance(value, (bytes, bytearray)):
+            raise RequestError(400, f"{field}: the image of a raw request body only; a JSON body sends it as "
+                                    f"{field.replace('_bytes', '_base64')}")
+        return bytes(value)
     if not isinstance(value, str):
         raise RequestError(400, f"{field}: expected base64 text, got {type(value).__name__}")
     try:
@@ -142,7 +149,7 @@ def read_image(kind: str, value, name: str, policy: PathPolicy, reader, **kwargs
         except (ValueError, OSError) as exc:
             raise RequestError(400, str(exc)) from None
     data = _decoded(kind, value, field)
-    suffix = ".png" if kind == "png_base64" else ".npy"
+    suffix = ".png" if kind.startswith("png") else ".npy"
     with tempfile.TemporaryDirectory(prefix="ancsh-serve-") as tmp:
         path = Path(tmp) / f"{name}{suffix}"
         path.write_bytes(data)
@@ -203,9 +210,9 @@ def parse_predict(body, policy: PathPolicy) -> PredictRequest:
     max_objects = _get(body, "max_objects", int, None, **integer(1))
     if max_objects is not None and (mask is not None or pixel is not None or box is not None):
         raise RequestError(400, "max_objects: a mask, pixel or box selects one object; leave max_objects out")
-    source = {"depth": value if kind == "path" else f"<{kind.replace('_base64', '')} bytes>",
+    source = {"depth": value if kind == "path" else f"<{kind.split('_')[0]} bytes>",
               "mask": None if mask_source is None else (mask_source[1] if mask_source[0] == "path"
-                                                         else f"<{mask_source[0].replace('_base64', '')} bytes>"),
+                                                         else f"<{mask_source[0].split('_')[0]} bytes>"),
               "depth_scale": float(depth_scale)}
     from ..solvers.fit import FORMULATIONS
 

@@ -82,8 +82,12 @@ def test_a_prediction_is_what_predict_gives_as_array_path_and_raw_png(server, fr
     status, raw = _raw(server, "POST", "/predict?category=laptop&intrinsics=K.json&hypotheses=1",
                        (root / "depth.png").read_bytes(), {"Content-Type": "image/png"})
     assert status == 200 and _without_times(raw) == direct
-    as_array = client.predict(np.load(root / "depth.npy"), intr, "laptop", **options)  # metres, sent as .npy
-    assert _without_times(as_array) == _without_times(predict_depth(depths[0], intr, "laptop", **options).to_json())
+    as_array = client.predict(np.load(root / "depth.npy"), intr, "laptop", **options)  # metres, sent as a raw .npy
+    expected = _without_times(predict_depth(depths[0], intr, "laptop", **options).to_json())
+    assert _without_times(as_array) == expected and as_array["input"]["depth"] == "<npy bytes>"
+    assert as_array["input"]["intrinsics"] == intr.to_json()  # from the query's fx, fy, cx, cy, width, height
+    as_json = client._call("POST", "/predict", client.request_body(np.load(root / "depth.npy"), intr, "laptop", **options))
+    assert _without_times(as_json) == expected  # the same as base64 in a JSON body
 
 
 def test_parallel_clients_get_each_their_own_answer(server, frames):
@@ -151,6 +155,10 @@ MALFORMED = [
                                      "depth_path": "depth.png"}).encode(), {}, 404, "category"),
     ("POST", "/predict?category=laptop", b"\x89PNG broken", {"Content-Type": "image/png"}, 400, "intrinsics"),
     ("POST", "/predict?category=laptop&intrinsics=K.json&seed=x", b"\x00", {"Content-Type": "image/png"}, 400, "seed"),
+    ("POST", "/predict?category=laptop&fx=500&fy=500", b"\x00", {"Content-Type": "application/x-npy"}, 400,
+     "but not cx, cy, width, height"),
+    ("POST", "/predict", json.dumps({"category": "laptop", "intrinsics_path": "K.json", "depth_npy_bytes": "AAAA"}).encode(),
+     {}, 400, "raw request body only"),
     ("POST", "/predict", b"{}", {"Content-Type": "text/plain"}, 415, "Content-Type"),
     ("POST", "/predict", b"{}", {"Content-Length": "999999999999"}, 413, "at most"),
     ("GET", "/predict", None, {}, 405, "not allowed"),
