@@ -10,8 +10,8 @@ several worker processes -- all measured side by side in one run on this machine
   The profiler adds its own overhead: the shares are read from it, the totals from the unprofiled runs.
 - **First call** (:func:`first_call`): a fresh provider's first prediction against its second, in total and in the
   network (what a report's first row pays once).
-- **Cold** (:func:`measure_cold`): ``ancsh predict`` on one frame in a fresh process (wall clock), beside the
-  interpreter with the CLI alone and with ``import torch``.
+- **Cold** (:func:`measure_cold`): ``ancsh predict`` on one frame in a fresh process (wall clock, after one untimed
+  run that compiles the bytecode), beside the interpreter with the CLI alone and with ``import torch``.
 - **Serve** (:func:`measure_serve`): sequential ``/predict`` requests of one client to ``ancsh serve`` (in this
   process, its own thread), requests per second, and whether each answer is ``predict_depth``'s.
 - **Workers** (:func:`measure_workers`): a folder of frames through :func:`~ancsh.learned.inference.folder.predict_folder`
@@ -176,17 +176,24 @@ def first_call(frame) -> dict:
 
 
 def _wall(args: list[str], timeout: float = 600.0) -> float:
+    """Wall seconds of one run of ``args`` in a fresh process that may cache its bytecode (``PYTHONDONTWRITEBYTECODE``
+    left out of its environment: a user's Python writes ``__pycache__``, some sandboxes set it)."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     t0 = time.perf_counter()
-    subprocess.run(args, check=False, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout)
+    subprocess.run(args, check=False, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout, env=env)
     return time.perf_counter() - t0
 
 
 def measure_cold(folder: Path, category: str, *, repeats: int = 2) -> dict:
     """Wall seconds of a fresh ``ancsh predict`` on ``folder``'s ``depth.png`` / ``K.json`` (the median of
-    ``repeats``), of ``ancsh --version`` and of ``python -c "import torch"``."""
+    ``repeats``, after one untimed run: the bytecode compiled and the files in the disk cache, as for a user's
+    second command), of ``ancsh --version`` and of ``python -c "import torch"``."""
     py = sys.executable
     predict = [py, "-m", "ancsh", "predict", "--depth", str(folder / "depth.png"), "--intrinsics", str(folder / "K.json"),
                "--category", category]
+    _wall(predict)
     return {"frame": folder.name, "category": category,
             "cli_s": float(np.median([_wall([py, "-m", "ancsh", "--version"]) for _ in range(repeats)])),
             "torch_s": float(np.median([_wall([py, "-c", "import torch"]) for _ in range(repeats)])),
