@@ -61,8 +61,8 @@ def pair():
     from ancsh.learned.inference.provider import LearnedProvider
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
-    scene = render_scene(gen, 2, np.random.default_rng([0, 2, 5]), companions=1)
-    depth = apply_noise(scene.depth, DepthNoise(), np.random.default_rng([0, 2, 6]))
+    scene = render_scene(gen, 5, np.random.default_rng([0, 5, 7]), companions=1)
+    depth = apply_noise(scene.depth, DepthNoise(), np.random.default_rng([0, 5, 7, 6]))
     provider = LearnedProvider("laptop", refine="auto")
     return scene, depth, provider, predict_depth(depth, scene.intrinsics, "laptop", provider=provider, seed=0)
 
@@ -166,3 +166,28 @@ def test_the_consensus_answers_with_the_medoid_and_needs_every_hypothesis_when_a
     strict = consensus([turned(0.0), failed, turned(1.0)], needed=3)
     assert strict["result"].status == FitStatus.NOT_THIS_CATEGORY and "3 needed" in strict["notes"][-1]
     assert consensus([failed, failed, turned(0.0)])["result"].status == FitStatus.NOT_THIS_CATEGORY
+
+
+def test_hypotheses_that_disagree_on_the_pose_are_ambiguous_where_agreement_is_asked(pair):
+    import dataclasses
+
+    from ancsh.geometry.transforms import Sim3
+    from ancsh.learned.inference.candidate import consensus
+    from ancsh.solvers.types import FitStatus
+
+    pred = pair[3]
+    base = {"result": pred.result, "types": pred.joint_types, "t_bp": 0.0, "t_net": 0.0, "t_compare": 0.0, "notes": []}
+
+    def rolled(deg):  # every part turned by deg about the camera's z axis
+        c, s = np.cos(np.deg2rad(deg)), np.sin(np.deg2rad(deg))
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        poses = tuple(Sim3(R @ T.rotation, T.translation, T.scale) for T in pred.result.T_cam_npcs)
+        return dict(base, result=dataclasses.replace(pred.result, T_cam_npcs=poses))
+
+    close = consensus([rolled(0.0), rolled(2.0), rolled(-2.0)], needed=3, max_spread_deg=5.0)
+    assert close["result"].ok and max(close["consensus"]["rotation_spread_deg"]) < 5.0
+    far = consensus([rolled(0.0), rolled(12.0), rolled(-12.0)], needed=3, max_spread_deg=5.0)
+    spread = far["consensus"]["rotation_spread_deg"]
+    assert np.mean(spread) == pytest.approx(np.sqrt((0 + 144 + 144) / 3), rel=1e-3)  # RMS from the chosen (the 0)
+    assert far["result"].status == FitStatus.AMBIGUOUS and "disagree" in far["result"].message
+    assert consensus([rolled(0.0), rolled(12.0), rolled(-12.0)], needed=3)["result"].ok  # not asked: reported only

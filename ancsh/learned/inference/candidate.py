@@ -13,13 +13,14 @@ Frames: camera (OpenCV: x right, y down, z forward), metres.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from ...data.render import Intrinsics
-from .checks import MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
+from .checks import MAX_SPREAD_DEG, MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
 __all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
@@ -100,8 +101,9 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     ``too_few_points`` naming it; ``object_gate=False`` measures the object evidence without letting ``p_object``
     fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`); ``min_p_object``: the gate's
     threshold (:data:`~ancsh.learned.inference.checks.MIN_P_OBJECT_MASKED` under the user's mask or hint);
-    ``unanimous``: the candidate passes only when every hypothesis does (a segment found without the user's help;
-    else most of them must), and the tries stop at the first failure; ``segmented``: ``mask`` is a segment the
+    ``unanimous``: the candidate passes only when every hypothesis does and they agree (a segment found without the
+    user's help: :func:`consensus` with ``max_spread_deg`` :data:`~ancsh.learned.inference.checks.MAX_SPREAD_DEG`;
+    else most of them must pass), and the tries stop at the first failure; ``segmented``: ``mask`` is a segment the
     isolation found without the user's help, judged by the calibration's segment model
     (:func:`~ancsh.learned.inference.confidence.object_model`). The other arguments are
     :func:`~ancsh.learned.inference.predict.predict_depth`'s.
@@ -124,7 +126,7 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
         passed = sum(t["result"].ok for t in tries)
         if tries[-1]["valid"] < MIN_POINTS or passed + H - len(tries) < needed:
             break  # nothing to sample again, or the passes needed can no longer come
-    return consensus(tries, needed=H if unanimous else None)
+    return consensus(tries, needed=H if unanimous else None, max_spread_deg=MAX_SPREAD_DEG if unanimous else None)
 
 
 def hypothesis_seed(seed: int, h: int) -> int:
@@ -157,13 +159,15 @@ def _distance(a, b) -> float:
     return float((np.max(dq / tol) if dq.size else 0.0) + (np.mean(rot) / LIMIT_TOLERANCE_RAD if rot else 0.0))
 
 
-def consensus(tries: list, *, needed: int | None = None) -> dict:
+def consensus(tries: list, *, needed: int | None = None, max_spread_deg: float | None = None) -> dict:
     """The answer of several hypotheses of one candidate (:func:`fit_candidate`'s dicts, each fitted with its own
     seed): when most of them (or ``needed`` of them) pass their checks, the passing one nearest the others (the medoid
     by :func:`_distance`), else the first failure of the most common failed status. Its ``consensus`` record says how they went:
     ``hypotheses``, ``passed``, ``statuses``, ``chosen`` (index), ``state_std`` (per joint, rad or m, over the passing
     ones; ``None`` with fewer than 2) and ``rotation_spread_deg`` (per part, the RMS rotation angle of the passing
-    fits from the chosen one); the stage times are summed over the hypotheses."""
+    fits from the chosen one); the stage times are summed over the hypotheses. With ``max_spread_deg``, passing
+    hypotheses whose mean ``rotation_spread_deg`` exceeds it give status ``ambiguous``: the answer depends on the
+    seed."""
     from collections import Counter
 
     from ...geometry.rotations import rotation_angle
@@ -187,6 +191,14 @@ def consensus(tries: list, *, needed: int | None = None) -> dict:
         record["rotation_spread_deg"] = [
             float(np.degrees(np.sqrt(np.mean([rotation_angle(R0[j].rotation.T @ tries[i]["result"].T_cam_npcs[j].rotation)
                                               ** 2 for i in ok])))) for j in range(len(R0))]
+    spread = record["rotation_spread_deg"]
+    if max_spread_deg is not None and best["result"].ok and spread and float(np.mean(spread)) > max_spread_deg:
+        from ...solvers.types import FitStatus
+
+        best["result"] = dataclasses.replace(best["result"], status=FitStatus.AMBIGUOUS, message=(
+            f"check consensus: the {len(ok)} passing hypotheses (samplings and RANSAC seeds) disagree, their parts "
+            f"{float(np.mean(spread)):.1f} deg apart on average (at most {max_spread_deg:g}): the answer depends on the "
+            "seed"))
     if len(tries) > 1:
         for key in ("t_bp", "t_net", "t_compare"):
             best[key] = float(sum(t[key] for t in tries))

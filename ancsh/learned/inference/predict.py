@@ -23,6 +23,7 @@ from ...data.images import read_depth, read_intrinsics, read_mask  # noqa: F401 
 from ...data.render import Intrinsics
 from .checks import (  # noqa: F401 - re-exported
     MAX_RELATIVE_RESIDUAL,
+    MAX_SPREAD_DEG,
     MIN_INLIER_RATIO,
     MIN_P_OBJECT,
     MIN_P_OBJECT_MASKED,
@@ -48,7 +49,7 @@ from .picture import draw_prediction  # noqa: F401 - re-exported
 from .refine_network import DEFAULT_PASSES
 
 __all__ = ["MIN_POINTS", "SIZE_TOLERANCE", "MIN_INLIER_RATIO", "MAX_RELATIVE_RESIDUAL", "MAX_VERIFIED", "MAX_MERGED",
-           "MIN_P_OBJECT", "NEAR_CLOSED_DEG",
+           "MAX_SPREAD_DEG", "MIN_P_OBJECT", "NEAR_CLOSED_DEG",
            "DepthPrediction", "fit_candidate", "make_provider", "fit_candidate_refinements", "check_confidence", "check_plausibility",
            "check_weights_category", "part_quality", "depth_to_points", "draw_prediction", "predict_depth",
            "read_depth", "read_intrinsics", "read_mask"]
@@ -497,8 +498,8 @@ def _object_prediction(index: int, found: ObjectCandidate, shared: dict, d, *, o
 def _gate(*, user_given: bool) -> dict:
     """:func:`fit_candidate`'s object gate: under the user's mask or hint (``user_given``) ``p_object`` refuses only
     below :data:`MIN_P_OBJECT_MASKED` and most hypotheses must pass; a segment found without help needs
-    :data:`MIN_P_OBJECT` and every hypothesis, and is judged by the calibration's segment model
-    (:func:`~ancsh.learned.inference.confidence.object_model`)."""
+    :data:`MIN_P_OBJECT` and every hypothesis, hypotheses that agree (:data:`MAX_SPREAD_DEG`, else ``ambiguous``),
+    and is judged by the calibration's segment model (:func:`~ancsh.learned.inference.confidence.object_model`)."""
     return {"min_p_object": MIN_P_OBJECT_MASKED if user_given else MIN_P_OBJECT, "unanimous": not user_given,
             "segmented": not user_given}
 
