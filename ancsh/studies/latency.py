@@ -15,7 +15,8 @@ several worker processes -- all measured side by side in one run on this machine
 - **Serve** (:func:`measure_serve`): sequential ``/predict`` requests of one client to ``ancsh serve`` (in this
   process, its own thread), requests per second, and whether each answer is ``predict_depth``'s.
 - **Workers** (:func:`measure_workers`): a folder of frames through :func:`~ancsh.learned.inference.folder.predict_folder`
-  at 1 and 2 worker processes (start-up included), frames per second.
+  in this process, then at 1 and 2 spawned worker processes (their start-up included: like with like), frames per
+  second.
 """
 
 from __future__ import annotations
@@ -228,7 +229,9 @@ def measure_serve(frame, *, requests: int = 8) -> dict:
 
 
 def measure_workers(frames, *, copies: int = 2, workers=(1, 2)) -> list[dict]:
-    """Frames per second of a folder (every frame of one category, ``copies`` times) at each number of workers."""
+    """Frames per second of a folder (every frame of one category, ``copies`` times): in this process (the models
+    loaded here, nothing imported), then in each number of ``workers`` spawned processes (each imports the package
+    and loads the models once: like with like, their start-up included)."""
     from ..executors import LocalExecutor
     from ..learned.inference.folder import FolderOptions, predict_folder
 
@@ -248,13 +251,14 @@ def measure_workers(frames, *, copies: int = 2, workers=(1, 2)) -> list[dict]:
                 files.append(path)
         options = FolderOptions(category=category, intrinsics=intr, provider={"seed": 0, "refine": "auto",
                                                                               "num_threads": 1})
-        for n in workers:
-            out = Path(tmp) / f"out{n}"
+        for n, where in [(1, "this process")] + [(int(n), "spawned") for n in workers]:
+            out = Path(tmp) / f"out{n}{where[0]}"
             out.mkdir()
             t0 = time.perf_counter()
-            predict_folder(files, options, out, executor=LocalExecutor(workers=int(n)))
+            predict_folder(files, options, out, executor=LocalExecutor(workers=n, in_process=where == "this process"))
             seconds = time.perf_counter() - t0
-            rows.append({"workers": int(n), "frames": len(files), "seconds": seconds, "fps": len(files) / seconds})
+            rows.append({"workers": n, "where": where, "frames": len(files), "seconds": seconds,
+                         "fps": len(files) / seconds})
     return rows
 
 
@@ -318,9 +322,16 @@ def write_latency_report(results: dict, path, provenance: Provenance) -> Path:
                   f"{serve['rps']:.2f} requests/s; every answer {'is' if serve['same_as_predict'] else 'is NOT'} "
                   "`predict_depth`'s (timings aside)."]
     if results.get("workers"):
-        lines += ["", "## Workers (a folder, start-up included)", "", "| workers | frames | s | frames/s |",
-                  "|---|---|---|---|"]
-        lines += [f"| {r['workers']} | {r['frames']} | {r['seconds']:.1f} | {r['fps']:.2f} |" for r in results["workers"]]
+        rows = results["workers"]
+        lines += ["", "## Workers (a folder, start-up included)", "",
+                  "`ancsh predict --depth DIR --workers N`: in this process (the models loaded here before the clock "
+                  "starts), then in N spawned processes, each importing the package and loading the models once.", "",
+                  "| workers | where | frames | s | frames/s |", "|---|---|---|---|---|"]
+        lines += [f"| {r['workers']} | {r.get('where', '-')} | {r['frames']} | {r['seconds']:.1f} | {r['fps']:.2f} |"
+                  for r in rows]
+        spawned = {r["workers"]: r["fps"] for r in rows if r.get("where") == "spawned"}
+        if 1 in spawned and 2 in spawned:
+            lines += ["", f"2 spawned workers against 1: {spawned[2] / spawned[1]:.2f}x the frames per second."]
     write_text(path, "\n".join(lines) + "\n")
     write_json(path.with_suffix(".json"), {"command": provenance.command, "date": provenance.date,
                                            "machine": provenance.machine, **results}, indent=1)

@@ -43,7 +43,9 @@ def _results(warm_ms: float, cold_s: float, rps: float) -> dict:
             "serve": {"frame": "a", "requests": 4, "seconds": 4 / rps, "rps": rps, "same_as_predict": True},
             "first_call": {"frame": "a", "load_ms": 1.0, "first_ms": 2.0, "first_network_ms": 1.0, "second_ms": 1.0,
                            "second_network_ms": 0.5},
-            "workers": [{"workers": 1, "frames": 2, "seconds": 1.0, "fps": 2.0}]}
+            "workers": [{"workers": 1, "where": "this process", "frames": 6, "seconds": 1.0, "fps": 6.0},
+                        {"workers": 1, "where": "spawned", "frames": 6, "seconds": 3.0, "fps": 2.0},
+                        {"workers": 2, "where": "spawned", "frames": 6, "seconds": 2.0, "fps": 3.0}]}
 
 
 @pytest.mark.parametrize("warm_ms, cold_s, rps, verdicts", [(80.0, 1.2, 9.0, ["yes", "yes", "yes"]),
@@ -55,5 +57,6 @@ def test_the_report_states_each_target_from_the_figures(tmp_path, warm_ms, cold_
             or line.startswith("| `ancsh serve`")]
     assert [r.rstrip(" |").rsplit("| ", 1)[1] for r in rows] == verdicts
     assert "costs 2.00x the time" in text and "| **all** | 10 |" in text
+    assert "| 2 | spawned | 6 | 2.0 | 3.00 |" in text and "2 spawned workers against 1: 1.50x" in text
     data = json.loads(path.with_suffix(".json").read_text())
     assert data["command"] == "ancsh bench latency" and np.isclose(data["serve"]["rps"], rps)

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     results["serve"] = measure_serve(frames[0], requests=args.serve_requests)
     say(f"serve: {results['serve']['rps']:.2f} requests/s")
     if not args.no_workers:
-        results["workers"] = measure_workers(frames, copies=8)
+        results["workers"] = measure_workers(frames, copies=24)
         say("workers: " + ", ".join(f"{r['workers']}: {r['fps']:.2f} frames/s" for r in results["workers"]))
     if not args.no_cold:
         real = [f for f in default_real_frame_folders() if load_real_frame(f).objects]
