@@ -190,4 +190,5 @@ def test_hypotheses_that_disagree_on_the_pose_are_ambiguous_where_agreement_is_a
     spread = far["consensus"]["rotation_spread_deg"]
     assert np.mean(spread) == pytest.approx(np.sqrt((0 + 144 + 144) / 3), rel=1e-3)  # RMS from the chosen (the 0)
     assert far["result"].status == FitStatus.AMBIGUOUS and "disagree" in far["result"].message
+    assert "the passing one nearest the others" in far["notes"][-1]  # the consensus note says how the tries went
     assert consensus([rolled(0.0), rolled(12.0), rolled(-12.0)], needed=3)["result"].ok  # not asked: reported only

@@ -191,6 +191,13 @@ def consensus(tries: list, *, needed: int | None = None, max_spread_deg: float |
         record["rotation_spread_deg"] = [
             float(np.degrees(np.sqrt(np.mean([rotation_angle(R0[j].rotation.T @ tries[i]["result"].T_cam_npcs[j].rotation)
                                               ** 2 for i in ok])))) for j in range(len(R0))]
+    if len(tries) > 1:
+        for key in ("t_bp", "t_net", "t_compare"):
+            best[key] = float(sum(t[key] for t in tries))
+        best["notes"] = list(best["notes"]) + [
+            f"consensus: {len(ok)} of {len(tries)} hypotheses (samplings and RANSAC seeds) passed"
+            + ("" if needed is None else f", {needed} needed") + f"; hypothesis {chosen} is the answer"
+            + (" (the passing one nearest the others)" if best["result"].ok else " (most failed alike)")]
     spread = record["rotation_spread_deg"]
     if max_spread_deg is not None and best["result"].ok and spread and float(np.mean(spread)) > max_spread_deg:
         from ...solvers.types import FitStatus
@@ -199,13 +206,6 @@ def consensus(tries: list, *, needed: int | None = None, max_spread_deg: float |
             f"check consensus: the {len(ok)} passing hypotheses (samplings and RANSAC seeds) disagree, their parts "
             f"{float(np.mean(spread)):.1f} deg apart on average (at most {max_spread_deg:g}): the answer depends on the "
             "seed"))
-    if len(tries) > 1:
-        for key in ("t_bp", "t_net", "t_compare"):
-            best[key] = float(sum(t[key] for t in tries))
-        best["notes"] = list(best["notes"]) + [
-            f"consensus: {len(ok)} of {len(tries)} hypotheses (samplings and RANSAC seeds) passed"
-            + ("" if needed is None else f", {needed} needed") + f"; hypothesis {chosen} is the answer"
-            + (" (the passing one nearest the others)" if best["result"].ok else " (most failed alike)")]
     best["consensus"] = record
     return best
 
