@@ -23,8 +23,8 @@ import numpy as np
 
 from .report import Provenance, median_text, write_json, write_text
 
-__all__ = ["MODES", "WRONG_MASK_IOU", "WRONG_ROTATION_DEG", "load_scenes_records", "measure_scenes", "wrong_success",
-           "write_scenes_report"]
+__all__ = ["MODES", "WRONG_MASK_IOU", "WRONG_ROTATION_DEG", "load_scenes_records", "measure_scenes",
+           "merge_scenes_records", "wrong_success", "write_scenes_report"]
 
 #: The runs per scene (module docstring).
 MODES = ("mask", "auto", "empty")
@@ -149,6 +149,50 @@ def load_scenes_records(path) -> tuple[dict, Provenance]:
     except (OSError, KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"--records: {path} is not the JSON of an `ancsh bench scenes` report ({exc})") from exc
     return results, prov
+
+
+def merge_scenes_records(parts) -> tuple[dict, Provenance]:
+    """One report's results from runs of the same settings on different categories (``(results, provenance)`` of
+    :func:`load_scenes_records` each: a 2-core machine runs the categories as two processes), their records in the
+    runs' order; the provenance joins their commands (``;``) and keeps the first run's date and machine.
+
+    Raises
+    ------
+    ValueError
+        Naming ``--records``, for runs of other settings (frames, seeds, stress scenes), runs that share a category,
+        or a run with stress scenes beside one without.
+    """
+    parts = list(parts)
+    if len(parts) == 1:
+        return parts[0]
+
+    def settings(results, key=None):
+        block = results if key is None else results.get(key)
+        return None if block is None else {k: v for k, v in block["settings"].items() if k != "categories"}
+
+    first = parts[0][0]
+    seen = []
+    for results, _ in parts:
+        for key in (None, "stress"):
+            if settings(results, key) != settings(first, key):
+                what = "stress scenes" if key else "scenes"
+                raise ValueError(f"--records: the runs' {what} have other settings ({settings(first, key)} and "
+                                 f"{settings(results, key)}); merge runs of one command on other --categories only")
+        shared = sorted(set(seen) & set(results["settings"]["categories"]))
+        if shared:
+            raise ValueError(f"--records: {', '.join(shared)} measured in two runs; merge runs of other --categories")
+        seen += list(results["settings"]["categories"])
+    merged = {"records": [r for results, _ in parts for r in results["records"]],
+              "hidden": [h for results, _ in parts for h in results["hidden"]],
+              "settings": {**first["settings"], "categories": seen}}
+    if "stress" in first:
+        merged["stress"] = {"records": [r for results, _ in parts for r in results["stress"]["records"]],
+                            "hidden": [h for results, _ in parts for h in results["stress"].get("hidden", [])],
+                            "settings": {**first["stress"]["settings"],
+                                         "categories": [c for results, _ in parts
+                                                        for c in results["stress"]["settings"]["categories"]]}}
+    prov = parts[0][1]
+    return merged, Provenance("; ".join(p.command for _, p in parts), date=prov.date, machine=prov.machine)
 
 
 def side_by_side(results: dict, real_frames) -> list:

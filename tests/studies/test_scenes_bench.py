@@ -52,6 +52,28 @@ def test_the_report_counts_wrong_successes_and_is_written_again_from_its_records
     assert "--records: the records hold their own categories" in capsys.readouterr().err
     assert main(["bench", "scenes", "--records", str(tmp_path / "none.json"), "--out", str(again)]) == 2
     assert "is not the JSON of an `ancsh bench scenes` report" in capsys.readouterr().err
+    # the runs of one command on other categories (two processes on two cores) merge into one report
+    other = json.loads(json.dumps(data))
+    other["command"] = data["command"].replace("--categories laptop", "--categories box")
+    other["settings"]["categories"] = ["box"]
+    for r in other["records"]:
+        r["category"] = "box"
+    second = tmp_path / "box.json"
+    second.write_text(json.dumps(other))
+    merged = tmp_path / "merged.md"
+    assert main(["bench", "scenes", "--records", str(records), str(second), "--out", str(merged)]) == 0
+    text = merged.read_text()
+    assert "| laptop | 1/1 (0) | 1/1 (1) |" in text and "| box | 1/1 (0) | 1/1 (1) |" in text
+    assert f"Command: `{data['command']}; {other['command']}`" in text
+    out_data = json.loads(merged.with_suffix(".json").read_text())
+    assert out_data["records"] == data["records"] + other["records"]
+    assert out_data["settings"]["categories"] == ["laptop", "box"]
+    assert main(["bench", "scenes", "--records", str(records), str(records), "--out", str(merged)]) == 2
+    assert "laptop measured in two runs" in capsys.readouterr().err
+    other["settings"]["frames"] = 5
+    second.write_text(json.dumps(other))
+    assert main(["bench", "scenes", "--records", str(records), str(second), "--out", str(merged)]) == 2
+    assert "other settings" in capsys.readouterr().err
 
 
 def test_the_stress_scenes_are_keyed_by_object_and_matched_by_mask(tmp_path):

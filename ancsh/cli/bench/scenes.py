@@ -25,8 +25,10 @@ def register(sub) -> None:
                    "the issue's measure: 0 1 2 3 4 5 6 7 8 9)")
     p.add_argument("--out", type=Path, help="report file (default: a fresh ancsh_results/scenes-<time>/scenes.md)")
     p.add_argument("--update-docs", action="store_true", help="write docs/results/scenes.md (when --out is not given)")
-    p.add_argument("--records", type=Path, metavar="JSON", help="write the report again from a report's records (its "
-                   "scenes.json; the measuring run's command, date and machine kept) instead of fitting the scenes")
+    p.add_argument("--records", type=Path, nargs="+", metavar="JSON", help="write the report again from a report's "
+                   "records (its scenes.json; the measuring run's command, date and machine kept) instead of fitting "
+                   "the scenes; several: the runs of one command on other --categories (two processes on two cores), "
+                   "merged into one report")
     p.add_argument("--real-frames", type=Path, metavar="JSON", default=None,
                    help="a bench real-frames JSON summarised beside the scenes (default: docs/results/real_frames.json "
                    "where it exists; 'none' for no such table)")
@@ -52,14 +54,14 @@ def run(args: argparse.Namespace) -> int:
     if args.real_frames is not None and str(args.real_frames) != "none" and real is None:
         raise ValueError(f"--real-frames: no such file {args.real_frames}")
     if args.records is not None:
-        from ...studies.scenes import load_scenes_records
+        from ...studies.scenes import load_scenes_records, merge_scenes_records
 
         if args.categories is not None or args.frames != 20 or args.seed != 0 or args.stress_frames != 8 \
                 or args.seeds != [0]:
             raise ValueError("--records: the records hold their own categories, frames and seeds; leave out "
                              "--categories, --frames, --seed, --stress-frames and --seeds")
-        results, provenance = load_scenes_records(args.records)
-        rewritten = "ancsh " + " ".join(shlex.quote(a) for a in ["bench", "scenes", "--records", str(args.records),
+        results, provenance = merge_scenes_records(load_scenes_records(r) for r in args.records)
+        rewritten = "ancsh " + " ".join(shlex.quote(a) for a in ["bench", "scenes", "--records", *map(str, args.records),
                                                                    *changed_options(args, {"real_frames": None}),
                                                                    *output_flags(args.out, update_docs=args.update_docs)])
         write_scenes_report(results, path, provenance, rewritten_by=rewritten, real_frames=real)
