@@ -562,13 +562,16 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         if background or cut:
             a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
                               refine, why="not fitted")
-            status, message = (FitStatus.NOT_THIS_CATEGORY, (
-                f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
-                f"jumps around it, {100 * jumps:.0f} % of its edge): a background surface, not an object; not "
-                "fitted")) if background else (FitStatus.OUT_OF_VIEW, (
-                f"check view: the segment runs out of the image ({100 * edge_share:.0f} % of its outline on the "
-                "image's edge): only part of it is seen, so a fit cannot be checked as a whole object; not fitted: "
-                "give a mask or a --pixel / --box hint to fit it anyway"))
+            if background:
+                status, message = FitStatus.NOT_THIS_CATEGORY, (
+                    f"check foreground: the segment lies behind its surroundings ({100 * behind:.0f} % of the depth "
+                    f"jumps around it, {100 * jumps:.0f} % of its edge): a background surface, not an object; not "
+                    "fitted")
+            else:
+                status, message = FitStatus.OUT_OF_VIEW, (
+                    f"check view: the segment runs out of the image ({100 * edge_share:.0f} % of its outline on the "
+                    "image's edge): only part of it is seen, so a fit cannot be checked as a whole object; not "
+                    "fitted: give a mask or a --pixel / --box hint to fit it anyway")
             a["result"] = dataclasses.replace(a["result"], status=status, message=message)
         else:
             a = fit_candidate(d, intrinsics, mask, category, provider, formulation, num_points, seed, max_depth,
