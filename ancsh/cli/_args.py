@@ -5,6 +5,23 @@ from __future__ import annotations
 from ..executors import EXECUTORS, RAY_MISSING, make_executor, ray_available
 
 
+def category(text: str) -> str:
+    """A ``--category`` value: a category's name as it is (checked where it is used); a category spec file or a
+    built category folder is read, registered (:func:`ancsh.data.conventions.register_category`) and its name
+    returned; a wrong spec is argparse's error naming the file and the key."""
+    import argparse
+    import os
+
+    if not (text.endswith(".toml") or os.sep in text or os.path.isdir(text)):
+        return text
+    from ..data.conventions import resolve_category
+
+    try:
+        return resolve_category(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def named_value(item: str, option: str, form: str) -> tuple[str, str]:
     """``NAME=VALUE`` of a repeatable option split in two; an item without ``=`` or with an empty side is refused
     naming ``option`` and the expected ``form`` (e.g. ``"CATEGORY=FILE"``)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 
+from ._args import category as category_arg
 from ._args import non_negative_int as _non_negative_int
 from ._args import positive_int as _positive_int
 
@@ -21,7 +22,9 @@ def register(sub) -> None:
         "into HDF5 shards. Re-running the same command resumes an interrupted run.",
     )
     src = g.add_mutually_exclusive_group(required=True)
-    src.add_argument("--category", help="procedural category: eyeglasses, oven, washing_machine, laptop, drawer, microwave, safe, box")
+    src.add_argument("--category", type=category_arg, help="a category (built in: eyeglasses, oven, washing_machine, laptop, drawer, microwave, "
+                     "safe, box), a category spec file or a built category folder; one without a procedural generator "
+                     "needs --real CATALOG --real-fraction 1")
     src.add_argument("--urdf", help="path of a URDF object (e.g. a PartNet-Mobility mobility.urdf)")
     g.add_argument("--split", default="train", choices=("train", "test"), help="instance split (default train)")
     g.add_argument("--real", default=None, metavar="CATALOG",
@@ -64,7 +67,7 @@ def register(sub) -> None:
         "Example: ancsh data import ../shared/data/partnet_mobility --out catalog_out",
     )
     im.add_argument("paths", nargs="+", help="URDF files, object folders, or folders of object folders")
-    im.add_argument("--category", default=None, help="import everything into this category (default: each object's own)")
+    im.add_argument("--category", default=None, type=category_arg, help="import everything into this category (default: each object's own)")
     im.add_argument("--out", required=True, help="output folder: catalog.json, import_report.md, previews/")
     im.add_argument("--override", default=None, help="JSON file of per-object overrides (see ancsh.data.importer)")
     im.add_argument("--no-previews", dest="previews", action="store_false", help="skip the preview sheets")

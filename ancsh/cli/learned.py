@@ -11,6 +11,7 @@ import shlex
 from pathlib import Path
 
 from ..outputs import output_flags, write_bytes_atomically
+from ._args import category as category_arg
 from ._args import check_picture_path, non_negative_int, positive_int
 
 
@@ -36,7 +37,7 @@ def register(sub) -> None:
     p.add_argument("--depth", required=True, type=Path, help="16-bit PNG (millimetres by default) or .npy (metres); "
                    "a folder predicts every .png/.npy in it (--out and --png are then folders)")
     p.add_argument("--intrinsics", required=True, type=Path, help='JSON {"fx","fy","cx","cy","width","height"}')
-    p.add_argument("--category", required=True, help="object category, e.g. laptop")
+    p.add_argument("--category", required=True, type=category_arg, help="object category, e.g. laptop, or a category spec file or built category folder")
     p.add_argument("--mask", type=Path, help="object mask (PNG or .npy, nonzero = object), same size as the depth; "
                    "without one the object is isolated automatically (planes removed, clusters, size + centrality)")
     p.add_argument("--pixel", metavar="U,V", help="isolation hint: a pixel on the object")
@@ -86,7 +87,7 @@ def register(sub) -> None:
         "per frame and fit every method (NPCS, NAOCS, ANCSH-soft, ANCSH-exact); write <category>.md/.json and "
         "<category>_occlusion.png to --out.",
     )
-    e.add_argument("--category", required=True)
+    e.add_argument("--category", required=True, type=category_arg)
     e.add_argument("--formulations", nargs="+", metavar="METHOD",
                    help="methods (default all but the refinements): per_part (NPCS), naocs, soft, exact_reduced, "
                    "exact_maximal, template (= --refine template), network (= --refine network)")
@@ -129,7 +130,7 @@ def register(sub) -> None:
         "too few good or bad fits in a half, is an error. --install puts it beside the shipped weights, where "
         "`ancsh predict` uses it.",
     )
-    c.add_argument("--category", required=True)
+    c.add_argument("--category", required=True, type=category_arg)
     c.add_argument("--frames", type=int, default=300, help="example frames, half to fit, half to measure (default 300; "
                    f"at least {MIN_FRAMES}, with --object 8)")
     c.add_argument("--seed", type=non_negative_int, default=7, help="base seed of the frames (default 7; evaluate uses 0)")

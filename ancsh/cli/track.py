@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 
+from ._args import category as category_arg
 from ._args import non_negative_int, positive_int
 
 __all__ = ["register"]
@@ -15,7 +16,7 @@ def register(sub) -> None:
                                                   "in natural name order")
     p.add_argument("--intrinsics", required=True, help="intrinsics JSON of every frame ({fx, fy, cx, cy, width, height})")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--category", help="category level: the shipped network of this category")
+    src.add_argument("--category", type=category_arg, help="category level: the shipped network of this category")
     src.add_argument("--urdf", help="instance level: a known URDF model (warm-started articulated ICP)")
     p.add_argument("--out", default=None, help="JSON-lines output, one line a frame, written as it goes "
                                                "(default: a fresh ancsh_results/track-<time>/track.jsonl); never overwritten")

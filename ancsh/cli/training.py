@@ -12,6 +12,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from ._args import category as category_arg
 from ._args import positive_float
 
 
@@ -24,7 +25,7 @@ def register(sub) -> None:
         "Distributed (DDP, one process per core or GPU): torchrun --nproc_per_node N -m ancsh train ...; the "
         "config's batch_size is the global batch and must divide by N.",
     )
-    p.add_argument("--category", required=True, help="object category, e.g. laptop")
+    p.add_argument("--category", required=True, type=category_arg, help="object category, e.g. laptop, or a category spec file or built category folder")
     p.add_argument("--config", type=Path, help="TrainConfig JSON (unknown keys are an error)")
     p.add_argument("--kind", choices=("ancsh", "direct_voting"), help="network (default: the config's, else ancsh)")
     p.add_argument("--resume", action="store_true", help="continue from RUN/last.pt")

@@ -14,6 +14,11 @@ A :class:`CategoryConvention` says what an instance of a category is in ANCSH te
 - the size range (rest-state box diagonal, metres) and the PartNet-Mobility names that map to
   the category and its moving parts.
 
+Each category is written in a spec file (:mod:`ancsh.data.category_spec`, ``docs/category_spec.md``):
+the built-in ones in ``ancsh/data/specs/``, others given as a file or a built category folder
+(``--category DIR``, :func:`register_category`) or found on the search path ``ANCSH_CATEGORIES``.
+:data:`CONVENTIONS` holds them all.
+
 The procedural generators (:mod:`ancsh.data.procedural`) are written to these definitions and
 the URDF importer (:mod:`ancsh.data.importer`) maps any object onto them. Both are checked by
 :func:`convention_violations`, which measures the rules on the geometry (it does not trust
@@ -40,12 +45,17 @@ the base's centre line as the state increases: temples folding inwards).
 
 from __future__ import annotations
 
+import dataclasses
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
-from types import MappingProxyType
+from pathlib import Path
 
 import numpy as np
 
 from ..model.articulated import ArticulatedModel, JointType
+from . import category_spec
+from .category_types import ORDER_AXES, CategoryConvention, JointConvention
 
 __all__ = [
     "CONVENTIONS",
@@ -55,9 +65,13 @@ __all__ = [
     "CategoryConvention",
     "JointConvention",
     "box_volume",
+    "category_folder",
     "convention",
     "convention_violations",
+    "is_category_path",
     "part_vertices_canonical",
+    "register_category",
+    "resolve_category",
     "rest_diagonal",
 ]
 
@@ -67,268 +81,131 @@ UP = np.array([0.0, 1.0, 0.0])
 FRONT = np.array([0.0, 0.0, 1.0])
 
 REVOLUTE, PRISMATIC = JointType.REVOLUTE, JointType.PRISMATIC
-_ZERO_RULES = ("closed", "perpendicular")
-_POSITIVE_RULES = ("opens", "folds")
-_SIDES = ("front", "back", "top")
-_ORDER_AXES = {"x": 0, "y": 1}
 
 
-@dataclass(frozen=True)
-class JointConvention:
-    """What one joint of a category means.
+class _Registry(Mapping):
+    """``name -> CategoryConvention``: the built-in categories (their spec files in ``ancsh/data/specs/``), then the
+    categories on the search path (:data:`ancsh.data.category_spec.SEARCH_PATH_VARIABLE`, read again when it changes;
+    :func:`register_category` adds to it, so worker processes started later know the same categories)."""
 
-    Attributes
+    def __init__(self):
+        self._builtin = {}
+        for path in category_spec.builtin_spec_paths():
+            conv = category_spec.load_spec(path)
+            self._builtin[conv.name] = dataclasses.replace(conv, spec_path=None)
+        self._searched = (None, {})
+
+    def _search(self) -> dict:
+        value = os.environ.get(category_spec.SEARCH_PATH_VARIABLE, "")
+        if self._searched[0] != value:
+            found = {}
+            for path in category_spec.search_path_specs(value):
+                conv = category_spec.load_spec(path)
+                _check_new(conv, {**self._builtin, **found})
+                found[conv.name] = conv
+            self._searched = (value, found)
+        return self._searched[1]
+
+    def __getitem__(self, name):
+        if name in self._builtin:
+            return self._builtin[name]
+        return self._search()[name]
+
+    def __contains__(self, name):
+        return name in self._builtin or name in self._search()
+
+    def __iter__(self):
+        return iter([*self._builtin, *(n for n in self._search() if n not in self._builtin)])
+
+    def __len__(self):
+        return len(self._builtin) + len(set(self._search()) - set(self._builtin))
+
+    @property
+    def builtin(self) -> tuple:
+        """Names of the built-in categories, in their listed order."""
+        return tuple(self._builtin)
+
+
+def _check_new(conv: CategoryConvention, known: dict) -> None:
+    old = known.get(conv.name)
+    if old is not None and old.spec_path != conv.spec_path:
+        where = "a built-in category" if old.spec_path is None else f"the category of {old.spec_path}"
+        raise category_spec.SpecError(f"{conv.spec_path}: name: {conv.name!r} is already {where}; give it another name")
+
+
+#: ``CONVENTIONS[name]`` -> :class:`CategoryConvention`: every category with a convention (the built-in ones, read
+#: from their spec files, then the search path's and the registered ones).
+CONVENTIONS = _Registry()
+
+
+def category_folder(category: str) -> Path | None:
+    """The folder of a built category (its spec, weights, calibrations, template, catalog); ``None`` for a
+    built-in category or an unknown name."""
+    conv = CONVENTIONS.get(category) if isinstance(category, str) else None
+    return None if conv is None or conv.folder is None else Path(conv.folder)
+
+
+def register_category(path) -> CategoryConvention:
+    """Read a category spec file or a built category folder and make its category known in this process and the
+    processes it starts (it joins the search path, :data:`~ancsh.data.category_spec.SEARCH_PATH_VARIABLE`).
+
+    Parameters
     ----------
-    name : str
-        Joint name (``display_hinge``).
-    type : JointType
-    parent, child : str
-        Part roles; the child is the moving part.
-    zero : str
-        Geometric meaning of state 0: ``"closed"`` or ``"perpendicular"`` (module docstring).
-    positive : str
-        Direction of increasing state: ``"opens"`` or ``"folds"``.
-    rest : float
-        Rest state defining NAOCS (radians or metres, in this parameterisation).
-    side : str or tuple of str
-        Side(s) of the base the child sits on at rest: ``"front"`` (+z), ``"back"`` (-z) or
-        ``"top"`` (+y) of the base's box centre. A tuple allows any of them (a washing
-        machine's door is in front or on top).
-    semantics : tuple of str
-        PartNet-Mobility part names (``mobility_v2.json`` ``name``) of the child.
-    state_range : (float, float)
-        The states every object of the category can take (radians or metres, this parameterisation):
-        ``zero="closed"`` joints start at 0 (a lid cannot go through its base, a drawer into its
-        cabinet) and reach the widest opening of the category's real and procedural instances. The
-        fits take it as bounds on the state (:attr:`CategoryConvention.joint_limits`). Default: no
-        bound.
+    path : str or Path
+        A spec file (``.toml``) or a category folder holding ``category.toml``.
+
+    Returns
+    -------
+    CategoryConvention
+        With ``folder`` set for a category folder.
+
+    Raises
+    ------
+    ancsh.data.category_spec.SpecError
+        The spec is wrong (naming the file and the key), or its name is another category's.
     """
-
-    name: str
-    type: JointType
-    parent: str
-    child: str
-    zero: str
-    positive: str
-    rest: float
-    side: tuple
-    semantics: tuple
-    state_range: tuple = (-np.inf, np.inf)
-
-    def __post_init__(self):
-        object.__setattr__(self, "type", JointType(self.type))
-        if self.zero not in _ZERO_RULES:
-            raise ValueError(f"joint {self.name!r} zero: expected one of {_ZERO_RULES}, got {self.zero!r}")
-        if self.positive not in _POSITIVE_RULES:
-            raise ValueError(f"joint {self.name!r} positive: expected one of {_POSITIVE_RULES}, got {self.positive!r}")
-        side = (self.side,) if isinstance(self.side, str) else tuple(self.side)
-        if not side or any(s not in _SIDES for s in side):
-            raise ValueError(f"joint {self.name!r} side: expected one or more of {_SIDES}, got {self.side!r}")
-        object.__setattr__(self, "side", side)
-        object.__setattr__(self, "semantics", tuple(self.semantics))
-        object.__setattr__(self, "rest", float(self.rest))
-        lo, hi = (float(v) for v in self.state_range)
-        if not (lo < hi and not np.isnan(lo) and not np.isnan(hi)):
-            raise ValueError(f"joint {self.name!r} state_range: expected lower < upper, got {self.state_range!r}")
-        if not lo <= self.rest <= hi:
-            raise ValueError(f"joint {self.name!r} state_range: the rest state {self.rest:.4g} lies outside [{lo:.4g}, {hi:.4g}]")
-        object.__setattr__(self, "state_range", (lo, hi))
+    conv = category_spec.load_spec(path)
+    known = CONVENTIONS._search()
+    _check_new(conv, {**CONVENTIONS._builtin, **known})
+    if conv.name not in known:
+        entry = str(Path(conv.folder if conv.folder is not None else conv.spec_path).resolve())
+        value = os.environ.get(category_spec.SEARCH_PATH_VARIABLE, "")
+        os.environ[category_spec.SEARCH_PATH_VARIABLE] = os.pathsep.join(filter(None, [value, entry]))
+    return CONVENTIONS[conv.name]
 
 
-@dataclass(frozen=True)
-class CategoryConvention:
-    """One category's definition (see the module docstring).
+def is_category_path(category: str) -> bool:
+    """Whether a ``--category`` value names a spec file or a category folder rather than a category."""
+    text = str(category)
+    return text.endswith(".toml") or os.sep in text or (os.altsep is not None and os.altsep in text) or \
+        Path(text).is_dir()
 
-    Attributes
-    ----------
-    name : str
-    part_names : tuple of str
-        Part roles in label order ``0..M-1``, base first.
-    joints : tuple of JointConvention
-        Joint ``k`` moves part ``k + 1``.
-    diagonal_range : (float, float)
-        Range of the rest-state box diagonal (metres) of real instances; imported objects are
-        scaled into it, procedural ones are generated in it.
-    rest_description : str
-        The rest state that defines NAOCS, in words (paper Sec. 4.1).
-    order_by : str or None
-        Canonical axis (``"x"`` or ``"y"``) ordering the moving parts at rest, ascending
-        (eyeglasses: left temple at -x first; drawers: lowest first); ``None`` for one moving part.
-    source_categories : tuple of str
-        PartNet-Mobility ``meta.json`` ``model_cat`` values that map to this category.
-    in_paper : bool
-        One of the ANCSH paper's five categories.
+
+def resolve_category(category) -> str:
+    """The category name of a ``--category`` value: a known name as it is, a spec file or category folder
+    registered (:func:`register_category`) and its name returned.
+
+    Raises
+    ------
+    ValueError
+        An unknown name (listing the known ones) or a wrong spec (:class:`~ancsh.data.category_spec.SpecError`).
     """
-
-    name: str
-    part_names: tuple
-    joints: tuple
-    diagonal_range: tuple
-    rest_description: str
-    order_by: str | None = None
-    source_categories: tuple = ()
-    in_paper: bool = True
-
-    def __post_init__(self):
-        parts, joints = tuple(self.part_names), tuple(self.joints)
-        if len(joints) != len(parts) - 1:
-            raise ValueError(f"category {self.name!r}: {len(parts)} parts need {len(parts) - 1} joints, got {len(joints)}")
-        for k, j in enumerate(joints):
-            if not isinstance(j, JointConvention):
-                raise ValueError(f"category {self.name!r} joints: expected JointConvention, got {type(j).__name__}")
-            if j.child != parts[k + 1] or j.parent not in parts[: k + 1]:
-                raise ValueError(f"category {self.name!r}: joint {j.name!r} must move part {parts[k + 1]!r} from an earlier part")
-        lo, hi = (float(v) for v in self.diagonal_range)
-        if not 0 < lo < hi:
-            raise ValueError(f"category {self.name!r} diagonal_range: expected 0 < lo < hi, got {self.diagonal_range}")
-        if self.order_by is not None and self.order_by not in _ORDER_AXES:
-            raise ValueError(f"category {self.name!r} order_by: expected 'x', 'y' or None, got {self.order_by!r}")
-        object.__setattr__(self, "part_names", parts)
-        object.__setattr__(self, "joints", joints)
-        object.__setattr__(self, "diagonal_range", (lo, hi))
-        object.__setattr__(self, "source_categories", tuple(self.source_categories))
-
-    @property
-    def joint_names(self) -> tuple:
-        return tuple(j.name for j in self.joints)
-
-    @property
-    def joint_types(self) -> tuple:
-        return tuple(j.type for j in self.joints)
-
-    @property
-    def rest_states(self) -> np.ndarray:
-        """(K,) rest states in the convention's parameterisation."""
-        return np.array([j.rest for j in self.joints], dtype=np.float64)
-
-    @property
-    def joint_limits(self) -> np.ndarray:
-        """(K, 2) the joints' :attr:`JointConvention.state_range` relative to the rest states (the fits' states)."""
-        return np.array([j.state_range for j in self.joints], dtype=np.float64).reshape(-1, 2) - self.rest_states[:, None]
-
-    @property
-    def typical_size(self) -> float:
-        """Typical rest-state box diagonal (metres): the middle of :attr:`diagonal_range`."""
-        return 0.5 * (self.diagonal_range[0] + self.diagonal_range[1])
-
-    @property
-    def num_parts(self) -> int:
-        return len(self.part_names)
-
-    @property
-    def num_joints(self) -> int:
-        return len(self.joints)
-
-
-#: Joint ranges (:attr:`JointConvention.state_range`), from closed to the widest opening of the category's procedural
-#: generators and of its PartNet-Mobility objects' limits (boxes open 116-265 deg; laptops lie flat at 180 deg;
-#: drawers travel at most 90 % of a cabinet's depth, 1.6 m across at most). Eyeglasses temples splay outwards up to
-#: 0.25 rad and fold up to 1.62 rad in the generator: 0.1 rad more both ways.
-_DOOR_RANGE = (0.0, np.pi)
-_LID_RANGE = (0.0, np.deg2rad(270.0))
-_TEMPLE_RANGE = (-0.35, 1.72)
-_DRAWER_RANGE = (0.0, 1.0)
-
-
-def _door(name="door_hinge", side=("front",), semantics=("door",)):
-    return JointConvention(name, REVOLUTE, "base", "door", "closed", "opens", 0.0, side, semantics, _DOOR_RANGE)
-
-
-_DRAWER_SEMANTICS = ("drawer", "drawer_box", "handle")
-_CONVENTIONS = (
-    CategoryConvention(
-        "eyeglasses",
-        ("base", "left_temple", "right_temple"),
-        tuple(
-            JointConvention(f"{s}_hinge", REVOLUTE, "base", f"{s}_temple", "perpendicular", "folds", 0.0, "back", ("leg",),
-                            _TEMPLE_RANGE)
-            for s in ("left", "right")
-        ),
-        (0.17, 0.27),
-        "temples at right angles to the front frame (0)",
-        order_by="x",
-        source_categories=("Eyeglasses",),
-    ),
-    CategoryConvention(
-        "oven",
-        ("base", "door"),
-        (_door(),),
-        (0.50, 1.55),
-        "door closed (0)",
-        source_categories=("Oven",),
-    ),
-    CategoryConvention(
-        "washing_machine",
-        ("base", "door"),
-        (_door(side=("front", "top")),),
-        (0.95, 1.35),
-        "door closed (0)",
-        source_categories=("WashingMachine",),
-    ),
-    CategoryConvention(
-        "laptop",
-        ("base", "display"),
-        (
-            JointConvention(
-                "display_hinge", REVOLUTE, "base", "display", "closed", "opens", np.pi / 2, "back",
-                ("shaft", "screen", "screen_side", "other_leaf"), _DOOR_RANGE,
-            ),
-        ),
-        (0.35, 0.62),
-        "display at right angles to the base (pi/2 from closed)",
-        source_categories=("Laptop",),
-    ),
-    CategoryConvention(
-        "drawer",
-        ("base", "lowest", "middle", "top"),
-        tuple(
-            JointConvention(f"{n}_slide", PRISMATIC, "base", n, "closed", "opens", 0.0, "front", _DRAWER_SEMANTICS,
-                            _DRAWER_RANGE)
-            for n in ("lowest", "middle", "top")
-        ),
-        (0.75, 1.60),
-        "all drawers closed (0)",
-        order_by="y",
-        source_categories=("Table", "StorageFurniture"),
-    ),
-    CategoryConvention(
-        "microwave",
-        ("base", "door"),
-        (_door(),),
-        (0.45, 0.85),
-        "door closed (0)",
-        source_categories=("Microwave",),
-        in_paper=False,
-    ),
-    CategoryConvention(
-        "safe",
-        ("base", "door"),
-        (_door(),),
-        (0.35, 1.40),
-        "door closed (0)",
-        source_categories=("Safe",),
-        in_paper=False,
-    ),
-    CategoryConvention(
-        "box",
-        ("base", "lid"),
-        (JointConvention("lid_hinge", REVOLUTE, "base", "lid", "closed", "opens", 0.0, "top", ("rotation_lid", "lid"),
-                             _LID_RANGE),),
-        (0.12, 1.15),
-        "lid closed (0)",
-        source_categories=("Box",),
-        in_paper=False,
-    ),
-)
-
-#: ``CONVENTIONS[name]`` -> :class:`CategoryConvention`, every category with a convention.
-CONVENTIONS = MappingProxyType({c.name: c for c in _CONVENTIONS})
+    if isinstance(category, CategoryConvention):
+        return category.name
+    if not isinstance(category, (str, os.PathLike)):
+        raise ValueError(f"category: expected a category name, a spec file or a category folder, got {category!r}")
+    if isinstance(category, str) and category in CONVENTIONS:
+        return category
+    if is_category_path(category):
+        return register_category(category).name
+    return convention(str(category)).name
 
 
 def convention(category: str) -> CategoryConvention:
     """The convention of ``category``; ``ValueError`` naming the known ones otherwise."""
     if category not in CONVENTIONS:
-        raise ValueError(f"category: no convention for {category!r}; known: {', '.join(CONVENTIONS)}")
+        raise ValueError(f"category: no convention for {category!r}; known: {', '.join(CONVENTIONS)} (or give a "
+                         f"category spec file or folder; the search path {category_spec.SEARCH_PATH_VARIABLE})")
     return CONVENTIONS[category]
 
 
@@ -450,7 +327,7 @@ def convention_violations(model: ArticulatedModel, conv: CategoryConvention, *, 
             continue
         out.extend(_joint_rule_violations(model, k, jc, rel_tol, angle_tol_deg))
     if conv.order_by is not None and model.num_parts > 2:
-        axis = _ORDER_AXES[conv.order_by]
+        axis = ORDER_AXES[conv.order_by]
         verts = part_vertices_canonical(model, model.rest_states)
         centres = [verts[i].mean(axis=0)[axis] for i in range(1, model.num_parts)]
         if any(b <= a for a, b in zip(centres, centres[1:])):

@@ -52,7 +52,10 @@ class GenerationConfig:
     Attributes
     ----------
     category : str or None
-        Procedural category (:data:`ancsh.data.procedural.CATEGORIES`); ``None`` with ``urdf``.
+        A category with a convention (:data:`ancsh.data.conventions.CONVENTIONS`; a spec file or category
+        folder is registered and replaced by its name); ``None`` with ``urdf``. A category without a
+        procedural generator (:data:`ancsh.data.procedural.CATEGORIES`) renders its imported objects only
+        (``real_fraction=1``).
     split : str
         ``"train"`` or ``"test"`` instances (procedural and real).
     real : str or None
@@ -112,11 +115,16 @@ class GenerationConfig:
         if (self.category is None) == (self.urdf is None):
             raise ValueError("category: give exactly one of a procedural category and a URDF path")
         if self.urdf is None:
-            from .procedural import CATEGORIES, instance_seeds
+            from .conventions import resolve_category
+            from .procedural import CATEGORIES
+            from .procedural.registry import split_seeds
 
-            if self.category not in CATEGORIES:
-                raise ValueError(f"category: unknown category {self.category!r}; known: {', '.join(CATEGORIES)}")
-            instance_seeds(self.category, self.split)  # validates the split
+            object.__setattr__(self, "category", resolve_category(self.category))
+            split_seeds(self.split)  # validates the split
+            if self.category not in CATEGORIES and (self.real is None or self.real_fraction < 1.0):
+                raise ValueError(f"category: {self.category!r} has no procedural generator (a category from a spec "
+                                 "file): its frames show its imported objects only; give real=CATALOG and "
+                                 "real_fraction=1 (--real CATALOG --real-fraction 1)")
         else:
             object.__setattr__(self, "urdf", str(Path(self.urdf).resolve()))
             if not Path(self.urdf).is_file():
@@ -149,6 +157,13 @@ class GenerationConfig:
             return f"{self.category}_{'real' if self.real_fraction >= 1.0 else 'mixed'}"
         return self.category
 
+    @property
+    def has_generator(self) -> bool:
+        """Whether the category has a procedural generator (a spec-only category renders its imported objects)."""
+        from .procedural import CATEGORIES
+
+        return self.category in CATEGORIES
+
     def to_json(self) -> str:
         """Canonical JSON of every setting (stored in each shard, compared on resume)."""
         d = asdict(self)
@@ -160,7 +175,7 @@ class GenerationConfig:
             del d["real_split"]
         else:
             d["sequence"] = self.sequence.to_dict()
-        if self.urdf is None:  # procedural shapes depend on the generators' version, not only the seed
+        if self.urdf is None and self.has_generator:  # procedural shapes depend on the generators' version
             from .procedural import generator_version
 
             d["generator_version"] = generator_version(self.category)
@@ -193,13 +208,16 @@ class FrameGenerator:
         else:
             from .procedural import instance_seeds
 
-            self._seeds = tuple(instance_seeds(config.category, config.split))
+            self._seeds = tuple(instance_seeds(config.category, config.split)) if config.has_generator else ()
             if config.real is not None:
                 from .catalog import load_catalog
 
                 catalog = load_catalog(None if config.real == "builtin" else config.real)
                 self._real = catalog.instances(config.category, None if config.real_split == "all" else config.split)
         self._num_procedural = len(self._seeds)
+        if config.urdf is None and not config.has_generator and not self._real:
+            raise ValueError(f"real: the catalog {config.real!r} holds no {config.category} object in the "
+                             f"{config.split} split, and the category has no procedural generator: nothing to render")
         self._seeds = self._seeds + (-1,) * len(self._real)
 
     @property

@@ -17,7 +17,11 @@ Rules (each measured on the geometry, see :mod:`ancsh.data.conventions`)
    has the convention's type (``hinge`` = revolute, ``slider`` = prismatic) and whose part name
    is one of the convention's ``semantics``; those joints are restored when the file froze them
    (GenSim2's copies keep one movable joint), every other movable joint is frozen (knobs,
-   buttons, trays). Without it, the file's movable joints. The count must match the convention.
+   buttons, trays). Without it, the file's movable joints whose child link matches one of the
+   joints' ``links`` patterns (all movable joints when no pattern is given). Links matching the
+   category's ``freeze`` patterns (by link name or part name) never move. More candidates than the
+   category's moving parts: each choice is tried and the largest parts that meet the convention
+   kept; fewer: rejected.
 3. State 0: ``closed`` — the state within the limits minimising the box around base and part
    among the states where the part is aligned with the base (not swung into it);
    ``perpendicular`` — the state with the part's long axis along the front axis, on the
@@ -43,6 +47,7 @@ independent of which other objects are imported.
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 import json
 import re
 import zlib
@@ -292,6 +297,12 @@ def _replaced_types_note(path: Path, joint_types: dict) -> str:
     return "joint types replaced: " + ", ".join(changes)
 
 
+def _frozen(conv: CategoryConvention, link: str, part_name: str | None) -> bool:
+    """Whether the category freezes ``link`` (its ``freeze`` patterns match the link's name or its part name)."""
+    return any(fnmatch.fnmatchcase(link, p) or (part_name is not None and fnmatch.fnmatchcase(part_name, p))
+               for p in conv.freeze)
+
+
 def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links=None) -> tuple[dict, list]:
     """Joint-type overrides and the moving child links (file order)."""
     joints = _urdf_joints(path)
@@ -312,10 +323,12 @@ def _select_moving(path: Path, conv: CategoryConvention, name: str, forced_links
                                  "base of the file's tree): the base cannot move; name the links of the moving parts")
             raise ValueError(f"{name}: override moving_links names unknown link(s) {unknown}")
     elif mobility is None:
-        moving = [link for link in joints if link in movable]
+        patterns = [p for j in conv.joints for p in j.links]
+        moving = [link for link in joints if link in movable and not _frozen(conv, link, None)
+                  and (not patterns or any(fnmatch.fnmatchcase(link, p) for p in patterns))]
     else:
         moving = [link for link in joints if link in mobility and _KIND.get(mobility[link][0]) in wanted_type
-                  and mobility[link][1] in semantics]
+                  and mobility[link][1] in semantics and not _frozen(conv, link, mobility[link][1])]
     mobility = mobility or {}
     if len(moving) > conv.num_joints and forced_links is None:
         raise _TooManyMoving(name, moving)

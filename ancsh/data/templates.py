@@ -208,9 +208,11 @@ def _real_objects(real: str, category: str) -> dict:
 def _stamp(category: str, real: str | None) -> dict:
     """What a library of ``category`` depends on: the generators' version and the catalog's bytes."""
     from .catalog import builtin_catalog_path
-    from .procedural import NUM_TRAIN, generator_version
+    from .procedural import CATEGORIES, NUM_TRAIN, generator_version
 
-    stamp = {"generator_version": generator_version(category), "procedural_instances": NUM_TRAIN, "catalog_sha256": None}
+    procedural = category in CATEGORIES
+    stamp = {"generator_version": generator_version(category) if procedural else None,
+             "procedural_instances": NUM_TRAIN if procedural else 0, "catalog_sha256": None}
     if real is not None:
         path = builtin_catalog_path() if real == "builtin" else Path(real)
         path = path / "catalog.json" if path.is_dir() else path
@@ -224,16 +226,20 @@ def build_template_library(category: str, *, real: str | None = "builtin", progr
 
     Real objects whose URDF cannot be read here (shared data absent) are left out.
 
+    A category without a procedural generator (from a spec) holds its catalog's objects only; for a built
+    category, ``real="builtin"`` means its folder's ``catalog.json``.
+
     Raises
     ------
     ValueError
-        For an unknown category.
+        For an unknown category, or a spec category without a catalog object in the train split.
     """
+    from .conventions import convention
     from .procedural import CATEGORIES, instance_seeds, make_object
 
-    if category not in CATEGORIES:
-        raise ValueError(f"category: expected one of {CATEGORIES}, got {category!r}")
-    seeds = instance_seeds(category, "train")
+    convention(category)  # a known category, or the error naming the known ones
+    real = _own_catalog(category, real)
+    seeds = instance_seeds(category, "train") if category in CATEGORIES else ()
     entries = []
     it = seeds
     if progress:
@@ -249,11 +255,30 @@ def build_template_library(category: str, *, real: str | None = "builtin", progr
             except (OSError, ValueError):  # the URDF or its meshes are not here
                 continue
             entries.append(TemplateEntry.of_model(model, "real"))
+    if not entries:
+        raise ValueError(f"category: {category!r} has no procedural generator and its catalog {real!r} no object of "
+                         "the train split that can be read here: no template to build")
     return TemplateLibrary(category, entries, real, _stamp(category, real))
 
 
+def _own_catalog(category: str, real: str | None) -> str | None:
+    """``real``, with ``"builtin"`` meaning a built category's own ``catalog.json``."""
+    from .conventions import category_folder
+
+    folder = category_folder(category)
+    if real == "builtin" and folder is not None:
+        return str(folder / "catalog.json")
+    return real
+
+
 def library_path(category: str) -> Path:
-    """Where the shipped library of ``category`` lives (``ancsh/data/templates/<category>.json``)."""
+    """Where the library of ``category`` lives: ``ancsh/data/templates/<category>.json`` for a built-in
+    category, ``template.json`` in a built category's folder."""
+    from .conventions import category_folder
+
+    folder = category_folder(category)
+    if folder is not None:
+        return folder / "template.json"
     return Path(__file__).resolve().parent / "templates" / f"{category}.json"
 
 
@@ -272,6 +297,7 @@ def load_template_library(category: str, real: str | None = "builtin") -> Templa
     Reads the shipped file when it matches the current generators and catalog (its stamp), else
     builds the library in memory (:func:`build_template_library`, about 25 s).
     """
+    real = _own_catalog(category, real)
     path = library_path(category)
     if path.is_file():
         try:

@@ -180,7 +180,7 @@ def test_cli_generates_with_the_real_frames_noise(tmp_path, capsys):
 
 def test_cli_error_paths(tmp_path, capsys):
     code = main(["data", "generate", "--category", "toaster", "--frames", "5", "--out", str(tmp_path)])
-    assert code == 2 and "unknown category 'toaster'" in capsys.readouterr().err
+    assert code == 2 and "no convention for 'toaster'" in capsys.readouterr().err
     for bad in ("0", "-3", "many"):
         with pytest.raises(SystemExit) as exc:
             main(["data", "generate", "--category", "laptop", "--frames", bad])

@@ -26,10 +26,10 @@ GOOD_ROTATION_DEG = 10.0
 
 
 def calibration_path(category: str) -> Path:
-    """``ancsh/weights/<category>_confidence.json``."""
-    from ..network.weights import WEIGHTS_DIR
+    """``<category>_confidence.json`` in the category's weights folder (``ancsh/weights/`` for the built-in ones)."""
+    from ..network.weights import weights_dir
 
-    return WEIGHTS_DIR / f"{category}_confidence.json"
+    return weights_dir(category) / f"{category}_confidence.json"
 
 
 def fit_features(quality, category: str) -> np.ndarray:
@@ -94,10 +94,10 @@ def object_model(calibration: dict, *, segmented: bool) -> dict:
 
 
 def object_calibration_path(category: str) -> Path:
-    """``ancsh/weights/<category>_object.json``."""
-    from ..network.weights import WEIGHTS_DIR
+    """``<category>_object.json`` in the category's weights folder (``ancsh/weights/`` for the built-in ones)."""
+    from ..network.weights import weights_dir
 
-    return WEIGHTS_DIR / f"{category}_object.json"
+    return weights_dir(category) / f"{category}_object.json"
 
 
 def planar_share(points, tolerance: float, rng=0, trials: int = 64) -> float:

@@ -30,7 +30,7 @@ import numpy as np
 
 from ...outputs import write_bytes_atomically
 
-__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
+__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_dir", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
            "learning_curve_fit", "missing_weights_error", "weights_summary", "read_torch_file", "parent_record",
            "training_seconds"]
 
@@ -124,10 +124,20 @@ def read_torch_file(path, *, argument: str, required=()) -> dict:
     return data
 
 
+def weights_dir(category: str) -> Path:
+    """Where ``category``'s networks and calibrations live: a built category's folder
+    (:attr:`~ancsh.data.conventions.CategoryConvention.folder`), else the shipped :data:`WEIGHTS_DIR`."""
+    from ...data.conventions import category_folder
+
+    folder = category_folder(category)
+    return WEIGHTS_DIR if folder is None else folder
+
+
 def weights_path(category: str, kind: str = "ancsh") -> Path:
-    """Path of the shipped weights of ``category`` (``<category>.pt``, or ``<category>_<kind>.pt`` for baselines)."""
+    """Path of the weights of ``category`` (``<category>.pt``, or ``<category>_<kind>.pt`` for baselines), in
+    :func:`weights_dir`."""
     name = category if kind == "ancsh" else f"{category}_{kind}"
-    return WEIGHTS_DIR / f"{name}.pt"
+    return weights_dir(category) / f"{name}.pt"
 
 
 def available_weights() -> list[str]:

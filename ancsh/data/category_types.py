@@ -1,0 +1,190 @@
+"""The types of a category's definition: :class:`JointConvention` and :class:`CategoryConvention`.
+
+What they mean, and the geometric rules that check an object against them, are in
+:mod:`ancsh.data.conventions`; how they are written in files, in :mod:`ancsh.data.category_spec`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.articulated import JointType
+
+__all__ = ["ORDER_AXES", "CategoryConvention", "JointConvention"]
+
+REVOLUTE, PRISMATIC = JointType.REVOLUTE, JointType.PRISMATIC
+_ZERO_RULES = ("closed", "perpendicular")
+_POSITIVE_RULES = ("opens", "folds")
+_SIDES = ("front", "back", "top")
+#: Canonical axis index of each `order_by` value.
+ORDER_AXES = {"x": 0, "y": 1}
+
+
+@dataclass(frozen=True)
+class JointConvention:
+    """What one joint of a category means.
+
+    Attributes
+    ----------
+    name : str
+        Joint name (``display_hinge``).
+    type : JointType
+    parent, child : str
+        Part roles; the child is the moving part.
+    zero : str
+        Geometric meaning of state 0: ``"closed"`` or ``"perpendicular"`` (module docstring).
+    positive : str
+        Direction of increasing state: ``"opens"`` or ``"folds"``.
+    rest : float
+        Rest state defining NAOCS (radians or metres, in this parameterisation).
+    side : str or tuple of str
+        Side(s) of the base the child sits on at rest: ``"front"`` (+z), ``"back"`` (-z) or
+        ``"top"`` (+y) of the base's box centre. A tuple allows any of them (a washing
+        machine's door is in front or on top).
+    semantics : tuple of str
+        PartNet-Mobility part names (``mobility_v2.json`` ``name``) of the child.
+    state_range : (float, float)
+        The states every object of the category can take (radians or metres, this parameterisation):
+        ``zero="closed"`` joints start at 0 (a lid cannot go through its base, a drawer into its
+        cabinet) and reach the widest opening of the category's real and procedural instances. The
+        fits take it as bounds on the state (:attr:`CategoryConvention.joint_limits`). Default: no
+        bound.
+    links : tuple of str
+        URDF link-name patterns (``fnmatch``, e.g. ``"door*"``) of the child, for files without
+        PartNet-Mobility semantics: the importer's moving-part candidates are the movable links that
+        match. Empty: every movable link is a candidate.
+    """
+
+    name: str
+    type: JointType
+    parent: str
+    child: str
+    zero: str
+    positive: str
+    rest: float
+    side: tuple
+    semantics: tuple
+    state_range: tuple = (-np.inf, np.inf)
+    links: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "type", JointType(self.type))
+        if self.zero not in _ZERO_RULES:
+            raise ValueError(f"joint {self.name!r} zero: expected one of {_ZERO_RULES}, got {self.zero!r}")
+        if self.positive not in _POSITIVE_RULES:
+            raise ValueError(f"joint {self.name!r} positive: expected one of {_POSITIVE_RULES}, got {self.positive!r}")
+        side = (self.side,) if isinstance(self.side, str) else tuple(self.side)
+        if not side or any(s not in _SIDES for s in side):
+            raise ValueError(f"joint {self.name!r} side: expected one or more of {_SIDES}, got {self.side!r}")
+        object.__setattr__(self, "side", side)
+        object.__setattr__(self, "semantics", tuple(self.semantics))
+        object.__setattr__(self, "links", tuple(self.links))
+        object.__setattr__(self, "rest", float(self.rest))
+        lo, hi = (float(v) for v in self.state_range)
+        if not (lo < hi and not np.isnan(lo) and not np.isnan(hi)):
+            raise ValueError(f"joint {self.name!r} state_range: expected lower < upper, got {self.state_range!r}")
+        if not lo <= self.rest <= hi:
+            raise ValueError(f"joint {self.name!r} state_range: the rest state {self.rest:.4g} lies outside [{lo:.4g}, {hi:.4g}]")
+        object.__setattr__(self, "state_range", (lo, hi))
+
+
+@dataclass(frozen=True)
+class CategoryConvention:
+    """One category's definition (see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+    part_names : tuple of str
+        Part roles in label order ``0..M-1``, base first.
+    joints : tuple of JointConvention
+        Joint ``k`` moves part ``k + 1``.
+    diagonal_range : (float, float)
+        Range of the rest-state box diagonal (metres) of real instances; imported objects are
+        scaled into it, procedural ones are generated in it.
+    rest_description : str
+        The rest state that defines NAOCS, in words (paper Sec. 4.1).
+    order_by : str or None
+        Canonical axis (``"x"`` or ``"y"``) ordering the moving parts at rest, ascending
+        (eyeglasses: left temple at -x first; drawers: lowest first); ``None`` for one moving part.
+    source_categories : tuple of str
+        PartNet-Mobility ``meta.json`` ``model_cat`` values that map to this category.
+    in_paper : bool
+        One of the ANCSH paper's five categories.
+    description : str
+        What the category holds, in words (a spec's ``description``).
+    freeze : tuple of str
+        Link-name or PartNet-Mobility part-name patterns (``fnmatch``) the importer always freezes
+        (locks, knobs, buttons): never a moving part.
+    spec_path : str or None
+        The spec file the convention was read from (:mod:`ancsh.data.category_spec`).
+    folder : str or None
+        The category folder (a built category: its spec, weights, calibrations, template); ``None``
+        for the built-in categories, whose files ship in the package.
+    """
+
+    name: str
+    part_names: tuple
+    joints: tuple
+    diagonal_range: tuple
+    rest_description: str
+    order_by: str | None = None
+    source_categories: tuple = ()
+    in_paper: bool = True
+    description: str = ""
+    freeze: tuple = ()
+    spec_path: str | None = None
+    folder: str | None = None
+
+    def __post_init__(self):
+        parts, joints = tuple(self.part_names), tuple(self.joints)
+        if len(joints) != len(parts) - 1:
+            raise ValueError(f"category {self.name!r}: {len(parts)} parts need {len(parts) - 1} joints, got {len(joints)}")
+        for k, j in enumerate(joints):
+            if not isinstance(j, JointConvention):
+                raise ValueError(f"category {self.name!r} joints: expected JointConvention, got {type(j).__name__}")
+            if j.child != parts[k + 1] or j.parent not in parts[: k + 1]:
+                raise ValueError(f"category {self.name!r}: joint {j.name!r} must move part {parts[k + 1]!r} from an earlier part")
+        lo, hi = (float(v) for v in self.diagonal_range)
+        if not 0 < lo < hi:
+            raise ValueError(f"category {self.name!r} diagonal_range: expected 0 < lo < hi, got {self.diagonal_range}")
+        if self.order_by is not None and self.order_by not in ORDER_AXES:
+            raise ValueError(f"category {self.name!r} order_by: expected 'x', 'y' or None, got {self.order_by!r}")
+        object.__setattr__(self, "part_names", parts)
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "diagonal_range", (lo, hi))
+        object.__setattr__(self, "source_categories", tuple(self.source_categories))
+        object.__setattr__(self, "freeze", tuple(self.freeze))
+
+    @property
+    def joint_names(self) -> tuple:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def joint_types(self) -> tuple:
+        return tuple(j.type for j in self.joints)
+
+    @property
+    def rest_states(self) -> np.ndarray:
+        """(K,) rest states in the convention's parameterisation."""
+        return np.array([j.rest for j in self.joints], dtype=np.float64)
+
+    @property
+    def joint_limits(self) -> np.ndarray:
+        """(K, 2) the joints' :attr:`JointConvention.state_range` relative to the rest states (the fits' states)."""
+        return np.array([j.state_range for j in self.joints], dtype=np.float64).reshape(-1, 2) - self.rest_states[:, None]
+
+    @property
+    def typical_size(self) -> float:
+        """Typical rest-state box diagonal (metres): the middle of :attr:`diagonal_range`."""
+        return 0.5 * (self.diagonal_range[0] + self.diagonal_range[1])
+
+    @property
+    def num_parts(self) -> int:
+        return len(self.part_names)
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.joints)
