@@ -23,7 +23,7 @@ import os
 import tomllib
 from pathlib import Path
 
-from .category_types import CategoryConvention, JointConvention
+from .category_types import CategoryConvention, JointConvention, ViewpointRange
 
 __all__ = [
     "BUILTIN_SPECS_DIR",
@@ -49,7 +49,11 @@ SPEC_FILE = "category.toml"
 SEARCH_PATH_VARIABLE = "ANCSH_CATEGORIES"
 
 _TOP_KEYS = {"spec_version", "name", "description", "rest", "diagonal_m", "order_by", "source_categories",
-             "in_paper", "freeze", "parts", "joints"}
+             "in_paper", "freeze", "parts", "joints", "viewpoint"}
+#: ``[viewpoint]`` keys: (ViewpointRange field, kind); angles in degrees, lengths in box diagonals.
+_VIEWPOINT_KEYS = {"distance_diagonals": ("distance", "pair"), "azimuth_deg": ("azimuth", "pair_deg"),
+                   "elevation_deg": ("elevation", "pair_deg"), "roll_deg": ("roll", "deg"),
+                   "target_jitter_diagonals": ("target_jitter", "number")}
 _PART_KEYS = {"name", "semantics", "links"}
 _JOINT_KEYS = {"name", "type", "parent", "child", "zero", "positive", "side", "rest_deg", "rest_rad", "rest_m",
                "range_deg", "range_rad", "range_m"}
@@ -93,12 +97,12 @@ def _number(source, key: str, value) -> float:
     return float(value)
 
 
-def _pair(source, key: str, value) -> tuple:
+def _pair(source, key: str, value, *, strict: bool = True) -> tuple:
     if not isinstance(value, list) or len(value) != 2:
         _fail(source, key, f"expected [lower, upper], got {value!r}")
     lo, hi = (_number(source, f"{key}[{i}]", v) for i, v in enumerate(value))
-    if not lo < hi:
-        _fail(source, key, f"expected lower < upper, got {value!r}")
+    if not (lo < hi if strict else lo <= hi):
+        _fail(source, key, f"expected lower {'<' if strict else '<='} upper, got {value!r}")
     return lo, hi
 
 
@@ -202,19 +206,44 @@ def parse_spec(data: dict, source="<spec>") -> CategoryConvention:
     names = [j.name for j in out]
     if len(set(names)) != len(names):
         _fail(source, "joints", f"joint names must differ, got {names}")
+    fields = dict(
+        order_by=data.get("order_by"),
+        source_categories=_strings(source, "source_categories", data.get("source_categories")),
+        in_paper=_bool(source, "in_paper", data.get("in_paper", False)),
+        description=_string(source, "description", data.get("description"), required=False) or "",
+        freeze=_strings(source, "freeze", data.get("freeze")),
+        viewpoint=_viewpoint(source, data.get("viewpoint", {})),
+    )
+    diagonal = _pair(source, "diagonal_m", data.get("diagonal_m"))
+    rest_text = _string(source, "rest", data.get("rest"))
     try:
-        return CategoryConvention(
-            name, tuple(part_names), tuple(out), _pair(source, "diagonal_m", data.get("diagonal_m")),
-            _string(source, "rest", data.get("rest")),
-            order_by=data.get("order_by"),
-            source_categories=_strings(source, "source_categories", data.get("source_categories")),
-            in_paper=_bool(source, "in_paper", data.get("in_paper", False)),
-            description=_string(source, "description", data.get("description"), required=False) or "",
-            freeze=_strings(source, "freeze", data.get("freeze")),
-        )
+        return CategoryConvention(name, tuple(part_names), tuple(out), diagonal, rest_text, **fields)
     except ValueError as exc:
         key = "order_by" if "order_by" in str(exc) else "diagonal_m"
         _fail(source, key, str(exc))
+
+
+def _viewpoint(source, table) -> tuple:
+    """The ``[viewpoint]`` table as ``ViewpointRange`` keyword pairs (radians, diagonals)."""
+    if not isinstance(table, dict):
+        _fail(source, "viewpoint", "expected a [viewpoint] table")
+    _unknown(source, "viewpoint", table, set(_VIEWPOINT_KEYS))
+    out = []
+    for key, value in table.items():
+        field, kind = _VIEWPOINT_KEYS[key]
+        where = f"viewpoint.{key}"
+        if kind.startswith("pair"):
+            lo, hi = _pair(source, where, value, strict=False)
+            value = (math.radians(lo), math.radians(hi)) if kind == "pair_deg" else (lo, hi)
+        else:
+            value = _number(source, where, value)
+            value = math.radians(value) if kind == "deg" else value
+        out.append((field, value))
+    try:
+        ViewpointRange(**dict(out))
+    except ValueError as exc:
+        _fail(source, "viewpoint", str(exc))
+    return tuple(out)
 
 
 def _bool(source, key: str, value) -> bool:
@@ -310,6 +339,13 @@ def _state_entries(joint: JointConvention) -> list[tuple]:
     return [("rest_rad", joint.rest), ("range_rad", list(joint.state_range))]
 
 
+def _round_deg(rad: float) -> float:
+    """Degrees of ``rad``, rounded where the rounded value gives ``rad`` back exactly."""
+    deg = math.degrees(rad)
+    short = round(deg, 6)
+    return short if math.radians(short) == rad else deg
+
+
 def spec_text(conv: CategoryConvention) -> str:
     """A convention written as a spec file (``parse_spec(tomllib.loads(spec_text(c)))`` gives ``c`` back)."""
     lines = [f"spec_version = {SPEC_VERSION}", f"name = {_toml_value(conv.name)}"]
@@ -322,6 +358,17 @@ def spec_text(conv: CategoryConvention) -> str:
               f"in_paper = {_toml_value(conv.in_paper)}"]
     if conv.freeze:
         lines.append(f"freeze = {_toml_value(list(conv.freeze))}")
+    if conv.viewpoint:
+        names = {field: key for key, (field, _) in _VIEWPOINT_KEYS.items()}
+        kinds = dict(_VIEWPOINT_KEYS.values())
+        lines += ["", "[viewpoint]"]
+        for field, value in conv.viewpoint:
+            kind = kinds[field]
+            if kind == "pair_deg":
+                value = [_round_deg(v) for v in value]
+            elif kind == "deg":
+                value = _round_deg(value)
+            lines.append(f"{names[field]} = {_toml_value(list(value) if isinstance(value, tuple) else value)}")
     by_child = {j.child: j for j in conv.joints}
     for name in conv.part_names:
         lines += ["", "[[parts]]", f"name = {_toml_value(name)}"]

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry._checks import as_array
 from ..model.articulated import JointType
 
-__all__ = ["ORDER_AXES", "CategoryConvention", "JointConvention"]
+__all__ = ["ORDER_AXES", "CategoryConvention", "JointConvention", "ViewpointRange"]
 
 REVOLUTE, PRISMATIC = JointType.REVOLUTE, JointType.PRISMATIC
 _ZERO_RULES = ("closed", "perpendicular")
@@ -120,6 +121,10 @@ class CategoryConvention:
         (locks, knobs, buttons): never a moving part.
     spec_path : str or None
         The spec file the convention was read from (:mod:`ancsh.data.category_spec`).
+    viewpoint : tuple of (str, value) pairs
+        How cameras see the category's objects in rendered frames: keyword arguments of
+        :class:`ancsh.data.render.ViewpointRange` (radians; distances in box diagonals). Empty: the
+        default range.
     folder : str or None
         The category folder (a built category: its spec, weights, calibrations, template); ``None``
         for the built-in categories, whose files ship in the package.
@@ -137,6 +142,7 @@ class CategoryConvention:
     freeze: tuple = ()
     spec_path: str | None = None
     folder: str | None = None
+    viewpoint: tuple = ()
 
     def __post_init__(self):
         parts, joints = tuple(self.part_names), tuple(self.joints)
@@ -157,6 +163,9 @@ class CategoryConvention:
         object.__setattr__(self, "diagonal_range", (lo, hi))
         object.__setattr__(self, "source_categories", tuple(self.source_categories))
         object.__setattr__(self, "freeze", tuple(self.freeze))
+        view = dict(self.viewpoint)
+        object.__setattr__(self, "viewpoint", tuple((k, tuple(v) if isinstance(v, (list, tuple)) else float(v))
+                                                    for k, v in view.items()))
 
     @property
     def joint_names(self) -> tuple:
@@ -188,3 +197,47 @@ class CategoryConvention:
     @property
     def num_joints(self) -> int:
         return len(self.joints)
+
+
+@dataclass(frozen=True)
+class ViewpointRange:
+    """Random camera placement around an object, in its canonical (NAOCS) orientation.
+
+    The camera sits at ``target + d * (cos(el) sin(az), sin(el), cos(el) cos(az))`` in
+    canonical axes (``+y`` up, ``+z`` the object's front; ``az = el = 0`` looks at the front
+    head-on), looks at the target (the centre of the object's box at the sampled joint
+    state, jittered) with canonical ``+y`` up, then rolls about its optical axis.
+
+    Attributes
+    ----------
+    distance : (float, float)
+        Range of ``d`` in multiples of the object's box diagonal at the sampled state.
+    azimuth, elevation : (float, float)
+        Ranges in radians (uniform).
+    roll : float
+        Maximal absolute roll, radians (uniform in ``[-roll, roll]``).
+    target_jitter : float
+        Standard deviation of the look-at point jitter, in multiples of the diagonal.
+    """
+
+    distance: tuple = (1.5, 2.6)
+    azimuth: tuple = (np.radians(-90.0), np.radians(90.0))
+    elevation: tuple = (np.radians(0.0), np.radians(60.0))
+    roll: float = np.radians(5.0)
+    target_jitter: float = 0.05
+
+    def __post_init__(self):
+        for name in ("distance", "azimuth", "elevation"):
+            lo, hi = (float(x) for x in as_array(getattr(self, name), name, (2,)))
+            if lo > hi:
+                raise ValueError(f"{name}: lower bound {lo} exceeds upper bound {hi}")
+            object.__setattr__(self, name, (lo, hi))
+        if self.distance[0] <= 0:
+            raise ValueError(f"distance: must be positive, got {self.distance}")
+        if not -np.pi / 2 < self.elevation[0] <= self.elevation[1] < np.pi / 2:
+            raise ValueError(f"elevation: must lie strictly within (-pi/2, pi/2), got {self.elevation}")
+        for name in ("roll", "target_jitter"):
+            value = float(getattr(self, name))
+            if not np.isfinite(value) or value < 0:
+                raise ValueError(f"{name}: expected a non-negative number, got {getattr(self, name)}")
+            object.__setattr__(self, name, value)

@@ -27,7 +27,7 @@ from ..geometry._checks import check_int, check_number
 from ..geometry.transforms import Sim3
 from .dataset import CorruptShardError, Frame, ShardReader, write_shard
 from .noise import DepthNoise, apply_noise
-from .render import VIEWPOINTS, Intrinsics, ModelRenderer, sample_points, sample_viewpoint, viewpoint_range
+from .render import Intrinsics, ModelRenderer, sample_points, sample_viewpoint, viewpoint_range
 from .sequences import SequenceMotion, SequencePlan, plan_sequence
 
 __all__ = [
@@ -259,7 +259,9 @@ class FrameGenerator:
 
     def _viewpoints(self, model):
         cat = self.config.category or model.category
-        return viewpoint_range(cat if cat in VIEWPOINTS else None)
+        from .conventions import CONVENTIONS
+
+        return viewpoint_range(cat if cat in CONVENTIONS else None)
 
     def accept(self, part_pixels: np.ndarray, visibility: np.ndarray) -> bool:
         """Whether a view shows every part enough (see :class:`GenerationConfig`)."""

@@ -49,6 +49,7 @@ import numpy as np
 from ..geometry._checks import as_array, check_generator
 from ..geometry.transforms import Sim3
 from ..model.articulated import sample_surface
+from .category_types import ViewpointRange
 
 __all__ = [
     "DEFAULT_VIEWPOINT",
@@ -56,7 +57,6 @@ __all__ = [
     "RENDER_BACKENDS",
     "Intrinsics",
     "ModelRenderer",
-    "VIEWPOINTS",
     "ViewpointRange",
     "backproject",
     "look_at",
@@ -522,83 +522,32 @@ def render_depth(model, q, T_cam_base: Sim3, intrinsics: Intrinsics | None = Non
 # --------------------------------------------------------------------------------------
 # viewpoints
 # --------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ViewpointRange:
-    """Random camera placement around an object, in its canonical (NAOCS) orientation.
-
-    The camera sits at ``target + d * (cos(el) sin(az), sin(el), cos(el) cos(az))`` in
-    canonical axes (``+y`` up, ``+z`` the object's front; ``az = el = 0`` looks at the front
-    head-on), looks at the target (the centre of the object's box at the sampled joint
-    state, jittered) with canonical ``+y`` up, then rolls about its optical axis.
-
-    Attributes
-    ----------
-    distance : (float, float)
-        Range of ``d`` in multiples of the object's box diagonal at the sampled state.
-    azimuth, elevation : (float, float)
-        Ranges in radians (uniform).
-    roll : float
-        Maximal absolute roll, radians (uniform in ``[-roll, roll]``).
-    target_jitter : float
-        Standard deviation of the look-at point jitter, in multiples of the diagonal.
-    """
-
-    distance: tuple = (1.5, 2.6)
-    azimuth: tuple = (np.radians(-90.0), np.radians(90.0))
-    elevation: tuple = (np.radians(0.0), np.radians(60.0))
-    roll: float = np.radians(5.0)
-    target_jitter: float = 0.05
-
-    def __post_init__(self):
-        for name in ("distance", "azimuth", "elevation"):
-            lo, hi = (float(x) for x in as_array(getattr(self, name), name, (2,)))
-            if lo > hi:
-                raise ValueError(f"{name}: lower bound {lo} exceeds upper bound {hi}")
-            object.__setattr__(self, name, (lo, hi))
-        if self.distance[0] <= 0:
-            raise ValueError(f"distance: must be positive, got {self.distance}")
-        if not -np.pi / 2 < self.elevation[0] <= self.elevation[1] < np.pi / 2:
-            raise ValueError(f"elevation: must lie strictly within (-pi/2, pi/2), got {self.elevation}")
-        for name in ("roll", "target_jitter"):
-            value = float(getattr(self, name))
-            if not np.isfinite(value) or value < 0:
-                raise ValueError(f"{name}: expected a non-negative number, got {getattr(self, name)}")
-            object.__setattr__(self, name, value)
-
-
 def _deg(lo, hi):
     return (np.radians(lo), np.radians(hi))
 
 
-# Per-category ranges. The paper renders "random camera viewpoints" with PyBullet without
-# giving ranges; these keep the user-facing side of each category in view (front doors,
-# drawer fronts, the laptop's open side, the eyeglasses' front frame) as a depth camera
-# in a room would see them.
+#: The range of a category without its own (``[viewpoint]`` of its spec).
 DEFAULT_VIEWPOINT = ViewpointRange()
-VIEWPOINTS = {
-    "eyeglasses": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-80, 80), elevation=_deg(-10, 60)),
-    "oven": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
-    "washing_machine": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
-    "laptop": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-90, 90), elevation=_deg(10, 70)),
-    "drawer": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
-    "microwave": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
-    "safe": ViewpointRange(distance=(1.5, 2.6), azimuth=_deg(-60, 60), elevation=_deg(0, 50)),
-    # small boxes are seen from further away in diagonals (the real frames: 2.5 and 3.7) and
-    # from above (elevation 36 and 62 degrees), from any side but the hinge's
-    "box": ViewpointRange(distance=(1.8, 4.0), azimuth=_deg(-100, 100), elevation=_deg(10, 70)),
-}
 
 
 def viewpoint_range(category) -> ViewpointRange:
-    """The :class:`ViewpointRange` of ``category`` (``None`` -> the default range)."""
+    """The :class:`ViewpointRange` of ``category``: its spec's ``[viewpoint]`` (the default range where it gives
+    none; ``None`` -> the default range).
+
+    The paper renders "random camera viewpoints" with PyBullet without giving ranges; the built-in specs keep the
+    user-facing side of each category in view (front doors, drawer fronts, the laptop's open side, the eyeglasses'
+    front frame) as a depth camera in a room would see them.
+    """
     if category is None:
         return DEFAULT_VIEWPOINT
     if isinstance(category, ViewpointRange):
         return category
-    try:
-        return VIEWPOINTS[category]
-    except (KeyError, TypeError):
-        raise ValueError(f"category: unknown category {category!r}; known: {sorted(VIEWPOINTS)} (or None)") from None
+    from .conventions import CONVENTIONS
+
+    if not isinstance(category, str) or category not in CONVENTIONS:
+        raise ValueError(f"category: unknown category {category!r}; known: {sorted(CONVENTIONS)} (or None)")
+    view = CONVENTIONS[category].viewpoint
+    return ViewpointRange(**dict(view)) if view else DEFAULT_VIEWPOINT
 
 
 def look_at(eye, target, up) -> Sim3:
@@ -642,7 +591,7 @@ def sample_viewpoint(category, rng, model=None, q=None, *, center=None, diagonal
     Parameters
     ----------
     category : str, ViewpointRange or None
-        A category of :data:`VIEWPOINTS`, an explicit range, or ``None`` for the default.
+        A category (its spec's ``[viewpoint]``), an explicit range, or ``None`` for the default.
     rng : numpy.random.Generator or int
     model : ArticulatedModel, optional
         When given (with ``q``, default its rest state), the camera aims at the centre of

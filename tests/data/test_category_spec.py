@@ -84,6 +84,10 @@ def test_the_units_of_a_spec_are_read_into_radians_and_metres(tmp_path):
     (('zero = "closed"', 'zero = "shut"'), "joints[0].zero", "expected one of"),
     (('side = "front"', 'side = "left"'), "joints[0].side", "expected one or more"),
     (("diagonal_m = [0.5, 1.5]", "diagonal_m = [0.5]"), "diagonal_m", "[lower, upper]"),
+    (("diagonal_m = [0.5, 1.5]", "diagonal_m = [0.5, 1.5]\n[viewpoint]\nazimuth = [0, 1]"), "viewpoint.azimuth",
+     "unknown key"),
+    (("diagonal_m = [0.5, 1.5]", "diagonal_m = [0.5, 1.5]\n[viewpoint]\nelevation_deg = [0, 95]"), "viewpoint",
+     "elevation"),
     (('name = "base"', 'name = "base"\nsemantics = ["body"]'), "parts[0].semantics", "the base"),
     (('name = "toaster"', 'name = "Toaster!"'), "name", "lower-case"),
 ])
@@ -96,6 +100,19 @@ def test_a_wrong_spec_names_its_file_and_key(tmp_path, edit, key, words):
         load_spec(path)
     message = str(exc.value)
     assert message.startswith(f"{path}: {key}") and words in message, message
+
+
+def test_a_spec_viewpoint_is_how_its_frames_are_rendered(tmp_path, clean_registry):
+    from ancsh.data.render import DEFAULT_VIEWPOINT, ViewpointRange, viewpoint_range
+
+    path = _spec(tmp_path)
+    path.write_text(path.read_text().replace("diagonal_m = [0.5, 1.5]", "diagonal_m = [0.5, 1.5]\n[viewpoint]\n"
+                                             "azimuth_deg = [-30, 30]\nroll_deg = 0"))
+    name = resolve_category(str(path))
+    assert viewpoint_range(name) == ViewpointRange(azimuth=(-np.pi / 6, np.pi / 6), roll=0.0)
+    plain = resolve_category(str(_spec(tmp_path, name="plain")))
+    assert viewpoint_range(plain) == DEFAULT_VIEWPOINT
+    assert viewpoint_range("box").distance == (1.8, 4.0)  # the built-in spec's
 
 
 def test_a_file_that_is_no_toml_or_no_spec_says_so(tmp_path):
