@@ -60,6 +60,11 @@ EXAMPLES = {
     "bench scenes": "ancsh bench scenes --categories box laptop --frames 5 --stress-frames 4 --seeds 0 1 2   # rendered "
                     "scenes: single objects, then two or three of one category",
     "bench latency": "ancsh bench latency --stress-frames 2 --repeats 2   # warm, cold, stages, serve, workers",
+    "category": "ancsh category build examples/categories/single_drawer.toml --urdfs ../shared/data/partnet_mobility "
+                "--out categories/single_drawer   # then: ancsh predict --category categories/single_drawer ...",
+    "category check": "ancsh category check examples/categories/single_drawer.toml --urdfs ../shared/data/partnet_mobility",
+    "category build": "ancsh category build examples/categories/single_drawer.toml --urdfs ../shared/data/partnet_mobility "
+                      "--out categories/single_drawer --size notebook",
     "bench mask-refusal": "ancsh bench mask-refusal --categories laptop box --frames 20   # what p_object refuses "
                           "under a mask",
 }
@@ -74,6 +79,7 @@ COMMAND_MODULES = [
     "ancsh.cli.cad",
     "ancsh.cli.track",
     "ancsh.cli.serve",
+    "ancsh.cli.category",
 ]
 
 

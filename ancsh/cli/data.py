@@ -29,8 +29,9 @@ def register(sub) -> None:
     g.add_argument("--split", default="train", choices=("train", "test"), help="instance split (default train)")
     g.add_argument("--real", default=None, metavar="CATALOG",
                    help="mix in the real objects of this split from a catalog ('builtin' = the shipped one)")
-    g.add_argument("--real-fraction", type=float, default=0.5,
-                   help="with --real: fraction of frames showing a real object (default 0.5; 1 = real only)")
+    g.add_argument("--real-fraction", type=float, default=None,
+                   help="with --real: fraction of frames showing a real object (default 0.5; 1 = real only; a category "
+                        "without a procedural generator: 1)")
     g.add_argument("--frames", type=_positive_int, required=True, help="number of frames")
     from ._args import add_executor_arguments
 
@@ -115,6 +116,18 @@ def _check_real_objects(real: str, category: str, split: str) -> None:
                      "leave --real out for procedural frames only")
 
 
+def _real_fraction(args) -> float:
+    """``--real-fraction``, by default 0.5 with ``--real`` for a procedural category (0 without ``--real``; a category
+    without a generator: left to the configuration, which shows its objects in every frame)."""
+    from ..data.procedural import CATEGORIES
+
+    if args.real_fraction is not None:
+        if not args.real:
+            raise ValueError("--real-fraction: needs --real CATALOG")
+        return args.real_fraction
+    return 0.5 if args.real and args.category in CATEGORIES else 0.0
+
+
 def run_generate(args) -> int:
     from pathlib import Path
 
@@ -132,7 +145,7 @@ def run_generate(args) -> int:
         split=args.split,
         urdf=args.urdf,
         real=args.real,
-        real_fraction=args.real_fraction if args.real else 0.0,
+        real_fraction=_real_fraction(args),
         seed=args.seed,
         shard_size=args.shard_size,
         num_points=args.points,

@@ -55,7 +55,7 @@ class GenerationConfig:
         A category with a convention (:data:`ancsh.data.conventions.CONVENTIONS`; a spec file or category
         folder is registered and replaced by its name); ``None`` with ``urdf``. A category without a
         procedural generator (:data:`ancsh.data.procedural.CATEGORIES`) renders its imported objects only
-        (``real_fraction=1``).
+        (``real_fraction`` 1; ``real`` by default a built category folder's ``catalog.json``).
     split : str
         ``"train"`` or ``"test"`` instances (procedural and real).
     real : str or None
@@ -121,10 +121,8 @@ class GenerationConfig:
 
             object.__setattr__(self, "category", resolve_category(self.category))
             split_seeds(self.split)  # validates the split
-            if self.category not in CATEGORIES and (self.real is None or self.real_fraction < 1.0):
-                raise ValueError(f"category: {self.category!r} has no procedural generator (a category from a spec "
-                                 "file): its frames show its imported objects only; give real=CATALOG and "
-                                 "real_fraction=1 (--real CATALOG --real-fraction 1)")
+            if self.category not in CATEGORIES:
+                self._real_only()
         else:
             object.__setattr__(self, "urdf", str(Path(self.urdf).resolve()))
             if not Path(self.urdf).is_file():
@@ -156,6 +154,21 @@ class GenerationConfig:
         if self.real is not None:
             return f"{self.category}_{'real' if self.real_fraction >= 1.0 else 'mixed'}"
         return self.category
+
+    def _real_only(self) -> None:
+        """A category without a procedural generator shows its imported objects only: its own catalog (a built
+        category folder's ``catalog.json``) unless ``real`` names one, in every frame."""
+        from .conventions import category_folder
+
+        folder = category_folder(self.category)
+        if self.real is None and folder is not None and (folder / "catalog.json").is_file():
+            object.__setattr__(self, "real", str(folder / "catalog.json"))
+        if self.real_fraction == 0.0 and self.real is not None:
+            object.__setattr__(self, "real_fraction", 1.0)
+        if self.real is None or self.real_fraction < 1.0:
+            raise ValueError(f"category: {self.category!r} has no procedural generator (a category from a spec "
+                             "file): its frames show its imported objects only; give real=CATALOG with real_fraction 1 "
+                             "(--real CATALOG), or build the category into a folder with its catalog.json")
 
     @property
     def has_generator(self) -> bool:

@@ -233,7 +233,7 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
 
     _min_frames_error(frames)
     provider = provider or LearnedProvider(category, seed=seed, refine="auto")
-    gens = {c: FrameGenerator(GenerationConfig(category=c, split="test", seed=seed)) for c in CATEGORIES}
+    gens = {c: FrameGenerator(GenerationConfig(category=c, split="test", seed=seed)) for c in {*CATEGORIES, category}}
     X, rot, src, index, failed, counts = [], [], [], [], {}, {}
     for i in tqdm(range(int(frames)), desc=f"calibrate {category}", disable=not progress, dynamic_ncols=True):
         source = SOURCES[i % len(SOURCES)]

@@ -134,7 +134,8 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
 
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.noise import DepthNoise, apply_noise
-    from ..data.procedural import CATEGORIES, CATEGORY_INFO
+    from ..data.conventions import convention
+    from ..data.procedural import CATEGORIES
     from ..data.render import Intrinsics, ModelRenderer, sample_viewpoint
     from ..learned.inference.provider import LearnedProvider
 
@@ -165,7 +166,7 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
     for frame_index, (source, i) in enumerate(tqdm(jobs, desc=f"object evidence {category}", disable=not progress,
                                                    dynamic_ncols=True)):
         if source == "clutter":
-            model = clutter_model(rng, CATEGORY_INFO[category].typical_size)
+            model = clutter_model(rng, convention(category).typical_size)
             T = sample_viewpoint(category, rng, model, np.zeros(0))
             intr = Intrinsics()
             depth = ModelRenderer(model).render(np.zeros(0), T, intr).depth

@@ -195,8 +195,11 @@ def test_a_spec_category_without_a_generator_renders_its_catalog_only(tmp_path, 
     catalog = build_catalog(urdfs, name)
     path = write_catalog(catalog, tmp_path / "catalog.json")
     split = catalog.objects[0].split
-    config = GenerationConfig(category=name, split=split, real=str(path), real_fraction=1.0,
-                              intrinsics=Intrinsics.kinect(160, 120), num_points=64)
+    config = GenerationConfig(category=name, split=split, real=str(path), intrinsics=Intrinsics.kinect(160, 120),
+                              num_points=64)
+    assert config.real_fraction == 1.0
+    with pytest.raises(ValueError, match="real_fraction 1"):
+        GenerationConfig(category=name, real=str(path), real_fraction=0.5)
     assert "generator_version" not in config.to_json()
     gen = FrameGenerator(config)
     assert gen.num_instances == len(catalog.instances(name, split)) and gen.num_instances > 0

@@ -70,14 +70,20 @@ PAPER_CATEGORIES = tuple(c for c in CATEGORIES if _MODULES[c].INFO.in_paper)
 CATEGORY_INFO = MappingProxyType({c: _MODULES[c].INFO for c in CATEGORIES})
 
 
-def generator_version(category: str) -> int:
-    """The version of ``category``'s generator shapes (:data:`GENERATOR_VERSIONS`).
+def generator_version(category: str) -> int | None:
+    """The version of ``category``'s generator shapes (:data:`GENERATOR_VERSIONS`); ``None`` for a category from a
+    spec file without a generator (its shapes are its imported objects').
 
     Raises
     ------
     ValueError
         For an unknown category.
     """
+    if category not in _MODULES:
+        from ..conventions import CONVENTIONS
+
+        if isinstance(category, str) and category in CONVENTIONS:
+            return None
     return GENERATOR_VERSIONS[_check_category(category)]
 
 

@@ -1,0 +1,361 @@
+"""From a category spec and a folder of URDFs to a trained, calibrated, evaluated category folder.
+
+``ancsh category build SPEC --urdfs DIR --out DIR`` runs :func:`build_category`, which runs the other commands
+(``train``, ``calibrate``, ``evaluate``) in this process: it lives with them, on the floor of the commands. The folder it writes is the
+category: ``--category DIR`` (or the search path ``ANCSH_CATEGORIES``) makes every command use it.
+
+Steps (each one resumes: run the same command again after an interruption and the finished steps are kept):
+
+1. **check** -- the spec is read (:mod:`ancsh.data.category_spec`; a wrong spec stops here, naming the file and
+   the key) and copied to ``category.toml``; every URDF is imported into it (:mod:`ancsh.data.importer`:
+   ``catalog.json``, ``import_report.md``; the train / test split is by instance). Too few accepted objects, or
+   none in a split, stops here, before any rendering or training, with the rejection reasons and the spec's keys
+   they point at.
+2. **render** -- training and test frames of the imported objects (``data/train``, ``data/test``), articulation,
+   scale, camera (the spec's ``[viewpoint]``) and sensor noise randomised (:mod:`ancsh.data.generate`).
+3. **train** -- the ANCSH network (``run/``, resumable; ``--time-limit-min`` is the CPU budget), exported as
+   ``<name>.pt`` beside its training log and test scores.
+4. **template** -- the template library of the train objects (``template.json``), used by render-and-compare.
+5. **calibrate** -- ``p_good`` (``<name>_confidence.json``) and ``p_object`` (``<name>_object.json``, negatives from
+   the built-in categories and clutter); a calibration the frames cannot support is reported, not installed.
+6. **evaluate** -- the paper's metrics on the test objects (``evaluation/<name>.md``), and ``report.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from ..geometry._checks import check_int, check_number
+
+__all__ = ["BuildSettings", "MIN_OBJECTS", "SIZES", "build_category", "check_category"]
+
+#: Accepted objects a build needs: at least one in the test split and at least two in the train split.
+MIN_OBJECTS = {"train": 2, "test": 1}
+STEPS = ("check", "render", "train", "template", "calibrate", "evaluate")
+#: Steps that depend on the trained network: done again only when it changed.
+_AFTER_TRAINING = ("template", "calibrate", "evaluate")
+
+
+def _sha256(path: Path) -> str:
+    from ..outputs import file_sha256
+
+    return file_sha256(path)
+
+
+@dataclass(frozen=True)
+class BuildSettings:
+    """How much a build renders, trains and measures.
+
+    Attributes
+    ----------
+    train_frames, test_frames : int
+        Rendered frames of the train and test objects.
+    time_limit_min : float
+        Training budget (minutes of wall time on this machine's cores).
+    max_steps : int or None
+        Training steps at most (``None``: the training configuration's).
+    calibrate_frames : int
+        Frames of the ``p_good`` calibration (0: no calibration); ``p_object`` takes half as many.
+    evaluate_frames : int
+        Test frames of the evaluation.
+    workers : int
+        Processes rendering frames.
+    seed : int
+    """
+
+    train_frames: int = 4000
+    test_frames: int = 400
+    time_limit_min: float = 120.0
+    max_steps: int | None = None
+    calibrate_frames: int = 300
+    evaluate_frames: int = 300
+    workers: int = 2
+    seed: int = 0
+
+    def __post_init__(self):
+        for name in ("train_frames", "test_frames", "evaluate_frames", "workers"):
+            object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=1))
+        object.__setattr__(self, "calibrate_frames", check_int(self.calibrate_frames, "calibrate_frames", minimum=0))
+        object.__setattr__(self, "seed", check_int(self.seed, "seed", minimum=0))
+        if self.max_steps is not None:
+            object.__setattr__(self, "max_steps", check_int(self.max_steps, "max_steps", minimum=1))
+        value = check_number(self.time_limit_min, "time_limit_min")
+        if not value > 0:
+            raise ValueError(f"time_limit_min: expected a positive number of minutes, got {self.time_limit_min!r}")
+        object.__setattr__(self, "time_limit_min", value)
+
+
+#: Named sizes: ``full`` (a few core-hours) and ``notebook`` (minutes: the pipeline end to end, not a good network).
+SIZES = {
+    "full": BuildSettings(),
+    "notebook": BuildSettings(train_frames=256, test_frames=64, time_limit_min=3.0, max_steps=60, calibrate_frames=0,
+                              evaluate_frames=16),
+}
+
+
+def _say(message: str) -> None:
+    print(f"[category build] {message}", flush=True)
+
+
+def check_category(spec, urdfs, out=None, *, overrides: dict | None = None) -> dict:
+    """Step 1: read the spec and import the URDFs into it; stop with a clear error when they cannot make a category.
+
+    Parameters
+    ----------
+    spec : str or Path
+        The category spec file.
+    urdfs : sequence of str or Path
+        URDF files, object folders or folders of them.
+    out : Path, optional
+        The category folder: ``category.toml``, ``catalog.json``, ``import_report.md`` are written there.
+    overrides : dict, optional
+        Per-object import overrides (:func:`ancsh.data.importer.load_overrides`).
+
+    Returns
+    -------
+    dict
+        ``{"name", "catalog" (Catalog), "imported", "rejected", "train", "test"}``.
+
+    Raises
+    ------
+    ancsh.data.category_spec.SpecError
+        A wrong spec, or URDFs the spec cannot hold (naming the file and the keys the rejections point at).
+    """
+    from ..data import category_spec
+
+    conv = category_spec.load_spec(spec)
+    if out is not None:
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        target = out / category_spec.SPEC_FILE
+        text = Path(conv.spec_path).read_text()
+        if target.is_file() and target.read_text() != text and Path(conv.spec_path).resolve() != target.resolve():
+            raise category_spec.SpecError(f"{target}: --out holds the build of another spec (its category.toml "
+                                          f"differs from {conv.spec_path}); choose another --out or remove it")
+        created = not target.is_file()
+        if created:
+            target.write_text(text)
+        from ..data.conventions import register_category
+
+        conv = register_category(out)
+    else:
+        from ..data.conventions import register_category
+
+        created, conv = False, register_category(spec)
+    try:
+        return _import(spec, urdfs, out, conv, overrides)
+    except category_spec.SpecError:
+        if created:  # a spec that cannot make the category leaves no folder claiming it
+            (out / category_spec.SPEC_FILE).unlink()
+        raise
+
+
+def _import(spec, urdfs, out, conv, overrides) -> dict:
+    from ..data import category_spec
+    from ..data.catalog import build_catalog, write_catalog
+
+    catalog = build_catalog(list(urdfs), conv.name, overrides=overrides,
+                            command=f"ancsh category build {spec} --urdfs {' '.join(map(str, urdfs))}")
+    counts = {split: len(catalog.instances(conv.name, split)) for split in ("train", "test")}
+    if out is not None:
+        from ..studies.catalog_reports import write_import_report
+
+        path = out / "catalog.json"
+        new = json.dumps(catalog.to_dict(), indent=1) + "\n"
+        if not path.is_file() or path.read_text() != new:  # unchanged: the rendered frames stay valid
+            write_catalog(catalog, path)
+        write_import_report(catalog, out / "import_report.md")
+    short = [f"{need} {split} object(s) needed, {counts[split]} imported" for split, need in MIN_OBJECTS.items()
+             if counts[split] < need]
+    if short:
+        raise category_spec.SpecError(f"{spec}: {'; '.join(short)} ({len(catalog.objects)} accepted, "
+                                      f"{len(catalog.rejected)} rejected){_rejections(catalog, conv)}")
+    return {"name": conv.name, "catalog": catalog, "imported": len(catalog.objects), "rejected": len(catalog.rejected),
+            **counts}
+
+
+def _rejections(catalog, conv) -> str:
+    """The rejection reasons, with the spec keys that decide them (a part no URDF has, a joint type none moves)."""
+    if not catalog.rejected:
+        return ""
+    lines = []
+    if all("moving part(s) of the kind" in r.reason for r in catalog.rejected):
+        keys = []
+        for k, j in enumerate(conv.joints):
+            part = conv.part_names.index(j.child)
+            names = "/".join(j.semantics or j.links) or "any movable link"
+            keys.append(f"parts[{part}].{'semantics' if j.semantics else 'links'} ({names}) with joints[{k}].type "
+                        f"{j.type.value!r}")
+        lines.append("no URDF has the moving parts the spec names: " + "; ".join(keys))
+    reasons = {}
+    for r in catalog.rejected:
+        reasons.setdefault(r.reason, []).append(r.name)
+    for reason, names in list(reasons.items())[:5]:
+        lines.append(f"{', '.join(names[:4])}{' ...' if len(names) > 4 else ''}: {reason}")
+    return "\n  " + "\n  ".join(lines)
+
+
+def _render(name: str, out: Path, settings: BuildSettings) -> dict:
+    from ..data.generate import GenerationConfig, generate_dataset
+    from ..executors import make_executor
+
+    executor = make_executor("local", settings.workers)
+    made = {}
+    for split, frames in (("train", settings.train_frames), ("test", settings.test_frames)):
+        config = GenerationConfig(category=name, split=split, seed=settings.seed + (split == "test"),
+                                  real=str(out / "catalog.json"))
+        report = generate_dataset(config, frames, out / "data" / split, executor=executor, progress=False,
+                                  overwrite=True)
+        made[split] = {"frames": frames, "generated": report.frames_generated, "seconds": round(report.seconds, 1)}
+        _say(f"render {split}: {frames} frames ({report.frames_generated} new, {report.seconds:.0f} s)")
+    return made
+
+
+def _cli(words: list) -> None:
+    """Run one ``ancsh`` command in this process; a non-zero exit is an error naming it."""
+    from . import main
+
+    code = main([str(w) for w in words])
+    if code:
+        raise RuntimeError(f"`ancsh {' '.join(map(str, words))}` exited with {code}")
+
+
+def _train(name: str, out: Path, settings: BuildSettings) -> dict:
+    run = out / "run"
+    weights = out / f"{name}.pt"
+    words = ["train", "--category", out, "--data", out / "data" / "train", "--test-data", out / "data" / "test",
+             "--out", run, "--time-limit-min", settings.time_limit_min, "--no-progress", "--export", weights]
+    if settings.max_steps is not None:
+        words += ["--max-steps", settings.max_steps]
+    if (run / "last.pt").is_file():
+        words.append("--resume")
+    start = time.perf_counter()
+    _cli(words)
+    metrics = out / f"{name}_test_metrics.json"
+    return {"seconds": round(time.perf_counter() - start, 1),
+            "test_metrics": json.loads(metrics.read_text()) if metrics.is_file() else None}
+
+
+def _template(name: str, out: Path) -> dict:
+    from ..data.templates import build_template_library, write_template_library
+
+    library = build_template_library(name, real=str(out / "catalog.json"))
+    write_template_library(library, out / "template.json")
+    return {"entries": len(library)}
+
+
+def _calibrate(out: Path, settings: BuildSettings) -> dict:
+    done = {}
+    if settings.calibrate_frames == 0:
+        return {"p_good": "not calibrated (calibrate_frames 0)", "p_object": "not calibrated (calibrate_frames 0)"}
+    for key, extra, frames in (("p_good", [], settings.calibrate_frames),
+                               ("p_object", ["--object"], max(8, settings.calibrate_frames // 2))):
+        words = ["calibrate", "--category", out, *extra, "--frames", frames, "--seed", settings.seed + 7,
+                 "--out", out / "calibration", "--install", "--no-progress"]
+        try:
+            _cli(words)
+            done[key] = "installed"
+        except RuntimeError as exc:  # too few good or bad fits: reported, predict runs without it
+            done[key] = f"not installed: {exc}"
+            _say(f"calibrate {key}: {done[key]}")
+    return done
+
+
+def _evaluate(out: Path, settings: BuildSettings) -> dict:
+    _cli(["evaluate", "--category", out, "--frames", settings.evaluate_frames, "--seed", settings.seed,
+          "--out", out / "evaluation", "--no-progress"])
+    return {"frames": settings.evaluate_frames}
+
+
+def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"], overrides: dict | None = None,
+                   steps=STEPS) -> Path:
+    """Build a category folder from a spec and URDFs (module docstring); returns ``out / "report.md"``.
+
+    Parameters
+    ----------
+    spec : str or Path
+    urdfs : sequence of str or Path
+    out : str or Path
+        The category folder (created; a run interrupted in it resumes).
+    settings : BuildSettings
+    overrides : dict, optional
+        Per-object import overrides.
+    steps : sequence of str
+        The steps to run (default all, in order; :data:`STEPS`).
+    """
+    if not isinstance(settings, BuildSettings):
+        raise ValueError(f"settings: expected BuildSettings, got {type(settings).__name__}")
+    unknown = [s for s in steps if s not in STEPS]
+    if unknown:
+        raise ValueError(f"steps: unknown step(s) {unknown}; known: {', '.join(STEPS)}")
+    out = Path(out)
+    start = time.perf_counter()
+    state_path = out / "build.json"
+    checked = check_category(spec, urdfs, out, overrides=overrides)
+    name = checked["name"]
+    state = json.loads(state_path.read_text()) if state_path.is_file() else {}
+    state.update(name=name, settings=asdict(settings), spec=str(spec), urdfs=[str(u) for u in urdfs],
+                 check={k: checked[k] for k in ("imported", "rejected", "train", "test")})
+    _say(f"check: {name}: {checked['imported']} objects imported ({checked['train']} train, {checked['test']} test), "
+         f"{checked['rejected']} rejected")
+    work = {"render": lambda: _render(name, out, settings), "train": lambda: _train(name, out, settings),
+            "template": lambda: _template(name, out), "calibrate": lambda: _calibrate(out, settings),
+            "evaluate": lambda: _evaluate(out, settings)}
+    for step in STEPS[1:]:
+        if step not in steps:
+            continue
+        weights = out / f"{name}.pt"
+        made_with = _sha256(weights) if step in _AFTER_TRAINING and weights.is_file() else None
+        done = state.get(step)
+        if made_with is not None and isinstance(done, dict) and done.get("weights_sha256") == made_with \
+                and done.get("settings") == asdict(settings):
+            _say(f"{step}: kept (done with these weights and settings)")
+            continue
+        _say(f"{step} ...")
+        state[step] = {**work[step](), "settings": asdict(settings)}
+        if made_with is not None:
+            state[step]["weights_sha256"] = made_with
+        state_path.write_text(json.dumps(state, indent=1, default=str) + "\n")
+    state["seconds"] = round(time.perf_counter() - start, 1)
+    state_path.write_text(json.dumps(state, indent=1, default=str) + "\n")
+    report = out / "report.md"
+    report.write_text(_report(out, state))
+    _say(f"wrote {report}")
+    return report
+
+
+def _report(out: Path, state: dict) -> str:
+    name = state["name"]
+    s = state["settings"]
+    lines = [f"# Category `{name}`: build report", "",
+             f"Built by `ancsh category build {state['spec']} --urdfs {' '.join(state['urdfs'])} --out {out}` "
+             f"(settings: {s['train_frames']} training frames, {s['test_frames']} test frames, training budget "
+             f"{s['time_limit_min']:g} min, max steps {s['max_steps']}, {s['calibrate_frames']} calibration frames, "
+             f"{s['evaluate_frames']} evaluation frames, seed {s['seed']}); {state.get('seconds', 0):.0f} s in all.", "",
+             "Use it: `--category " + str(out) + "` with `predict`, `track`, `evaluate`, `calibrate`, or put the "
+             "folder's parent on `ANCSH_CATEGORIES`.", "",
+             "## Objects", "",
+             f"{state['check']['imported']} imported ({state['check']['train']} train, {state['check']['test']} test), "
+             f"{state['check']['rejected']} rejected: `import_report.md`.", ""]
+    if "train" in state:
+        t = state["train"]
+        lines += ["## Training", "", f"{t['seconds']:.0f} s; the network `{name}.pt`, its curves `{name}_curves.png`.", ""]
+        metrics = t.get("test_metrics") or {}
+        keep = [k for k in ("test_frames", "seg_acc", "npcs_err", "axis_err_deg", "seg_acc_majority", "npcs_err_zero")
+                if k in metrics]
+        if keep:
+            lines += ["| " + " | ".join(keep) + " |", "|" + "---|" * len(keep),
+                      "| " + " | ".join(f"{metrics[k]:.4g}" if isinstance(metrics[k], float) else str(metrics[k])
+                                        for k in keep) + " |", ""]
+    if "calibrate" in state:
+        lines += ["## Calibration", ""] + [f"- `{k}`: {v}" for k, v in state["calibrate"].items()
+                                            if k in ("p_good", "p_object")] + [""]
+    evaluation = out / "evaluation" / f"{name}.md"
+    if evaluation.is_file():
+        body = evaluation.read_text().split("\n", 1)[1] if "\n" in evaluation.read_text() else ""
+        lines += ["## Evaluation on the test objects (`evaluation/`)", "", body.replace("\n# ", "\n### ")
+                  .replace("\n## ", "\n### ")]
+    return "\n".join(lines).rstrip() + "\n"
