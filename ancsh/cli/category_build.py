@@ -32,8 +32,10 @@ from ..geometry._checks import check_int, check_number
 
 __all__ = ["BuildSettings", "MIN_OBJECTS", "SIZES", "build_category", "check_category"]
 
-#: Accepted objects a build needs: at least one in the test split and at least two in the train split.
-MIN_OBJECTS = {"train": 2, "test": 1}
+#: Accepted objects a build needs in each split (the report warns below :data:`FEW_OBJECTS`).
+MIN_OBJECTS = {"train": 1, "test": 1}
+#: Fewer imported objects than this: the report says that the network has seen too few instances to generalise.
+FEW_OBJECTS = 8
 STEPS = ("check", "render", "train", "template", "calibrate", "evaluate")
 #: Steps that depend on the trained network: done again only when it changed.
 _AFTER_TRAINING = ("template", "calibrate", "evaluate")
@@ -182,7 +184,7 @@ def _rejections(catalog, conv) -> str:
     if not catalog.rejected:
         return ""
     lines = []
-    if all("moving part(s) of the kind" in r.reason for r in catalog.rejected):
+    if not catalog.objects and all("moving part(s) of the kind" in r.reason for r in catalog.rejected):
         keys = []
         for k, j in enumerate(conv.joints):
             part = conv.part_names.index(j.child)
@@ -339,7 +341,10 @@ def _report(out: Path, state: dict) -> str:
              "folder's parent on `ANCSH_CATEGORIES`.", "",
              "## Objects", "",
              f"{state['check']['imported']} imported ({state['check']['train']} train, {state['check']['test']} test), "
-             f"{state['check']['rejected']} rejected: `import_report.md`.", ""]
+             f"{state['check']['rejected']} rejected: `import_report.md`."
+             + (f" **Only {state['check']['imported']} objects: a network trained on so few instances is not expected "
+                f"to carry to other objects of the category (give at least {FEW_OBJECTS}).**"
+                if state['check']['imported'] < FEW_OBJECTS else ""), ""]
     if "train" in state:
         t = state["train"]
         lines += ["## Training", "", f"{t['seconds']:.0f} s; the network `{name}.pt`, its curves `{name}_curves.png`.", ""]

@@ -283,7 +283,7 @@ def load_spec(path) -> CategoryConvention:
     """
     import dataclasses
 
-    file = spec_file(path)
+    file = spec_file(path).resolve()
     try:
         data = tomllib.loads(file.read_text())
     except (OSError, UnicodeDecodeError) as exc:

@@ -125,9 +125,17 @@ class _Registry(Mapping):
         return tuple(self._builtin)
 
 
+def _same_definition(a: CategoryConvention, b: CategoryConvention) -> bool:
+    """Whether two conventions define the same category (a spec file and the folder built from it)."""
+    return dataclasses.replace(a, spec_path=None, folder=None) == dataclasses.replace(b, spec_path=None, folder=None)
+
+
 def _check_new(conv: CategoryConvention, known: dict) -> None:
+    """Refuse a category whose name another definition holds (the same definition from another file -- a spec and
+    the category folder built from it -- is the same category: the later one is used)."""
     old = known.get(conv.name)
-    if old is not None and old.spec_path != conv.spec_path:
+    builtin = old is not None and old.spec_path is None
+    if old is not None and old.spec_path != conv.spec_path and (builtin or not _same_definition(old, conv)):
         where = "a built-in category" if old.spec_path is None else f"the category of {old.spec_path}"
         raise category_spec.SpecError(f"{conv.spec_path}: name: {conv.name!r} is already {where}; give it another name")
 
@@ -166,7 +174,7 @@ def register_category(path) -> CategoryConvention:
     conv = category_spec.load_spec(path)
     known = CONVENTIONS._search()
     _check_new(conv, {**CONVENTIONS._builtin, **known})
-    if conv.name not in known:
+    if conv.name not in known or known[conv.name].spec_path != conv.spec_path:
         entry = str(Path(conv.folder if conv.folder is not None else conv.spec_path).resolve())
         value = os.environ.get(category_spec.SEARCH_PATH_VARIABLE, "")
         os.environ[category_spec.SEARCH_PATH_VARIABLE] = os.pathsep.join(filter(None, [value, entry]))

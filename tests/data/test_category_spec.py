@@ -140,7 +140,9 @@ def test_a_category_folder_registers_once_and_is_found_by_name(tmp_path, clean_r
 
     assert weights_path("toaster") == folder / "toaster.pt" and calibration_path("toaster").parent == folder
     assert weights_path("laptop") == WEIGHTS_DIR / "laptop.pt"
-    other = _spec(tmp_path / "elsewhere")  # another file of the same name
+    same = _spec(tmp_path / "elsewhere")  # the same definition in another file: the same category, the later one used
+    assert register_category(same).spec_path == str(same.resolve())
+    other = _spec(tmp_path / "other", extra='description = "another toaster"')  # another definition of the name
     with pytest.raises(SpecError, match="already the category of"):
         register_category(other)
     with pytest.raises(SpecError, match="already a built-in category"):

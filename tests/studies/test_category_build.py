@@ -96,7 +96,7 @@ def test_a_notebook_size_build_is_a_category_predict_uses_and_resumes(tmp_path, 
                  "evaluation/toaster.md"):
         assert (out / name).is_file(), name
     report = (out / "report.md").read_text()
-    assert "2 train, 1 test" in report and "Table 1" in report
+    assert "2 train, 1 test" in report and "Table 1" in report and "Only 3 objects" in report
     capsys.readouterr()
     assert main(words) == 0
     again = capsys.readouterr().out
