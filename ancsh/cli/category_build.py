@@ -262,6 +262,7 @@ def _calibrate(out: Path, settings: BuildSettings) -> dict:
             done[key] = "installed"
         except RuntimeError as exc:  # too few good or bad fits: reported, predict runs without it
             done[key] = f"not installed: {exc}"
+            done["complete"] = False  # tried again when the build runs again
             _say(f"calibrate {key}: {done[key]}")
     return done
 
@@ -313,7 +314,7 @@ def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"],
         made_with = _sha256(weights) if step in _AFTER_TRAINING and weights.is_file() else None
         done = state.get(step)
         if made_with is not None and isinstance(done, dict) and done.get("weights_sha256") == made_with \
-                and done.get("settings") == asdict(settings):
+                and done.get("settings") == asdict(settings) and done.get("complete", True):
             _say(f"{step}: kept (done with these weights and settings)")
             continue
         _say(f"{step} ...")

@@ -226,9 +226,9 @@ def _check_shards(data, category: str) -> list:
     data without a single intact shard.
     """
     from ..data.dataset import FrameDataset
-    from ..data.procedural import CATEGORY_INFO
+    from ..data.conventions import CONVENTIONS
 
-    info = CATEGORY_INFO.get(category)
+    info = CONVENTIONS.get(category)
     ds = FrameDataset(data, skip_corrupt=True)
     for path, reason in ds.verify():
         print(f"note: left out the damaged shard {path}: {reason}", file=sys.stderr)
@@ -236,7 +236,7 @@ def _check_shards(data, category: str) -> list:
         raise ValueError(f"--data: no intact shard in {data}")
     for reader in ds.readers:
         path = reader.path
-        if reader.category in CATEGORY_INFO and reader.category != category:
+        if reader.category in CONVENTIONS and reader.category != category:
             raise ValueError(f"--data: shard {path} holds {reader.category!r} frames, not {category!r}")
         parts = len(reader.part_names)
         if info is not None and parts != info.num_parts:

@@ -20,10 +20,10 @@ SAME_SEGMENT_IOU = 0.9
 
 
 def size_range(category: str) -> tuple[float, float]:
-    """``(lo, hi)`` metres: the procedural category's ``diagonal_range``, 0.1..2 m for other names."""
-    from ..procedural import CATEGORY_INFO
+    """``(lo, hi)`` metres: the category's ``diagonal_range`` (its spec's ``diagonal_m``), 0.1..2 m for other names."""
+    from ..conventions import CONVENTIONS
 
-    info = CATEGORY_INFO.get(category)
+    info = CONVENTIONS.get(category)
     return info.diagonal_range if info is not None else (0.1, 2.0)
 
 

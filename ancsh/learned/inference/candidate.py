@@ -303,11 +303,11 @@ def template_comparison(result, corr, depth, intrinsics, mask, category):
     """The category template posed at the fit, rendered and compared with ``depth`` on ``mask``
     (:func:`ancsh.solvers.twin.compare_fit`): a :class:`~ancsh.solvers.render_compare.DepthComparison`, or ``None``
     for a category without templates, an empty mask, or a fit without the joints or boxes a template needs."""
-    from ...data.procedural import CATEGORY_INFO
+    from ...data.conventions import CONVENTIONS
     from ...data.templates import load_template_library
     from ...solvers.twin import compare_fit
 
-    if category not in CATEGORY_INFO or mask is None or not np.asarray(mask).any():
+    if category not in CONVENTIONS or mask is None or not np.asarray(mask).any():
         return None
     try:
         return compare_fit(result, corr, load_template_library(category), depth, intrinsics, mask)[0]

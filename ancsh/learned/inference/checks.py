@@ -105,7 +105,7 @@ def check_plausibility(result, part_labels, category: str, quality=()):
     """
     import dataclasses
 
-    from ...data.procedural import CATEGORY_INFO
+    from ...data.conventions import CONVENTIONS
     from ...solvers.types import FitStatus
 
     if not result.ok and result.status != FitStatus.JOINT_AT_LIMIT:
@@ -119,7 +119,7 @@ def check_plausibility(result, part_labels, category: str, quality=()):
             return dataclasses.replace(result, status=FitStatus.TOO_FEW_INLIERS, message=(
                 f"check inliers: {100 * inl.mean():.0f}% of the points are inliers (part {worst}: "
                 f"{100 * ratios.get(worst, float('nan')):.0f}%), at least {100 * MIN_INLIER_RATIO:.0f}% are needed"))
-    info = CATEGORY_INFO.get(category)
+    info = CONVENTIONS.get(category)
     if info is not None and result.boxes_cam:
         lo, hi = info.diagonal_range
         diag = object_diagonal(result.boxes_cam)

@@ -34,9 +34,9 @@ def calibration_path(category: str) -> Path:
 
 def fit_features(quality, category: str) -> np.ndarray:
     """``(len(FEATURES),)`` float64 from per-part quality dicts (NaN entries count as worst)."""
-    from ...data.procedural import CATEGORY_INFO
+    from ...data.conventions import CONVENTIONS
 
-    size = CATEGORY_INFO[category].typical_size
+    size = CONVENTIONS[category].typical_size
     inl = [q["inlier_ratio"] for q in quality if q["points"]]
     res = [q["residual_m"] / size for q in quality if q["points"]]
     mar = [q["seg_margin"] for q in quality if q["points"]]
@@ -122,9 +122,9 @@ def object_features(comparison, diagonal: float, quality, category: str, points=
     :func:`ancsh.solvers.render_compare.aligned_comparison`; its ``shift_m`` gives ``shift_rel``), the fitted
     object's diagonal (metres), the fit's per-part quality (NaN entries count as worst) and the observed points
     ``(N, 3)`` (camera frame, metres; without them ``planar_share`` counts as 1)."""
-    from ...data.procedural import CATEGORY_INFO
+    from ...data.conventions import CONVENTIONS
 
-    size = CATEGORY_INFO[category].typical_size
+    size = CONVENTIONS[category].typical_size
     base = fit_features(quality, category)
 
     def clean(x, worst):

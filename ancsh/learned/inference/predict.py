@@ -655,9 +655,9 @@ def _rest_states(category: str, K: int) -> tuple[tuple, str]:
 
 
 def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
-    from ...data.procedural import CATEGORY_INFO
+    from ...data.conventions import CONVENTIONS
 
-    info = CATEGORY_INFO.get(category)
+    info = CONVENTIONS.get(category)
     if info is not None and len(info.part_names) == M and len(info.joint_names) == K:
         return tuple(info.part_names), tuple(info.joint_names)
     return tuple(f"part{j}" for j in range(M)), tuple(f"joint{k}" for k in range(K))
