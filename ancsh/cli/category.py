@@ -46,6 +46,8 @@ def register(sub) -> None:
     b.add_argument("--evaluate-frames", type=positive_int, help="evaluation frames")
     b.add_argument("--workers", type=positive_int, help="rendering processes (default 2)")
     b.add_argument("--seed", type=non_negative_int, help="base seed (default 0)")
+    b.add_argument("--init", choices=("auto", "none"), help="auto (default): train from the shipped network nearest "
+                   "in structure (all of it for the same joints, else its backbone); none: a random start")
     b.add_argument("--override", type=Path, help="JSON file of per-object import overrides (as data import)")
     b.set_defaults(func=run_build)
 
@@ -79,7 +81,7 @@ def run_build(args) -> int:
     from .category_build import SIZES, build_category
 
     chosen = {key: getattr(args, key) for key in ("train_frames", "test_frames", "time_limit_min", "max_steps",
-                                                   "calibrate_frames", "evaluate_frames", "workers", "seed")
+                                                   "calibrate_frames", "evaluate_frames", "workers", "seed", "init")
               if getattr(args, key) is not None}
     settings = dataclasses.replace(SIZES[args.size], **chosen)
     overrides = load_overrides(args.override) if args.override else None

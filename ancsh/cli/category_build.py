@@ -66,6 +66,10 @@ class BuildSettings:
     workers : int
         Processes rendering frames.
     seed : int
+    init : str
+        ``"auto"``: training starts from the shipped network nearest in structure (:func:`parent_network`: its
+        configuration, and every parameter when the parts and joint types are the same, else the backbone);
+        ``"none"``: from a random start with the default configuration.
     """
 
     train_frames: int = 4000
@@ -76,8 +80,12 @@ class BuildSettings:
     evaluate_frames: int = 300
     workers: int = 2
     seed: int = 0
+    init: str = "auto"
 
     def __post_init__(self):
+        if self.init not in ("auto", "none"):
+            raise ValueError(f"init: expected 'auto' (start from the nearest built-in network) or 'none', "
+                             f"got {self.init!r}")
         for name in ("train_frames", "test_frames", "evaluate_frames", "workers"):
             object.__setattr__(self, name, check_int(getattr(self, name), name, minimum=1))
         object.__setattr__(self, "calibrate_frames", check_int(self.calibrate_frames, "calibrate_frames", minimum=0))
@@ -225,19 +233,66 @@ def _cli(words: list) -> None:
         raise RuntimeError(f"`ancsh {' '.join(map(str, words))}` exited with {code}")
 
 
+def parent_network(name: str) -> tuple[str, str] | None:
+    """The shipped network a new category's training starts from, and how (``TrainConfig.init_match``).
+
+    Among the built-in categories with shipped weights: first those with the same joint types in the same order
+    (every parameter copied, ``"all"``), then those whose joints are all of the new category's kinds, then any
+    (``"matching"``: the backbone copied, the part-sized heads start afresh); among equals the nearest typical size.
+    ``None`` when no network is shipped.
+    """
+    import math
+
+    from ..data.conventions import CONVENTIONS
+    from ..learned.network.weights import shipped_categories
+
+    conv = CONVENTIONS[name]
+    types = tuple(j.type for j in conv.joints)
+    ranked = []
+    for other in shipped_categories():
+        c = CONVENTIONS[other]
+        theirs = tuple(j.type for j in c.joints)
+        rank = 0 if theirs == types else 1 if set(theirs) == set(types) else 2
+        ranked.append((rank, abs(math.log(c.typical_size / conv.typical_size)), other))
+    if not ranked:
+        return None
+    rank, _, best = min(ranked)
+    return best, "all" if rank == 0 else "matching"
+
+
+def _train_config(name: str, out: Path, settings: BuildSettings) -> tuple[Path, dict]:
+    """The training configuration (``train_config.json``): the parent network's, started from it (or the default)."""
+    from ..learned.network.config import TrainConfig
+    from ..learned.network.weights import weights_path
+
+    fields = {"category": name, "seed": settings.seed, "max_steps": settings.max_steps or 6000, "pose_val_every": 0}
+    parent = parent_network(name) if settings.init == "auto" else None
+    record = {"parent": None}
+    if parent is not None:
+        other, match = parent
+        saved = json.loads(weights_path(other).with_name(f"{other}_config.json").read_text())
+        known = set(TrainConfig.__dataclass_fields__)
+        base = {k: v for k, v in saved.items() if k in known and v is not None}
+        fields = {**base, **fields, "init_weights": str(weights_path(other)), "init_match": match}
+        record = {"parent": other, "init_match": match}
+    path = out / "train_config.json"
+    path.write_text(json.dumps(TrainConfig.from_dict(fields).to_dict(), indent=1) + "\n")
+    return path, record
+
+
 def _train(name: str, out: Path, settings: BuildSettings) -> dict:
     run = out / "run"
     weights = out / f"{name}.pt"
-    words = ["train", "--category", out, "--data", out / "data" / "train", "--test-data", out / "data" / "test",
-             "--out", run, "--time-limit-min", settings.time_limit_min, "--no-progress", "--export", weights]
-    if settings.max_steps is not None:
-        words += ["--max-steps", settings.max_steps]
+    config, record = _train_config(name, out, settings)
+    words = ["train", "--category", out, "--config", config, "--data", out / "data" / "train", "--test-data",
+             out / "data" / "test", "--out", run, "--time-limit-min", settings.time_limit_min, "--no-progress",
+             "--export", weights]
     if (run / "last.pt").is_file():
         words.append("--resume")
     start = time.perf_counter()
     _cli(words)
     metrics = out / f"{name}_test_metrics.json"
-    return {"seconds": round(time.perf_counter() - start, 1),
+    return {"seconds": round(time.perf_counter() - start, 1), **record,
             "test_metrics": json.loads(metrics.read_text()) if metrics.is_file() else None}
 
 
@@ -348,7 +403,10 @@ def _report(out: Path, state: dict) -> str:
                 if state['check']['imported'] < FEW_OBJECTS else ""), ""]
     if "train" in state:
         t = state["train"]
-        lines += ["## Training", "", f"{t['seconds']:.0f} s; the network `{name}.pt`, its curves `{name}_curves.png`.", ""]
+        start = (f"started from the shipped `{t['parent']}` network ({'every parameter' if t['init_match'] == 'all' else 'its backbone'}"
+                 f", its configuration)" if t.get("parent") else "started from a random initialisation")
+        lines += ["## Training", "", f"{t['seconds']:.0f} s, {start}; the network `{name}.pt`, its curves "
+                  f"`{name}_curves.png`, its configuration `train_config.json`.", ""]
         metrics = t.get("test_metrics") or {}
         keep = [k for k in ("test_frames", "seg_acc", "npcs_err", "axis_err_deg", "seg_acc_majority", "npcs_err_zero")
                 if k in metrics]

@@ -131,6 +131,17 @@ def test_init_weights_starts_from_a_trained_network_and_refuses_another_structur
     assert torch.count_nonzero(w_grown[:, 3:6]) == 0
     torch.testing.assert_close(torch.cat([w_grown[:, :3], w_grown[:, 6:]], dim=1), w_plain)
     torch.testing.assert_close(grown["backbone.sa2.mlp.0.weight"], trained.model.state_dict()["backbone.sa2.mlp.0.weight"])
+    # another structure with init_match "matching": the backbone copied, the part-sized heads start afresh
+    other = Trainer(dataclasses.replace(cfg, init_weights=str(tmp_path / "a" / "last.pt"), init_match="matching"),
+                    prismatic_arrays, progress=False)
+    theirs, ours = trained.model.state_dict(), other.model.state_dict()
+    same = [n for n in ours if n in theirs and ours[n].shape == theirs[n].shape]
+    assert any(n.startswith("backbone.") for n in same) and len(same) < len(ours)
+    for n in same:
+        torch.testing.assert_close(ours[n], theirs[n])
+    assert other.init_record["copied_parameters"] == len(same) and other.init_record["parameters"] == len(ours)
+    with pytest.raises(ValueError, match="init_match"):
+        dataclasses.replace(cfg, init_match="some")
 
 
 def test_fine_tuned_weights_keep_their_parent_and_its_training_time(tmp_path, tiny_arrays, tiny_config):

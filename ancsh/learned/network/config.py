@@ -79,6 +79,10 @@ class TrainConfig:
         ``"builtin"`` (the shipped weights of ``category`` and ``kind``) or a weights file / checkpoint
         path. The network's structure must match this configuration's (or be the same without input
         normals, see ``input_normals``); the optimiser and the step start afresh.
+    init_match : str
+        With ``init_weights``: ``"all"`` (the default: the same parts and joint types, every parameter
+        copied) or ``"matching"`` (a network of another part count or joint types: the parameters of
+        the same name and shape are copied -- the backbone -- and the part-sized heads start afresh).
     pose_val_every : int
         Steps between pose validations (0 = none): validation frames through the full pipeline
         (learned provider, then ``fit`` ``exact_reduced``); with them, ``best.pt`` is the checkpoint
@@ -150,6 +154,7 @@ class TrainConfig:
     pose_start_step: int = 0
     pose_loss: str = "chordal"
     init_weights: str = ""
+    init_match: str = "all"
     val_fraction: float = 0.1
     val_frames: int = 256
     val_every: int = 250
@@ -205,6 +210,8 @@ class TrainConfig:
             raise ValueError(f"pose_loss: expected one of {POSE_LOSSES}, got {self.pose_loss!r}")
         if not isinstance(self.init_weights, str):
             raise ValueError(f"init_weights: expected a string ('' = none, 'builtin' or a path), got {self.init_weights!r}")
+        if self.init_match not in ("all", "matching"):
+            raise ValueError(f"init_match: expected 'all' or 'matching', got {self.init_match!r}")
         if isinstance(self.pose_start_step, bool) or not isinstance(self.pose_start_step, int) or self.pose_start_step < 0:
             raise ValueError(f"pose_start_step: expected a non-negative integer, got {self.pose_start_step!r}")
         if isinstance(self.pose_val_every, bool) or not isinstance(self.pose_val_every, int) or self.pose_val_every < 0:

@@ -456,6 +456,13 @@ class Trainer:
         if loaded.kind != c.kind or loaded.config.network_kwargs() != wanted:
             raise ValueError(f"init_weights: {loaded.source} is a {loaded.kind} network with {loaded.config.network_kwargs()}, "
                              f"not the configured {c.kind} network with {c.network_kwargs()}")
+        if c.init_match == "matching" and not adding_normals:
+            own, theirs = self.model.state_dict(), loaded.model.state_dict()
+            copied = {k: v for k, v in theirs.items() if k in own and tuple(own[k].shape) == tuple(v.shape)}
+            self.model.load_state_dict({**own, **copied})
+            self.init_sha256 = loaded.sha256
+            self.init_record = {**parent_record(loaded), "copied_parameters": len(copied), "parameters": len(own)}
+            return
         if loaded.num_parts != train.num_parts or not np.array_equal(loaded.revolute, train.revolute):
             raise ValueError(f"init_weights: {loaded.source} has {loaded.num_parts} parts and joints "
                              f"{['revolute' if r else 'prismatic' for r in loaded.revolute]}; the training frames have "
