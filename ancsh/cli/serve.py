@@ -19,8 +19,8 @@ def register(sub) -> None:
     p.add_argument("--root", type=Path, default=None,
                    help="the folder requests may read files from (depth_path, mask_path, intrinsics_path); paths "
                         "outside it are refused. Without it requests send images as bytes only")
-    p.add_argument("--categories", default="", help="comma-separated categories loaded at start (others load on "
-                                                    "their first request)")
+    p.add_argument("--categories", default="", help="comma-separated categories loaded at start: names, spec files "
+                   "or built category folders (others load on their first request)")
     p.add_argument("--threads", type=positive_int, default=1, help="torch threads (default 1)")
     p.add_argument("--max-body-mb", type=positive_int, default=64, help="largest request body in MiB (default 64)")
     p.add_argument("--verbose", action="store_true", help="log every request on stderr")
@@ -30,13 +30,14 @@ def register(sub) -> None:
 def run(args) -> int:
     import torch
 
+    from ..data.conventions import resolve_category
     from ..service import PredictionService, make_server
 
     if args.root is not None and not args.root.is_dir():
         raise ValueError(f"--root: {args.root} is not a folder")
     torch.set_num_threads(args.threads)
-    categories = [c.strip() for c in args.categories.split(",") if c.strip()]
     try:
+        categories = [resolve_category(c.strip()) for c in args.categories.split(",") if c.strip()]
         service = PredictionService(root=args.root, categories=categories)
     except Exception as exc:  # a missing category's weights: say which option
         raise ValueError(f"--categories: {exc}") from None
