@@ -117,3 +117,7 @@ def test_a_notebook_size_build_is_a_category_predict_uses_and_resumes(tmp_path, 
                  "--category", str(out), "--out", str(tmp_path / "result.json")])
     result = json.loads((tmp_path / "result.json").read_text())
     assert code in (0, 1) and result["category"] == "toaster", result.get("category")
+    from ancsh.learned.inference.predict import predict_depth
+
+    pred = predict_depth(depth, K, str(out), mask=depth > 0)  # the Python API takes the folder too
+    assert pred.category == "toaster"

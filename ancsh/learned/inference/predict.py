@@ -339,7 +339,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
         Metres, 0 = no measurement.
     intrinsics : Intrinsics
     category : str
-        Object category; its shipped weights are used unless ``weights`` or ``provider`` is given.
+        Object category (a name, or a category spec file / built category folder, registered here); its weights are
+        used unless ``weights`` or ``provider`` is given.
     mask : (H, W) bool, optional
         The object's pixels; it wins over isolation.
     max_depth : float, optional
@@ -398,9 +399,12 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     ValueError
         Bad inputs (shapes, empty depth after masking, depths that look like millimetres, unknown formulation).
     """
+    from ...data.conventions import is_category_path, resolve_category
     from ...data.images import MAX_PLAUSIBLE_DEPTH
     from ...solvers import FORMULATIONS
 
+    if isinstance(category, str) and is_category_path(category):  # a spec file or a built category folder
+        category = resolve_category(category)
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
     if max_objects is not None and (isinstance(max_objects, bool) or int(max_objects) != max_objects or max_objects < 1):
