@@ -385,6 +385,35 @@ def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"],
     return report
 
 
+#: The network's test scores shown in the report: (key, what it is).
+_SCORES = (("test_frames", "test frames"), ("seg_acc", "segmentation accuracy"), ("npcs_err", "NPCS error"),
+           ("axis_err_deg", "joint axis error (deg)"), ("seg_acc_majority", "segmentation: the majority part"),
+           ("npcs_err_zero", "NPCS: all zero"))
+
+
+def _metrics_table(name: str, metrics: dict, parent: str | None) -> list:
+    """The network's scores on the held-out test frames beside the parent network's on its own category's."""
+    from ..learned.network.weights import weights_path
+
+    theirs = {}
+    if parent is not None:
+        path = weights_path(parent).with_name(f"{parent}_test_metrics.json")
+        theirs = json.loads(path.read_text()) if path.is_file() else {}
+    rows = [(label, metrics.get(key), theirs.get(key)) for key, label in _SCORES if key in metrics]
+    if not rows:
+        return []
+
+    def cell(v):
+        return "-" if v is None else f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    head = f"| score | `{name}` (its test objects) |" + (f" shipped `{parent}` (its test frames) |" if theirs else "")
+    out = ["Scores of the network on the test frames (the last two rows: trivial baselines)"
+           + (", beside the network it started from on its own category's" if theirs else "") + ":", "", head,
+           "|---|---|" + ("---|" if theirs else "")]
+    out += [f"| {label} | {cell(ours)} |" + (f" {cell(other)} |" if theirs else "") for label, ours, other in rows]
+    return out + [""]
+
+
 def _report(out: Path, state: dict) -> str:
     name = state["name"]
     s = state["settings"]
@@ -407,13 +436,7 @@ def _report(out: Path, state: dict) -> str:
                  f", its configuration)" if t.get("parent") else "started from a random initialisation")
         lines += ["## Training", "", f"{t['seconds']:.0f} s, {start}; the network `{name}.pt`, its curves "
                   f"`{name}_curves.png`, its configuration `train_config.json`.", ""]
-        metrics = t.get("test_metrics") or {}
-        keep = [k for k in ("test_frames", "seg_acc", "npcs_err", "axis_err_deg", "seg_acc_majority", "npcs_err_zero")
-                if k in metrics]
-        if keep:
-            lines += ["| " + " | ".join(keep) + " |", "|" + "---|" * len(keep),
-                      "| " + " | ".join(f"{metrics[k]:.4g}" if isinstance(metrics[k], float) else str(metrics[k])
-                                        for k in keep) + " |", ""]
+        lines += _metrics_table(name, t.get("test_metrics") or {}, t.get("parent"))
     if "calibrate" in state:
         lines += ["## Calibration", ""] + [f"- `{k}`: {v}" for k, v in state["calibrate"].items()
                                             if k in ("p_good", "p_object")] + [""]
