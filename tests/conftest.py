@@ -99,3 +99,50 @@ def make_refiner(tmp_path):
         return path
 
     return make
+
+
+_OVEN_LIKE_SPEC = """spec_version = 1
+name = "{name}"
+rest = "door closed (0)"
+diagonal_m = [0.5, 1.5]
+{extra}
+[[parts]]
+name = "base"
+
+[[parts]]
+name = "door"
+{part}
+[[joints]]
+name = "door_hinge"
+type = "revolute"
+child = "door"
+zero = "closed"
+positive = "opens"
+side = "front"
+rest_deg = 0
+range_deg = [0, 180]
+"""
+
+
+@pytest.fixture
+def make_category_spec():
+    """``make_category_spec(folder, name="toaster", extra="", part='semantics = ["door"]', file=None) -> Path``: a
+    category spec file of an oven-like category (a base and a front door on a revolute hinge, 0..180 deg) written
+    into ``folder`` (``file``: its name, default ``<name>.toml``); ``extra``: top-level lines, ``part``: the door's."""
+    def write(folder: Path, name="toaster", extra="", part='semantics = ["door"]', file=None) -> Path:
+        path = Path(folder) / (file or f"{name}.toml")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(_OVEN_LIKE_SPEC.format(name=name, extra=extra, part=part))
+        return path
+
+    return write
+
+
+@pytest.fixture
+def clean_registry(monkeypatch):
+    """The process's known categories and search path as they were before the test (what it registers is forgotten)."""
+    from ancsh.data import category_spec
+    from ancsh.data.conventions import CONVENTIONS
+
+    monkeypatch.setattr(CONVENTIONS, "_searched", (None, {}))
+    monkeypatch.setenv(category_spec.SEARCH_PATH_VARIABLE, "")  # restored (unset) after the test

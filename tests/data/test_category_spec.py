@@ -15,42 +15,6 @@ from ancsh.data.category_spec import SpecError, load_spec, parse_spec, spec_text
 from ancsh.data.conventions import CONVENTIONS, convention, convention_violations, register_category, resolve_category
 from ancsh.data.importer import ImportRejected, import_object
 
-_OVEN_LIKE = """spec_version = 1
-name = "{name}"
-rest = "door closed (0)"
-diagonal_m = [0.5, 1.5]
-{extra}
-[[parts]]
-name = "base"
-
-[[parts]]
-name = "door"
-{part}
-[[joints]]
-name = "door_hinge"
-type = "revolute"
-child = "door"
-zero = "closed"
-positive = "opens"
-side = "front"
-rest_deg = 0
-range_deg = [0, 180]
-"""
-
-
-def _spec(tmp_path, name="toaster", extra="", part='semantics = ["door"]', file=None):
-    path = tmp_path / (file or f"{name}.toml")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(_OVEN_LIKE.format(name=name, extra=extra, part=part))
-    return path
-
-
-@pytest.fixture
-def clean_registry(monkeypatch):
-    """The process's registered categories and search path as they were before the test."""
-    monkeypatch.setattr(CONVENTIONS, "_searched", (None, {}))
-    monkeypatch.setenv(category_spec.SEARCH_PATH_VARIABLE, "")  # restored (unset) after the test
-
 
 def test_every_builtin_category_is_its_spec_file_and_writes_back_to_it():
     assert list(CONVENTIONS.builtin) == [p.stem for p in category_spec.builtin_spec_paths()]
@@ -62,8 +26,8 @@ def test_every_builtin_category_is_its_spec_file_and_writes_back_to_it():
         assert back == dataclasses.replace(conv, spec_path=None)
 
 
-def test_the_units_of_a_spec_are_read_into_radians_and_metres(tmp_path):
-    conv = load_spec(_spec(tmp_path))
+def test_the_units_of_a_spec_are_read_into_radians_and_metres(tmp_path, make_category_spec):
+    conv = load_spec(make_category_spec(tmp_path))
     assert conv.joints[0].state_range == (0.0, np.pi) and conv.joints[0].side == ("front",)
     assert conv.joint_limits.tolist() == [[0.0, np.pi]]
     assert convention("drawer").joints[0].type.value == "prismatic"
@@ -91,8 +55,8 @@ def test_the_units_of_a_spec_are_read_into_radians_and_metres(tmp_path):
     (('name = "base"', 'name = "base"\nsemantics = ["body"]'), "parts[0].semantics", "the base"),
     (('name = "toaster"', 'name = "Toaster!"'), "name", "lower-case"),
 ])
-def test_a_wrong_spec_names_its_file_and_key(tmp_path, edit, key, words):
-    path = _spec(tmp_path)
+def test_a_wrong_spec_names_its_file_and_key(tmp_path, edit, key, words, make_category_spec):
+    path = make_category_spec(tmp_path)
     text = path.read_text()
     assert edit[0] in text
     path.write_text(text.replace(edit[0], edit[1], 1))
@@ -102,15 +66,15 @@ def test_a_wrong_spec_names_its_file_and_key(tmp_path, edit, key, words):
     assert message.startswith(f"{path}: {key}") and words in message, message
 
 
-def test_a_spec_viewpoint_is_how_its_frames_are_rendered(tmp_path, clean_registry):
+def test_a_spec_viewpoint_is_how_its_frames_are_rendered(tmp_path, clean_registry, make_category_spec):
     from ancsh.data.render import DEFAULT_VIEWPOINT, ViewpointRange, viewpoint_range
 
-    path = _spec(tmp_path)
+    path = make_category_spec(tmp_path)
     path.write_text(path.read_text().replace("diagonal_m = [0.5, 1.5]", "diagonal_m = [0.5, 1.5]\n[viewpoint]\n"
                                              "azimuth_deg = [-30, 30]\nroll_deg = 0"))
     name = resolve_category(str(path))
     assert viewpoint_range(name) == ViewpointRange(azimuth=(-np.pi / 6, np.pi / 6), roll=0.0)
-    plain = resolve_category(str(_spec(tmp_path, name="plain")))
+    plain = resolve_category(str(make_category_spec(tmp_path, name="plain")))
     assert viewpoint_range(plain) == DEFAULT_VIEWPOINT
     assert viewpoint_range("box").distance == (1.8, 4.0)  # the built-in spec's
 
@@ -126,9 +90,9 @@ def test_a_file_that_is_no_toml_or_no_spec_says_so(tmp_path):
         load_spec(tmp_path / "missing.toml")
 
 
-def test_a_category_folder_registers_once_and_is_found_by_name(tmp_path, clean_registry):
+def test_a_category_folder_registers_once_and_is_found_by_name(tmp_path, clean_registry, make_category_spec):
     folder = tmp_path / "toaster"
-    _spec(folder, file="category.toml")
+    make_category_spec(folder, file="category.toml")
     assert "toaster" not in CONVENTIONS
     assert resolve_category(str(folder)) == "toaster"
     conv = convention("toaster")
@@ -140,19 +104,19 @@ def test_a_category_folder_registers_once_and_is_found_by_name(tmp_path, clean_r
 
     assert weights_path("toaster") == folder / "toaster.pt" and calibration_path("toaster").parent == folder
     assert weights_path("laptop") == WEIGHTS_DIR / "laptop.pt"
-    same = _spec(tmp_path / "elsewhere")  # the same definition in another file: the same category, the later one used
+    same = make_category_spec(tmp_path / "elsewhere")  # the same definition in another file: the same category, the later one used
     assert register_category(same).spec_path == str(same.resolve())
-    other = _spec(tmp_path / "other", extra='description = "another toaster"')  # another definition of the name
+    other = make_category_spec(tmp_path / "other", extra='description = "another toaster"')  # another definition of the name
     with pytest.raises(SpecError, match="already the category of"):
         register_category(other)
     with pytest.raises(SpecError, match="already a built-in category"):
-        register_category(_spec(tmp_path, name="laptop"))
+        register_category(make_category_spec(tmp_path, name="laptop"))
 
 
-def test_the_search_path_finds_spec_files_and_folders(tmp_path, clean_registry, monkeypatch):
+def test_the_search_path_finds_spec_files_and_folders(tmp_path, clean_registry, monkeypatch, make_category_spec):
     root = tmp_path / "cats"
-    _spec(root, name="toaster")
-    _spec(root / "kettle", name="kettle", file="category.toml")
+    make_category_spec(root, name="toaster")
+    make_category_spec(root / "kettle", name="kettle", file="category.toml")
     monkeypatch.setenv(category_spec.SEARCH_PATH_VARIABLE, str(root))
     assert {"toaster", "kettle"} <= set(CONVENTIONS)
     assert convention("kettle").folder == str(root / "kettle") and convention("toaster").folder is None
@@ -160,9 +124,9 @@ def test_the_search_path_finds_spec_files_and_folders(tmp_path, clean_registry, 
     assert "toaster" not in CONVENTIONS
 
 
-def test_a_spec_category_imports_an_object_by_its_own_rules(tmp_path, make_oven_urdf, clean_registry):
+def test_a_spec_category_imports_an_object_by_its_own_rules(tmp_path, make_oven_urdf, clean_registry, make_category_spec):
     """A category the library does not know, from a spec: the importer maps the synthetic oven onto it."""
-    name = resolve_category(str(_spec(tmp_path)))
+    name = resolve_category(str(make_category_spec(tmp_path)))
     obj = import_object(make_oven_urdf(tmp_path / "t1"), name)
     assert obj.category == "toaster" and obj.moving_links == ("door",)
     assert convention_violations(obj.model(), convention(name)) == []
@@ -170,27 +134,27 @@ def test_a_spec_category_imports_an_object_by_its_own_rules(tmp_path, make_oven_
     assert obj.zero == pytest.approx(reference.zero) and obj.sign == reference.sign
 
 
-def test_link_patterns_and_freeze_choose_the_moving_part_without_semantics(tmp_path, make_oven_urdf, clean_registry):
+def test_link_patterns_and_freeze_choose_the_moving_part_without_semantics(tmp_path, make_oven_urdf, clean_registry, make_category_spec):
     """Without semantics.txt every movable link is a candidate: the knob, the door and a hatch. ``links`` patterns
     keep the door; ``freeze`` drops the knob and the hatch; with neither, the importer must choose."""
     urdf = make_oven_urdf(tmp_path / "o", hatch=True)
     (urdf.parent / "semantics.txt").unlink()
-    by_links = resolve_category(str(_spec(tmp_path, name="by_links", part='links = ["do*"]')))
+    by_links = resolve_category(str(make_category_spec(tmp_path, name="by_links", part='links = ["do*"]')))
     assert import_object(urdf, by_links).moving_links == ("door",)
-    frozen = resolve_category(str(_spec(tmp_path, name="frozen", part="", extra='freeze = ["knob", "hatch"]')))
+    frozen = resolve_category(str(make_category_spec(tmp_path, name="frozen", part="", extra='freeze = ["knob", "hatch"]')))
     obj = import_object(urdf, frozen)
     assert obj.moving_links == ("door",) and obj.joint_types["knob_joint"] == "fixed"
-    wrong = resolve_category(str(_spec(tmp_path, name="wrong", part='links = ["lid*"]')))
+    wrong = resolve_category(str(make_category_spec(tmp_path, name="wrong", part='links = ["lid*"]')))
     with pytest.raises(ImportRejected, match="has 0 moving part"):
         import_object(urdf, wrong)
 
 
-def test_a_spec_category_without_a_generator_renders_its_catalog_only(tmp_path, make_oven_urdf, clean_registry):
+def test_a_spec_category_without_a_generator_renders_its_catalog_only(tmp_path, make_oven_urdf, clean_registry, make_category_spec):
     from ancsh.data.catalog import build_catalog, write_catalog
     from ancsh.data.generate import FrameGenerator, GenerationConfig
     from ancsh.data.render import Intrinsics
 
-    name = resolve_category(str(_spec(tmp_path)))
+    name = resolve_category(str(make_category_spec(tmp_path)))
     with pytest.raises(ValueError, match="no procedural generator"):
         GenerationConfig(category=name)
     urdfs = [make_oven_urdf(tmp_path / f"toaster_{i}") for i in range(3)]

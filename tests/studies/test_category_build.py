@@ -9,38 +9,6 @@ import numpy as np
 import pytest
 
 from ancsh.cli import main
-from ancsh.data import category_spec
-from ancsh.data.conventions import CONVENTIONS
-
-_SPEC = """spec_version = 1
-name = "toaster"
-rest = "door closed (0)"
-diagonal_m = [0.5, 1.5]
-
-[[parts]]
-name = "base"
-
-[[parts]]
-name = "door"
-semantics = ["door"]
-
-[[joints]]
-name = "door_hinge"
-type = "revolute"
-child = "door"
-zero = "closed"
-positive = "opens"
-side = "front"
-rest_deg = 0
-range_deg = [0, 180]
-"""
-
-
-@pytest.fixture
-def clean_registry(monkeypatch):
-    monkeypatch.setattr(CONVENTIONS, "_searched", (None, {}))
-    monkeypatch.setenv(category_spec.SEARCH_PATH_VARIABLE, "")
-
 
 @pytest.fixture
 def toasters(tmp_path, make_oven_urdf):
@@ -49,19 +17,21 @@ def toasters(tmp_path, make_oven_urdf):
     return [str(make_oven_urdf(tmp_path / "urdfs" / f"toaster_{i}")) for i in (2, 3, 4)]
 
 
-def _write(tmp_path, text=_SPEC, name="toaster.toml"):
-    path = tmp_path / name
-    path.write_text(text)
+def _write(folder, make_category_spec, edit=lambda text: text, name="toaster.toml"):
+    """The oven-like spec file (``make_category_spec``), its text changed by ``edit``."""
+    path = make_category_spec(folder, file=name)
+    path.write_text(edit(path.read_text()))
     return path
 
 
-def test_check_lists_what_imports_and_a_wrong_spec_names_file_and_key(tmp_path, toasters, capsys, clean_registry):
-    spec = _write(tmp_path)
+def test_check_lists_what_imports_and_a_wrong_spec_names_file_and_key(tmp_path, toasters, capsys, clean_registry,
+                                                                     make_category_spec):
+    spec = _write(tmp_path, make_category_spec)
     assert main(["category", "check", str(spec), "--urdfs", *toasters, "--out", str(tmp_path / "cat")]) == 0
     out = capsys.readouterr().out
     assert "| toaster_4 | test | imported |" in out and "3 imported (2 train, 1 test), 0 rejected" in out
     assert json.loads((tmp_path / "cat" / "catalog.json").read_text())["objects"]
-    bad = _write(tmp_path, _SPEC.replace("range_deg", "range_dg"), "bad.toml")
+    bad = _write(tmp_path, make_category_spec, lambda text: text.replace("range_deg", "range_dg"), "bad.toml")
     assert main(["category", "check", str(bad)]) == 2
     assert f"{bad}: joints[0].range_dg: unknown key" in capsys.readouterr().err
 
@@ -71,11 +41,14 @@ def test_check_lists_what_imports_and_a_wrong_spec_names_file_and_key(tmp_path, 
     (('semantics = ["door"]', 'semantics = ["lid"]'), "parts[1].semantics (lid)"),  # no URDF matches the part
 ])
 def test_urdfs_that_cannot_make_the_category_stop_before_anything_is_rendered(tmp_path, toasters, capsys, edit, words,
-                                                                               clean_registry):
-    text = _SPEC.replace(edit[0], edit[1])
-    if "prismatic" in edit[1]:
-        text = text.replace("rest_deg = 0", "rest_m = 0").replace("range_deg = [0, 180]", "range_m = [0, 0.5]")
-    spec = _write(tmp_path, text)
+                                                                               clean_registry, make_category_spec):
+    def change(text):
+        text = text.replace(edit[0], edit[1])
+        if "prismatic" in edit[1]:
+            text = text.replace("rest_deg = 0", "rest_m = 0").replace("range_deg = [0, 180]", "range_m = [0, 0.5]")
+        return text
+
+    spec = _write(tmp_path, make_category_spec, change)
     out = tmp_path / "cat"
     assert main(["category", "build", str(spec), "--urdfs", *toasters, "--out", str(out), "--size", "notebook"]) == 2
     err = capsys.readouterr().err
@@ -83,10 +56,11 @@ def test_urdfs_that_cannot_make_the_category_stop_before_anything_is_rendered(tm
     assert not (out / "data").exists() and not (out / "run").exists()
 
 
-def test_a_notebook_size_build_is_a_category_predict_uses_and_resumes(tmp_path, toasters, capsys, clean_registry):
+def test_a_notebook_size_build_is_a_category_predict_uses_and_resumes(tmp_path, toasters, capsys, clean_registry,
+                                                                      make_category_spec):
     """The build writes the network, the template and the report into the folder; ``--category FOLDER`` predicts
     with them; the same command again keeps every finished step."""
-    spec = _write(tmp_path)
+    spec = _write(tmp_path, make_category_spec)
     out = tmp_path / "toaster_category"
     words = ["category", "build", str(spec), "--urdfs", *toasters, "--out", str(out), "--size", "notebook",
              "--train-frames", "24", "--test-frames", "8", "--max-steps", "3", "--evaluate-frames", "2",
