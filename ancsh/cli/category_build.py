@@ -289,11 +289,31 @@ def _train(name: str, out: Path, settings: BuildSettings) -> dict:
              "--export", weights]
     if (run / "last.pt").is_file():
         words.append("--resume")
-    start = time.perf_counter()
     _cli(words)
     metrics = out / f"{name}_test_metrics.json"
-    return {"seconds": round(time.perf_counter() - start, 1), **record,
+    return {"seconds": _trained_seconds(run), "steps": _trained_steps(run), **record,
             "test_metrics": json.loads(metrics.read_text()) if metrics.is_file() else None}
+
+
+def _history_last(run: Path) -> dict:
+    """The last row of a run's ``history.csv`` (``{}`` without one)."""
+    import csv
+
+    path = run / "history.csv"
+    if not path.is_file():
+        return {}
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    return rows[-1] if rows else {}
+
+
+def _trained_seconds(run: Path) -> float:
+    """Wall seconds the run has trained, over all its resumptions."""
+    return round(float(_history_last(run).get("elapsed_s") or 0.0), 1)
+
+
+def _trained_steps(run: Path) -> int:
+    return int(float(_history_last(run).get("step") or 0))
 
 
 def _template(name: str, out: Path) -> dict:
@@ -434,7 +454,8 @@ def _report(out: Path, state: dict) -> str:
         t = state["train"]
         start = (f"started from the shipped `{t['parent']}` network ({'every parameter' if t['init_match'] == 'all' else 'its backbone'}"
                  f", its configuration)" if t.get("parent") else "started from a random initialisation")
-        lines += ["## Training", "", f"{t['seconds']:.0f} s, {start}; the network `{name}.pt`, its curves "
+        lines += ["## Training", "", f"{t.get('steps', '?')} steps in {t['seconds']:.0f} s, {start}; the network "
+                  f"`{name}.pt`, its curves "
                   f"`{name}_curves.png`, its configuration `train_config.json`.", ""]
         lines += _metrics_table(name, t.get("test_metrics") or {}, t.get("parent"))
     if "calibrate" in state:
