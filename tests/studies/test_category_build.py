@@ -56,6 +56,20 @@ def test_urdfs_that_cannot_make_the_category_stop_before_anything_is_rendered(tm
     assert not (out / "data").exists() and not (out / "run").exists()
 
 
+def test_a_folder_without_its_network_says_how_to_finish_it(tmp_path, toasters, capsys, clean_registry,
+                                                            make_category_spec):
+    out = tmp_path / "cat"
+    assert main(["category", "check", str(_write(tmp_path, make_category_spec)), "--urdfs", *toasters,
+                 "--out", str(out)]) == 0
+    np.save(tmp_path / "depth.npy", np.full((4, 4), 1.0))
+    (tmp_path / "K.json").write_text(json.dumps({"fx": 4, "fy": 4, "cx": 2, "cy": 2, "width": 4, "height": 4}))
+    capsys.readouterr()
+    assert main(["predict", "--depth", str(tmp_path / "depth.npy"), "--intrinsics", str(tmp_path / "K.json"),
+                 "--category", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "has no network yet" in err and "ancsh category build" in err and str(out) in err, err
+
+
 def test_a_notebook_size_build_is_a_category_predict_uses_and_resumes(tmp_path, toasters, capsys, clean_registry,
                                                                       make_category_spec):
     """The build writes the network, the template and the report into the folder; ``--category FOLDER`` predicts

@@ -401,7 +401,14 @@ def weights_summary() -> list[dict]:
 
 
 def missing_weights_error(category: str) -> FileNotFoundError:
-    """The error for a category without shipped ANCSH weights, naming the categories that have them."""
+    """The error for a category without ANCSH weights: for a built category folder, where they belong and how to make
+    them; else the categories that have shipped ones."""
+    from ...data.conventions import category_folder
+
+    folder = category_folder(category)
+    if folder is not None:
+        return FileNotFoundError(f"category: {category!r} has no network yet ({weights_path(category)} is missing): "
+                                 f"finish its build (`ancsh category build SPEC --urdfs ... --out {folder}` resumes it)")
     return FileNotFoundError(
         f"category: no shipped weights for {category!r}; available: {', '.join(shipped_categories()) or 'none'}"
     )
