@@ -33,7 +33,7 @@ from torch import nn
 from .normals import estimate_normals, normal_neighbours
 from .pointnet2 import Neighbourhoods, PointNet2Backbone, shared_mlp
 
-__all__ = ["AncshNet", "DirectVotingNet", "build_network", "load_adding_normals", "normalize_cloud", "denormalize_joint_votes"]
+__all__ = ["AncshNet", "DirectVotingNet", "build_network", "load_adding_normals", "load_matching", "normalize_cloud", "denormalize_joint_votes"]
 
 
 def normalize_cloud(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -267,3 +267,18 @@ def load_adding_normals(model: nn.Module, state: dict) -> None:
                 raise ValueError(f"state: {name} has shape {tuple(value.shape)}, expected {tuple(own[name].shape)}")
             merged[name] = value
     model.load_state_dict(merged)
+
+
+def load_matching(model: nn.Module, state: dict) -> int:
+    """Load into ``model`` the parameters of ``state`` that have its parameters' names and shapes (a network of
+    another part count or joint types: the backbone, not the part-sized heads); the others keep their values.
+
+    Returns
+    -------
+    int
+        How many parameters were copied.
+    """
+    own = model.state_dict()
+    copied = {k: v for k, v in state.items() if k in own and tuple(own[k].shape) == tuple(v.shape)}
+    model.load_state_dict({**own, **copied})
+    return len(copied)

@@ -426,13 +426,10 @@ class Trainer:
         if pose_val is not None and not isinstance(pose_val, PoseValidation):
             raise ValueError(f"pose_val: expected a PoseValidation, got {type(pose_val).__name__}")
         self.pose_val = pose_val
-        self.step = 0
-        self.elapsed_s = 0.0
+        self.step, self.elapsed_s = 0, 0.0
         self.history: list[dict] = []
-        self.best_val = math.inf
-        self._acc: dict[str, float] = {}
-        self._acc_n = 0
-        self._saved_step = -1
+        self.best_val, self._saved_step = math.inf, -1
+        self._acc, self._acc_n = {}, 0  # the loss sums since the last log line, and over how many steps
         if self.out_dir is not None and self.dist.is_main:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             config.to_json(self.out_dir / "config.json")
@@ -444,8 +441,8 @@ class Trainer:
             self.neighbourhoods = neighbourhood_cache(self.model, train.points, path=cache_path)
 
     def _initialise_from(self, source: str, train: TrainingArrays) -> None:
-        """Copy the parameters of ``source`` (``config.init_weights``) into the new model, refusing another structure."""
-        from ..network.models import load_adding_normals
+        """Copy ``source``'s parameters (``config.init_weights``) into the new model (another structure: ``init_match``)."""
+        from ..network.models import load_adding_normals, load_matching
         from ..network.weights import load_network, parent_record
 
         c = self.config
@@ -456,12 +453,10 @@ class Trainer:
         if loaded.kind != c.kind or loaded.config.network_kwargs() != wanted:
             raise ValueError(f"init_weights: {loaded.source} is a {loaded.kind} network with {loaded.config.network_kwargs()}, "
                              f"not the configured {c.kind} network with {c.network_kwargs()}")
-        if c.init_match == "matching" and not adding_normals:
-            own, theirs = self.model.state_dict(), loaded.model.state_dict()
-            copied = {k: v for k, v in theirs.items() if k in own and tuple(own[k].shape) == tuple(v.shape)}
-            self.model.load_state_dict({**own, **copied})
-            self.init_sha256 = loaded.sha256
-            self.init_record = {**parent_record(loaded), "copied_parameters": len(copied), "parameters": len(own)}
+        self.init_sha256, self.init_record = loaded.sha256, parent_record(loaded)
+        if c.init_match == "matching" and not adding_normals:  # another structure: the backbone, the heads afresh
+            copied = load_matching(self.model, loaded.model.state_dict())
+            self.init_record.update(copied_parameters=copied, parameters=len(self.model.state_dict()))
             return
         if loaded.num_parts != train.num_parts or not np.array_equal(loaded.revolute, train.revolute):
             raise ValueError(f"init_weights: {loaded.source} has {loaded.num_parts} parts and joints "
@@ -471,8 +466,6 @@ class Trainer:
             load_adding_normals(self.model, loaded.model.state_dict())
         else:
             self.model.load_state_dict(loaded.model.state_dict())
-        self.init_sha256 = loaded.sha256
-        self.init_record = parent_record(loaded)
 
     # --- schedule ------------------------------------------------------------------
     def batch_indices(self, step: int) -> np.ndarray:
