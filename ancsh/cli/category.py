@@ -48,6 +48,7 @@ def register(sub) -> None:
     b.add_argument("--seed", type=non_negative_int, help="base seed (default 0)")
     b.add_argument("--init", choices=("auto", "none"), help="auto (default): train from the shipped network nearest "
                    "in structure (all of it for the same joints, else its backbone); none: a random start")
+    b.add_argument("--no-progress", action="store_true", help="no progress bars (default: shown on a terminal)")
     b.add_argument("--override", type=Path, help="JSON file of per-object import overrides (as data import)")
     b.set_defaults(func=run_build)
 
@@ -86,7 +87,8 @@ def run_build(args) -> int:
     settings = dataclasses.replace(SIZES[args.size], **chosen)
     overrides = load_overrides(args.override) if args.override else None
     try:
-        report = build_category(args.spec, args.urdfs, args.out, settings=settings, overrides=overrides)
+        report = build_category(args.spec, args.urdfs, args.out, settings=settings, overrides=overrides,
+                                progress=not args.no_progress and sys.stderr.isatty())
     except RuntimeError as exc:  # a step's command failed: it said why on stderr
         print(f"ancsh category build: error: {exc}; finished steps are kept in {args.out}: run the same command "
               "again to resume", file=sys.stderr)

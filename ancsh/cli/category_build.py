@@ -208,7 +208,8 @@ def _rejections(catalog, conv) -> str:
     return "\n  " + "\n  ".join(lines)
 
 
-def _render(name: str, out: Path, settings: BuildSettings) -> dict:
+def _render(name: str, out: Path, settings: BuildSettings, progress: bool) -> dict:
+    """Step 2: the train and test frames (complete shards are kept)."""
     from ..data.generate import GenerationConfig, generate_dataset
     from ..executors import make_executor
 
@@ -217,11 +218,16 @@ def _render(name: str, out: Path, settings: BuildSettings) -> dict:
     for split, frames in (("train", settings.train_frames), ("test", settings.test_frames)):
         config = GenerationConfig(category=name, split=split, seed=settings.seed + (split == "test"),
                                   real=str(out / "catalog.json"))
-        report = generate_dataset(config, frames, out / "data" / split, executor=executor, progress=False,
-                                  overwrite=True)
+        report = generate_dataset(config, frames, out / "data" / split, executor=executor,
+                                  progress=progress, overwrite=True)
         made[split] = {"frames": frames, "generated": report.frames_generated, "seconds": round(report.seconds, 1)}
         _say(f"render {split}: {frames} frames ({report.frames_generated} new, {report.seconds:.0f} s)")
     return made
+
+
+def _quiet(progress: bool) -> list:
+    """``["--no-progress"]`` unless the build shows progress."""
+    return [] if progress else ["--no-progress"]
 
 
 def _cli(words: list) -> None:
@@ -280,12 +286,12 @@ def _train_config(name: str, out: Path, settings: BuildSettings) -> tuple[Path, 
     return path, record
 
 
-def _train(name: str, out: Path, settings: BuildSettings) -> dict:
+def _train(name: str, out: Path, settings: BuildSettings, progress: bool) -> dict:
     run = out / "run"
     weights = out / f"{name}.pt"
     config, record = _train_config(name, out, settings)
     words = ["train", "--category", out, "--config", config, "--data", out / "data" / "train", "--test-data",
-             out / "data" / "test", "--out", run, "--time-limit-min", settings.time_limit_min, "--no-progress",
+             out / "data" / "test", "--out", run, "--time-limit-min", settings.time_limit_min, *_quiet(progress),
              "--export", weights]
     if (run / "last.pt").is_file():
         words.append("--resume")
@@ -324,14 +330,14 @@ def _template(name: str, out: Path) -> dict:
     return {"entries": len(library)}
 
 
-def _calibrate(out: Path, settings: BuildSettings) -> dict:
+def _calibrate(out: Path, settings: BuildSettings, progress: bool) -> dict:
     done = {}
     if settings.calibrate_frames == 0:
         return {"p_good": "not calibrated (calibrate_frames 0)", "p_object": "not calibrated (calibrate_frames 0)"}
     for key, extra, frames in (("p_good", [], settings.calibrate_frames),
                                ("p_object", ["--object"], max(8, settings.calibrate_frames // 2))):
         words = ["calibrate", "--category", out, *extra, "--frames", frames, "--seed", settings.seed + 7,
-                 "--out", out / "calibration", "--install", "--no-progress"]
+                 "--out", out / "calibration", "--install", *_quiet(progress)]
         try:
             _cli(words)
             done[key] = "installed"
@@ -342,14 +348,14 @@ def _calibrate(out: Path, settings: BuildSettings) -> dict:
     return done
 
 
-def _evaluate(out: Path, settings: BuildSettings) -> dict:
+def _evaluate(out: Path, settings: BuildSettings, progress: bool) -> dict:
     _cli(["evaluate", "--category", out, "--frames", settings.evaluate_frames, "--seed", settings.seed,
-          "--out", out / "evaluation", "--no-progress"])
+          "--out", out / "evaluation", *_quiet(progress)])
     return {"frames": settings.evaluate_frames}
 
 
 def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"], overrides: dict | None = None,
-                   steps=STEPS) -> Path:
+                   steps=STEPS, progress: bool = False) -> Path:
     """Build a category folder from a spec and URDFs (module docstring); returns ``out / "report.md"``.
 
     Parameters
@@ -363,6 +369,8 @@ def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"],
         Per-object import overrides.
     steps : sequence of str
         The steps to run (default all, in order; :data:`STEPS`).
+    progress : bool
+        Progress bars of the rendering, training, calibration and evaluation.
     """
     if not isinstance(settings, BuildSettings):
         raise ValueError(f"settings: expected BuildSettings, got {type(settings).__name__}")
@@ -379,9 +387,10 @@ def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"],
                  check={k: checked[k] for k in ("imported", "rejected", "train", "test")})
     _say(f"check: {name}: {checked['imported']} objects imported ({checked['train']} train, {checked['test']} test), "
          f"{checked['rejected']} rejected")
-    work = {"render": lambda: _render(name, out, settings), "train": lambda: _train(name, out, settings),
-            "template": lambda: _template(name, out), "calibrate": lambda: _calibrate(out, settings),
-            "evaluate": lambda: _evaluate(out, settings)}
+    progress = bool(progress)
+    work = {"render": lambda: _render(name, out, settings, progress), "train": lambda: _train(name, out, settings, progress),
+            "template": lambda: _template(name, out), "calibrate": lambda: _calibrate(out, settings, progress),
+            "evaluate": lambda: _evaluate(out, settings, progress)}
     for step in STEPS[1:]:
         if step not in steps:
             continue
