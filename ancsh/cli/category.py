@@ -71,7 +71,8 @@ def run_check(args) -> int:
     for r in catalog.rejected:
         print(f"| {r.name} | - | rejected: {r.reason} |")
     print(f"{checked['imported']} imported ({checked['train']} train, {checked['test']} test), "
-          f"{checked['rejected']} rejected" + (f"; wrote {args.out}/catalog.json, import_report.md" if args.out else ""))
+          f"{checked['rejected']} rejected"
+          + (f"; wrote {args.out}/catalog.json, import_report.md" if args.out else ""))
     return 0
 
 

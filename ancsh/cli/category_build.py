@@ -1,8 +1,9 @@
 """From a category spec and a folder of URDFs to a trained, calibrated, evaluated category folder.
 
 ``ancsh category build SPEC --urdfs DIR --out DIR`` runs :func:`build_category`, which runs the other commands
-(``train``, ``calibrate``, ``evaluate``) in this process: it lives with them, on the floor of the commands. The folder it writes is the
-category: ``--category DIR`` (or the search path ``ANCSH_CATEGORIES``) makes every command use it.
+(``train``, ``calibrate``, ``evaluate``) in this process: it lives with them, on the floor of the commands.
+The folder it writes is the category: ``--category DIR`` (or the search path ``ANCSH_CATEGORIES``) makes every
+command use it.
 
 Steps (each one resumes: run the same command again after an interruption and the finished steps are kept):
 
@@ -388,8 +389,10 @@ def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"],
     _say(f"check: {name}: {checked['imported']} objects imported ({checked['train']} train, {checked['test']} test), "
          f"{checked['rejected']} rejected")
     progress = bool(progress)
-    work = {"render": lambda: _render(name, out, settings, progress), "train": lambda: _train(name, out, settings, progress),
-            "template": lambda: _template(name, out), "calibrate": lambda: _calibrate(out, settings, progress),
+    work = {"render": lambda: _render(name, out, settings, progress),
+            "train": lambda: _train(name, out, settings, progress),
+            "template": lambda: _template(name, out),
+            "calibrate": lambda: _calibrate(out, settings, progress),
             "evaluate": lambda: _evaluate(out, settings, progress)}
     for step in STEPS[1:]:
         if step not in steps:
@@ -450,7 +453,8 @@ def _report(out: Path, state: dict) -> str:
              f"Built by `ancsh category build {state['spec']} --urdfs {' '.join(state['urdfs'])} --out {out}` "
              f"(settings: {s['train_frames']} training frames, {s['test_frames']} test frames, training budget "
              f"{s['time_limit_min']:g} min, max steps {s['max_steps']}, {s['calibrate_frames']} calibration frames, "
-             f"{s['evaluate_frames']} evaluation frames, seed {s['seed']}); {state.get('seconds', 0):.0f} s in all.", "",
+             f"{s['evaluate_frames']} evaluation frames, seed {s['seed']}); "
+             f"{state.get('seconds', 0):.0f} s in all.", "",
              "Use it: `--category " + str(out) + "` with `predict`, `track`, `evaluate`, `calibrate`, or put the "
              "folder's parent on `ANCSH_CATEGORIES`.", "",
              "## Objects", "",
@@ -461,8 +465,9 @@ def _report(out: Path, state: dict) -> str:
                 if state['check']['imported'] < FEW_OBJECTS else ""), ""]
     if "train" in state:
         t = state["train"]
-        start = (f"started from the shipped `{t['parent']}` network ({'every parameter' if t['init_match'] == 'all' else 'its backbone'}"
-                 f", its configuration)" if t.get("parent") else "started from a random initialisation")
+        copied = "every parameter" if t.get("init_match") == "all" else "its backbone"
+        start = (f"started from the shipped `{t['parent']}` network ({copied}, its configuration)" if t.get("parent")
+                 else "started from a random initialisation")
         lines += ["## Training", "", f"{t.get('steps', '?')} steps in {t['seconds']:.0f} s, {start}; the network "
                   f"`{name}.pt`, its curves "
                   f"`{name}_curves.png`, its configuration `train_config.json`.", ""]
