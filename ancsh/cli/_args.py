@@ -10,12 +10,11 @@ def category(text: str) -> str:
     built category folder is read, registered (:func:`ancsh.data.conventions.register_category`) and its name
     returned; a wrong spec is argparse's error naming the file and the key."""
     import argparse
-    import os
 
-    if not (text.endswith(".toml") or os.sep in text or os.path.isdir(text)):
+    from ..data.conventions import is_category_path, resolve_category
+
+    if not is_category_path(text):
         return text
-    from ..data.conventions import resolve_category
-
     try:
         return resolve_category(text)
     except ValueError as exc:
