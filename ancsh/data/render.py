@@ -522,10 +522,6 @@ def render_depth(model, q, T_cam_base: Sim3, intrinsics: Intrinsics | None = Non
 # --------------------------------------------------------------------------------------
 # viewpoints
 # --------------------------------------------------------------------------------------
-def _deg(lo, hi):
-    return (np.radians(lo), np.radians(hi))
-
-
 #: The range of a category without its own (``[viewpoint]`` of its spec).
 DEFAULT_VIEWPOINT = ViewpointRange()
 

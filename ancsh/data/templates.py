@@ -210,9 +210,8 @@ def _stamp(category: str, real: str | None) -> dict:
     from .catalog import builtin_catalog_path
     from .procedural import CATEGORIES, NUM_TRAIN, generator_version
 
-    procedural = category in CATEGORIES
-    stamp = {"generator_version": generator_version(category) if procedural else None,
-             "procedural_instances": NUM_TRAIN if procedural else 0, "catalog_sha256": None}
+    stamp = {"generator_version": generator_version(category),  # None without a generator
+             "procedural_instances": NUM_TRAIN if category in CATEGORIES else 0, "catalog_sha256": None}
     if real is not None:
         path = builtin_catalog_path() if real == "builtin" else Path(real)
         path = path / "catalog.json" if path.is_dir() else path
