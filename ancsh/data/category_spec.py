@@ -18,6 +18,7 @@ per key. Inside the library every state is radians or metres.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import tomllib
@@ -281,8 +282,6 @@ def load_spec(path) -> CategoryConvention:
     SpecError
         Naming the file and the key (:func:`parse_spec`), or a file that is not TOML.
     """
-    import dataclasses
-
     file = spec_file(path).resolve()
     try:
         data = tomllib.loads(file.read_text())
@@ -328,22 +327,26 @@ def _toml_value(value) -> str:
     return repr(float(value)) if isinstance(value, float) else str(value)
 
 
-def _state_entries(joint: JointConvention) -> list[tuple]:
-    if joint.type.value == "prismatic":
-        return [("rest_m", joint.rest), ("range_m", list(joint.state_range))]
-    deg = [math.degrees(v) for v in (joint.rest, *joint.state_range)]
-    if all(abs(d - round(d, 6)) < 1e-9 and math.isclose(math.radians(round(d, 6)), v, rel_tol=0, abs_tol=1e-15)
-           for d, v in zip(deg, (joint.rest, *joint.state_range))):
-        deg = [round(d, 6) for d in deg]
-        return [("rest_deg", deg[0]), ("range_deg", deg[1:])]
-    return [("rest_rad", joint.rest), ("range_rad", list(joint.state_range))]
+def _exact_deg(rad: float) -> float | None:
+    """``rad`` in degrees rounded to 6 decimals when that reads back as ``rad`` exactly, else ``None``."""
+    short = round(math.degrees(rad), 6)
+    return short if math.radians(short) == rad else None
 
 
 def _round_deg(rad: float) -> float:
     """Degrees of ``rad``, rounded where the rounded value gives ``rad`` back exactly."""
-    deg = math.degrees(rad)
-    short = round(deg, 6)
-    return short if math.radians(short) == rad else deg
+    short = _exact_deg(rad)
+    return math.degrees(rad) if short is None else short
+
+
+def _state_entries(joint: JointConvention) -> list[tuple]:
+    """The joint's rest and range keys: metres, else degrees where every value reads back exactly, else radians."""
+    if joint.type.value == "prismatic":
+        return [("rest_m", joint.rest), ("range_m", list(joint.state_range))]
+    deg = [_exact_deg(v) for v in (joint.rest, *joint.state_range)]
+    if None not in deg:
+        return [("rest_deg", deg[0]), ("range_deg", deg[1:])]
+    return [("rest_rad", joint.rest), ("range_rad", list(joint.state_range))]
 
 
 def spec_text(conv: CategoryConvention) -> str:
