@@ -136,6 +136,7 @@ def check_category(spec, urdfs, out=None, *, overrides: dict | None = None) -> d
         A wrong spec, or URDFs the spec cannot hold (naming the file and the keys the rejections point at).
     """
     from ..data import category_spec
+    from ..data.conventions import register_category
 
     conv = category_spec.load_spec(spec)
     if out is not None:
@@ -149,12 +150,8 @@ def check_category(spec, urdfs, out=None, *, overrides: dict | None = None) -> d
         created = not target.is_file()
         if created:
             target.write_text(text)
-        from ..data.conventions import register_category
-
         conv = register_category(out)
     else:
-        from ..data.conventions import register_category
-
         created, conv = False, register_category(spec)
     try:
         return _import(spec, urdfs, out, conv, overrides)
@@ -174,10 +171,7 @@ def _import(spec, urdfs, out, conv, overrides) -> dict:
     if out is not None:
         from ..studies.catalog_reports import write_import_report
 
-        path = out / "catalog.json"
-        new = json.dumps(catalog.to_dict(), indent=1) + "\n"
-        if not path.is_file() or path.read_text() != new:  # unchanged: the rendered frames stay valid
-            write_catalog(catalog, path)
+        write_catalog(catalog, out / "catalog.json")
         write_import_report(catalog, out / "import_report.md")
     short = [f"{need} {split} object(s) needed, {counts[split]} imported" for split, need in MIN_OBJECTS.items()
              if counts[split] < need]
@@ -298,7 +292,9 @@ def _train(name: str, out: Path, settings: BuildSettings, progress: bool) -> dic
         words.append("--resume")
     _cli(words)
     metrics = out / f"{name}_test_metrics.json"
-    return {"seconds": _trained_seconds(run), "steps": _trained_steps(run), **record,
+    last = _history_last(run)  # the run's totals over all its resumptions, not this call's
+    return {"seconds": round(float(last.get("elapsed_s") or 0.0), 1), "steps": int(float(last.get("step") or 0)),
+            **record,
             "test_metrics": json.loads(metrics.read_text()) if metrics.is_file() else None}
 
 
@@ -312,15 +308,6 @@ def _history_last(run: Path) -> dict:
     with path.open() as f:
         rows = list(csv.DictReader(f))
     return rows[-1] if rows else {}
-
-
-def _trained_seconds(run: Path) -> float:
-    """Wall seconds the run has trained, over all its resumptions."""
-    return round(float(_history_last(run).get("elapsed_s") or 0.0), 1)
-
-
-def _trained_steps(run: Path) -> int:
-    return int(float(_history_last(run).get("step") or 0))
 
 
 def _template(name: str, out: Path) -> dict:
@@ -477,7 +464,7 @@ def _report(out: Path, state: dict) -> str:
                                             if k in ("p_good", "p_object")] + [""]
     evaluation = out / "evaluation" / f"{name}.md"
     if evaluation.is_file():
-        body = evaluation.read_text().split("\n", 1)[1] if "\n" in evaluation.read_text() else ""
+        body = evaluation.read_text().partition("\n")[2]  # without its title
         lines += ["## Evaluation on the test objects (`evaluation/`)", "", body.replace("\n# ", "\n### ")
                   .replace("\n## ", "\n### ")]
     return "\n".join(lines).rstrip() + "\n"
