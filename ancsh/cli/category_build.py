@@ -30,6 +30,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from ..geometry._checks import check_int, check_number
+from ..outputs import file_sha256
 
 __all__ = ["BuildSettings", "MIN_OBJECTS", "SIZES", "build_category", "check_category"]
 
@@ -38,14 +39,11 @@ MIN_OBJECTS = {"train": 1, "test": 1}
 #: Fewer imported objects than this: the report says that the network has seen too few instances to generalise.
 FEW_OBJECTS = 8
 STEPS = ("check", "render", "train", "template", "calibrate", "evaluate")
-#: Steps that depend on the trained network: done again only when it changed.
-_AFTER_TRAINING = ("template", "calibrate", "evaluate")
-
-
-def _sha256(path: Path) -> str:
-    from ..outputs import file_sha256
-
-    return file_sha256(path)
+#: The files of the folder each step after training is made from (``{name}``: the category): a step done with the
+#: same files and settings is kept, and done again when one of them changed (a template follows the catalog, a
+#: calibration or an evaluation the network and the catalog's test objects).
+_MADE_FROM = {"template": ("catalog.json",), "calibrate": ("{name}.pt", "catalog.json"),
+              "evaluate": ("{name}.pt", "catalog.json")}
 
 
 @dataclass(frozen=True)
@@ -384,17 +382,17 @@ def build_category(spec, urdfs, out, *, settings: BuildSettings = SIZES["full"],
     for step in STEPS[1:]:
         if step not in steps:
             continue
-        weights = out / f"{name}.pt"
-        made_with = _sha256(weights) if step in _AFTER_TRAINING and weights.is_file() else None
+        files = [out / f.format(name=name) for f in _MADE_FROM.get(step, ())]
+        made_from = [file_sha256(f) for f in files] if files and all(f.is_file() for f in files) else None
         done = state.get(step)
-        if made_with is not None and isinstance(done, dict) and done.get("weights_sha256") == made_with \
+        if made_from is not None and isinstance(done, dict) and done.get("made_from_sha256") == made_from \
                 and done.get("settings") == asdict(settings) and done.get("complete", True):
-            _say(f"{step}: kept (done with these weights and settings)")
+            _say(f"{step}: kept (done from the same {', '.join(f.name for f in files)} and settings)")
             continue
         _say(f"{step} ...")
         state[step] = {**work[step](), "settings": asdict(settings)}
-        if made_with is not None:
-            state[step]["weights_sha256"] = made_with
+        if made_from is not None:
+            state[step]["made_from_sha256"] = made_from
         state_path.write_text(json.dumps(state, indent=1, default=str) + "\n")
     state["seconds"] = round(time.perf_counter() - start, 1)
     state_path.write_text(json.dumps(state, indent=1, default=str) + "\n")
