@@ -438,8 +438,9 @@ def _report(out: Path, state: dict) -> str:
              f"Built by `ancsh category build {state['spec']} --urdfs {' '.join(state['urdfs'])} --out {out}` "
              f"(settings: {s['train_frames']} training frames, {s['test_frames']} test frames, training budget "
              f"{s['time_limit_min']:g} min, max steps {s['max_steps']}, {s['calibrate_frames']} calibration frames, "
-             f"{s['evaluate_frames']} evaluation frames, seed {s['seed']}); "
-             f"{state.get('seconds', 0):.0f} s in all.", "",
+             f"{s['evaluate_frames']} evaluation frames, seed {s['seed']}); the last run of the command took "
+             f"{state.get('seconds', 0):.0f} s (a run keeps the steps done before it: the training's own time is "
+             "below).", "",
              "Use it: `--category " + str(out) + "` with `predict`, `track`, `evaluate`, `calibrate`, or put the "
              "folder's parent on `ANCSH_CATEGORIES`.", "",
              "## Objects", "",
