@@ -27,7 +27,7 @@ from ._version import __version__  # noqa: F401  (ancsh.__version__)
 _SUBPACKAGES = ("geometry", "model", "data", "solvers", "evaluation", "learned", "tracking", "studies", "cli")
 
 
-def predict(depth, intrinsics, category: str, **options):
+def predict(depth, intrinsics, category, **options):
     """Poses, boxes and joints of a ``category`` object in one depth image (the learned ANCSH pipeline).
 
     Parameters
@@ -36,8 +36,10 @@ def predict(depth, intrinsics, category: str, **options):
         A 16-bit PNG of millimetres or a ``.npy`` of metres, or the depth itself in metres (0 = none).
     intrinsics : str, Path or Intrinsics
         ``{"fx", "fy", "cx", "cy", "width", "height"}`` JSON, or the object.
-    category : str
-        e.g. ``"laptop"``; its shipped network is used.
+    category : str, Path or Category
+        A built-in category's name (its shipped network is used), a spec file or built category folder, or a
+        :class:`ancsh.learned.inference.category.Category` loaded once for many calls
+        (:func:`~ancsh.learned.inference.category.load_category`).
     **options
         Of :func:`ancsh.learned.inference.predict.predict_depth`: ``mask`` (array, or a PNG/``.npy`` path),
         ``hint`` (:class:`ancsh.data.isolate.ObjectHint`), ``isolate``, ``max_depth``, ``weights``,

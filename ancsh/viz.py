@@ -95,7 +95,9 @@ def prediction_figure(prediction, *, mesh: bool = True, max_points: int = 4000):
         from .data.templates import load_template_library
         from .solvers.twin import fitted_model
 
-        twin = fitted_model(fit, prediction.correspondences, load_template_library(prediction.category))
+        category = getattr(prediction, "category_info", None)
+        library = category.template_library() if category is not None else load_template_library(prediction.category)
+        twin = fitted_model(fit, prediction.correspondences, library)
         if twin is not None:
             q = np.clip(twin.states, twin.model.lower_limits, twin.model.upper_limits)
             for j, (part, T) in enumerate(zip(twin.model.parts, twin.model.forward_kinematics(q))):

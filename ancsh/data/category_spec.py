@@ -50,7 +50,7 @@ SPEC_FILE = "category.toml"
 SEARCH_PATH_VARIABLE = "ANCSH_CATEGORIES"
 
 _TOP_KEYS = {"spec_version", "name", "description", "rest", "diagonal_m", "order_by", "source_categories",
-             "in_paper", "freeze", "parts", "joints", "viewpoint"}
+             "in_paper", "track_template", "freeze", "parts", "joints", "viewpoint"}
 #: ``[viewpoint]`` keys: (ViewpointRange field, kind); angles in degrees, lengths in box diagonals.
 _VIEWPOINT_KEYS = {"distance_diagonals": ("distance", "pair"), "azimuth_deg": ("azimuth", "pair_deg"),
                    "elevation_deg": ("elevation", "pair_deg"), "roll_deg": ("roll", "deg"),
@@ -211,6 +211,7 @@ def parse_spec(data: dict, source="<spec>") -> CategoryConvention:
         order_by=data.get("order_by"),
         source_categories=_strings(source, "source_categories", data.get("source_categories")),
         in_paper=_bool(source, "in_paper", data.get("in_paper", False)),
+        track_template=_bool(source, "track_template", data.get("track_template", False)),
         description=_string(source, "description", data.get("description"), required=False) or "",
         freeze=_strings(source, "freeze", data.get("freeze")),
         viewpoint=_viewpoint(source, data.get("viewpoint", {})),
@@ -359,6 +360,8 @@ def spec_text(conv: CategoryConvention) -> str:
         lines.append(f"order_by = {_toml_value(conv.order_by)}")
     lines += [f"source_categories = {_toml_value(list(conv.source_categories))}",
               f"in_paper = {_toml_value(conv.in_paper)}"]
+    if conv.track_template:
+        lines.append(f"track_template = {_toml_value(conv.track_template)}")
     if conv.freeze:
         lines.append(f"freeze = {_toml_value(list(conv.freeze))}")
     if conv.viewpoint:

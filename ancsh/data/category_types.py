@@ -128,6 +128,10 @@ class CategoryConvention:
     folder : str or None
         The category folder (a built category: its spec, weights, calibrations, template); ``None``
         for the built-in categories, whose files ship in the package.
+    track_template : bool
+        Tracks of the category carry the category template refined at every (re-)initialisation
+        (:class:`ancsh.tracking.CategoryTracker`, ``TrackerConfig.template_categories`` left at its default);
+        a spec's ``track_template``, ``false`` unless measured to help (``docs/category_spec.md``).
     """
 
     name: str
@@ -143,6 +147,7 @@ class CategoryConvention:
     spec_path: str | None = None
     folder: str | None = None
     viewpoint: tuple = ()
+    track_template: bool = False
 
     def __post_init__(self):
         parts, joints = tuple(self.part_names), tuple(self.joints)

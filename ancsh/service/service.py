@@ -51,6 +51,7 @@ class PredictionService:
         self.max_providers, self.max_sessions = max_providers, max_sessions
         self._lock = threading.Lock()
         self._providers: OrderedDict = OrderedDict()
+        self._categories: dict = {}  # name -> Category, loaded once (spec, calibrations, template)
         self._sessions: OrderedDict = OrderedDict()
         self._started = time.time()
         self.counts = {"predict": 0, "track": 0, "refused": 0, "failed": 0}
@@ -98,7 +99,8 @@ class PredictionService:
                 session = self._new_session(request.session, frame)
             self._sessions.move_to_end(request.session)
             record = track_depth(frame.depth, frame.intrinsics, session["tracker"], session["frames"], mask=frame.mask,
-                                 category=frame.category, isolate=frame.isolate, max_depth=frame.max_depth,
+                                 category=self._category(frame.category), isolate=frame.isolate,
+                                 max_depth=frame.max_depth,
                                  num_points=frame.points, seed=frame.seed)
             session["frames"] += 1
             return {"schema": TRACK_SCHEMA, "session": request.session, **record}
@@ -111,24 +113,37 @@ class PredictionService:
             return {"session": body["session"], "ended": self._sessions.pop(body["session"], None) is not None}
 
     # -- the models ------------------------------------------------------------------------------------------
+    def _category(self, name: str):
+        """The :class:`~ancsh.learned.inference.category.Category` of ``name``, loaded once for the service's life; a
+        404 for a name that is no category or has no network."""
+        from ..learned.inference.category import load_category
+        from ..learned.network.weights import missing_weights_error
+
+        if name not in self._categories:
+            try:
+                category = load_category(name)
+            except (FileNotFoundError, ValueError) as exc:
+                raise RequestError(404, f"category: {exc}") from None
+            if not category.weights_path().is_file():
+                raise RequestError(404, f"category: {missing_weights_error(category.name)}")
+            self._categories[name] = category
+        return self._categories[name]
+
     def _provider(self, category: str, refine: str | None, seed: int):
         """The provider ``predict_depth`` would make for these options (``refine`` ``None``: the one ``ancsh track``
         makes), loaded once; a 404 for a category without shipped weights."""
         from ..learned.inference.predict import make_provider
-        from ..learned.network.weights import weights_path
 
         key = (category, None if refine is None else refine == "network", seed)
         if key not in self._providers:
-            if not weights_path(str(category)).is_file():
-                from ..learned.network.weights import missing_weights_error
-
-                raise RequestError(404, f"category: {missing_weights_error(category)}")
+            loaded = self._category(category)
             if refine is None:
                 from ..learned.inference.provider import LearnedProvider
 
-                self._providers[key] = LearnedProvider(category, seed=seed, device=self.device)
+                self._providers[key] = LearnedProvider(loaded.weights_path(), seed=seed, device=self.device,
+                                                       category=loaded)
             else:
-                self._providers[key] = make_provider(category, seed=seed, refine=refine, device=self.device)
+                self._providers[key] = make_provider(loaded, seed=seed, refine=refine, device=self.device)
             while len(self._providers) > self.max_providers:
                 self._providers.popitem(last=False)
         self._providers.move_to_end(key)
@@ -147,7 +162,7 @@ class PredictionService:
         provider = self._provider(request.category, request.refine, request.seed)
         extra = {} if request.hypotheses is None else {"hypotheses": request.hypotheses}
         try:
-            pred = predict_depth(request.depth, request.intrinsics, request.category, mask=request.mask,
+            pred = predict_depth(request.depth, request.intrinsics, self._category(request.category), mask=request.mask,
                                  max_depth=request.max_depth, provider=provider, formulation=request.formulation,
                                  num_points=request.points, seed=request.seed, isolate=request.isolate, hint=hint,
                                  refine=request.refine, max_objects=request.max_objects, **extra)
@@ -163,8 +178,8 @@ class PredictionService:
         from ..tracking.tracker import CategoryTracker, TrackerConfig
 
         provider = self._provider(frame.category, None, frame.seed)  # as ancsh track makes it
-        tracker = CategoryTracker(provider, TrackerConfig(network_every=TRACK_NETWORK_EVERY), category=frame.category,
-                                  rng=frame.seed)
+        tracker = CategoryTracker(provider, TrackerConfig(network_every=TRACK_NETWORK_EVERY),
+                                  category=self._category(frame.category), rng=frame.seed)
         self._sessions[name] = {"category": frame.category, "intrinsics": frame.intrinsics, "tracker": tracker,
                                 "frames": 0}
         while len(self._sessions) > self.max_sessions:

@@ -98,7 +98,8 @@ _NETWORKS = ("150 test frames a category (`ancsh evaluate`'s, seed 0), the shipp
 #: ``"learned"``: the shipped networks' fits, :meth:`ancsh.learned.inference.provider.LearnedProvider.fit_config`, used
 #: by ``ancsh predict``, ``evaluate``, ``track``, ``calibrate``, the twin and the service; ``"tracked"``: a tracker's
 #: fits of a provider without its own, :func:`ancsh.tracking.config.with_provider_fit`) and their category (``"*"``:
-#: any other) -- the one place the choice is written (issue 63), each entry with its figures.
+#: any other; today every category has the same choice, one ``"*"`` entry with each category's figures) -- the one
+#: place the choice is written (issue 63), each entry with its figures.
 #: :meth:`FitConfig.default_for` reads it.
 DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
     "any": {
@@ -117,36 +118,37 @@ DEFAULT_OBJECTIVES: dict[str, dict[str, ObjectiveChoice]] = {
             "category measured better with another entry.")),
     },
     "learned": {
-        "laptop": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+        "*": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "laptop: "
             "rotation 4.55, 4.34 -> 4.81, 4.62 (+0.26 +- 0.03, +0.28 +- 0.03 paired), translation 0.0205, 0.0198 "
-            "-> 0.0208, 0.0200: the previous objective is better.")),
-        "eyeglasses": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "-> 0.0208, 0.0200: the previous objective is better."
+            " eyeglasses: "
             "rotation 4.25, 5.97, 4.14 -> 4.63, 6.43, 4.52 (+0.38 to +0.46, +- 0.09), translation 0.0300, 0.0499, "
-            "0.0373 -> 0.0304, 0.0510, 0.0384: the previous objective is better.")),
-        "oven": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "0.0373 -> 0.0304, 0.0510, 0.0384: the previous objective is better."
+            " oven: "
             "rotation 3.77, 3.68 -> 3.95, 3.85 (+0.18 +- 0.05, +0.17 +- 0.06), translation 0.0289, 0.0376 -> "
-            "0.0282, 0.0381: rotation worse on both parts; the previous objective is kept.")),
-        "washing_machine": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "0.0282, 0.0381: rotation worse on both parts; the previous objective is kept."
+            " washing_machine: "
             "rotation 4.46, 4.32 -> 4.77, 4.54 (+0.31 +- 0.07, +0.22 +- 0.08), translation 0.0325, 0.0369 -> 0.0316, "
-            "0.0386: rotation worse on both parts; the previous objective is kept.")),
-        "box": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "0.0386: rotation worse on both parts; the previous objective is kept."
+            " box: "
             "rotation 8.63, 8.21 -> 9.32, 9.02 (+0.69 +- 0.11, +0.81 +- 0.11), translation 0.0500, 0.0475 -> 0.0477, "
-            "0.0488: rotation worse on both parts; the previous objective is kept.")),
-        "drawer": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "0.0488: rotation worse on both parts; the previous objective is kept."
+            " drawer: "
             "rotation 3.37 -> 3.30 (-0.07 +- 0.07, one for all parts), translation 0.0310, 0.0327, 0.0342, 0.0288 -> "
             "0.0282, 0.0329, 0.0352, 0.0300 (base -0.0028 +- 0.0008, the two upper drawers +0.0010 / +0.0011 +- "
-            "0.0005): not better on every part; the previous objective is kept.")),
-        "microwave": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "0.0005): not better on every part; the previous objective is kept."
+            " microwave: "
             "rotation 4.69, 4.89 -> 4.66, 5.00 (-0.03 +- 0.08, +0.11 +- 0.12), translation 0.0331, 0.0400 -> 0.0309, "
             "0.0390 (-0.0022 +- 0.0007, -0.0010 +- 0.0005): lower translation at a rotation within noise (the door's "
-            "higher); not chosen on one seed of the evaluation's own frames: the previous objective is kept.")),
-        "safe": ObjectiveChoice(PREVIOUS_OBJECTIVE, _NETWORKS + (
+            "higher); not chosen on one seed of the evaluation's own frames: the previous objective is kept."
+            " safe: "
             "rotation 6.16, 6.01 -> 6.06, 6.11 (-0.09 +- 0.08, +0.11 +- 0.09), translation 0.0383, 0.0464 -> 0.0367, "
             "0.0461 (-0.0016 +- 0.0007, -0.0002 +- 0.0003): within noise but the base's translation; the previous "
-            "objective is kept.")),
-        "*": ObjectiveChoice(PREVIOUS_OBJECTIVE, (
-            "A network of another category: as the shipped networks, whose fits the NPCS biases cost rotation on five "
-            "categories of eight (by 3 to 8 standard errors) and improve on none beyond noise in both errors.")),
+            "objective is kept."
+            " The same for a network of another category (a built one, :mod:`ancsh.cli.category_build`): as the shipped "
+            "networks, whose fits the NPCS biases cost rotation on five categories of eight (by 3 to 8 standard "
+            "errors) and improve on none beyond noise in both errors.")),
     },
     "tracked": {
         "*": ObjectiveChoice(PREVIOUS_OBJECTIVE, (

@@ -157,15 +157,17 @@ def _fits(depth, intrinsics, mask, category, provider, seed) -> dict | None:
                                      ("auto",), object_gate=False)[0]
 
 
-def _examples(source, i, category, provider, gens, key) -> list:
+def _examples(source, i, loaded, provider, gens, key) -> list:
     """``[(candidate dict or None, truth or None), ...]``: the fits of example frame ``i`` of ``source`` (module
-    docstring; ``None``: a segment without a measured pixel, counted as a failed fit)."""
+    docstring; ``None``: a segment without a measured pixel, counted as a failed fit); ``loaded``: the category, a
+    :class:`~ancsh.learned.inference.category.Category`."""
     from ..data.noise import DepthNoise, apply_noise
     from ..data.procedural import CATEGORIES
     from ..data.scenes import render_scene
     from .stress_scenes import KINDS
 
     rng = np.random.default_rng(key)
+    category = loaded.name
     gen = gens[category]
     turn = i // len(SOURCES) // 2  # the same scene kinds and other categories in the fitting and the check half
     if source in ("plain", "crop", "perturbed"):
@@ -174,16 +176,16 @@ def _examples(source, i, category, provider, gens, key) -> list:
         if source == "crop":
             mask = _crop(mask, rng)
         use = _CorruptedProvider(provider, rng) if source == "perturbed" else provider
-        return [(_fits(frame.depth, frame.intrinsics, mask, category, use, i), frame.gt)]
+        return [(_fits(frame.depth, frame.intrinsics, mask, loaded, use, i), frame.gt)]
     if source == "other":
         others = [c for c in CATEGORIES if c != category]
         other = others[turn % len(others)]
         frame = gens[other].frame(i, keep_depth=True)
-        return [(_fits(frame.depth, frame.intrinsics, frame.depth > 0, category, provider, i), None)]
+        return [(_fits(frame.depth, frame.intrinsics, frame.depth > 0, loaded, provider, i), None)]
     if source == "merged":
         scene = render_scene(gen, i, rng)
         depth = apply_noise(scene.depth, DepthNoise(), rng)
-        return [(_fits(depth, scene.intrinsics, _grown(scene.visible & (depth > 0), depth, rng), category, provider, i),
+        return [(_fits(depth, scene.intrinsics, _grown(scene.visible & (depth > 0), depth, rng), loaded, provider, i),
                  scene.frame.gt)]
     if source != "scene":
         raise ValueError(f"source: expected one of {SOURCES}, got {source!r}")
@@ -193,7 +195,7 @@ def _examples(source, i, category, provider, gens, key) -> list:
     _, companions, translucent = KINDS[turn % len(KINDS)]
     scene = render_scene(gen, i, rng, companions=companions, translucent=translucent)
     depth = apply_noise(scene.depth, DepthNoise(), rng)
-    iso = isolate_object(depth, scene.intrinsics, category, rng=i)
+    iso = isolate_object(depth, scene.intrinsics, loaded.size_range, rng=i)
     if iso.chosen is None:
         return []
     chosen = [c for c in iso.order if iso.clusters[c].fits_category][:MAX_VERIFIED] or list(iso.order[:1])
@@ -203,7 +205,7 @@ def _examples(source, i, category, provider, gens, key) -> list:
         shares = [np.count_nonzero(mask & o.visible) / max(np.count_nonzero(mask), 1) for o in scene.objects]
         best = int(np.argmax(shares)) if shares else None
         gt = scene.objects[best].gt if best is not None and shares[best] >= SCENE_OBJECT_SHARE else None
-        out.append((_fits(depth, scene.intrinsics, mask, category, provider, i), gt))
+        out.append((_fits(depth, scene.intrinsics, mask, loaded, provider, i), gt))
     return out
 
 
@@ -229,21 +231,23 @@ def collect(category: str, frames: int, *, seed: int = 7, provider=None, progres
 
     from ..data.generate import FrameGenerator, GenerationConfig
     from ..data.procedural import CATEGORIES
+    from ..learned.inference.category import load_category
     from ..learned.inference.provider import LearnedProvider
 
     _min_frames_error(frames)
-    provider = provider or LearnedProvider(category, seed=seed, refine="auto")
+    loaded = load_category(category)
+    provider = provider or LearnedProvider(loaded.weights_path(), seed=seed, refine="auto", category=loaded)
     gens = {c: FrameGenerator(GenerationConfig(category=c, split="test", seed=seed)) for c in {*CATEGORIES, category}}
     X, rot, src, index, failed, counts = [], [], [], [], {}, {}
     for i in tqdm(range(int(frames)), desc=f"calibrate {category}", disable=not progress, dynamic_ncols=True):
         source = SOURCES[i % len(SOURCES)]
         counts[source] = counts.get(source, 0) + 1
         key = [int(seed), i, zlib.crc32(category.encode()), _STREAM]
-        for cand, gt in _examples(source, i, category, provider, gens, key):
+        for cand, gt in _examples(source, i, loaded, provider, gens, key):
             if cand is None or not cand["result"].ok:
                 failed[source] = failed.get(source, 0) + 1
                 continue
-            X.append(fit_features(cand["quality"], category))
+            X.append(fit_features(cand["quality"], loaded.typical_size))
             rot.append(_worst_rotation(cand["result"], gt))
             src.append(source)
             index.append(i)

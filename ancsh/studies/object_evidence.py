@@ -80,11 +80,12 @@ def _scene_candidates(depth, intrinsics, visibles, category, provider, seed, ref
     """``([(features, is_object, refinement), ...], failed)`` for the candidates ``ancsh predict`` would verify
     without a mask, each fitted once per refinement of ``refinements``; ``failed`` counts the fits that failed.
     ``visibles``: the (H, W) bool visible pixels of each object of the scene; a candidate is
-    an object when its IoU with one of them reaches :data:`SCENE_OBJECT_IOU`."""
+    an object when its IoU with one of them reaches :data:`SCENE_OBJECT_IOU`. ``category``: the loaded
+    :class:`~ancsh.learned.inference.category.Category`."""
     from ..data.isolate import isolate_object
     from ..learned.inference.predict import MAX_VERIFIED
 
-    iso = isolate_object(depth, intrinsics, category, rng=seed)
+    iso = isolate_object(depth, intrinsics, category.size_range, rng=seed)
     if iso.chosen is None:
         return [], 0
     chosen = [c for c in iso.order if iso.clusters[c].fits_category][:MAX_VERIFIED] or list(iso.order[:1])
@@ -137,6 +138,7 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
     from ..data.conventions import convention
     from ..data.procedural import CATEGORIES
     from ..data.render import Intrinsics, ModelRenderer, sample_viewpoint
+    from ..learned.inference.category import load_category
     from ..learned.inference.provider import LearnedProvider
 
     if isinstance(frames, bool) or int(frames) != frames or frames < 8:
@@ -145,7 +147,8 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
     unknown = [r for r in refinements if r not in REFINEMENTS]
     if not refinements or unknown:
         raise ValueError(f"refinements: expected a non-empty selection of {REFINEMENTS}, got {list(refinements)!r}")
-    provider = LearnedProvider(category, seed=seed, refine="auto")
+    loaded = load_category(category)
+    provider = LearnedProvider(loaded.weights_path(), seed=seed, refine="auto", category=loaded)
     others = [c for c in CATEGORIES if c != category]
     per_other = max(4, int(frames) // len(others))
     n_clutter = int(frames)
@@ -177,7 +180,7 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
             intr = frame.intrinsics
             depth = renderer.render(frame.joint_states_abs, frame.T_cam_base, intr).depth
         depth = apply_noise(depth, noise, rng)
-        for refine, x in _features(depth, intr, depth > 0, category, provider, i, refinements):
+        for refine, x in _features(depth, intr, depth > 0, loaded, provider, i, refinements):
             if x is None:
                 failed[source] = failed.get(source, 0) + 1
             else:
@@ -190,7 +193,7 @@ def collect_object_evidence(category: str, frames: int, *, seed: int = 11, progr
         scene = render_scene(scene_gen, i, rng, companions=i % (SCENE_COMPANIONS + 1), pixel_scale=SCENE_PIXEL_SCALE)
         depth = apply_noise(scene.depth, noise, rng)
         found, n_failed = _scene_candidates(depth, scene.intrinsics, [o.visible & (depth > 0) for o in scene.objects],
-                                            category, provider, i, refinements)
+                                            loaded, provider, i, refinements)
         if n_failed:
             failed["scene"] = failed.get("scene", 0) + n_failed
         for x, is_object, refine in found:

@@ -162,13 +162,15 @@ def isolation_times(frame, category: str, *, seed: int = 0, repeats: int = ISOLA
     warm-up call (one process; the numbers move with the machine's load)."""
     import time
 
+    from ..data.conventions import convention
     from ..data.isolate import isolate_object
 
-    isolate_object(frame.depth, frame.intrinsics, category, rng=seed)
+    size_range = convention(category).diagonal_range
+    isolate_object(frame.depth, frame.intrinsics, size_range, rng=seed)
     out = []
     for _ in range(int(repeats)):
         t0 = time.perf_counter()
-        isolate_object(frame.depth, frame.intrinsics, category, rng=seed)
+        isolate_object(frame.depth, frame.intrinsics, size_range, rng=seed)
         out.append(1e3 * (time.perf_counter() - t0))
     return out
 

@@ -95,12 +95,13 @@ class TrackerConfig:
         ``FitConfig.optimize_scale``), pulled toward the predicted scale by the temporal prior's scale
         part; carried frames keep the last fit's scale. ``False``: the scale of the (re-)initialisation
         is kept for the whole track (one frame's scale error on every frame). Default ``True``.
-    template_categories : tuple of str
+    template_categories : tuple of str or None
         Categories whose tracks carry the category template refined at (re-)initialisation (see the
         module docstring; the provider's category is ``category`` of :class:`CategoryTracker`). Default
-        ``("laptop",)``, measured on the benchmark's learned sequences (tracking / per-frame error, rotation,
-        translation, joint state): laptop 0.09, 0.68, 0.39; drawer 16, 2.9, 1.8 (the template ICP slid off the
-        drawers); eyeglasses 1.10, 1.22, 1.29. ``()``: never.
+        ``None``: those whose spec sets ``track_template`` (:attr:`CategoryConvention.track_template`; of the
+        built-in ones the laptop, measured on the benchmark's learned sequences, tracking / per-frame error,
+        rotation, translation, joint state: laptop 0.09, 0.68, 0.39; drawer 16, 2.9, 1.8, the template ICP slid
+        off the drawers; eyeglasses 1.10, 1.22, 1.29). ``()``: never.
     template_icp : InstanceTrackerConfig or None
         The template's warm ICP (default: :class:`~ancsh.tracking.instance.InstanceTrackerConfig` without
         its own cold multi-start: a frame it loses is re-initialised by the network). With its
@@ -163,7 +164,7 @@ class TrackerConfig:
     fusion_weight: float = 2.0
     fusion_recentre: bool = True
     recentre_threshold: float | None = 0.15
-    template_categories: tuple = ("laptop",)
+    template_categories: tuple | None = None
     template_icp: object = None
     template_reuse: bool = True
     template_states: bool = True
@@ -194,14 +195,26 @@ class TrackerConfig:
             check_number(getattr(self, name), name, minimum=0.0, lower_open=True)
         if self.fit is not None and not isinstance(self.fit, FitConfig):
             raise ValueError(f"fit: expected a FitConfig or None, got {type(self.fit).__name__}")
-        if isinstance(self.template_categories, str) or not all(isinstance(c, str) for c in self.template_categories):
-            raise ValueError(f"template_categories: expected a tuple of category names, got {self.template_categories!r}")
-        object.__setattr__(self, "template_categories", tuple(self.template_categories))
+        if self.template_categories is not None:
+            if isinstance(self.template_categories, str) or not all(isinstance(c, str) for c in self.template_categories):
+                raise ValueError("template_categories: expected a tuple of category names or None, got "
+                                 f"{self.template_categories!r}")
+            object.__setattr__(self, "template_categories", tuple(self.template_categories))
 
         if self.template_icp is None:
             object.__setattr__(self, "template_icp", InstanceTrackerConfig(reinitialise=False))
         elif not isinstance(self.template_icp, InstanceTrackerConfig):
             raise ValueError(f"template_icp: expected an InstanceTrackerConfig, got {type(self.template_icp).__name__}")
+
+    def carries_template(self, convention) -> bool:
+        """Whether tracks of the category of ``convention`` (a
+        :class:`~ancsh.data.category_types.CategoryConvention`, or ``None`` for a category without one) carry the
+        category template: :attr:`template_categories`, or where it is ``None`` the spec's ``track_template``."""
+        if convention is None:
+            return False
+        if self.template_categories is None:
+            return bool(convention.track_template)
+        return convention.name in self.template_categories
 
 
 def with_provider_fit(config: TrackerConfig, provider) -> TrackerConfig:

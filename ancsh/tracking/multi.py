@@ -50,6 +50,7 @@ from ..geometry.boxes import OrientedBox
 from ..geometry.rotations import geodesic_angle
 from ..solvers.types import FitResult, Observation
 from .association import associate
+from .cold_fit import tracked_category
 from .config import TrackerConfig
 from .records import MultiFrame, TrackRecord
 from .regions import support_height
@@ -202,14 +203,15 @@ class MultiObjectTracker:
         The category's network (shared by the detections and every track).
     intrinsics : Intrinsics
         Of every frame.
-    category : str
+    category : str, Path or Category
+        A name, spec file, built folder or loaded :class:`~ancsh.learned.inference.category.Category` (loaded once);
+        it must have a convention.
     config : MultiTrackerConfig, optional
     seed : int
         Of the detections (``predict``'s seed), the point samples and the fits.
     """
 
-    def __init__(self, provider, intrinsics, category: str, config: MultiTrackerConfig | None = None, *, seed: int = 0):
-        from ..data.conventions import convention
+    def __init__(self, provider, intrinsics, category, config: MultiTrackerConfig | None = None, *, seed: int = 0):
         from ..model.articulated import JointType
 
         if not hasattr(provider, "correspond"):
@@ -218,12 +220,18 @@ class MultiObjectTracker:
         self.provider = provider
         self._provider = _Remembering(provider)  # the tracks' provider: keeps its last inference for verification
         self.intrinsics = intrinsics
-        self.category = str(category)
+        #: The :class:`~ancsh.learned.inference.category.Category`, loaded once (every detection, verification and
+        #: track uses it), and its name.
+        self.category_info = tracked_category(category, provider)
+        if self.category_info is None or self.category_info.convention is None:
+            raise ValueError(f"category: {category!r} has no convention (its joints' types and ranges): give a "
+                             "built-in name, a spec file or a built category folder")
+        self.category = self.category_info.name
         self.config = MultiTrackerConfig() if config is None else config
         if not isinstance(self.config, MultiTrackerConfig):
             raise ValueError(f"config: expected a MultiTrackerConfig, got {type(self.config).__name__}")
         self.seed = check_int(seed, "seed", minimum=0)
-        conv = convention(self.category)
+        conv = self.category_info.convention
         self._joint_types = tuple(JointType(j.type).value for j in conv.joints)
         self._limits = conv.joint_limits
         self._tracks: list[_Track] = []
@@ -426,7 +434,7 @@ class MultiObjectTracker:
         render."""
         from ..learned.inference.candidate import template_comparison
 
-        comparison = template_comparison(result, corr, depth, self.intrinsics, mask, self.category)
+        comparison = template_comparison(result, corr, depth, self.intrinsics, mask, self.category_info)
         return None if comparison is None else float(comparison.explained) - float(comparison.see_through)
 
     def _evidence(self, result, corr, depth, mask, points):
@@ -438,7 +446,7 @@ class MultiObjectTracker:
         last = self._provider.last
         prediction = last.prediction if last is not None and last.correspondences.num_points == len(points) else None
         quality = part_quality(result, points, corr, prediction)
-        return object_evidence(result, corr, depth, self.intrinsics, mask, self.category, quality, self.provider,
+        return object_evidence(result, corr, depth, self.intrinsics, mask, self.category_info, quality, self.provider,
                                points)
 
     def _record(self, tr: _Track, status, message, source, measured, pixels) -> TrackRecord:
@@ -462,7 +470,7 @@ class MultiObjectTracker:
         for tr in self._tracks:
             if tr.misses == 0 and regions.get(tr.id) is not None:
                 rest[regions[tr.id]] = 0.0
-        pred = predict_depth(rest, self.intrinsics, self.category, provider=self.provider, seed=self.seed,
+        pred = predict_depth(rest, self.intrinsics, self.category_info, provider=self.provider, seed=self.seed,
                              max_objects=cfg.max_objects)
         found = [o for o in (pred.objects or (pred,)) if o.result.ok and o.correspondences is not None and o.mask is not None]
         if not found:
@@ -575,7 +583,7 @@ class MultiObjectTracker:
 
         result, corr = det.result, det.correspondences
         if tr.tracker is None:
-            tr.tracker = CategoryTracker(self._provider, self.config.tracker, category=self.category,
+            tr.tracker = CategoryTracker(self._provider, self.config.tracker, category=self.category_info,
                                          rng=self.seed + 104729 * tr.id)
         tr.tracker.start_from(Observation(det.points_cam), result, corr)
         tr.filter = StateFilter(self._joint_types, self._limits, self.config.filter)

@@ -101,7 +101,7 @@ def _emit(rec: dict, records: list, writer, progress) -> None:
         progress(rec)
 
 
-def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, category: str | None = None,
+def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = None, *, category=None,
                 mask_dir=None, isolate: bool = True, max_depth: float | None = None, num_points: int = 1024, seed: int = 0,
                 num_joints: int = 0, progress=None) -> list[dict]:
     """Track the object through depth frames; one record per frame (written at once when ``writer`` is given).
@@ -114,8 +114,9 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
         Of every frame; a frame of another size is a ``lost`` record.
     tracker : CategoryTracker or InstanceTracker
     writer : JsonLinesWriter, optional
-    category : str, optional
-        For :func:`~ancsh.data.isolate.isolate_object` (needed when isolating without masks).
+    category : str, Path or Category, optional
+        Its size range sizes :func:`~ancsh.data.isolate.isolate_object` (needed when isolating without masks); a
+        name, spec file or folder is loaded once.
     mask_dir : str or Path, optional
         Object masks with the frames' names (``.png`` / ``.npy``); they replace isolation.
     isolate : bool
@@ -140,6 +141,7 @@ def track_files(files, intrinsics, tracker, writer: JsonLinesWriter | None = Non
 
     if isolate and mask_dir is None and category is None:
         raise ValueError("category: isolating the object needs its category (or give masks, or isolate=False)")
+    category = _loaded(category, tracker)
     records = []
     for i, path in enumerate(files):
         path = Path(path)
@@ -190,7 +192,14 @@ def track_files_multi(files, intrinsics, tracker, writer: JsonLinesWriter | None
     return records
 
 
-def track_depth(depth, intrinsics, tracker, index: int, *, mask=None, category: str | None = None, isolate: bool = True,
+def _loaded(category, tracker):
+    """``category`` loaded once (:func:`~ancsh.tracking.cold_fit.tracked_category`; ``None`` stays ``None``)."""
+    from .cold_fit import tracked_category
+
+    return tracked_category(category, getattr(tracker, "provider", None))
+
+
+def track_depth(depth, intrinsics, tracker, index: int, *, mask=None, category=None, isolate: bool = True,
                 max_depth: float | None = None, num_points: int = 1024, seed: int = 0) -> dict:
     """One frame of a track: the object's pixels (``mask``, or isolation seeded like ``predict``'s, or every valid
     pixel), ``num_points`` of them sampled (seed ``seed + index``) and the tracker stepped; the frame's record
@@ -204,6 +213,8 @@ def track_depth(depth, intrinsics, tracker, index: int, *, mask=None, category: 
     tracker : CategoryTracker or InstanceTracker
     index : int
         The frame's number in the sequence.
+    category : str, Path or Category, optional
+        Its size range sizes the isolation (a loaded Category: nothing is looked up).
     """
     from ..learned.inference.predict import depth_to_points
     from ..solvers.types import Observation
@@ -213,7 +224,10 @@ def track_depth(depth, intrinsics, tracker, index: int, *, mask=None, category: 
         from ..learned.inference.predict import ISOLATION_SEED
 
         # seeded like predict's isolation: the segments are a function of the image, not of the seed
-        mask = isolate_object(depth, intrinsics, category, max_depth=max_depth, rng=ISOLATION_SEED).mask
+        category = _loaded(category, tracker)
+        if category is None:
+            raise ValueError("category: isolating the object needs its category (or give a mask, or isolate=False)")
+        mask = isolate_object(depth, intrinsics, category.size_range, max_depth=max_depth, rng=ISOLATION_SEED).mask
     try:
         points = depth_to_points(depth, intrinsics, mask=mask, max_depth=max_depth, num_points=num_points,
                                  rng=seed + index)[0]

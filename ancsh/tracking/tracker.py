@@ -62,7 +62,7 @@ import numpy as np
 from ..solvers.fit import FitConfig, fit
 from ..solvers.terms import PreviousSolution
 from ..solvers.types import FitResult, FitStatus, Observation
-from .cold_fit import check_fit, cold_fit, fit_frame
+from .cold_fit import check_fit, cold_fit, fit_frame, tracked_category
 from .config import TrackerConfig, with_provider_fit
 from .fusion import fitted_canonical, fused_canonical, predicted_fit, previous_solution, recentred
 from .instance import InstanceTracker
@@ -97,8 +97,11 @@ class CategoryTracker:
         Turns an observation into correspondences (e.g. :class:`~ancsh.learned.inference.provider.LearnedProvider`);
         called on network frames and re-initialisations only.
     config : TrackerConfig, optional
-    category : str, optional
-        A procedural category: its size range and residual limit join the plausibility checks.
+    category : str, Path or Category, optional
+        The object's category (a name, spec file, built folder or loaded
+        :class:`~ancsh.learned.inference.category.Category`, loaded once): its size range and residual limit join the
+        plausibility checks, its measured uncertainty factors apply, and its spec says whether tracks carry its
+        template (``TrackerConfig.template_categories``).
     rng : int or numpy.random.Generator
         RANSAC randomness of the cold fits.
 
@@ -110,7 +113,7 @@ class CategoryTracker:
     ...     tracked.status, tracked.joint_states
     """
 
-    def __init__(self, provider, config: TrackerConfig | None = None, *, category: str | None = None, rng=0):
+    def __init__(self, provider, config: TrackerConfig | None = None, *, category=None, rng=0):
         from ..geometry._checks import check_generator
 
         if not hasattr(provider, "correspond"):
@@ -123,7 +126,9 @@ class CategoryTracker:
         if self.config.refine_network and getattr(provider, "refine_option", None) != "network":
             raise ValueError("config.refine_network: the provider has no refinement network (LearnedProvider(..., "
                              "refine='network'))")
-        self.category = category
+        #: The loaded :class:`~ancsh.learned.inference.category.Category` (``None`` without one) and its name.
+        self.category_info = tracked_category(category, provider)
+        self.category = None if self.category_info is None else self.category_info.name
         self.rng = check_generator(rng)
         self._track: _Track | None = None
         self._index = 0
@@ -185,7 +190,7 @@ class CategoryTracker:
                 return self._frame(index, TrackStatus.TRACKED, result.message, result, source, t0,
                                    refined=self._track.refined)
             why = f"warm fit failed ({result.status.value}: {result.message}); "
-        result, corr, by_refiner = cold_fit(self.provider, observation, cfg, self.category, self.rng)
+        result, corr, by_refiner = cold_fit(self.provider, observation, cfg, self.category_info, self.rng)
         if not result.ok:
             self._track = None
             return self._lost(index, f"{why}cold fit failed ({result.status.value}: {result.message})", t0)
@@ -201,13 +206,13 @@ class CategoryTracker:
         """Refine a cold fit against the category template and carry it (``template_categories``):
         ``(fit to report, message suffix, whether it is the template's)``."""
         cfg = self.config
-        if self.category not in cfg.template_categories:
+        info = self.category_info
+        if info is None or not info.has_templates() or not cfg.carries_template(info.convention):
             return result, "", False
-        from ..data.templates import load_template_library
         from ..solvers.icp.category import RefineConfig, refine_fit
         from ..solvers.icp.template import ArticulatedPose
 
-        library = load_template_library(self.category)
+        library = info.template_library()
         ref, reused = None, ""
         if cfg.template_reuse and self._template_choice is not None:
             # the object seen before the loss: its template at its scale only (one ICP run instead of the
@@ -269,7 +274,7 @@ class CategoryTracker:
         quick = dataclasses.replace(cfg.fit, uncertainty=False,
                                     rescore_rounds=max(cfg.fit.rescore_rounds, cfg.warm_rescore_rounds))
         net = fit(observation, corr, cfg.formulation, cfg.solver, quick, rng=self.rng, warm_start=fitted)
-        net = check_fit(net, observation.points_cam, corr, self.category, cfg.max_relative_residual)
+        net = check_fit(net, observation.points_cam, corr, self.category_info, cfg.max_relative_residual)
         if not net.ok or len(net.joint_states) != len(self._template_offset):
             return
         revolute = np.array([t == JointType.REVOLUTE for t in corr.joint_types], dtype=bool)
@@ -309,7 +314,7 @@ class CategoryTracker:
                 result = self._fused(observation, corr, start, warm, kwargs, L)
             else:
                 result = fit(observation, corr, cfg.formulation, cfg.solver, warm, rng=self.rng, **kwargs)
-            return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "network"
+            return check_fit(result, observation.points_cam, corr, self.category_info, cfg.max_relative_residual), corr, "network"
         result, corr = start, tr.correspondences
         iterations = 0
         quick = dataclasses.replace(warm, uncertainty=False)
@@ -328,7 +333,7 @@ class CategoryTracker:
                 break
         if result.ok:
             result = dataclasses.replace(result, iterations=iterations)
-        return check_fit(result, observation.points_cam, corr, self.category, cfg.max_relative_residual), corr, "carried"
+        return check_fit(result, observation.points_cam, corr, self.category_info, cfg.max_relative_residual), corr, "carried"
 
     def _fused(self, observation: Observation, corr, start: FitResult, warm: FitConfig, kwargs: dict, L: float) -> FitResult:
         """The fused warm fit of a network frame (``TrackerConfig.fusion_weight``): the network's
@@ -377,10 +382,10 @@ class CategoryTracker:
         fits (``learned``, ``learned-template``) for a cold one or where none were measured; a refined fit's by those
         measured for the refinement network's single-frame fits (``learned-network``: no tracked frames were
         measured with it)."""
-        if getattr(result, "uncertainty", None) is not None and self.category is not None and hasattr(self.provider, "network"):
+        if getattr(result, "uncertainty", None) is not None and self.category_info is not None and hasattr(self.provider, "network"):
             from ..learned.inference.predict import inflate_uncertainty  # as ancsh predict: the factors measured for these weights
 
-            result = inflate_uncertainty(result, self.category, self.provider, template=template, network=refined,
+            result = inflate_uncertainty(result, self.category_info, self.provider, template=template, network=refined,
                                          tracked=source if status == TrackStatus.TRACKED else None)
         return TrackedFrame(index, status, message, result, np.asarray(result.joint_states, dtype=np.float64).copy(), source,
                             int(result.iterations), time.perf_counter() - t0)

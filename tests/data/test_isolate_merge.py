@@ -6,6 +6,7 @@ import zlib
 import numpy as np
 import pytest
 
+from ancsh.data.conventions import CONVENTIONS
 from ancsh.data.isolate import merged_candidate, isolate_object
 from ancsh.data.render import Intrinsics
 
@@ -38,11 +39,11 @@ def _iou(mask, truth) -> float:
 
 def test_two_touching_halves_make_one_more_candidate_their_union():
     depth, intr, plate, square = _plate_scene()
-    iso = isolate_object(depth, intr, "laptop", rng=0)
+    iso = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, rng=0)
     halves = [c for c in iso.order if np.count_nonzero(iso.mask_of(c) & plate) > 0.9 * np.count_nonzero(iso.mask_of(c))]
     assert len(halves) == 2 and max(_iou(iso.mask_of(c), plate) for c in iso.order) < 0.6  # cut in two, not attached
     a, b = halves
-    merged, c = merged_candidate(iso, a, b, depth, intr, "laptop")
+    merged, c = merged_candidate(iso, a, b, depth, intr, CONVENTIONS["laptop"].diagonal_range)
     assert c == len(iso.clusters) and merged.order[-1] == c and len(merged.segments) == c + 1
     assert _iou(merged.mask_of(c), plate) > 0.95
     cl = merged.clusters[c]
@@ -52,25 +53,25 @@ def test_two_touching_halves_make_one_more_candidate_their_union():
     assert np.allclose(cl.centroid_uv, (u, v), atol=5)
     assert merged.mask_of(a).sum() == iso.mask_of(a).sum()  # the candidates before it are unchanged
     # the union is a candidate now: joining the halves again gives nothing new
-    assert merged_candidate(merged, a, b, depth, intr, "laptop") is None
+    assert merged_candidate(merged, a, b, depth, intr, CONVENTIONS["laptop"].diagonal_range) is None
 
 
 def test_candidates_apart_in_the_image_or_one_holding_the_other_are_not_joined():
     depth, intr, plate, square = _plate_scene()
-    iso = isolate_object(depth, intr, "laptop", rng=0)
+    iso = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, rng=0)
     half, other = _candidate(iso, plate), _candidate(iso, square)
     assert _iou(iso.mask_of(other), square) > 0.9
-    assert merged_candidate(iso, half, other, depth, intr, "laptop") is None  # 0.15 m apart
-    assert merged_candidate(iso, half, half, depth, intr, "laptop") is None
+    assert merged_candidate(iso, half, other, depth, intr, CONVENTIONS["laptop"].diagonal_range) is None  # 0.15 m apart
+    assert merged_candidate(iso, half, half, depth, intr, CONVENTIONS["laptop"].diagonal_range) is None
     # the union (0.5 m across) is too large for eyeglasses (at most 0.27 m, x1.5) and too small for a washing machine
     halves = [c for c in iso.order if np.count_nonzero(iso.mask_of(c) & plate) > 0.9 * np.count_nonzero(iso.mask_of(c))]
-    assert merged_candidate(iso, *halves, depth, intr, "laptop") is not None
-    assert merged_candidate(iso, *halves, depth, intr, "eyeglasses") is None
-    assert merged_candidate(iso, *halves, depth, intr, "washing_machine") is None
+    assert merged_candidate(iso, *halves, depth, intr, CONVENTIONS["laptop"].diagonal_range) is not None
+    assert merged_candidate(iso, *halves, depth, intr, CONVENTIONS["eyeglasses"].diagonal_range) is None
+    assert merged_candidate(iso, *halves, depth, intr, CONVENTIONS["washing_machine"].diagonal_range) is None
     with pytest.raises(ValueError, match="a: expected a candidate index"):
-        merged_candidate(iso, len(iso.segments), half, depth, intr, "laptop")
+        merged_candidate(iso, len(iso.segments), half, depth, intr, CONVENTIONS["laptop"].diagonal_range)
     with pytest.raises(ValueError, match="b: expected a candidate index"):
-        merged_candidate(iso, half, -1, depth, intr, "laptop")
+        merged_candidate(iso, half, -1, depth, intr, CONVENTIONS["laptop"].diagonal_range)
 
 
 def test_a_nearly_closed_laptop_cut_in_two_by_the_floor_is_fitted_whole():

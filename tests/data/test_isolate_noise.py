@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import trimesh
 
+from ancsh.data.conventions import CONVENTIONS
 from ancsh.data.isolate import isolate_object
 from ancsh.data.isolate.noise import noise_sigma, plane_points, smooth_grid
 from ancsh.data.noise import DepthNoise, apply_noise
@@ -74,7 +75,7 @@ def _far_cabinet(distance, noise):
 @pytest.mark.parametrize("distance", [2.0, 4.5])
 def test_a_cabinet_far_on_a_noisy_floor_is_a_candidate_of_its_own(distance):
     depth, intr, truth = _far_cabinet(distance, noise=True)
-    iso = isolate_object(depth, intr, "washing_machine", rng=0)
+    iso = isolate_object(depth, intr, CONVENTIONS["washing_machine"].diagonal_range, rng=0)
     assert iso.planes >= 1
     best = max(np.count_nonzero(iso.mask_of(c) & truth) / np.count_nonzero(iso.mask_of(c) | truth) for c in iso.order)
     assert best >= 0.8

@@ -6,6 +6,7 @@ import pytest
 import trimesh
 from scipy.ndimage import gaussian_filter
 
+from ancsh.data.conventions import CONVENTIONS
 from ancsh.data.isolate import isolate_object
 from ancsh.data.isolate.planes import view_border
 from ancsh.data.procedural import load_instance
@@ -53,7 +54,7 @@ def _best_iou(iso, truth, first: int) -> float:
 @pytest.mark.parametrize("eye", [(0.35, 1.0, 0.95), (0.3, 1.3, 0.6)])
 def test_a_box_on_smoothed_stairs_is_one_of_the_verified_candidates(eye):
     depth, intr, truth = stairs_scene(eye)
-    iso = isolate_object(depth, intr, "box", rng=0)
+    iso = isolate_object(depth, intr, CONVENTIONS["box"].diagonal_range, rng=0)
     # the risers run into the dead band and out of the image: removed with the treads, the box comes apart whole
     assert _best_iou(iso, truth, MAX_VERIFIED) >= 0.85
 

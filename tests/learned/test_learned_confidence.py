@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from ancsh.cli import main
+from ancsh.data.conventions import CONVENTIONS
 from ancsh.learned.inference import confidence
 from ancsh.learned.inference.confidence import FEATURES, fit_features, probability_good
 from ancsh.studies.confidence_calibration import collect, fit_calibrator, reliability
@@ -40,7 +41,7 @@ def test_features_treat_missing_evidence_as_worst():
     q = [{"points": 100, "inlier_ratio": 0.9, "residual_m": 0.01, "seg_margin": 0.8},
          {"points": 0, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": float("nan")},
          {"points": 30, "inlier_ratio": float("nan"), "residual_m": float("nan"), "seg_margin": 0.4}]
-    f = fit_features(q, "laptop")
+    f = fit_features(q, CONVENTIONS["laptop"].typical_size)
     assert f.shape == (len(FEATURES),)
     assert f[0] == 0.0 and f[1] == 1.0 and f[2] == pytest.approx(0.4) and f[4] == pytest.approx(np.log(130))
 

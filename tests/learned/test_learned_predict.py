@@ -198,12 +198,13 @@ def test_refinements_sharing_the_first_stage_give_each_refinements_own_fit(rende
     refinement's fit and evidence are those of its own ``fit_candidate`` (in another order, so that a refinement that
     changed the shared first stage would show)."""
     from ancsh.learned.inference.candidate import fit_candidate, fit_candidate_refinements
+    from ancsh.learned.inference.category import load_category
     from ancsh.learned.inference.provider import LearnedProvider
 
     frame, depth = rendered
     provider = LearnedProvider("laptop", seed=0)
     options = ("template", "none", "network")
-    args = (depth, frame.intrinsics, depth > 0, "laptop", provider, "exact_reduced", 1024, 3, None)
+    args = (depth, frame.intrinsics, depth > 0, load_category("laptop"), provider, "exact_reduced", 1024, 3, None)
     shared = fit_candidate_refinements(*args, options, object_gate=False)
     alone = {r: fit_candidate(*args, r, object_gate=False, hypotheses=1) for r in reversed(options)}
     assert len(shared) == len(options)
@@ -221,6 +222,8 @@ def test_refinements_sharing_the_first_stage_give_each_refinements_own_fit(rende
     assert not np.allclose(t[0], t[1]) and not np.allclose(t[1], t[2])
     with pytest.raises(ValueError, match="refinements"):
         fit_candidate_refinements(*args, ())
+    with pytest.raises(ValueError, match="category: expected a Category"):  # a name is resolved once, by the caller
+        fit_candidate_refinements(*args[:3], "laptop", *args[4:], options)
 
 
 def test_a_folder_gives_the_same_files_with_one_and_two_workers(files, rendered, capsys):
@@ -252,9 +255,9 @@ def test_predict_fits_with_the_shipped_networks_default_objective(rendered, monk
     import ancsh.solvers
     from ancsh.learned.inference.provider import LearnedProvider
     from ancsh.solvers import FitConfig
-    from ancsh.solvers.formulations import DEFAULT_OBJECTIVES
+    from ancsh.solvers.formulations import default_objective
 
-    chosen = DEFAULT_OBJECTIVES["learned"]["laptop"].objective
+    chosen = default_objective("learned", "laptop")
     assert LearnedProvider("laptop").fit_config() == FitConfig.default_for("learned", "laptop")
     assert LearnedProvider("laptop").fit_config().objective is chosen
     frame, depth = rendered

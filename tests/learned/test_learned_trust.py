@@ -10,6 +10,7 @@ import trimesh
 from PIL import Image
 
 from ancsh.cli import main
+from ancsh.data.conventions import CONVENTIONS
 from ancsh.data.isolate import ObjectHint, isolate_object, parse_hint
 from ancsh.data.procedural import CATEGORY_INFO, load_instance
 from ancsh.data.render import Intrinsics, ModelRenderer, look_at
@@ -55,17 +56,17 @@ def _files(folder, depth, intr):
 # --- object isolation --------------------------------------------------------------------------
 def test_isolation_finds_the_laptop_on_a_table_beside_a_distractor(table_scene):
     depth, intr, source, _ = table_scene
-    iso = isolate_object(depth, intr, "laptop")
+    iso = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range)
     laptop = source == 0
     assert iso.planes >= 1 and len(iso.clusters) >= 2
     assert np.count_nonzero(iso.mask & laptop) > 0.9 * np.count_nonzero(laptop)
     assert np.count_nonzero(iso.mask & ~laptop) < 0.02 * np.count_nonzero(laptop)
     # a hint pixel on the distractor chooses the distractor; a box around the laptop the laptop
     v, u = np.argwhere(source == 2).mean(axis=0)
-    picked = isolate_object(depth, intr, "laptop", hint=ObjectHint(pixel=(u, v))).mask
+    picked = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, hint=ObjectHint(pixel=(u, v))).mask
     assert np.count_nonzero(picked & (source == 2)) > 0.9 * np.count_nonzero(source == 2)
     vs, us = np.nonzero(laptop)
-    boxed = isolate_object(depth, intr, "laptop", hint=ObjectHint(box=(us.min(), vs.min(), us.max(), vs.max()))).mask
+    boxed = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, hint=ObjectHint(box=(us.min(), vs.min(), us.max(), vs.max()))).mask
     assert np.count_nonzero(boxed & laptop) > 0.9 * np.count_nonzero(laptop)
 
 
@@ -86,9 +87,9 @@ def test_prediction_without_a_mask_is_plausible_on_the_table_scene(table_scene, 
 def test_a_hint_outside_the_image_is_refused_naming_the_option(table_scene, tmp_path, capsys):
     depth, intr, _, _ = table_scene
     with pytest.raises(ValueError, match=r"--pixel: \(400, 10\) lies outside the 320x240 image"):
-        isolate_object(depth, intr, "laptop", hint=ObjectHint(pixel=(400, 10)))
+        isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, hint=ObjectHint(pixel=(400, 10)))
     with pytest.raises(ValueError, match="--box: .* does not overlap the 320x240 image"):
-        isolate_object(depth, intr, "laptop", hint=ObjectHint(box=(330, 10, 400, 50)))
+        isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, hint=ObjectHint(box=(330, 10, 400, 50)))
     args = _files(tmp_path, depth, intr)
     assert main(["predict", *args, "--category", "laptop", "--pixel", "-5,-5"]) == 2
     assert "--pixel: (-5, -5) lies outside the 320x240 image" in capsys.readouterr().err
@@ -133,7 +134,7 @@ def test_a_table_with_a_bottle_but_no_laptop_is_no_laptop(table_scene, provider)
 
 def test_candidates_come_from_every_depth_of_plane_removal_and_a_hint_box_chooses(table_scene):
     depth, intr, source, _ = table_scene
-    iso = isolate_object(depth, intr, "laptop")
+    iso = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range)
     assert sorted(iso.order) == list(range(len(iso.clusters))) and iso.order[0] == iso.chosen
     assert len({c.level for c in iso.clusters}) >= 1 and iso.stride >= 1
     for c in range(len(iso.clusters)):
@@ -141,7 +142,7 @@ def test_candidates_come_from_every_depth_of_plane_removal_and_a_hint_box_choose
         assert m.shape == depth.shape and m.any() and not (m & (depth <= 0)).any()
     bottle = source == 2
     vs, us = np.nonzero(bottle)
-    boxed = isolate_object(depth, intr, "laptop", hint=ObjectHint(box=(us.min(), vs.min(), us.max(), vs.max())))
+    boxed = isolate_object(depth, intr, CONVENTIONS["laptop"].diagonal_range, hint=ObjectHint(box=(us.min(), vs.min(), us.max(), vs.max())))
     assert np.count_nonzero(boxed.mask & bottle) > 0.9 * np.count_nonzero(bottle)
 
 
@@ -149,7 +150,7 @@ def test_a_table_running_out_of_the_image_is_a_support_even_for_a_large_category
     """The table (1.8 x 1.2 m, cut by the image border) is narrower than the largest oven times 1.5, but wider
     than a typical oven and it runs out of the image: it is removed, and the laptop is a segment of its own."""
     depth, intr, source, _ = table_scene
-    iso = isolate_object(depth, intr, "oven")
+    iso = isolate_object(depth, intr, CONVENTIONS["oven"].diagonal_range)
     assert iso.planes >= 1
     laptop = source == 0
     best = max(range(len(iso.clusters)), key=lambda c: np.count_nonzero(iso.mask_of(c) & laptop))
@@ -295,9 +296,12 @@ def test_a_residual_far_above_validation_fails_the_fit(table_scene, provider):
     assert all(q["residual_m"] < MAX_RELATIVE_RESIDUAL * typical for q in pred.part_quality)
     bad = list(pred.part_quality)
     bad[1] = dict(bad[1], residual_m=2 * MAX_RELATIVE_RESIDUAL * typical)
-    checked = check_plausibility(pred.result, pred.part_labels, "laptop", bad)
+    laptop = CONVENTIONS["laptop"]
+    checked = check_plausibility(pred.result, pred.part_labels, laptop, bad)
     assert checked.status.value == "large_residual" and "display" in checked.message
-    assert check_plausibility(dataclasses.replace(pred.result), pred.part_labels, "laptop", pred.part_quality).ok
+    assert check_plausibility(dataclasses.replace(pred.result), pred.part_labels, laptop, pred.part_quality).ok
+    with pytest.raises(ValueError, match="convention: expected a CategoryConvention or None, got 'laptop'"):
+        check_plausibility(pred.result, pred.part_labels, "laptop", bad)  # a name is resolved once, by the caller
 
 
 # --- nearly closed hinges ----------------------------------------------------------------------
@@ -330,7 +334,8 @@ def test_the_hinge_note_follows_the_convention_closed_state_and_joint_type(table
 
     def notes(category, opening_deg, K=1):
         states = np.full(K, np.radians(opening_deg) - (rest if category == "laptop" else 0.0))
-        return near_closed_notes(category, dataclasses.replace(result, joint_states=states), [f"j{k}" for k in range(K)])
+        return near_closed_notes(CONVENTIONS.get(category), dataclasses.replace(result, joint_states=states),
+                                 [f"j{k}" for k in range(K)])
 
     assert len(notes("laptop", NEAR_CLOSED_DEG - 0.1)) == 1 and notes("laptop", NEAR_CLOSED_DEG + 0.1) == []
     assert len(notes("laptop", -3.0)) == 1  # folded past closed: the distance from closed counts

@@ -1,12 +1,12 @@
-"""Helpers of isolation's organised grid: connected components, robust extents, structuring elements, and the
-category's size range that sizes planes and segments."""
+"""Helpers of isolation's organised grid: connected components, robust extents, structuring elements, and the check
+of the category's size range that sizes planes and segments."""
 
 from __future__ import annotations
 
 import numpy as np
 
 __all__ = ["DISK", "SAME_SEGMENT_IOU", "SIZE_FACTOR", "components", "disk", "extent", "fits", "principal_axes",
-           "same_segment", "size_range"]
+           "same_segment", "check_size_range"]
 
 # the opening that parts a support plane from a face touching it (radius 2 grid pixels)
 DISK = np.array([[0, 1, 1, 1, 0], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [1, 1, 1, 1, 1], [0, 1, 1, 1, 0]], dtype=bool)
@@ -19,12 +19,20 @@ SIZE_FACTOR = 1.5
 SAME_SEGMENT_IOU = 0.9
 
 
-def size_range(category: str) -> tuple[float, float]:
-    """``(lo, hi)`` metres: the category's ``diagonal_range`` (its spec's ``diagonal_m``), 0.1..2 m for other names."""
-    from ..conventions import CONVENTIONS
-
-    info = CONVENTIONS.get(category)
-    return info.diagonal_range if info is not None else (0.1, 2.0)
+def check_size_range(size_range, name: str = "size_range") -> tuple[float, float]:
+    """``(lo, hi)`` metres, checked: the box diagonal range of the category's objects (a
+    :class:`~ancsh.data.category_types.CategoryConvention`'s ``diagonal_range``, a loaded category's ``size_range``),
+    ``0 < lo <= hi``, finite. A category name is refused: the caller resolves it (``ValueError`` naming ``name``)."""
+    if isinstance(size_range, str):
+        raise ValueError(f"{name}: expected (lo, hi) metres, got the name {size_range!r}: give its range (e.g. "
+                         "CONVENTIONS[name].diagonal_range or load_category(name).size_range)")
+    try:
+        lo, hi = (float(x) for x in size_range)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected (lo, hi) metres, got {size_range!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+        raise ValueError(f"{name}: expected 0 < lo <= hi metres, got ({lo}, {hi})")
+    return lo, hi
 
 
 def fits(diagonal: float, lo: float, hi: float) -> bool:

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..images import mask_bounds
 from ..render import Intrinsics, valid_depth_pixels
-from .grid import SIZE_FACTOR, components, extent, fits, same_segment, size_range
+from .grid import SIZE_FACTOR, components, extent, fits, same_segment, check_size_range
 from .hints import ObjectHint, check_hint_inside, hinted_order
 from .noise import plane_points
 from .planes import grid_normals, plane_threshold, remove_supports
@@ -124,18 +124,19 @@ class Isolation:
                 "verified": list(self.verified)}
 
 
-def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: ObjectHint | None = None,
+def isolate_object(depth, intrinsics: Intrinsics, size_range, *, hint: ObjectHint | None = None,
                    max_depth: float | None = None, rng=0) -> Isolation:
-    """Candidate segments of the object of ``category`` in a depth image (see the module docstring).
+    """Candidate segments of an object of a category in a depth image (see the module docstring).
 
     Parameters
     ----------
     depth : (H, W) float64
         Metres, 0 = no measurement.
     intrinsics : Intrinsics
-    category : str
-        A procedural category (its ``diagonal_range`` sizes the planes, segments and the ranking);
-        other names use 0.1..2 m.
+    size_range : (float, float)
+        ``(lo, hi)`` metres: the box diagonal range of the category's objects (its
+        :class:`~ancsh.data.category_types.CategoryConvention`'s ``diagonal_range``); it sizes the planes, segments
+        and the ranking.
     hint : ObjectHint, optional
     max_depth : float, optional
         Metres; deeper pixels are ignored.
@@ -150,7 +151,7 @@ def isolate_object(depth, intrinsics: Intrinsics, category: str, *, hint: Object
     from ...geometry._checks import check_generator
 
     rng = check_generator(rng)
-    lo, hi = size_range(category)
+    lo, hi = check_size_range(size_range)
     d, valid = valid_depth_pixels(depth, intrinsics)
     if max_depth is not None:
         valid &= d <= max_depth

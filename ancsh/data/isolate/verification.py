@@ -10,7 +10,7 @@ import numpy as np
 
 from ..images import mask_bounds
 from ..render import Intrinsics, backproject
-from .grid import extent, fits, same_segment, size_range
+from .grid import extent, fits, same_segment, check_size_range
 from .proposals import Cluster, Isolation
 
 __all__ = ["behind_surroundings", "merged_candidate", "out_of_view"]
@@ -121,14 +121,14 @@ def behind_surroundings(depth, mask) -> tuple[bool, float, float]:
 
 
 def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: Intrinsics,
-                     category: str) -> tuple[Isolation, int] | None:
+                     size_range) -> tuple[Isolation, int] | None:
     """Candidates ``a`` and ``b`` of ``isolation`` as one more candidate, their union, for a caller whose verification
     rejected both (:func:`ancsh.learned.inference.predict.predict_depth`): an object cut in two by plane removal or a
     depth jump is fitted whole. ``(isolation with the union appended to its candidates, its index)``, or ``None``
     when the two do not touch in the image (within :data:`MERGE_REACH` grid pixels), overlap by
     :data:`MERGE_OVERLAP` or more of the smaller one (one holds the other: a candidate with its attached pieces),
     make a candidate there already (an IoU of :data:`SAME_SEGMENT_IOU`), or make one whose size does not fit
-    ``category``.
+    ``size_range``.
 
     Parameters
     ----------
@@ -139,11 +139,12 @@ def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: In
     depth : (H, W) float64
         The isolated image (metres).
     intrinsics : Intrinsics
-    category : str
-        As for :func:`isolate_object` (its ``diagonal_range``).
+    size_range : (float, float)
+        As for :func:`isolate_object`: ``(lo, hi)`` metres.
     """
     from scipy.ndimage import binary_dilation
 
+    lo, hi = check_size_range(size_range)
     for name, c in (("a", a), ("b", b)):
         if isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not 0 <= c < len(isolation.segments):
             raise ValueError(f"{name}: expected a candidate index in [0, {len(isolation.segments)}), got {c!r}")
@@ -161,7 +162,7 @@ def merged_candidate(isolation: Isolation, a: int, b: int, depth, intrinsics: In
     if len(vs) < 10:
         return None
     diag = extent(backproject(depth, intrinsics, mask), diagonal=True)
-    if not fits(diag, *size_range(category)):
+    if not fits(diag, lo, hi):
         return None
     s = isolation.stride
     ca, cb = isolation.clusters[a], isolation.clusters[b]

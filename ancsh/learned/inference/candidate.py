@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...data.render import Intrinsics
+from .category import Category
 from .checks import MAX_SPREAD_DEG, MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
@@ -96,7 +97,8 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     one), as the consensus of ``hypotheses`` independent tries (:func:`consensus`; the tries stop once the failures are
     a majority: a candidate that fails at every seed costs about half of them).
 
-    ``d``: (H, W) depth (metres, 0 = none); ``mask``: (H, W) bool or ``None`` (every valid pixel); ``refine``:
+    ``d``: (H, W) depth (metres, 0 = none); ``mask``: (H, W) bool or ``None`` (every valid pixel); ``category``: the
+    :class:`~ancsh.learned.inference.category.Category` (its convention, calibrations, template); ``refine``:
     ``LearnedProvider.refine``'s option; ``why``: when given, nothing is sampled and the candidate fails with
     ``too_few_points`` naming it; ``object_gate=False`` measures the object evidence without letting ``p_object``
     fail the fit (the ``p_object`` calibration, :mod:`ancsh.studies.object_evidence`); ``min_p_object``: the gate's
@@ -222,6 +224,7 @@ def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulati
     from ...solvers import Observation, fit
     from ...solvers.types import FitResult, FitStatus
 
+    _check_category(category)
     refinements = tuple(refinements)
     if not refinements:
         raise ValueError("refinements: expected at least one LearnedProvider.refine option, got none")
@@ -253,6 +256,15 @@ def fit_candidate_refinements(d, intrinsics, mask, category, provider, formulati
                               min_p_object, segmented) for refine in refinements]
 
 
+def _check_category(category) -> Category:
+    """``category`` checked to be a loaded :class:`~ancsh.learned.inference.category.Category` (a name is refused:
+    the entry point resolves it once, :func:`~ancsh.learned.inference.category.load_category`)."""
+    if not isinstance(category, Category):
+        raise ValueError(f"category: expected a Category (ancsh.learned.inference.category.load_category), got "
+                         f"{category!r}")
+    return category
+
+
 @dataclass(frozen=True)
 class _FirstStage:
     """What :func:`fit_candidate_refinements` shares between its refinements: the sampled points (camera frame,
@@ -281,7 +293,7 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
     notes = [refined.note] if refined.note else []
     labels = np.asarray(corr.part_labels)
     quality = part_quality(result, pts, corr, raw)
-    result = check_plausibility(result, labels, category, quality)
+    result = check_plausibility(result, labels, category.convention, quality)
     result = inflate_uncertainty(result, category, provider, template=refined.kind == "template",
                                  network=refined.kind == "network")
     p_good = _p_good(category, quality, getattr(provider.network, "sha256", None)) if result.ok else None
@@ -299,34 +311,35 @@ def _finish_candidate(first: _FirstStage, d, intrinsics, mask, category, provide
             "types": tuple(t.value for t in corr.joint_types), "parents": corr.joint_parents, "children": corr.joint_children}
 
 
-def template_comparison(result, corr, depth, intrinsics, mask, category):
-    """The category template posed at the fit, rendered and compared with ``depth`` on ``mask``
-    (:func:`ancsh.solvers.twin.compare_fit`): a :class:`~ancsh.solvers.render_compare.DepthComparison`, or ``None``
-    for a category without templates, an empty mask, or a fit without the joints or boxes a template needs."""
-    from ...data.conventions import CONVENTIONS
-    from ...data.templates import load_template_library
+def template_comparison(result, corr, depth, intrinsics, mask, category: Category):
+    """The template of ``category`` (a :class:`~ancsh.learned.inference.category.Category`) posed at the fit, rendered
+    and compared with ``depth`` on ``mask`` (:func:`ancsh.solvers.twin.compare_fit`): a
+    :class:`~ancsh.solvers.render_compare.DepthComparison`, or ``None`` for a category without templates, an empty
+    mask, or a fit without the joints or boxes a template needs."""
     from ...solvers.twin import compare_fit
 
-    if category not in CONVENTIONS or mask is None or not np.asarray(mask).any():
+    if not _check_category(category).has_templates() or mask is None or not np.asarray(mask).any():
         return None
     try:
-        return compare_fit(result, corr, load_template_library(category), depth, intrinsics, mask)[0]
+        return compare_fit(result, corr, category.template_library(), depth, intrinsics, mask)[0]
     except ValueError:  # a fit without the joints or boxes a template needs
         return None
 
 
-def object_evidence(result, corr, depth, intrinsics, mask, category, quality, provider, points, *,
+def object_evidence(result, corr, depth, intrinsics, mask, category: Category, quality, provider, points, *,
                     segmented: bool = False) -> tuple:
     """Render-and-compare of the fit (:func:`ancsh.solvers.twin.compare_fit`) and the calibrated
-    P(object of the category) where ``ancsh/weights/<category>_object.json`` exists for these weights (its features:
+    P(object of the category) where ``category`` has an object calibration
+    (:attr:`~ancsh.learned.inference.category.Category.p_object_calibration`, ``<category>_object.json``) for these
+    weights (its features:
     :func:`object_feature_vector`; its model for a segment found without the user's help where ``segmented``:
     :func:`~ancsh.learned.inference.confidence.object_model`)."""
-    from .confidence import OBJECT_FEATURES, object_calibration_path, object_model, probability_good
+    from .confidence import OBJECT_FEATURES, object_model, probability_good
 
     comparison = template_comparison(result, corr, depth, intrinsics, mask, category)
     if comparison is None:
         return None, None
-    calibration = _calibration(object_calibration_path(category))
+    calibration = category.p_object_calibration
     if calibration is None or calibration.get("weights_sha256") != getattr(provider.network, "sha256", None):
         return comparison, None
     if calibration.get("features") != list(OBJECT_FEATURES):  # made with other features: recalibrate
@@ -335,7 +348,7 @@ def object_evidence(result, corr, depth, intrinsics, mask, category, quality, pr
     return comparison, probability_good(object_model(calibration, segmented=segmented), x)
 
 
-def object_feature_vector(result, comparison, depth, mask, quality, category, points) -> np.ndarray:
+def object_feature_vector(result, comparison, depth, mask, quality, category: Category, points) -> np.ndarray:
     """:func:`~ancsh.learned.inference.confidence.object_features` of a fit: its render-and-compare ``comparison`` on
     ``mask`` of ``depth`` aligned along the depth axis (at most
     :data:`~ancsh.learned.inference.confidence.ALIGN_SHARE` of the fitted object's diagonal), its size, its per-part
@@ -345,21 +358,14 @@ def object_feature_vector(result, comparison, depth, mask, quality, category, po
 
     diagonal = object_diagonal(result.boxes_cam)
     aligned = aligned_comparison(comparison, depth, mask, ALIGN_SHARE * diagonal)
-    return object_features(aligned, diagonal, quality, category, points)
+    return object_features(aligned, diagonal, quality, _check_category(category).typical_size, points)
 
 
-def _calibration(path) -> dict | None:
-    """The calibration JSON at ``path``, or ``None`` when there is none (read at each call: a few hundred bytes, and a
-    file rewritten within one clock tick keeps its modification time, so a cache could serve the old one)."""
-    import json
-
-    return json.loads(path.read_text()) if path.is_file() else None
-
-
-def inflate_uncertainty(result, category: str, provider, *, template: bool = False, network: bool = False,
+def inflate_uncertainty(result, category: Category, provider, *, template: bool = False, network: bool = False,
                         tracked: str | None = None):
     """The fit with its standard deviations inflated by the factors measured for these weights of
-    ``category`` (:func:`ancsh.solvers.uncertainty.inflation_for`, matched by SHA-256); raw for other weights.
+    ``category`` (a :class:`~ancsh.learned.inference.category.Category`; :func:`ancsh.solvers.uncertainty.inflation_for`,
+    matched by SHA-256); raw for other weights.
     ``ancsh predict`` and the :class:`~ancsh.tracking.CategoryTracker` apply it to a learned provider's fits.
     ``template``: the fit was refined by the category template (an accepted
     :meth:`LearnedProvider.refine`), whose covariance is the template ICP's: the factors measured for
@@ -371,29 +377,29 @@ def inflate_uncertainty(result, category: str, provider, *, template: bool = Fal
     ``ancsh bench tracking --calibration-sequences``) apply where measured, else the single-frame ones."""
     import dataclasses
 
-    from ...solvers.uncertainty import first_measured_inflation, tracked_provider
+    from ...solvers.uncertainty import tracked_provider
 
+    _check_category(category)
     if result.uncertainty is None:
         return result
     if network:
-        inflation = first_measured_inflation(("learned-network",), str(category),
-                                             weights_sha256=getattr(provider.refiner.network, "sha256", None))
+        inflation = category.inflation(("learned-network",), getattr(provider.refiner.network, "sha256", None))
         return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
     single = "learned-template" if template else "learned"
-    inflation = first_measured_inflation((tracked_provider("learned", tracked) if tracked else None, single), str(category),
-                                         weights_sha256=getattr(provider.network, "sha256", None))
+    inflation = category.inflation((tracked_provider("learned", tracked) if tracked else None, single),
+                                   getattr(provider.network, "sha256", None))
     return dataclasses.replace(result, uncertainty=result.uncertainty.inflated(inflation))
 
 
-def _p_good(category: str, quality, weights_sha256: str | None) -> float | None:
-    """Calibrated P(good fit) where ``ancsh/weights/<category>_confidence.json`` exists and was
-    calibrated for these weights (``weights_sha256``); ``None`` otherwise."""
-    from .confidence import calibration_path, fit_features, probability_good
+def _p_good(category: Category, quality, weights_sha256: str | None) -> float | None:
+    """Calibrated P(good fit) where ``category`` has a ``p_good`` calibration (``<category>_confidence.json``) made
+    for these weights (``weights_sha256``); ``None`` otherwise."""
+    from .confidence import fit_features, probability_good
 
-    calibration = _calibration(calibration_path(category))
+    calibration = category.p_good_calibration
     if calibration is None or calibration.get("weights_sha256") != weights_sha256:
         return None  # calibrated on other weights (e.g. before a retraining): its probabilities would be another net's
-    return probability_good(calibration, fit_features(quality, category))
+    return probability_good(calibration, fit_features(quality, category.typical_size))
 
 
 def infer(provider, observation):

@@ -82,7 +82,7 @@ def part_quality(result, points_cam, corr, prediction=None) -> tuple:
     return tuple(out)
 
 
-def check_plausibility(result, part_labels, category: str, quality=()):
+def check_plausibility(result, part_labels, convention, quality=()):
     """The fit with a failed status naming the first check it fails (or unchanged).
 
     A fit that failed already is returned unchanged, but for ``joint_at_limit``: its size or inliers, when they fail,
@@ -92,20 +92,20 @@ def check_plausibility(result, part_labels, category: str, quality=()):
     box around all part boxes, in the base part's box frame, outside the category's
     ``diagonal_range`` widened by :data:`SIZE_TOLERANCE`), ``large_residual`` (a part's median
     residual above :data:`MAX_RELATIVE_RESIDUAL` of the category's typical size); the last two
-    only for the procedural categories.
+    only for a category with a convention.
 
     Parameters
     ----------
     result : FitResult
     part_labels : (N,) int
         The predicted part of each observed point.
-    category : str
+    convention : CategoryConvention or None
+        The category's (:attr:`ancsh.learned.inference.category.Category.convention`); ``None``: inliers only.
     quality : sequence of dict, optional
         :func:`part_quality` of the fit (for the residual check).
     """
     import dataclasses
 
-    from ...data.conventions import CONVENTIONS
     from ...solvers.types import FitStatus
 
     if not result.ok and result.status != FitStatus.JOINT_AT_LIMIT:
@@ -119,13 +119,13 @@ def check_plausibility(result, part_labels, category: str, quality=()):
             return dataclasses.replace(result, status=FitStatus.TOO_FEW_INLIERS, message=(
                 f"check inliers: {100 * inl.mean():.0f}% of the points are inliers (part {worst}: "
                 f"{100 * ratios.get(worst, float('nan')):.0f}%), at least {100 * MIN_INLIER_RATIO:.0f}% are needed"))
-    info = CONVENTIONS.get(category)
+    info = _convention(convention)
     if info is not None and result.boxes_cam:
         lo, hi = info.diagonal_range
         diag = object_diagonal(result.boxes_cam)
         if not lo / SIZE_TOLERANCE <= diag <= hi * SIZE_TOLERANCE:
             return dataclasses.replace(result, status=FitStatus.IMPLAUSIBLE_SIZE, message=(
-                f"check size: the fitted {category} is {diag:.3g} m across, outside {lo / SIZE_TOLERANCE:.3g}"
+                f"check size: the fitted {info.name} is {diag:.3g} m across, outside {lo / SIZE_TOLERANCE:.3g}"
                 f"..{hi * SIZE_TOLERANCE:.3g} m (the category's {lo}..{hi} m, widened {SIZE_TOLERANCE}x)"))
     if info is not None:
         limit = MAX_RELATIVE_RESIDUAL * info.typical_size
@@ -134,8 +134,19 @@ def check_plausibility(result, part_labels, category: str, quality=()):
                 name = info.part_names[j] if j < len(info.part_names) else f"part{j}"
                 return dataclasses.replace(result, status=FitStatus.LARGE_RESIDUAL, message=(
                     f"check residual: part {name}'s points lie {1e3 * q['residual_m']:.0f} mm (median) from the fit, "
-                    f"above {1e3 * limit:.0f} mm ({MAX_RELATIVE_RESIDUAL} of a typical {category})"))
+                    f"above {1e3 * limit:.0f} mm ({MAX_RELATIVE_RESIDUAL} of a typical {info.name})"))
     return result
+
+
+def _convention(convention):
+    """``convention`` checked: a :class:`~ancsh.data.category_types.CategoryConvention` or ``None`` (a name is refused:
+    the caller resolves it once, :func:`~ancsh.learned.inference.category.load_category`)."""
+    from ...data.category_types import CategoryConvention
+
+    if convention is not None and not isinstance(convention, CategoryConvention):
+        raise ValueError(f"convention: expected a CategoryConvention or None, got {convention!r} (resolve a name once: "
+                         "load_category(name).convention)")
+    return convention
 
 
 def object_diagonal(boxes) -> float:
@@ -165,8 +176,8 @@ def check_confidence(result, p_object, minimum: float = MIN_P_OBJECT):
     return result
 
 
-def near_closed_notes(category: str, result, joint_names) -> list[str]:
-    """Notes for the revolute joints of ``category`` fitted within :data:`NEAR_CLOSED_DEG` of closed.
+def near_closed_notes(convention, result, joint_names) -> list[str]:
+    """Notes for the revolute joints of a category fitted within :data:`NEAR_CLOSED_DEG` of closed.
 
     A nearly closed door, lid or display shows its hinge only through small cues (a handle, the gaps), so its
     camera axis comes from the network's vote rather than from the parts' relative rotation, and the fit's axis
@@ -174,16 +185,16 @@ def near_closed_notes(category: str, result, joint_names) -> list[str]:
 
     Parameters
     ----------
-    category : str
-        A category with a convention (:data:`ancsh.data.conventions.CONVENTIONS`); others get no notes.
+    convention : CategoryConvention or None
+        The category's; ``None`` (no convention) gets no notes.
     result : FitResult
         Its ``joint_states`` are relative to the rest state (radians for revolute joints).
     joint_names : sequence of str
         Names used in the notes, one per joint.
     """
-    from ...data.conventions import CONVENTIONS, REVOLUTE
+    from ...data.conventions import REVOLUTE
 
-    conv = CONVENTIONS.get(category)
+    conv = _convention(convention)
     states = np.asarray(result.joint_states, dtype=np.float64)
     if conv is None or len(conv.joints) != len(states):
         return []

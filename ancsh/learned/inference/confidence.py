@@ -32,11 +32,10 @@ def calibration_path(category: str) -> Path:
     return weights_dir(category) / f"{category}_confidence.json"
 
 
-def fit_features(quality, category: str) -> np.ndarray:
-    """``(len(FEATURES),)`` float64 from per-part quality dicts (NaN entries count as worst)."""
-    from ...data.conventions import CONVENTIONS
-
-    size = CONVENTIONS[category].typical_size
+def fit_features(quality, typical_size: float) -> np.ndarray:
+    """``(len(FEATURES),)`` float64 from per-part quality dicts (NaN entries count as worst); ``typical_size``: the
+    category's typical box diagonal, metres (:attr:`~ancsh.data.category_types.CategoryConvention.typical_size`)."""
+    size = _size(typical_size)
     inl = [q["inlier_ratio"] for q in quality if q["points"]]
     res = [q["residual_m"] / size for q in quality if q["points"]]
     mar = [q["seg_margin"] for q in quality if q["points"]]
@@ -48,6 +47,15 @@ def fit_features(quality, category: str) -> np.ndarray:
 
     return np.array([clean(inl, 0.0).min(), clean(res, 1.0).max(), clean(mar, 0.0).min(), clean(mar, 0.0).mean(),
                      np.log(max(pts, 1))])
+
+
+def _size(typical_size) -> float:
+    """``typical_size`` checked: a positive number of metres (a category name is refused: resolve it once)."""
+    if isinstance(typical_size, (str, bool)) or not isinstance(typical_size, (int, float, np.floating)) \
+            or not np.isfinite(typical_size) or typical_size <= 0:
+        raise ValueError(f"typical_size: expected a positive number of metres (the category's typical diagonal), "
+                         f"got {typical_size!r}")
+    return float(typical_size)
 
 
 def probability_good(calibration: dict, x) -> float:
@@ -117,15 +125,14 @@ def planar_share(points, tolerance: float, rng=0, trials: int = 64) -> float:
     return int(np.count_nonzero(distances < tolerance, axis=0).max()) / len(p)
 
 
-def object_features(comparison, diagonal: float, quality, category: str, points=None) -> np.ndarray:
+def object_features(comparison, diagonal: float, quality, typical_size: float, points=None) -> np.ndarray:
     """``(len(OBJECT_FEATURES),)`` float64 from a :class:`~ancsh.solvers.render_compare.DepthComparison` (aligned:
     :func:`ancsh.solvers.render_compare.aligned_comparison`; its ``shift_m`` gives ``shift_rel``), the fitted
-    object's diagonal (metres), the fit's per-part quality (NaN entries count as worst) and the observed points
-    ``(N, 3)`` (camera frame, metres; without them ``planar_share`` counts as 1)."""
-    from ...data.conventions import CONVENTIONS
-
-    size = CONVENTIONS[category].typical_size
-    base = fit_features(quality, category)
+    object's diagonal (metres), the fit's per-part quality (NaN entries count as worst), the category's typical
+    diagonal (metres) and the observed points ``(N, 3)`` (camera frame, metres; without them ``planar_share`` counts
+    as 1)."""
+    size = _size(typical_size)
+    base = fit_features(quality, size)
 
     def clean(x, worst):
         return float(x) if x is not None and np.isfinite(x) else worst

@@ -36,14 +36,18 @@ class FolderWorker:
     """One worker's network (loaded once) and the prediction of one image to its JSON file (and picture)."""
 
     def __init__(self, options: FolderOptions, out: str, png: str | None):
+        from .category import load_category
         from .predict import check_weights_category
         from .provider import LearnedProvider
 
         self.options, self.out, self.png = options, Path(out), None if png is None else Path(png)
-        source = options.category if options.weights is None else options.weights
-        self.provider = LearnedProvider(source, **options.provider)
-        if options.weights is not None:
-            check_weights_category(self.provider, options.category, options.weights)
+        if options.weights is None:  # the category loaded once per worker, its network with it
+            self.category = load_category(options.category)
+            self.provider = LearnedProvider(self.category.weights_path(), category=self.category, **options.provider)
+        else:
+            self.provider = LearnedProvider(options.weights, **options.provider)
+            self.category = load_category(options.category, network_category=self.provider.category)
+            check_weights_category(self.provider, self.category, options.weights)
 
     def __call__(self, path: str) -> tuple[str, str]:
         """``(file name, status)``: the prediction's status, or ``"error: ..."`` for an image that cannot be read
@@ -56,7 +60,7 @@ class FolderWorker:
         intr = o.intrinsics
         try:
             depth = read_depth(path, depth_scale=o.depth_scale, shape=(intr.height, intr.width))
-            pred = predict_depth(depth, intr, o.category, provider=self.provider, **o.predict)
+            pred = predict_depth(depth, intr, self.category, provider=self.provider, **o.predict)
         except (ValueError, OSError) as exc:  # one bad image (or a dangling link) does not stop the others
             return path.name, f"error: {exc}"
         data = pred.to_json()

@@ -35,6 +35,7 @@ from .checks import (  # noqa: F401 - re-exported
     object_diagonal,
     part_quality,
 )
+from .category import Category, load_category
 from .candidate import (  # noqa: F401 - re-exported
     CONSENSUS_HYPOTHESES,
     MIN_POINTS,
@@ -84,6 +85,7 @@ class DepthPrediction:
     Attributes
     ----------
     category : str
+        The category's name.
     result : FitResult
         Part poses ``T_cam_npcs``, amodal boxes, camera-frame joints and states, status.
     points_cam : (n, 3) float64
@@ -140,6 +142,9 @@ class DepthPrediction:
     rejected : tuple of DepthPrediction
         The candidate segments that were fitted and failed a check (``object_id`` -1; their status says which), for
         pictures and the JSON's ``rejected`` list.
+    category_info : Category or None
+        The category as it was loaded for this prediction (:func:`~ancsh.learned.inference.category.load_category`:
+        its convention, calibrations, template), not in the JSON.
     """
 
     category: str
@@ -170,6 +175,7 @@ class DepthPrediction:
     objects: tuple = field(default=(), repr=False)
     rejected: tuple = field(default=(), repr=False)
     consensus: dict | None = None
+    category_info: Category | None = field(default=None, repr=False)
 
     def to_urdf(self, folder, **options):
         """:meth:`export_urdf`'s ``.urdf`` path (the same options)."""
@@ -185,13 +191,13 @@ class DepthPrediction:
 
         Returns ``(path, FittedModel)``: the ``.urdf`` file and the model written (its template, whether it was aligned,
         its median |residual| against ``observed``). A failed prediction is refused (``ValueError`` naming its status)."""
-        from ...data.templates import load_template_library
         from ...solvers.twin import export_fit_urdf
 
         if not self.result.ok or self.correspondences is None:
             raise ValueError(f"prediction: a failed prediction (status {self.result.status.value}: {self.result.message}) "
                              "is not exported")
-        return export_fit_urdf(self.result, self.correspondences, load_template_library(self.category), folder,
+        category = self.category_info if self.category_info is not None else load_category(self.category)
+        return export_fit_urdf(self.result, self.correspondences, category.template_library(), folder,
                                   T_frame_cam=T_frame_cam, root=root, name=self.category, overwrite=overwrite,
                                   observed=observed, candidates=candidates if observed is not None else 1,
                                   align=align if observed is not None else 0, rng=rng)
@@ -283,35 +289,34 @@ class DepthPrediction:
 
 
 
-def check_weights_category(provider, category: str, weights) -> None:
-    """Refuse a weights file trained for another category or predicting another structure than ``category``'s."""
-    from ...data.conventions import convention
-
-    if provider.category is not None and provider.category != category:
-        raise ValueError(f"weights: {weights} holds a {provider.category} network, not a {category} one")
-    try:
-        conv = convention(category)
-    except (KeyError, ValueError):  # a category without a convention: only the network's own category is known
+def check_weights_category(provider, category, weights) -> None:
+    """Refuse a weights file trained for another category or predicting another structure than ``category``'s (a
+    :class:`~ancsh.learned.inference.category.Category`, or a name, loaded here)."""
+    category = load_category(category, network_category=provider.category)
+    if provider.category is not None and provider.category != category.name:
+        raise ValueError(f"weights: {weights} holds a {provider.category} network, not a {category.name} one")
+    conv = category.convention
+    if conv is None:  # a category without a convention: only the network's own category is known
         return
-    provider.check_structure(conv.part_names, conv.joint_types, where=f"weights: category {category}")
+    provider.check_structure(conv.part_names, conv.joint_types, where=f"weights: category {category.name}")
 
 
-def make_provider(category: str, *, weights=None, seed: int = 0, refine: str | None = "auto", refiner=None,
+def make_provider(category, *, weights=None, seed: int = 0, refine: str | None = "auto", refiner=None,
                   device="cpu", refine_passes: int = DEFAULT_PASSES):
     """The :class:`~ancsh.learned.inference.provider.LearnedProvider` :func:`predict_depth` makes for these options
-    when given none: ``category``'s shipped weights (or ``weights``, checked to be of that category), the refinement
-    network loaded where ``refine="network"``, the category's measured choice otherwise. ``FileNotFoundError``-like
-    errors (:func:`~ancsh.learned.network.weights.missing_weights_error`) for a category without shipped weights."""
+    when given none: ``category``'s network (a :class:`~ancsh.learned.inference.category.Category`, or a name, spec
+    file or folder, loaded here; or ``weights``, checked to be of that category), the refinement network loaded where
+    ``refine="network"``, the category's measured choice otherwise. ``FileNotFoundError``-like errors
+    (:func:`~ancsh.learned.network.weights.missing_weights_error`) for a category without a network."""
     from .provider import LearnedProvider
-    from ..network.weights import weights_path
+    from ..network.weights import missing_weights_error
 
-    if weights is None and not weights_path(str(category)).is_file():
-        from ..network.weights import missing_weights_error
-
-        raise missing_weights_error(category)
-    provider = LearnedProvider(category if weights is None else weights, seed=seed,
+    category = load_category(category)
+    if weights is None and not category.weights_path().is_file():
+        raise missing_weights_error(category.name)
+    provider = LearnedProvider(category.weights_path() if weights is None else weights, seed=seed,
                                refine="network" if refine == "network" else "auto", refiner=refiner, device=device,
-                               refine_passes=refine_passes)
+                               refine_passes=refine_passes, category=category)
     if weights is not None:
         check_weights_category(provider, category, weights)
     return provider
@@ -399,12 +404,11 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     ValueError
         Bad inputs (shapes, empty depth after masking, depths that look like millimetres, unknown formulation).
     """
-    from ...data.conventions import is_category_path, resolve_category
     from ...data.images import MAX_PLAUSIBLE_DEPTH
     from ...solvers import FORMULATIONS
 
-    if isinstance(category, str) and is_category_path(category):  # a spec file or a built category folder
-        category = resolve_category(category)
+    # the category resolved once (a name, a spec file, a built folder, or a Category): nothing below looks a name up
+    category = load_category(category, network_category=None if provider is None else provider.category)
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
     if max_objects is not None and (isinstance(max_objects, bool) or int(max_objects) != max_objects or max_objects < 1):
@@ -423,12 +427,12 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     notes = []
     isolation = None
     t_iso = t_verify = 0.0
-    part_names, joint_names = _names(category, provider.network.num_parts, len(provider.network.revolute))
+    part_names, joint_names = category.names(provider.network.num_parts, len(provider.network.revolute))
     t0 = time.perf_counter()
     if mask is None and isolate:
         from ...data.isolate import isolate_object
 
-        isolation = isolate_object(d, intrinsics, category, hint=hint, max_depth=max_depth, rng=ISOLATION_SEED)
+        isolation = isolate_object(d, intrinsics, category.size_range, hint=hint, max_depth=max_depth, rng=ISOLATION_SEED)
         t_iso = time.perf_counter() - t0
     elif mask is not None and hint is not None:
         notes.append("a mask was given: the hint is ignored")
@@ -447,7 +451,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
             isolation, hint, d, intrinsics, category, provider, formulation, num_points, seed, max_depth, refine,
             max_objects=1 if hint is not None else max_objects, hypotheses=hypotheses)
         t_verify = time.perf_counter() - t0
-    shared = {"category": str(category), "provider": provider, "valid_notes": notes, "isolation": isolation,
+    shared = {"category": category, "provider": provider, "valid_notes": notes, "isolation": isolation,
               "joint_names": joint_names, "part_names": part_names, "num_points": num_points,
               "timings": {"isolate": 1e3 * t_iso, "verify": 1e3 * t_verify}}
     objects = [_object_prediction(k, c, shared, d) for k, c in enumerate(found)]
@@ -481,10 +485,10 @@ def _object_prediction(index: int, found: ObjectCandidate, shared: dict, d, *, o
     result = best["result"]
     category, joint_names = shared["category"], shared["joint_names"]
     if result.ok:
-        notes += near_closed_notes(category, result, joint_names)
-    rest, rest_text = _rest_states(category, len(joint_names))
+        notes += near_closed_notes(category.convention, result, joint_names)
+    rest, rest_text = category.rest_states(len(joint_names))
     return DepthPrediction(
-        category=category, result=result, points_cam=best["pts"], pixels=best["pixels"], part_labels=best["labels"],
+        category=category.name, category_info=category, result=result, points_cam=best["pts"], pixels=best["pixels"], part_labels=best["labels"],
         part_names=shared["part_names"], joint_names=joint_names, weights=str(provider.network.source),
         valid_pixels=best["valid"],
         timings_ms={**shared["timings"], "backproject": 1e3 * best["t_bp"], "network": 1e3 * best["t_net"],
@@ -598,7 +602,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
         for i, j in itertools.combinations(list(attempts), 2):
             if merged == MAX_MERGED:
                 break
-            union = merged_candidate(isolation, i, j, d, intrinsics, category)
+            union = merged_candidate(isolation, i, j, d, intrinsics, category.size_range)
             if union is not None:
                 isolation, c = union
                 judge(isolation, c, isolation.mask_of(c))
@@ -621,7 +625,7 @@ def _verify_candidates(isolation, hint, d, intrinsics, category, provider, formu
     failures = "; ".join(f"segment {v['segment']} ({v['diagonal_m']:.2f} m): {v['status']}" for v in verified)
     a = dict(attempts[best])
     a["result"] = dataclasses.replace(a["result"], status=FitStatus.NO_OBJECT, message=(
-        f"check object: no candidate passed its checks, the {category} is not found ({failures})"))
+        f"check object: no candidate passed its checks, the {category.name} is not found ({failures})"))
     isolation = isolation.with_choice(best, f"no candidate passed: the best supported shown ({failures})", verified)
     rejected = [ObjectCandidate(c, a, masks[c]) for c, a in attempts.items() if c != best]
     return [ObjectCandidate(best, a, masks[best])], rejected, isolation
@@ -646,22 +650,3 @@ def _without_occluders(isolation, attempt, depth):
     return dataclasses.replace(isolation, mask=isolation.mask & ~occluded,
                                reason=f"{isolation.reason}; {n} pixels ({100 * share:.0f} %) in front of the fitted "
                                       "model left out as occluders")
-
-
-def _rest_states(category: str, K: int) -> tuple[tuple, str]:
-    """Rest joint states of a category with a convention (NaN otherwise) and their description."""
-    from ...data.conventions import CONVENTIONS
-
-    conv = CONVENTIONS.get(category)
-    if conv is None or len(conv.joints) != K:
-        return tuple([float("nan")] * K), "unknown category: rest states unknown"
-    return tuple(float(q) for q in conv.rest_states), conv.rest_description
-
-
-def _names(category: str, M: int, K: int) -> tuple[tuple, tuple]:
-    from ...data.conventions import CONVENTIONS
-
-    info = CONVENTIONS.get(category)
-    if info is not None and len(info.part_names) == M and len(info.joint_names) == K:
-        return tuple(info.part_names), tuple(info.joint_names)
-    return tuple(f"part{j}" for j in range(M)), tuple(f"joint{k}" for k in range(K))

@@ -195,16 +195,27 @@ class LearnedProvider:
         The joint ranges (relative to rest) the fits of these correspondences are bounded by: ``"category"`` (default)
         the network category's :attr:`~ancsh.data.conventions.CategoryConvention.joint_limits` where it has a
         convention of the network's structure (none otherwise), ``None`` none, or the array itself.
+    category : Category, optional
+        The network's category as loaded by the caller (:func:`~ancsh.learned.inference.category.load_category`): its
+        convention (joint limits), refinement network, ``"auto"`` choice and template come from it. Default: the
+        category the network's training config names, loaded here once.
     """
 
     def __init__(self, source, *, seed: int = 0, num_threads: int | None = None, min_votes: int = 5,
                  refine: str | None = None, refiner=None, refine_passes: int = DEFAULT_PASSES, device=None,
-                 joint_limits="category"):
+                 joint_limits="category", category=None):
         from ..network.weights import LoadedNetwork, load_network
+        from .category import Category, load_category
 
         self.network = source if isinstance(source, LoadedNetwork) else load_network(source)
         if self.network.kind != "ancsh":
             raise ValueError(f"source: expected an ANCSH network, got a {self.network.kind!r} network")
+        if category is not None and not isinstance(category, Category):
+            raise ValueError(f"category: expected a Category (load_category) or None, got {category!r}")
+        own = getattr(self.network.config, "category", None)
+        #: The network's :class:`~ancsh.learned.inference.category.Category` (``None`` for a network naming none).
+        self.category_info = category if category is not None else (
+            None if own is None else load_category(own, network_category=own))
         _place(self.network, device)
         if num_threads is not None:
             import torch
@@ -236,9 +247,7 @@ class LearnedProvider:
         if isinstance(joint_limits, str):
             if joint_limits != "category":
                 raise ValueError(f"joint_limits: expected 'category', None or a (K, 2) array, got {joint_limits!r}")
-            from ...data.conventions import CONVENTIONS
-
-            conv = CONVENTIONS.get(self.category)
+            conv = None if self.category_info is None else self.category_info.convention
             if conv is None or conv.joint_types != self.joint_types:
                 return None
             return conv.joint_limits
@@ -251,26 +260,30 @@ class LearnedProvider:
     def refiner(self) -> "LearnedProvider":
         """A provider of the refinement network (``refine="network"``), loaded on first use."""
         if self._refiner is None:
-            from ..network.weights import LoadedNetwork, load_network, weights_path
+            from ..network.weights import LoadedNetwork, load_network
 
             source = self._refiner_source
             if source is None:
-                if self.category is None or not weights_path(self.category, "refine").is_file():
+                expected = None if self.category_info is None else self.category_info.weights_path("refine")
+                if expected is None or not expected.is_file():
                     raise FileNotFoundError(f"refiner: no refinement network is shipped for {self.category!r} "
-                                            f"(expected {weights_path(str(self.category), 'refine')}); give one")
-                source = weights_path(self.category, "refine")
+                                            f"(expected {expected or '<category>_refine.pt'}); give one")
+                source = expected
             net = source if isinstance(source, LoadedNetwork) else load_network(source)
             if not net.config.is_refiner:
                 raise ValueError(f"refiner: {net.source} is a first-stage network, not a refinement network")
             if net.num_parts != self.num_parts or not np.array_equal(net.revolute, self.network.revolute):
                 raise ValueError(f"refiner: {net.source} predicts {net.num_parts} parts and joints "
                                  f"{net.revolute.tolist()}, the first stage {self.num_parts} and {self.network.revolute.tolist()}")
-            self._refiner = LearnedProvider(net, seed=self.seed, min_votes=self.min_votes, device=self._device)
+            self._refiner = LearnedProvider(net, seed=self.seed, min_votes=self.min_votes, device=self._device,
+                                            category=self.category_info)
         return self._refiner
 
     @property
     def category(self) -> str | None:
-        """The network's category (from its training config)."""
+        """The network's category name (the given :class:`Category`'s, else its training config's)."""
+        if self.category_info is not None:
+            return self.category_info.name
         return getattr(self.network.config, "category", None)
 
     def fit_config(self, **overrides):
@@ -287,14 +300,13 @@ class LearnedProvider:
 
     def refine_choice(self, refine: str | None = "provider") -> str | None:
         """What :meth:`refine` does: ``"template"``, ``"network"`` or ``None`` (``refine``: an override of the
-        provider's option, as there; ``"auto"`` resolved by :func:`ancsh.data.templates.refine_default`)."""
-        from ...data.templates import refine_default
-
+        provider's option, as there; ``"auto"`` resolved by the category's measured choice,
+        :func:`ancsh.data.templates.refine_default`)."""
         option = self.refine_option if refine == "provider" else refine
         if option not in REFINE_OPTIONS:
             raise ValueError(f"refine: expected one of {REFINE_OPTIONS}, got {option!r}")
         if option == "auto":
-            return None if self.category is None else refine_default(self.category)
+            return None if self.category_info is None else self.category_info.refine_default
         return option if option in ("template", "network") else None
 
     def refine(self, observation: Observation, corr: Correspondences, fit, *, refine: str | None = "provider", rng=0,
@@ -329,12 +341,11 @@ class LearnedProvider:
             return refine_with_network(self.refiner, observation, fit, formulation=fit.formulation,
                                        passes=self.refine_passes, rng=rng,
                                        config=self.fit_config() if config is None else config)
-        from ...data.templates import load_template_library
         from ...solvers.icp.category import refine_fit
 
-        if self.category is None:
-            raise ValueError("refine: the network's config names no category, so there is no template library")
-        return refine_fit(observation, fit, corr, load_template_library(self.category), rng=rng)
+        if self.category_info is None or not self.category_info.has_templates():
+            raise ValueError(f"refine: the network's category {self.category!r} has no template library")
+        return refine_fit(observation, fit, corr, self.category_info.template_library(), rng=rng)
 
     @property
     def num_parts(self) -> int:

@@ -30,7 +30,7 @@ import numpy as np
 
 from ...outputs import write_bytes_atomically
 
-__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_dir", "weights_path", "available_weights", "shipped_categories", "export_weights", "load_network",
+__all__ = ["LoadedNetwork", "WEIGHTS_DIR", "weights_dir", "weights_path", "weights_file_name", "available_weights", "shipped_categories", "export_weights", "load_network",
            "learning_curve_fit", "missing_weights_error", "weights_summary", "read_torch_file", "parent_record",
            "training_seconds"]
 
@@ -133,11 +133,14 @@ def weights_dir(category: str) -> Path:
     return WEIGHTS_DIR if folder is None else folder
 
 
+def weights_file_name(category: str, kind: str = "ancsh") -> str:
+    """``<category>.pt``, or ``<category>_<kind>.pt`` for the other networks (``refine``, baselines)."""
+    return f"{category}.pt" if kind == "ancsh" else f"{category}_{kind}.pt"
+
+
 def weights_path(category: str, kind: str = "ancsh") -> Path:
-    """Path of the weights of ``category`` (``<category>.pt``, or ``<category>_<kind>.pt`` for baselines), in
-    :func:`weights_dir`."""
-    name = category if kind == "ancsh" else f"{category}_{kind}"
-    return weights_dir(category) / f"{name}.pt"
+    """Path of the weights of ``category`` (:func:`weights_file_name`) in :func:`weights_dir`."""
+    return weights_dir(category) / weights_file_name(category, kind)
 
 
 def available_weights() -> list[str]:

@@ -151,7 +151,7 @@ def _reported(result, tracked, provider_name: str, category: str, provider):
             return result
         from ...learned.inference.predict import inflate_uncertainty
 
-        return inflate_uncertainty(result, category, provider)
+        return inflate_uncertainty(result, provider.category_info, provider)
     from ...solvers.uncertainty import first_measured_inflation
 
     if not unc.inflation.is_identity:

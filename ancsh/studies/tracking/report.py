@@ -11,6 +11,16 @@ from .measure import AD_THRESHOLD, COVERAGE_QUANTITIES
 __all__ = ["write_report"]
 
 
+def _template_words(categories) -> str:
+    """The categories a tracker configuration carries the template of, in words (``None``: the specs' choice)."""
+    if categories is None:
+        from ...data.conventions import CONVENTIONS
+
+        chosen = [name for name in CONVENTIONS if CONVENTIONS[name].track_template]
+        return (", ".join(chosen) or "none") + " (the specs' `track_template`)"
+    return ", ".join(categories) or "none"
+
+
 def _ms_cell(m: dict, method: str) -> str:
     """The table's median-milliseconds cell: warm network / carried frames (URDF: warm) of tracking, all in-view frames of per-frame fitting."""
     if method != "tracking":
@@ -59,7 +69,7 @@ def write_report(report: dict, summary: dict, path, *, command: str, calibration
         f"Tracking: category level -- network (or oracle) every k = {cfg['network_every']} frames, correspondences "
         f"carried by the previous fit in between, warm-started `exact_reduced` fits with {_prior_words(report['tracker'])}"
         f"; {_fusion_words(report['tracker'])}; categories "
-        f"{', '.join(report['tracker'].get('template_categories') or ()) or 'none'} instead carry the "
+        f"{_template_words(report['tracker'].get('template_categories', ()))} instead carry the "
         "category template refined at every (re-)initialisation (`refine_fit`, seconds, once) by warm articulated ICP, the "
         "network only re-initialising (median ms: template frames). Per frame: provider + RANSAC + `exact_reduced` on "
         "every frame. URDF -- warm-started articulated ICP "

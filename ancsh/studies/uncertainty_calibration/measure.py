@@ -192,7 +192,7 @@ def measure(config: CalibrationConfig, *, progress=None) -> dict:
                             continue
                         result, corr, raw = refined.result, refined.correspondences, refined.prediction
                     if p.startswith("learned"):
-                        result = check_plausibility(result, corr.part_labels, cat, part_quality(result, frame.points, corr, raw))
+                        result = check_plausibility(result, corr.part_labels, learned.category_info.convention, part_quality(result, frame.points, corr, raw))
                     if split == "test":
                         ref = fit(obs, corr, config.formulation, config=replace(fit_config, uncertainty=False), rng=i)
                         timing[p]["fit_ms"].append(1e3 * result.time_s)
