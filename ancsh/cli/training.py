@@ -236,7 +236,7 @@ def _check_shards(data, category: str) -> list:
         raise ValueError(f"--data: no intact shard in {data}")
     for reader in ds.readers:
         path = reader.path
-        if reader.category in CONVENTIONS and reader.category != category:
+        if category is not None and reader.category in CONVENTIONS and reader.category != category:
             raise ValueError(f"--data: shard {path} holds {reader.category!r} frames, not {category!r}")
         parts = len(reader.part_names)
         if info is not None and parts != info.num_parts:

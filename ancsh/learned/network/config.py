@@ -35,8 +35,10 @@ class TrainConfig:
 
     Attributes
     ----------
-    category : str
-        Object category (names the run and the shipped weights).
+    category : str or None
+        Object category (names the run and the shipped weights; ``ancsh train`` and ``ancsh category build`` set
+        it). ``None`` (the default): a network of no named category (an experiment's, a test's); it cannot start
+        from ``init_weights="builtin"``.
     kind : str
         ``"ancsh"`` (the ANCSH network) or ``"direct_voting"`` (camera-space joint-voting baseline).
     num_points : int
@@ -136,7 +138,7 @@ class TrainConfig:
         not combined with the camera-rotation augmentation (which it replaces).
     """
 
-    category: str = "laptop"
+    category: str | None = None
     kind: str = "ancsh"
     num_points: int = 1024
     width: float = 0.25
@@ -170,8 +172,8 @@ class TrainConfig:
     input_normals: bool = False
 
     def __post_init__(self):
-        if not isinstance(self.category, str) or not self.category:
-            raise ValueError(f"category: expected a non-empty string, got {self.category!r}")
+        if self.category is not None and (not isinstance(self.category, str) or not self.category):
+            raise ValueError(f"category: expected a non-empty string or None, got {self.category!r}")
         if self.kind not in _KINDS:
             raise ValueError(f"kind: expected one of {_KINDS}, got {self.kind!r}")
         for name in ("num_points", "batch_size", "lr_decay_steps", "max_steps", "val_frames", "val_every", "checkpoint_every", "num_threads"):
@@ -210,6 +212,8 @@ class TrainConfig:
             raise ValueError(f"pose_loss: expected one of {POSE_LOSSES}, got {self.pose_loss!r}")
         if not isinstance(self.init_weights, str):
             raise ValueError(f"init_weights: expected a string ('' = none, 'builtin' or a path), got {self.init_weights!r}")
+        if self.init_weights == "builtin" and self.category is None:
+            raise ValueError("init_weights: 'builtin' names the shipped weights of the category, and category is None")
         if self.init_match not in ("all", "matching"):
             raise ValueError(f"init_match: expected 'all' or 'matching', got {self.init_match!r}")
         if isinstance(self.pose_start_step, bool) or not isinstance(self.pose_start_step, int) or self.pose_start_step < 0:
