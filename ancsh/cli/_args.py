@@ -5,10 +5,16 @@ from __future__ import annotations
 from ..executors import EXECUTORS, RAY_MISSING, make_executor, ray_available
 
 
+#: What each category name read from a spec file or folder on this command line was given as (the path), for the
+#: command lines reports record (:func:`category_as_given`).
+_GIVEN: dict = {}
+
+
 def category(text: str) -> str:
     """A ``--category`` value: a category's name as it is (checked where it is used); a category spec file or a
     built category folder is read, registered (:func:`ancsh.data.conventions.register_category`) and its name
-    returned; a wrong spec is argparse's error naming the file and the key."""
+    returned (the path remembered for :func:`category_as_given`); a wrong spec is argparse's error naming the file and
+    the key."""
     import argparse
 
     from ..data.conventions import is_category_path, resolve_category
@@ -16,9 +22,17 @@ def category(text: str) -> str:
     if not is_category_path(text):
         return text
     try:
-        return resolve_category(text)
+        name = resolve_category(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+    _GIVEN[name] = text
+    return name
+
+
+def category_as_given(name: str) -> str:
+    """A ``--category`` value as the user gave it (the path, for a spec file or folder read by :func:`category`), for
+    the command lines that reports record."""
+    return _GIVEN.get(name, name)
 
 
 def named_value(item: str, option: str, form: str) -> tuple[str, str]:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..outputs import output_flags, write_bytes_atomically
 from ._args import category as category_arg
+from ._args import category_as_given
 from ._args import check_picture_path, non_negative_int, positive_int
 
 
@@ -419,7 +420,7 @@ def _calibrate_output(args: argparse.Namespace) -> tuple:
     from ..outputs import DOCS_RESULTS, fresh_output_dir
 
     out = args.out if args.out is not None else DOCS_RESULTS if args.update_docs else fresh_output_dir(f"calibrate-{args.category}")
-    parts = ["calibrate", "--category", args.category] + (["--object"] if args.object else []) + ["--frames", str(args.frames)]
+    parts = ["calibrate", "--category", category_as_given(args.category)] + (["--object"] if args.object else []) + ["--frames", str(args.frames)]
     parts += ["--seed", str(args.seed)] if args.seed != 7 else []
     parts += ["--scenes", str(args.scenes)] if args.object and args.scenes else []
     parts += ["--evidence", str(args.evidence)] if args.evidence is not None else []
@@ -564,7 +565,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 def _rebuild(args: argparse.Namespace) -> str:
     """The command line, rebuilt from the parsed arguments (defaults left out)."""
-    parts = ["evaluate", "--category", args.category]
+    parts = ["evaluate", "--category", category_as_given(args.category)]
     if args.formulations:
         parts += ["--formulations", *args.formulations]
     for flag, value in (("--frames", args.frames), ("--time-limit-min", args.time_limit_min), ("--weights", args.weights),

@@ -173,3 +173,19 @@ def test_a_spec_category_without_a_generator_renders_its_catalog_only(tmp_path, 
     if not catalog.instances(name, other):
         with pytest.raises(ValueError, match="holds no toaster object"):
             FrameGenerator(dataclasses.replace(config, split=other))
+
+
+def test_a_report_records_the_category_as_given_on_the_command_line(tmp_path, make_category_spec, clean_registry):
+    """``--category path/to/spec.toml`` runs under the spec's name, and the command a report records (``ancsh
+    evaluate``'s, ``ancsh calibrate``'s) names the file again, so that it runs elsewhere; a name stays a name."""
+    from ancsh.cli import build_parser
+    from ancsh.cli.learned import _calibrate_output, _rebuild
+
+    spec = make_category_spec(tmp_path)
+    args = build_parser().parse_args(["evaluate", "--category", str(spec), "--frames", "10", "--out", str(tmp_path)])
+    assert args.category == "toaster" and str(spec) in _rebuild(args)
+    assert type(args.category) is str  # a plain name: it goes into configs, checkpoints and worker processes
+    args = build_parser().parse_args(["calibrate", "--category", str(spec), "--frames", "10", "--out", str(tmp_path)])
+    assert f"--category {spec}" in _calibrate_output(args)[1]
+    args = build_parser().parse_args(["evaluate", "--category", "laptop", "--frames", "10"])
+    assert "--category laptop " in _rebuild(args)

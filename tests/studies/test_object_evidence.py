@@ -133,11 +133,12 @@ def test_calibrate_object_writes_a_report_and_a_model_predict_can_read(tmp_path,
 def test_scene_candidates_are_labelled_by_their_overlap_with_the_object():
     from ancsh.data.generate import FrameGenerator, GenerationConfig
     from ancsh.data.scenes import render_scene
+    from ancsh.learned.inference.category import load_category
     from ancsh.learned.inference.provider import LearnedProvider
     from ancsh.studies.object_evidence import _scene_candidates
 
     scene = render_scene(FrameGenerator(GenerationConfig(category="laptop", split="test", seed=3)), 0, 0, stairs=False)
-    found, failed = _scene_candidates(scene.depth, scene.intrinsics, [scene.visible], "laptop",
+    found, failed = _scene_candidates(scene.depth, scene.intrinsics, [scene.visible], load_category("laptop"),
                                       LearnedProvider("laptop", seed=0), 0)
     assert len(found) + failed >= 1 and all(len(x) == len(OBJECT_FEATURES) for x, _, _ in found)
     assert any(is_object for _, is_object, _ in found)  # the laptop's segment (alone, or with what is attached to it)

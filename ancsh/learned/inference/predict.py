@@ -316,7 +316,7 @@ def make_provider(category, *, weights=None, seed: int = 0, refine: str | None =
         raise missing_weights_error(category.name)
     provider = LearnedProvider(category.weights_path() if weights is None else weights, seed=seed,
                                refine="network" if refine == "network" else "auto", refiner=refiner, device=device,
-                               refine_passes=refine_passes, category=category)
+                               refine_passes=refine_passes, category=category if weights is None else None)
     if weights is not None:
         check_weights_category(provider, category, weights)
     return provider
