@@ -7,7 +7,7 @@ import shlex
 from pathlib import Path
 
 from ...outputs import output_flags
-from .._args import named_value, non_negative_int, positive_int
+from .._args import category, category_as_given, named_value, non_negative_int, positive_int
 
 
 def register(sub) -> None:
@@ -17,8 +17,10 @@ def register(sub) -> None:
     p.add_argument("folders", nargs="*", type=Path, metavar="DIR",
                    help="real-frame folders (depth.png, K.json, truth.json, masks; default: every folder of "
                    "../shared/data/real_frames)")
-    p.add_argument("--categories", nargs="+", help="categories tried on frames without an object (default: every one "
-                   "with shipped weights)")
+    p.add_argument("--categories", nargs="+", type=category,
+                   help="categories tried on frames without an object (names, spec files or built category folders; "
+                   "default: every one with shipped weights); a frame's truth names the category of each object, "
+                   "found by name (a built one: give its folder here or put it on ANCSH_CATEGORIES)")
     p.add_argument("--points", type=positive_int, default=1024, help="points per prediction (default 1024)")
     p.add_argument("--seed", type=non_negative_int, default=0, help="sampling and RANSAC seed (default 0)")
     p.add_argument("--seeds", type=non_negative_int, nargs="+", default=[], metavar="SEED",
@@ -46,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("DIR: no real-frame folders given and none in ../shared/data/real_frames")
     parts = ["bench", "real-frames", *[str(f) for f in args.folders]]
     if args.categories:
-        parts += ["--categories", *args.categories]
+        parts += ["--categories", *map(category_as_given, args.categories)]
     if args.points != 1024:
         parts += ["--points", str(args.points)]
     if args.seed != 0:
