@@ -134,3 +134,13 @@ def test_trackers_load_the_category_once_and_its_spec_says_whether_the_template_
     assert not default.carries_template(None)
     with pytest.raises(ValueError, match="template_categories: expected a tuple of category names or None"):
         TrackerConfig(template_categories="laptop")
+
+
+def test_a_provider_refuses_a_category_its_network_is_not_of():
+    from ancsh.learned.inference.provider import LearnedProvider
+
+    drawer = load_category("drawer")
+    with pytest.raises(ValueError, match="category: the network is a drawer network, not a laptop one"):
+        LearnedProvider(drawer.weights_path(), category=load_category("laptop"))
+    with pytest.raises(ValueError, match="category: expected a Category"):
+        LearnedProvider(drawer.weights_path(), category="drawer")

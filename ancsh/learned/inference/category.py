@@ -55,8 +55,8 @@ class Category:
     p_good_calibration: dict | None = field(default=None, repr=False)
     p_object_calibration: dict | None = field(default=None, repr=False)
     refine_default: str | None = None
-    _template: list = field(default_factory=list, repr=False)  # [TemplateLibrary] once read
-    _lock: object = field(default_factory=threading.Lock, repr=False)
+    _template: list = field(default_factory=list, init=False, repr=False)  # [TemplateLibrary] once read
+    _lock: object = field(default_factory=threading.Lock, init=False, repr=False)
 
     @property
     def typical_size(self) -> float:

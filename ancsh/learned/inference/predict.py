@@ -488,7 +488,8 @@ def _object_prediction(index: int, found: ObjectCandidate, shared: dict, d, *, o
         notes += near_closed_notes(category.convention, result, joint_names)
     rest, rest_text = category.rest_states(len(joint_names))
     return DepthPrediction(
-        category=category.name, category_info=category, result=result, points_cam=best["pts"], pixels=best["pixels"], part_labels=best["labels"],
+        category=category.name, category_info=category, result=result, points_cam=best["pts"], pixels=best["pixels"],
+        part_labels=best["labels"],
         part_names=shared["part_names"], joint_names=joint_names, weights=str(provider.network.source),
         valid_pixels=best["valid"],
         timings_ms={**shared["timings"], "backproject": 1e3 * best["t_bp"], "network": 1e3 * best["t_net"],

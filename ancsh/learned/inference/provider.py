@@ -213,6 +213,8 @@ class LearnedProvider:
         if category is not None and not isinstance(category, Category):
             raise ValueError(f"category: expected a Category (load_category) or None, got {category!r}")
         own = getattr(self.network.config, "category", None)
+        if category is not None and own is not None and own != category.name:
+            raise ValueError(f"category: the network is a {own} network, not a {category.name} one")
         #: The network's :class:`~ancsh.learned.inference.category.Category` (``None`` for a network naming none).
         self.category_info = category if category is not None else (
             None if own is None else load_category(own, network_category=own))
