@@ -25,6 +25,7 @@ Steps (each one resumes: run the same command again after an interruption and th
 from __future__ import annotations
 
 import json
+import re
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -464,6 +465,7 @@ def _report(out: Path, state: dict) -> str:
     evaluation = out / "evaluation" / f"{name}.md"
     if evaluation.is_file():
         body = evaluation.read_text().partition("\n")[2]  # without its title
+        body = re.sub(r"\]\(([^/():]+\.png)\)", r"](evaluation/\1)", body)  # its pictures, from the folder's top
         lines += ["## Evaluation on the test objects (`evaluation/`)", "", body.replace("\n# ", "\n### ")
                   .replace("\n## ", "\n### ")]
     return "\n".join(lines).rstrip() + "\n"

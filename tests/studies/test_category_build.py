@@ -4,6 +4,7 @@ import, rendering, training, template, evaluation and ``predict``; wrong specs s
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -85,6 +86,9 @@ def test_a_notebook_size_build_is_a_category_predict_uses_and_resumes(tmp_path, 
         assert (out / name).is_file(), name
     report = (out / "report.md").read_text()
     assert "2 train, 1 test" in report and "Table 1" in report and "Only 3 objects" in report
+    pictures = re.findall(r"\]\(([^)]+\.png)\)", report)
+    assert pictures and all((out / p).is_file() for p in pictures), pictures  # linked from the folder's top
+    assert f"ancsh evaluate --category {out} " in report  # the evaluation's command runs again as written
     capsys.readouterr()
     assert main(words) == 0
     again = capsys.readouterr().out
