@@ -86,6 +86,26 @@ def test_predict_with_a_loaded_category_looks_no_name_up(laptop_frame, monkeypat
     monkeypatch.undo()
 
 
+def test_a_name_with_a_provider_of_that_category_reuses_the_providers_category(laptop_frame, monkeypatch):
+    """``predict_depth(..., "laptop", provider=p)`` takes ``p.category_info`` (loaded once, with ``p``) rather than
+    reading the calibrations again each call; another category's name is still refused."""
+    import ancsh.learned.inference.predict as predict
+    from ancsh.learned.inference.predict import make_provider, predict_depth
+
+    frame, depth = laptop_frame
+    provider = make_provider("laptop", seed=0)
+
+    def lookup(*args, **kwargs):
+        raise AssertionError(f"the category was loaded again: {args}")
+
+    monkeypatch.setattr(predict, "load_category", lookup)
+    out = predict_depth(depth, frame.intrinsics, "laptop", provider=provider, seed=0, hypotheses=1)
+    assert out.category_info is provider.category_info
+    monkeypatch.undo()
+    with pytest.raises(ValueError, match="provider: holds a laptop network, not a drawer one"):
+        predict_depth(depth, frame.intrinsics, "drawer", provider=provider, seed=0, hypotheses=1)
+
+
 def _untimed(data) -> str:
     """A prediction's JSON without its times (which differ between two runs of the same prediction)."""
     def strip(x):

@@ -289,6 +289,15 @@ class DepthPrediction:
 
 
 
+def _loaded(category, provider):
+    """``category`` loaded once: the provider's own :class:`~ancsh.learned.inference.category.Category` where
+    ``category`` names it (no second read of its calibrations), else :func:`load_category`."""
+    info = getattr(provider, "category_info", None)
+    if isinstance(category, str) and info is not None and category == info.name:
+        return info
+    return load_category(category, network_category=None if provider is None else provider.category)
+
+
 def check_weights_category(provider, category, weights) -> None:
     """Refuse a weights file trained for another category or predicting another structure than ``category``'s (a
     :class:`~ancsh.learned.inference.category.Category`, or a name, loaded here)."""
@@ -353,7 +362,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     weights : str or Path, optional
         A weights file instead of the shipped ones.
     provider : LearnedProvider, optional
-        A ready provider (reused across calls).
+        A ready provider (reused across calls), of ``category``'s network (another category's is refused).
     formulation : str
         A key of :data:`ancsh.solvers.FORMULATIONS`.
     num_points : int
@@ -408,7 +417,7 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     from ...solvers import FORMULATIONS
 
     # the category resolved once (a name, a spec file, a built folder, or a Category): nothing below looks a name up
-    category = load_category(category, network_category=None if provider is None else provider.category)
+    category = _loaded(category, provider)
     if formulation not in FORMULATIONS:
         raise ValueError(f"formulation: expected one of {sorted(FORMULATIONS)}, got {formulation!r}")
     if max_objects is not None and (isinstance(max_objects, bool) or int(max_objects) != max_objects or max_objects < 1):
@@ -419,6 +428,9 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     if provider is None:
         provider = make_provider(category, weights=weights, seed=seed, refine=refine, refiner=refiner, device=device,
                                  refine_passes=refine_passes)
+    elif provider.category is not None and provider.category != category.name:
+        raise ValueError(f"provider: holds a {provider.category} network, not a {category.name} one (category "
+                         f"{category.name!r})")
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
