@@ -28,8 +28,8 @@ import numpy as np
 
 from .report import median_text
 
-__all__ = ["FOUND_IOU", "KINDS", "MERGED_SHARE", "WRONG_ROTATION_DEG", "match_objects", "measure_stress_scenes",
-           "stress_summary", "stress_table"]
+__all__ = ["FOUND_IOU", "KINDS", "MERGED_SHARE", "STAGES", "WRONG_ROTATION_DEG", "loss_stage", "match_objects",
+           "measure_stress_scenes", "stress_summary", "stress_table"]
 
 #: Scene kinds, in turn over the frames: (name, companions, index of the translucent object or None).
 KINDS = (("pair", 1, None), ("triple", 2, None), ("translucent", 1, 1), ("single", 0, None))
@@ -101,8 +101,49 @@ def _errors(result, gt) -> tuple:
     return float(np.mean([p.rot_deg for p in ev.parts])), (float(np.mean(errs)) if errs else None), unit
 
 
+#: Where an ``auto`` run lost an object (:func:`loss_stage`), in the order of the pipeline.
+STAGES = ("right", "wrong fit", "no segment: in a larger one", "no segment: cut up or removed", "segment not fitted",
+          "segment refused", "segment passed, not returned")
+
+
+def loss_stage(isolation, visible, found: bool, wrong: bool) -> tuple[str, str | None]:
+    """Where an ``auto`` run of ``ancsh predict`` lost a scene object, from its isolation alone (no fit is repeated):
+    ``(stage, detail)``, ``stage`` one of :data:`STAGES`.
+
+    ``right`` / ``wrong fit``: a success matched it (``found``), within or beyond :data:`WRONG_ROTATION_DEG`
+    (``wrong``). Else, by the candidate segments (:class:`~ancsh.data.isolate.Isolation`): none has an IoU of
+    :data:`FOUND_IOU` with the object's ``visible`` pixels -- ``in a larger one`` when one candidate holds
+    :data:`MERGED_SHARE` of them (the object merged with another or with its surroundings), else ``cut up or
+    removed`` (its pixels in pieces, taken for a support plane, or without depth); ``segment not fitted``: such a
+    candidate exists but none was verified; ``segment refused``: they were, and failed (``detail``: the status of the
+    one nearest the object); ``segment passed, not returned``: one passed but is not in the object list."""
+    if found:
+        return ("wrong fit" if wrong else "right"), None
+    vis = np.asarray(visible, dtype=bool)
+    n = max(int(np.count_nonzero(vis)), 1)
+    clusters = () if isolation is None else isolation.clusters
+    ious, held = {}, 0.0
+    for c in range(len(clusters)):
+        m = isolation.mask_of(c)
+        inter = int(np.count_nonzero(m & vis))
+        if inter:
+            ious[c] = inter / max(int(np.count_nonzero(m | vis)), 1)
+            held = max(held, inter / n)
+    good = {c: v for c, v in ious.items() if v >= FOUND_IOU}
+    if not good:
+        return ("no segment: in a larger one" if held >= MERGED_SHARE else "no segment: cut up or removed"), None
+    verified = {v["segment"]: v["status"] for v in isolation.verified}
+    tried = [c for c in sorted(good, key=good.get, reverse=True) if c in verified]
+    if not tried:
+        return "segment not fitted", None
+    if any(verified[c] == "success" for c in tried):
+        return "segment passed, not returned", None
+    return "segment refused", verified[tried[0]]
+
+
 def _object_records(pred, scene, base, mode, seed, seconds, only=None) -> list:
-    """Records of one run: one per scene object (or only ``only``), plus one per wrong extra success."""
+    """Records of one run: one per scene object (or only ``only``), plus one per wrong extra success; an ``auto``
+    run's records say where it lost each object (``stage``, ``stage_detail``: :func:`loss_stage`)."""
     objects = [o for o in (pred.objects or (pred,))]
     visibles = [o.visible for o in scene.objects]
     matched, unmatched, merged = match_objects([o.mask for o in objects], [o.result.ok for o in objects], visibles)
@@ -124,6 +165,8 @@ def _object_records(pred, scene, base, mode, seed, seconds, only=None) -> list:
         elif mode != "auto" and objects and objects[0].result.ok and only is not None:
             # a mask / hint run whose object is not the one asked for: its success is wrong
             rec.update(status=objects[0].result.status.value, ok=True, wrong=True)
+        if mode == "auto":
+            rec["stage"], rec["stage_detail"] = loss_stage(pred.isolation, so.visible, rec["found"], rec["wrong"])
         out.append(rec)
     if mode == "auto":
         for i in unmatched:
@@ -299,8 +342,38 @@ def stress_table(results) -> list:
               f"{_share(s['empty_false'], s['empty'])}, seed agreement {_share(*s['seed_agreement'])}. By kind: "
               + ", ".join(kinds) + f"; translucent objects {sum(r['found'] and not r['wrong'] for r in translucent)}"
               f"/{len(translucent)}.", ""]
+    lines += _stage_table(recs, settings)
     hidden = results.get("hidden") or []
     if hidden:
         lines += [f"Left out: {len(hidden)} scene(s) with an object of fewer than {MIN_VISIBLE_PIXELS} visible pixels: "
                   + ", ".join(f"{h['category']} {h['frame']}" for h in hidden) + ".", ""]
     return lines
+
+
+def _stage_table(recs, settings) -> list:
+    """Markdown lines: where the ``auto`` runs at the first seed lost each object (:func:`loss_stage`), per category
+    (records made before the stages were recorded: none)."""
+    from collections import Counter
+
+    first = settings["seeds"][0]
+    auto = [r for r in recs if r["mode"] == "auto" and r["seed"] == first and r["object"] is not None]
+    if not auto or any("stage" not in r for r in auto):
+        return []
+    lines = [f"Where the objects are lost (`auto`, seed {first}; `ancsh.studies.stress_scenes.loss_stage`, from the "
+             "run's isolation: no fit is repeated). *In a larger segment*: no candidate segment has an IoU of "
+             f"{FOUND_IOU:g} with the object, one holds {MERGED_SHARE:.0%} of its pixels (merged with another object or "
+             "its surroundings); *cut up or removed*: no candidate holds half of it (in pieces, taken for a support, "
+             "without depth: the translucent objects are here); *not fitted*: a good segment was not among those "
+             "verified; *refused*: it was, and failed (the statuses of the one nearest the object); *passed, not "
+             "returned*: it passed but is not in the object list.", "",
+             "| category | objects | right | wrong fit | in a larger segment | cut up or removed | not fitted "
+             "| refused | refused by | passed, not returned |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for c in list(settings["categories"]) + ["all"]:
+        sel = [r for r in auto if c == "all" or r["category"] == c]
+        n = Counter(r["stage"] for r in sel)
+        why = Counter(r["stage_detail"] for r in sel if r["stage"] == "segment refused")
+        cells = [str(n[st]) for st in STAGES]
+        lines.append(f"| {c} | {len(sel)} | " + " | ".join(cells[:6]) + " | "
+                     + (", ".join(f"{k} {v}" for k, v in why.most_common()) or "-") + f" | {cells[6]} |")
+    return lines + [""]

@@ -102,6 +102,11 @@ def test_the_stress_scenes_are_keyed_by_object_and_matched_by_mask(tmp_path):
                     ("mask", 0, 0), ("mask", 0, 1)]
     assert all((r["rot_deg"] is not None) == (r["found"] and r["mask_iou"] is not None) for r in recs if r["mode"] == "auto")
     assert "## Stress scenes" in out.read_text() and "| laptop |" in out.read_text().split("## Stress scenes")[1]
+    from ancsh.studies.stress_scenes import STAGES
+
+    assert all(r["stage"] in STAGES for r in recs if r["mode"] == "auto")  # where each object was lost
+    assert all(r["stage"] in ("right", "wrong fit") for r in recs if r["mode"] == "auto" and r["found"])
+    assert "Where the objects are lost" in out.read_text() and "| all | 2 |" in out.read_text()
     a = np.zeros((10, 10), bool)
     a[:, :5] = True
     b = ~a
@@ -109,3 +114,37 @@ def test_the_stress_scenes_are_keyed_by_object_and_matched_by_mask(tmp_path):
     half[:, :3] = True
     matched, unmatched, merged = match_objects([half, np.ones_like(a), None], [True, True, False], [a, b])
     assert matched == {0: (0, 0.6), 1: (1, 0.5)} and FOUND_IOU <= 0.5 and unmatched == [2] and merged == {0, 1}
+
+
+def test_loss_stage_says_where_an_object_was_lost_from_the_isolation():
+    """Each stage of ``loss_stage`` on a hand-made isolation: the object is columns 0-3 of a 10 x 10 image."""
+    import numpy as np
+
+    from ancsh.data.isolate import Cluster, Isolation
+    from ancsh.studies.stress_scenes import STAGES, loss_stage
+
+    obj = np.zeros((10, 10), bool)
+    obj[:, :4] = True
+
+    def isolation(labels, verified=()):
+        n = int(labels.max()) + 1
+        clusters = tuple(Cluster(1, 0.5, (0.0, 0.0), True) for _ in range(n))
+        return Isolation(labels == 0, labels, clusters, 0, order=tuple(range(n)), verified=tuple(verified))
+
+    whole = np.full((10, 10), -1)
+    whole[:, :4] = 0  # one segment that is the object
+    assert loss_stage(isolation(whole), obj, True, False) == ("right", None)
+    assert loss_stage(isolation(whole), obj, True, True) == ("wrong fit", None)
+    assert loss_stage(isolation(whole), obj, False, False) == ("segment not fitted", None)
+    refused = isolation(whole, [{"segment": 0, "status": "not_this_category"}])
+    assert loss_stage(refused, obj, False, False) == ("segment refused", "not_this_category")
+    passed = isolation(whole, [{"segment": 0, "status": "success"}])
+    assert loss_stage(passed, obj, False, False) == ("segment passed, not returned", None)
+    larger = np.zeros((10, 10), dtype=np.int64)  # the object inside a segment 2.5 times its size: IoU 0.4
+    assert loss_stage(isolation(larger), obj, False, False) == ("no segment: in a larger one", None)
+    pieces = np.full((10, 10), -1)
+    pieces[:4, :4], pieces[4:7, :4], pieces[7:, :4] = 0, 1, 2  # three pieces, none half of it
+    assert loss_stage(isolation(pieces), obj, False, False) == ("no segment: cut up or removed", None)
+    none = np.full((10, 10), -1)  # nothing left: taken for a support plane
+    assert loss_stage(Isolation(np.zeros((10, 10), bool), none), obj, False, False)[0] == "no segment: cut up or removed"
+    assert {"right", "wrong fit", "segment refused"} <= set(STAGES)
