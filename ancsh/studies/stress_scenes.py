@@ -364,8 +364,9 @@ def _stage_table(recs, settings) -> list:
              f"{FOUND_IOU:g} with the object, one holds {MERGED_SHARE:.0%} of its pixels (merged with another object or "
              "its surroundings); *cut up or removed*: no candidate holds half of it (in pieces, taken for a support, "
              "without depth: the translucent objects are here); *not fitted*: a good segment was not among those "
-             "verified; *refused*: it was, and failed (the statuses of the one nearest the object); *passed, not "
-             "returned*: it passed but is not in the object list.", "",
+             "verified; *refused*: it was, and failed (the statuses of the one nearest the object; `not_this_category` "
+             "is `p_object` or the foreground check); *passed, not returned*: it passed but is not in the object "
+             "list.", "",
              "| category | objects | right | wrong fit | in a larger segment | cut up or removed | not fitted "
              "| refused | refused by | passed, not returned |",
              "|---|---|---|---|---|---|---|---|---|---|"]
