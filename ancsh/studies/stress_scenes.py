@@ -362,8 +362,8 @@ def _stage_table(recs, settings) -> list:
     lines = [f"Where the objects are lost (`auto`, seed {first}; `ancsh.studies.stress_scenes.loss_stage`, from the "
              "run's isolation: no fit is repeated). *In a larger segment*: no candidate segment has an IoU of "
              f"{FOUND_IOU:g} with the object, one holds {MERGED_SHARE:.0%} of its pixels (merged with another object or "
-             "its surroundings); *cut up or removed*: no candidate holds half of it (in pieces, taken for a support, "
-             "without depth: the translucent objects are here); *not fitted*: a good segment was not among those "
+             "its surroundings); *cut up or removed*: no candidate holds that much of it (in pieces, taken for a "
+             "support, or without depth, as translucent objects are); *not fitted*: a good segment was not among those "
              "verified; *refused*: it was, and failed (the statuses of the one nearest the object; `not_this_category` "
              "is `p_object` or the foreground check); *passed, not returned*: it passed but is not in the object "
              "list.", "",
