@@ -28,8 +28,8 @@ import numpy as np
 
 from .report import median_text
 
-__all__ = ["FOUND_IOU", "KINDS", "MERGED_SHARE", "STAGES", "WRONG_ROTATION_DEG", "loss_stage", "match_objects",
-           "measure_stress_scenes", "stress_summary", "stress_table"]
+__all__ = ["FOUND_IOU", "KINDS", "MERGED_SHARE", "STAGES", "WRONG_ROTATION_DEG", "candidate_masks", "loss_stage",
+           "match_objects", "measure_stress_scenes", "stress_summary", "stress_table"]
 
 #: Scene kinds, in turn over the frames: (name, companions, index of the translucent object or None).
 KINDS = (("pair", 1, None), ("triple", 2, None), ("translucent", 1, 1), ("single", 0, None))
@@ -106,7 +106,7 @@ STAGES = ("right", "wrong fit", "no segment: in a larger one", "no segment: cut 
           "segment refused", "segment passed, not returned")
 
 
-def loss_stage(isolation, visible, found: bool, wrong: bool) -> tuple[str, str | None]:
+def loss_stage(isolation, visible, found: bool, wrong: bool, masks=None) -> tuple[str, str | None]:
     """Where an ``auto`` run of ``ancsh predict`` lost a scene object, from its isolation alone (no fit is repeated):
     ``(stage, detail)``, ``stage`` one of :data:`STAGES`.
 
@@ -116,18 +116,18 @@ def loss_stage(isolation, visible, found: bool, wrong: bool) -> tuple[str, str |
     :data:`MERGED_SHARE` of them (the object merged with another or with its surroundings), else ``cut up or
     removed`` (its pixels in pieces, taken for a support plane, or without depth); ``segment not fitted``: such a
     candidate exists but none was verified; ``segment refused``: they were, and failed (``detail``: the status of the
-    one nearest the object); ``segment passed, not returned``: one passed but is not in the object list."""
+    one nearest the object); ``segment passed, not returned``: one passed but is not in the object list. ``masks``:
+    the candidates' full-resolution pixels (:func:`candidate_masks`), when the caller judges several objects of one
+    run."""
     if found:
         return ("wrong fit" if wrong else "right"), None
     vis = np.asarray(visible, dtype=bool)
     n = max(int(np.count_nonzero(vis)), 1)
-    clusters = () if isolation is None else isolation.clusters
     ious, held = {}, 0.0
-    for c in range(len(clusters)):
-        m = isolation.mask_of(c)
+    for c, m in enumerate(candidate_masks(isolation) if masks is None else masks):
         inter = int(np.count_nonzero(m & vis))
         if inter:
-            ious[c] = inter / max(int(np.count_nonzero(m | vis)), 1)
+            ious[c] = _iou(m, vis)
             held = max(held, inter / n)
     good = {c: v for c, v in ious.items() if v >= FOUND_IOU}
     if not good:
@@ -141,13 +141,18 @@ def loss_stage(isolation, visible, found: bool, wrong: bool) -> tuple[str, str |
     return "segment refused", verified[tried[0]]
 
 
+def candidate_masks(isolation) -> list:
+    """Every candidate segment's full-resolution pixels ``(H, W)`` bool of an isolation (none for ``None``)."""
+    return [] if isolation is None else [isolation.mask_of(c) for c in range(len(isolation.clusters))]
+
+
 def _object_records(pred, scene, base, mode, seed, seconds, only=None) -> list:
     """Records of one run: one per scene object (or only ``only``), plus one per wrong extra success; an ``auto``
     run's records say where it lost each object (``stage``, ``stage_detail``: :func:`loss_stage`)."""
     objects = [o for o in (pred.objects or (pred,))]
     visibles = [o.visible for o in scene.objects]
     matched, unmatched, merged = match_objects([o.mask for o in objects], [o.result.ok for o in objects], visibles)
-    out = []
+    out, masks = [], None
     for k, so in enumerate(scene.objects):
         if only is not None and k != only:
             continue
@@ -166,7 +171,10 @@ def _object_records(pred, scene, base, mode, seed, seconds, only=None) -> list:
             # a mask / hint run whose object is not the one asked for: its success is wrong
             rec.update(status=objects[0].result.status.value, ok=True, wrong=True)
         if mode == "auto":
-            rec["stage"], rec["stage_detail"] = loss_stage(pred.isolation, so.visible, rec["found"], rec["wrong"])
+            if masks is None and not rec["found"]:  # upsampled once a run, for all its objects
+                masks = candidate_masks(pred.isolation)
+            rec["stage"], rec["stage_detail"] = loss_stage(pred.isolation, so.visible, rec["found"], rec["wrong"],
+                                                           masks)
         out.append(rec)
     if mode == "auto":
         for i in unmatched:

@@ -298,12 +298,18 @@ def _loaded(category, provider):
     return load_category(category, network_category=None if provider is None else provider.category)
 
 
+def _refuse_other_network(provider, category: Category, argument: str) -> None:
+    """A ``ValueError`` starting with ``argument`` (the option that brought the network) when ``provider`` holds a
+    network of another category than ``category``'s (a network that names no category passes)."""
+    if provider.category is not None and provider.category != category.name:
+        raise ValueError(f"{argument} holds a {provider.category} network, not a {category.name} one")
+
+
 def check_weights_category(provider, category, weights) -> None:
     """Refuse a weights file trained for another category or predicting another structure than ``category``'s (a
     :class:`~ancsh.learned.inference.category.Category`, or a name, loaded here)."""
     category = load_category(category, network_category=provider.category)
-    if provider.category is not None and provider.category != category.name:
-        raise ValueError(f"weights: {weights} holds a {provider.category} network, not a {category.name} one")
+    _refuse_other_network(provider, category, f"weights: {weights}")
     conv = category.convention
     if conv is None:  # a category without a convention: only the network's own category is known
         return
@@ -428,9 +434,8 @@ def predict_depth(depth, intrinsics: Intrinsics, category: str, *, mask=None, ma
     if provider is None:
         provider = make_provider(category, weights=weights, seed=seed, refine=refine, refiner=refiner, device=device,
                                  refine_passes=refine_passes)
-    elif provider.category is not None and provider.category != category.name:
-        raise ValueError(f"provider: holds a {provider.category} network, not a {category.name} one (category "
-                         f"{category.name!r})")
+    else:
+        _refuse_other_network(provider, category, "provider:")
     d = np.asarray(depth, dtype=np.float64)
     good = d[np.isfinite(d) & (d > 0)]
     if good.size and float(np.median(good)) > MAX_PLAUSIBLE_DEPTH:
