@@ -74,28 +74,53 @@ def test_candidates_apart_in_the_image_or_one_holding_the_other_are_not_joined()
         merged_candidate(iso, half, -1, depth, intr, CONVENTIONS["laptop"].diagonal_range)
 
 
-def test_a_nearly_closed_laptop_cut_in_two_by_the_floor_is_fitted_whole():
+def _laptop_on_the_floor():
     """Rendered scene 3 of the laptop's test stream (seed 0; `ancsh bench scenes`): a nearly closed laptop on the
-    floor, which isolation cuts into two segments (87 % and 12 % of its pixels) that each fail the verification (too
-    few points of one part; not a laptop). Their union is fitted: success, on the laptop's pixels, about its true
-    pose. (Scene 4, cut into halves, passes or not with the sampling seed: its union's p_object is 0.3-0.9.)"""
+    floor, which a depth jump cuts into two segments (87 % and 12 % of its pixels); depth, intrinsics, visible pixels
+    and the truth."""
     from ancsh.data.generate import FrameGenerator, GenerationConfig
     from ancsh.data.noise import DepthNoise, apply_noise
     from ancsh.data.scenes import render_scene
-    from ancsh.evaluation import evaluate_fit
-    from ancsh.learned.inference.predict import predict_depth
 
     gen = FrameGenerator(GenerationConfig(category="laptop", split="test", seed=0))
     key = [0, 3, zlib.crc32(b"laptop")]
     scene = render_scene(gen, 3, np.random.default_rng(key), with_object=True)
     depth = apply_noise(scene.depth, DepthNoise(), np.random.default_rng(key + [1]))
-    visible = scene.visible & (depth > 0)
-    pred = predict_depth(depth, scene.intrinsics, "laptop", seed=3)
+    return depth, scene.intrinsics, scene.visible & (depth > 0), scene.frame.gt
+
+
+def test_a_nearly_closed_laptop_cut_in_two_by_a_depth_jump_is_one_candidate_and_fitted_whole():
+    """The smaller piece comes within a few centimetres of the larger in 3D, so isolation attaches it
+    (:func:`ancsh.data.isolate.proposals.with_attached`): the first candidate is the whole laptop, and it passes."""
+    from ancsh.evaluation import evaluate_fit
+    from ancsh.learned.inference.predict import predict_depth
+
+    depth, intr, visible, gt = _laptop_on_the_floor()
+    pred = predict_depth(depth, intr, "laptop", seed=3)
+    assert pred.result.ok, pred.result.message
+    assert pred.isolation.chosen == pred.isolation.order[0] and not any("merged" in v for v in pred.isolation.verified)
+    assert _iou(pred.isolation.mask, visible) > 0.85
+    ev = evaluate_fit(pred.result, gt)
+    assert max(p.rot_deg for p in ev.parts) < 10.0
+
+
+def test_a_laptop_cut_in_two_whose_pieces_isolation_keeps_apart_is_fitted_as_their_union(monkeypatch):
+    """The same laptop with nothing attached in isolation (``ATTACH_SHARE`` 0): each piece fails the verification
+    (too few points of one part; not a laptop), so the verification fits their union: success, on the laptop's pixels,
+    about its true pose. (Scene 4, cut into halves, passes or not with the sampling seed: its union's p_object is
+    0.3-0.9.)"""
+    import ancsh.data.isolate.proposals as proposals
+    from ancsh.evaluation import evaluate_fit
+    from ancsh.learned.inference.predict import predict_depth
+
+    monkeypatch.setattr(proposals, "ATTACH_SHARE", 0.0)
+    depth, intr, visible, gt = _laptop_on_the_floor()
+    pred = predict_depth(depth, intr, "laptop", seed=3)
     assert pred.result.ok, pred.result.message
     joined = [v for v in pred.isolation.verified if "merged" in v]
     assert joined and any(v["segment"] == pred.isolation.chosen for v in joined)
     assert all(v["status"] != "success" for v in pred.isolation.verified if "merged" not in v)  # neither half alone
     assert _iou(pred.isolation.mask, visible) > 0.85
     assert "joined: none of the candidates passed alone" in pred.isolation.reason
-    ev = evaluate_fit(pred.result, scene.frame.gt)
+    ev = evaluate_fit(pred.result, gt)
     assert max(p.rot_deg for p in ev.parts) < 10.0

@@ -89,8 +89,14 @@ def test_a_wall_seen_around_nearer_things_lies_behind_them_and_an_object_before_
         behind_surroundings(depth[:100], cabinet)
 
 
-def test_a_door_parted_by_a_small_depth_step_is_attached_to_its_object_in_a_second_candidate():
-    from ancsh.data.isolate.proposals import with_attached
+def _grid_points(g):
+    """Points of a grid of depths ``g`` seen 1 cm apart (a stand-in for the back-projected grid)."""
+    vv, uu = np.mgrid[0:g.shape[0], 0:g.shape[1]]
+    return np.stack([0.01 * uu, 0.01 * vv, g], axis=-1)
+
+
+def test_a_door_parted_by_a_depth_step_is_attached_to_its_object_in_a_second_candidate():
+    from ancsh.data.isolate.proposals import component_members, with_attached
 
     seg = np.full((30, 30), -1)
     g = np.full((30, 30), 2.0)
@@ -99,11 +105,32 @@ def test_a_door_parted_by_a_small_depth_step_is_attached_to_its_object_in_a_seco
     seg[2:6, 14:18], g[2:6, 14:18] = 2, 1.6  # something far behind, touching it in the image
     seg[14:30, :], g[14:30, :] = 3, 1.02  # a larger neighbour close by: not attached to the smaller body
     sizes = np.bincount(seg[seg >= 0])
-    with_door = with_attached(seg, 0, sizes, g, 0.15)
+    P = _grid_points(g)
+    with_door = with_attached(seg, 0, sizes, P, 0.15)
     assert np.array_equal(with_door, np.isin(seg, [0, 1]))
-    assert np.array_equal(with_attached(seg, 0, sizes, g, 0.05), seg == 0)  # a tighter gap: the body alone
-    assert np.array_equal(with_attached(seg, 2, sizes, g, 0.15), seg == 2)  # nothing smaller touches it closely
-    assert np.array_equal(with_attached(seg, 3, sizes, g, 0.15), np.isin(seg, [3, 0]))  # the body is smaller
+    assert np.array_equal(with_attached(seg, 0, sizes, P, 0.05), seg == 0)  # a tighter gap: the body alone
+    assert np.array_equal(with_attached(seg, 0, sizes, P, 0.15, largest=0.15), seg == 0)  # body and door too wide
+    assert np.array_equal(with_attached(seg, 2, sizes, P, 0.15), seg == 2)  # nothing smaller touches it closely
+    assert np.array_equal(with_attached(seg, 3, sizes, P, 0.15), np.isin(seg, [3, 0]))  # the body is smaller
+    # the components' members given (as isolation passes them) or computed: one answer
+    members = component_members(seg, len(sizes))
+    assert [m.size for m in members] == sizes.tolist()
+    assert np.array_equal(with_attached(seg, 0, sizes, P, 0.15, members=members), with_door)
+
+
+def test_a_lid_behind_a_depth_jump_is_attached_by_its_nearest_points_in_3d():
+    from ancsh.data.isolate.proposals import with_attached
+
+    seg = np.full((30, 30), -1)
+    g = np.full((30, 30), 3.0)
+    seg[2:14, 2:20], g[2:14, 2:20] = 0, 1.0  # the body
+    # a lid below it in the image: 30 cm behind the body where they touch in the image, rising to 5 cm at its far rows
+    seg[14:18, 2:20], g[14:18, 2:20] = 1, np.array([1.3, 1.2, 1.1, 1.05])[:, None]
+    sizes = np.bincount(seg[seg >= 0])
+    P = _grid_points(g)
+    # every step across the boundary is 30 cm, but the lid's far rows come within 7 cm of the body's edge
+    assert np.array_equal(with_attached(seg, 0, sizes, P, 0.1), np.isin(seg, [0, 1]))
+    assert np.array_equal(with_attached(seg, 0, sizes, P, 0.06), seg == 0)
 
 
 def test_a_wide_region_without_depth_is_no_dead_band():
