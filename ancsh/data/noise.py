@@ -33,7 +33,7 @@ import numpy as np
 
 from ..geometry._checks import check_bool, check_generator, check_number, check_positive
 
-__all__ = ["DepthNoise", "apply_noise", "depth_edges"]
+__all__ = ["DepthNoise", "apply_noise", "averaged_depth", "depth_edges", "measured_sigma"]
 
 
 @dataclass(frozen=True)
@@ -228,3 +228,87 @@ def _blob_holes(keep: np.ndarray, noise: DepthNoise, rng) -> np.ndarray:
     cut = np.quantile(field[keep], 1.0 - noise.blob_holes)
     return keep & (field > cut)
 
+
+
+def measured_sigma(depth, mask) -> float:
+    """The depth noise's standard deviation (metres) measured inside ``mask``: each pixel's residual from the mean of
+    its 3 x 3 neighbourhood, at the pixels whose whole neighbourhood is measured and inside the mask (a robust
+    standard deviation, corrected for the pixel's own share of the mean). Curved surfaces and edges inside the mask
+    inflate it a little. NaN when fewer than 50 such pixels.
+
+    Parameters
+    ----------
+    depth : (H, W) float64
+        Metres, 0 = no measurement.
+    mask : (H, W) bool
+    """
+    from scipy.ndimage import uniform_filter
+
+    d, m, _ = _masked_window(depth, mask)
+    if d is None:
+        return float("nan")
+    on = m & (d > 0)
+    full = uniform_filter(on.astype(np.float64), 3, mode="constant") > 1.0 - 1e-9
+    if np.count_nonzero(full) < 50:
+        return float("nan")
+    mean = uniform_filter(np.where(on, d, 0.0), 3, mode="constant")
+    residual = np.abs(d - mean)[full] / np.sqrt(1.0 - 1.0 / 9.0)
+    return float(1.4826 * np.median(residual))
+
+
+def averaged_depth(depth, mask, window: int, jump: float) -> np.ndarray:
+    """``depth`` with each measured pixel of ``mask`` replaced by the mean of the measured mask pixels in its
+    ``window x window`` neighbourhood whose depth is within ``jump`` metres of its own (the same surface: depth steps
+    inside the mask stay sharp). Pixels outside the mask are unchanged. A copy; ``depth`` itself where ``window`` is 1.
+
+    Parameters
+    ----------
+    depth : (H, W) float64
+        Metres, 0 = no measurement.
+    mask : (H, W) bool
+    window : int
+        Odd, at least 1 (pixels).
+    jump : float
+        Metres, > 0.
+    """
+    if isinstance(window, bool) or int(window) != window or window < 1 or window % 2 == 0:
+        raise ValueError(f"window: expected an odd positive integer, got {window!r}")
+    if not (np.isfinite(jump) and jump > 0):
+        raise ValueError(f"jump: expected a positive number of metres, got {jump!r}")
+    d, m, bounds = _masked_window(depth, mask)
+    if window == 1:
+        return np.asarray(depth, dtype=np.float64)
+    out = np.array(depth, dtype=np.float64)
+    if d is None:
+        return out
+    v0, v1, u0, u1 = bounds
+    on = m & (d > 0)
+    r = int(window) // 2
+    padded, valid = np.pad(d, r), np.pad(on, r)
+    h, w = d.shape
+    total, count = np.zeros(d.shape), np.zeros(d.shape)
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            q = padded[r + dy:r + dy + h, r + dx:r + dx + w]
+            same = valid[r + dy:r + dy + h, r + dx:r + dx + w] & on & (np.abs(q - d) < jump)
+            total += np.where(same, q, 0.0)
+            count += same
+    block = out[v0:v1, u0:u1]
+    block[on] = total[on] / count[on]
+    return out
+
+
+def _masked_window(depth, mask):
+    """``(depth, mask, bounds)`` cut to the mask's bounding box (:func:`~ancsh.data.images.mask_bounds`), or
+    ``(None, None, None)`` for an empty mask; a ``ValueError`` when their shapes differ."""
+    from .images import mask_bounds
+
+    depth = np.asarray(depth, dtype=np.float64)
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape != depth.shape:
+        raise ValueError(f"depth, mask: expected one shape, got {depth.shape}, {mask.shape}")
+    bounds = mask_bounds(mask)
+    if bounds is None:
+        return None, None, None
+    v0, v1, u0, u1 = bounds
+    return depth[v0:v1, u0:u1], mask[v0:v1, u0:u1], bounds

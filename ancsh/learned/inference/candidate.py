@@ -24,13 +24,19 @@ from .category import Category
 from .checks import MAX_SPREAD_DEG, MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
-__all__ = ["CONSENSUS_HYPOTHESES", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
+__all__ = ["AVERAGING_JUMP_SIGMAS", "CONSENSUS_HYPOTHESES", "MAX_AVERAGING_WINDOW", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
            "object_feature_vector", "template_comparison",
-           "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty"]
+           "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty", "noise_averaged",
+           "training_noise"]
 
 
 #: Fewer valid points than this: no fit is tried (status ``too_few_points``).
 MIN_POINTS = 100
+#: A segment whose depth noise (measured in it) is larger than the most the network saw in training is averaged over a
+#: window of pixels before it is sampled (:func:`noise_averaged`), at most this wide (pixels).
+MAX_AVERAGING_WINDOW = 7
+#: Neighbours averaged with a pixel lie within this many of the measured noise's standard deviations of its depth.
+AVERAGING_JUMP_SIGMAS = 5.0
 #: Hypotheses (independent samplings of the pixels, network passes, RANSAC and refinement seeds) per candidate of
 #: ``ancsh predict``: the answer is their consensus (:func:`consensus`), so it does not hang on one seed's luck.
 CONSENSUS_HYPOTHESES = 3
@@ -95,7 +101,9 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     """Sample the pixels of ``mask``, run the network, fit, refine and judge the fit: one candidate segment of
     :func:`~ancsh.learned.inference.predict.predict_depth` (called once with a mask, or per verified candidate without
     one), as the consensus of ``hypotheses`` independent tries (:func:`consensus`; the tries stop once the failures are
-    a majority: a candidate that fails at every seed costs about half of them).
+    a majority: a candidate that fails at every seed costs about half of them). A segment noisier than its network saw
+    in training is averaged first (:func:`noise_averaged`, said in ``notes``); :func:`fit_candidate_refinements`
+    takes the depth as given.
 
     ``d``: (H, W) depth (metres, 0 = none); ``mask``: (H, W) bool or ``None`` (every valid pixel); ``category``: the
     :class:`~ancsh.learned.inference.category.Category` (its convention, calibrations, template); ``refine``:
@@ -119,6 +127,13 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
         raise ValueError(f"hypotheses: expected a positive integer, got {hypotheses!r}")
     H = int(hypotheses) if why is None else 1
     needed = H if unanimous else H // 2 + 1
+    note = None
+    if why is None:
+        d, window, sigma = noise_averaged(d, mask, category)
+        if window > 1:
+            note = (f"depth averaged over {window} x {window} pixels inside the segment before sampling: its noise "
+                    f"(sigma {1e3 * sigma:.1f} mm) is {sigma / training_noise(category):.1f} times the most the "
+                    f"network saw in training ({1e3 * training_noise(category):.1f} mm at its size)")
     tries = []
     for h in range(H):
         tries.append(fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points,
@@ -128,7 +143,55 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
         passed = sum(t["result"].ok for t in tries)
         if tries[-1]["valid"] < MIN_POINTS or passed + H - len(tries) < needed:
             break  # nothing to sample again, or the passes needed can no longer come
-    return consensus(tries, needed=H if unanimous else None, max_spread_deg=MAX_SPREAD_DEG if unanimous else None)
+    best = consensus(tries, needed=H if unanimous else None, max_spread_deg=MAX_SPREAD_DEG if unanimous else None)
+    if note is not None:
+        best["notes"] = list(best["notes"]) + [note]
+    return best
+
+
+def training_noise(category) -> float:
+    """The largest depth noise (standard deviation, metres) the network of ``category`` saw in training, at the
+    category's typical size: the dataset's sensor model (:class:`~ancsh.data.noise.DepthNoise`) at the farthest
+    training view (the category's viewpoint range, in box diagonals, times its typical diagonal)."""
+    from ...data.noise import DepthNoise
+    from ...data.render import DEFAULT_VIEWPOINT, ViewpointRange
+
+    view = category.convention.viewpoint if category.convention is not None else None
+    far = (ViewpointRange(**dict(view)) if view else DEFAULT_VIEWPOINT).distance[1]
+    return float(DepthNoise().sigma(far * category.typical_size))
+
+
+def noise_averaged(d, mask, category) -> tuple[np.ndarray, int, float]:
+    """The depth a candidate is sampled from: where the noise measured in the segment
+    (:func:`ancsh.data.noise.measured_sigma`) is larger than the most its network saw in training
+    (:func:`training_noise`; a far object: a sensor's noise grows about with the square of the depth), its pixels are
+    averaged over a window wide enough to bring it down to that (:func:`ancsh.data.noise.averaged_depth`; the side
+    grows with the ratio, at most :data:`MAX_AVERAGING_WINDOW`), neighbours on another surface (beyond
+    :data:`AVERAGING_JUMP_SIGMAS` of the noise) left out.
+
+    Parameters
+    ----------
+    d : (H, W) float64
+        Metres, 0 = no measurement.
+    mask : (H, W) bool or None
+        The segment (``None``: every measured pixel).
+    category : Category
+
+    Returns
+    -------
+    (depth, window, sigma)
+        The depth (``d`` itself when not averaged), the window's side (pixels; 1 = not averaged) and the measured
+        noise (metres; NaN where too few pixels to measure it).
+    """
+    from ...data.noise import averaged_depth, measured_sigma
+
+    m = np.asarray(d) > 0 if mask is None else mask
+    sigma = measured_sigma(d, m)
+    ratio = sigma / training_noise(category)
+    if not np.isfinite(ratio) or ratio <= 1.0:
+        return d, 1, sigma
+    window = min(MAX_AVERAGING_WINDOW, 2 * int(np.ceil((ratio - 1.0) / 2.0)) + 1)
+    return averaged_depth(d, m, window, AVERAGING_JUMP_SIGMAS * sigma), window, sigma
 
 
 def hypothesis_seed(seed: int, h: int) -> int:
