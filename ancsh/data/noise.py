@@ -229,7 +229,6 @@ def _blob_holes(keep: np.ndarray, noise: DepthNoise, rng) -> np.ndarray:
     return keep & (field > cut)
 
 
-
 def measured_sigma(depth, mask) -> float:
     """The depth noise's standard deviation (metres) measured inside ``mask``: each pixel's residual from the mean of
     its 3 x 3 neighbourhood, at the pixels whose whole neighbourhood is measured and inside the mask (a robust

@@ -235,8 +235,8 @@ def with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, points: np.ndarray
                   largest: float = np.inf, members: list | None = None) -> np.ndarray:
     """Segment ``c`` of the component labels ``seg`` (-1 = none) with the smaller components that touch it in the
     image and come within ``gap`` metres of it in 3D (their nearest points), each one's union with it no wider than
-    ``largest`` metres (the diagonal of its bounding box in the camera's axes): a lid, a door ajar, a drawer front parted from
-    the object by a depth jump. ``(h, w)`` bool; just segment ``c`` when nothing is attached.
+    ``largest`` metres (the diagonal of its bounding box in the camera's axes): a lid, a door ajar, a drawer front
+    parted from the object by a depth jump. ``(h, w)`` bool; just segment ``c`` when nothing is attached.
 
     Parameters
     ----------

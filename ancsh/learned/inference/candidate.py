@@ -24,8 +24,8 @@ from .category import Category
 from .checks import MAX_SPREAD_DEG, MIN_P_OBJECT, check_confidence, check_plausibility, object_diagonal, part_quality
 from .provider import RefinedFit, apply_refinement
 
-__all__ = ["AVERAGING_JUMP_SIGMAS", "CONSENSUS_HYPOTHESES", "MAX_AVERAGING_WINDOW", "MIN_POINTS", "consensus", "depth_to_points", "fit_candidate", "object_evidence",
-           "object_feature_vector", "template_comparison",
+__all__ = ["AVERAGING_JUMP_SIGMAS", "CONSENSUS_HYPOTHESES", "MAX_AVERAGING_WINDOW", "MIN_POINTS", "consensus",
+           "depth_to_points", "fit_candidate", "object_evidence", "object_feature_vector", "template_comparison",
            "fit_candidate_refinements", "hypothesis_seed", "infer", "inflate_uncertainty", "noise_averaged",
            "training_noise"]
 
