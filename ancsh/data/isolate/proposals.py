@@ -257,6 +257,13 @@ def with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, points: np.ndarray
     from scipy.spatial import cKDTree
 
     sel = seg == c
+    if members is None:
+        members = component_members(seg, len(sizes))
+    flat = points.reshape(-1, 3)
+    own = flat[members[c]]
+    lo_c, hi_c = own.min(axis=0), own.max(axis=0)
+    if np.linalg.norm(hi_c - lo_c) > largest:
+        return sel  # already too wide for any union to stay within ``largest``
     v0, v1, u0, u1 = mask_bounds(sel)
     sw = seg[max(0, v0 - 1):v1 + 1, max(0, u0 - 1):u1 + 1]
     touching = set()
@@ -266,21 +273,16 @@ def with_attached(seg: np.ndarray, c: int, sizes: np.ndarray, points: np.ndarray
     touching = [k for k in sorted(touching) if sizes[k] < sizes[c]]
     if not touching:
         return sel
-    if members is None:
-        members = component_members(seg, len(sizes))
-    flat = points.reshape(-1, 3)
-    own = flat[members[c]]
-    lo_c, hi_c = own.min(axis=0), own.max(axis=0)
-    tree, attached = None, []
+    attached = []
     for k in touching:
         piece = flat[members[k]]
         lo_k, hi_k = piece.min(axis=0), piece.max(axis=0)
-        # the boxes' distance first: most pieces are far off
+        # the boxes' distance first: most pieces are far off; then only the candidate's points within reach of the
+        # piece's box can be within reach of the piece
         if np.linalg.norm(np.maximum(0.0, np.maximum(lo_c - hi_k, lo_k - hi_c))) >= gap:
             continue
-        if tree is None:
-            tree = cKDTree(own)
-        if tree.query(piece, distance_upper_bound=gap)[0].min() >= gap:
+        near = own[np.all((own > lo_k - gap) & (own < hi_k + gap), axis=1)]
+        if len(near) == 0 or cKDTree(near).query(piece, distance_upper_bound=gap)[0].min() >= gap:
             continue
         if np.linalg.norm(np.maximum(hi_c, hi_k) - np.minimum(lo_c, lo_k)) <= largest:
             attached.append(k)
