@@ -98,7 +98,10 @@ def test_a_nearly_closed_laptop_cut_in_two_by_a_depth_jump_is_one_candidate_and_
     depth, intr, visible, gt = _laptop_on_the_floor()
     pred = predict_depth(depth, intr, "laptop", seed=3)
     assert pred.result.ok, pred.result.message
-    assert pred.isolation.chosen == pred.isolation.order[0] and not any("merged" in v for v in pred.isolation.verified)
+    iso = pred.isolation
+    assert iso.chosen == iso.order[0] and not any("merged" in v for v in iso.verified)
+    # both pieces: the larger alone holds 87 % of the laptop's pixels
+    assert np.count_nonzero(iso.mask_of(iso.chosen) & visible) > 0.95 * np.count_nonzero(visible)
     assert _iou(pred.isolation.mask, visible) > 0.85
     ev = evaluate_fit(pred.result, gt)
     assert max(p.rot_deg for p in ev.parts) < 10.0
