@@ -49,7 +49,7 @@ import numpy as np
 from ..geometry._checks import as_array, check_generator
 from ..geometry.transforms import Sim3
 from ..model.articulated import sample_surface
-from .category_types import ViewpointRange
+from .category_types import CategoryConvention, ViewpointRange
 
 __all__ = [
     "DEFAULT_VIEWPOINT",
@@ -527,8 +527,9 @@ DEFAULT_VIEWPOINT = ViewpointRange()
 
 
 def viewpoint_range(category) -> ViewpointRange:
-    """The :class:`ViewpointRange` of ``category``: its spec's ``[viewpoint]`` (the default range where it gives
-    none; ``None`` -> the default range).
+    """The :class:`ViewpointRange` of ``category`` (a name, a
+    :class:`~ancsh.data.category_types.CategoryConvention` or a range): its spec's ``[viewpoint]`` (the default range
+    where it gives none; ``None`` -> the default range).
 
     The paper renders "random camera viewpoints" with PyBullet without giving ranges; the built-in specs keep the
     user-facing side of each category in view (front doors, drawer fronts, the laptop's open side, the eyeglasses'
@@ -540,10 +541,12 @@ def viewpoint_range(category) -> ViewpointRange:
         return category
     from .conventions import CONVENTIONS
 
+    if isinstance(category, CategoryConvention):
+        view = category.viewpoint
+        return ViewpointRange(**dict(view)) if view else DEFAULT_VIEWPOINT
     if not isinstance(category, str) or category not in CONVENTIONS:
         raise ValueError(f"category: unknown category {category!r}; known: {sorted(CONVENTIONS)} (or None)")
-    view = CONVENTIONS[category].viewpoint
-    return ViewpointRange(**dict(view)) if view else DEFAULT_VIEWPOINT
+    return viewpoint_range(CONVENTIONS[category])
 
 
 def look_at(eye, target, up) -> Sim3:

@@ -67,6 +67,7 @@ def test_a_wrong_spec_names_its_file_and_key(tmp_path, edit, key, words, make_ca
 
 
 def test_a_spec_viewpoint_is_how_its_frames_are_rendered(tmp_path, clean_registry, make_category_spec):
+    from ancsh.data.conventions import CONVENTIONS
     from ancsh.data.render import DEFAULT_VIEWPOINT, ViewpointRange, viewpoint_range
 
     path = make_category_spec(tmp_path)
@@ -77,6 +78,9 @@ def test_a_spec_viewpoint_is_how_its_frames_are_rendered(tmp_path, clean_registr
     plain = resolve_category(str(make_category_spec(tmp_path, name="plain")))
     assert viewpoint_range(plain) == DEFAULT_VIEWPOINT
     assert viewpoint_range("box").distance == (1.8, 4.0)  # the built-in spec's
+    # a convention itself (a loaded category's) gives its spec's range as its name does
+    assert viewpoint_range(CONVENTIONS[name]) == viewpoint_range(name)
+    assert viewpoint_range(CONVENTIONS[plain]) == DEFAULT_VIEWPOINT
 
 
 def test_a_file_that_is_no_toml_or_no_spec_says_so(tmp_path):

@@ -131,9 +131,10 @@ def fit_candidate(d, intrinsics, mask, category, provider, formulation, num_poin
     if why is None:
         d, window, sigma = noise_averaged(d, mask, category)
         if window > 1:
+            seen = training_noise(category)
             note = (f"depth averaged over {window} x {window} pixels inside the segment before sampling: its noise "
-                    f"(sigma {1e3 * sigma:.1f} mm) is {sigma / training_noise(category):.1f} times the most the "
-                    f"network saw in training ({1e3 * training_noise(category):.1f} mm at its size)")
+                    f"(sigma {1e3 * sigma:.1f} mm) is {sigma / seen:.1f} times the most the network saw in training "
+                    f"({1e3 * seen:.1f} mm at its size)")
     tries = []
     for h in range(H):
         tries.append(fit_candidate_refinements(d, intrinsics, mask, category, provider, formulation, num_points,
@@ -154,10 +155,9 @@ def training_noise(category) -> float:
     category's typical size: the dataset's sensor model (:class:`~ancsh.data.noise.DepthNoise`) at the farthest
     training view (the category's viewpoint range, in box diagonals, times its typical diagonal)."""
     from ...data.noise import DepthNoise
-    from ...data.render import DEFAULT_VIEWPOINT, ViewpointRange
+    from ...data.render import viewpoint_range
 
-    view = category.convention.viewpoint if category.convention is not None else None
-    far = (ViewpointRange(**dict(view)) if view else DEFAULT_VIEWPOINT).distance[1]
+    far = viewpoint_range(category.convention).distance[1]
     return float(DepthNoise().sigma(far * category.typical_size))
 
 
