@@ -33,7 +33,7 @@ import numpy as np
 
 from ..geometry._checks import check_bool, check_generator, check_number, check_positive
 
-__all__ = ["DepthNoise", "apply_noise", "averaged_depth", "depth_edges", "measured_sigma"]
+__all__ = ["DepthNoise", "apply_noise", "averaged_depth", "depth_edges", "measured_sigma", "surface_mean"]
 
 
 @dataclass(frozen=True)
@@ -282,19 +282,51 @@ def averaged_depth(depth, mask, window: int, jump: float) -> np.ndarray:
         return out
     v0, v1, u0, u1 = bounds
     on = m & (d > 0)
-    r = int(window) // 2
-    padded, valid = np.pad(d, r), np.pad(on, r)
-    h, w = d.shape
-    total, count = np.zeros(d.shape), np.zeros(d.shape)
+    mean, _ = surface_mean(d, d, on, jump, int(window) // 2)
+    out[v0:v1, u0:u1][on] = mean[on]
+    return out
+
+
+def surface_mean(values, depth, valid, jump, radius: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's mean of ``values`` over the ``valid`` pixels of its ``(2 radius + 1)^2`` window whose ``depth`` is
+    within ``jump`` of its own (the same surface: depth edges stay sharp); a pixel that is not valid counts for none.
+
+    Parameters
+    ----------
+    values : (h, w) or (h, w, k) float64
+        What is averaged (depths, or points).
+    depth : (h, w) float64
+        Metres: what decides which neighbours are on the pixel's surface.
+    valid : (h, w) bool
+    jump : float or (h, w) float64
+        Metres.
+    radius : int
+
+    Returns
+    -------
+    mean : like ``values``
+        ``values`` where no neighbour counts (``valid`` False).
+    counts : (h, w) int64
+        Neighbours averaged per pixel (itself included; 0 off ``valid``).
+    """
+    values = np.asarray(values, dtype=np.float64)
+    h, w = valid.shape
+    r = int(radius)
+    channels = values.ndim == 3
+    pad = ((r, r), (r, r), (0, 0)) if channels else r
+    padded, padded_z, padded_valid = np.pad(values, pad), np.pad(depth, r), np.pad(valid, r)
+    total = np.zeros(values.shape)
+    counts = np.zeros(valid.shape, dtype=np.int64)
     for dy in range(-r, r + 1):
         for dx in range(-r, r + 1):
-            q = padded[r + dy:r + dy + h, r + dx:r + dx + w]
-            same = valid[r + dy:r + dy + h, r + dx:r + dx + w] & on & (np.abs(q - d) < jump)
-            total += np.where(same, q, 0.0)
-            count += same
-    block = out[v0:v1, u0:u1]
-    block[on] = total[on] / count[on]
-    return out
+            window = (slice(r + dy, r + dy + h), slice(r + dx, r + dx + w))
+            same = padded_valid[window] & valid & (np.abs(padded_z[window] - depth) < jump)
+            total += np.where(same[..., None] if channels else same, padded[window], 0.0)
+            counts += same
+    mean = values.copy()
+    some = counts > 0
+    mean[some] = total[some] / (counts[some][:, None] if channels else counts[some])
+    return mean, counts
 
 
 def _masked_window(depth, mask):

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..noise import surface_mean
+
 __all__ = ["NOISE_BINS", "SMOOTH_RADIUS", "TOLERANCE_SIGMAS", "noise_sigma", "plane_points", "smooth_grid"]
 
 #: The smoothing window is ``2 r + 1`` grid pixels wide (its neighbours within a depth jump of the centre count).
@@ -49,24 +51,7 @@ def smooth_grid(P: np.ndarray, gv: np.ndarray, jump: np.ndarray, radius: int = S
     counts : (h, w) int64
         Neighbours averaged per pixel (itself included; 0 off ``gv``).
     """
-    h, w = gv.shape
-    r = int(radius)
-    z = P[..., 2]
-    padded = np.pad(P, ((r, r), (r, r), (0, 0)))
-    valid = np.pad(gv, r)
-    total = np.zeros(P.shape)
-    counts = np.zeros(gv.shape, dtype=np.int64)
-    for dy in range(-r, r + 1):
-        for dx in range(-r, r + 1):
-            window = (slice(r + dy, r + dy + h), slice(r + dx, r + dx + w))
-            q = padded[window]
-            same = valid[window] & gv & (np.abs(q[..., 2] - z) < jump)
-            total += np.where(same[..., None], q, 0.0)
-            counts += same
-    smoothed = P.copy()
-    some = counts > 0
-    smoothed[some] = total[some] / counts[some][:, None]
-    return smoothed, counts
+    return surface_mean(P, P[..., 2], gv, jump, radius)
 
 
 def noise_sigma(P: np.ndarray, smoothed: np.ndarray, counts: np.ndarray, gv: np.ndarray) -> np.ndarray:
